@@ -1,0 +1,29 @@
+# The two commands a newcomer needs (see README.md):
+#   make bench   create .venv, install, run the main job (the Table-1 suite at bench size)
+#   make test    create .venv if needed, lint, run the tests
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+JOBS   ?= 2
+
+.PHONY: bench test venv lint clean
+
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+lint: venv
+	$(BIN)/ruff check .
+
+test: venv lint
+	$(BIN)/python -m pytest -n $(JOBS) --dist loadfile -q
+
+bench: venv
+	$(BIN)/cnnslam bench
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache *.egg-info

@@ -1,0 +1,5 @@
+"""Exceptions of the judge. One base class; subclasses where callers need to tell cases apart."""
+
+
+class EvalError(ValueError):
+    """Base class for every error raised by ``eval`` (bad trajectories, no associations, bad baselines)."""

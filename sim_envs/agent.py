@@ -1,0 +1,82 @@
+"""The agent contract: what a SLAM system plugged into the environment implements, and what it hands back.
+
+An agent is any object with ``reset``, ``step`` and ``finish`` (duck-typed; it need not import this module):
+
+- ``reset(intrinsics, image_size)``: a new episode; ``intrinsics`` is ``[fx, fy, cx, cy]`` (float64, pixels, OpenCV
+  convention), ``image_size`` is ``(H, W)``.
+- ``step(observation) -> action``: ``observation`` is the env's observation dict (``rgb`` (H, W, 3) uint8,
+  ``timestamp`` (1,) float64 seconds, ``intrinsics`` (4,) float64). The action is a dict with ``T_world_cam``
+  ((4, 4) float64, the agent's current camera-to-world estimate) and ``tracked`` (1 if tracking succeeded for this
+  frame, 0 if the agent considers itself lost).
+- ``finish() -> AgentOutput`` (or a dict with the same fields): key-frames with the agent's final depth maps and
+  poses, for the depth metric and the global model.
+
+Agents are named by ``"module:Class"`` strings and built with keyword arguments (:func:`load_agent`), so a user's
+agent plugs in exactly like ours. An agent whose class sets ``uses_ground_truth = True`` (the oracle, scale
+bootstrapping) also receives the env's ``info`` as ``step(observation, info)``; the driver records that it did.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from sim_envs.errors import SimEnvError
+
+
+@dataclass(frozen=True)
+class KeyframeDepth:
+    """One key-frame as the agent finally holds it.
+
+    timestamp: seconds (matches an observation's timestamp); depth: (H, W) float32 metres, 0 or NaN where the agent
+    has no estimate; T_world_cam: (4, 4) float64 estimated pose; uncertainty: optional (H, W) float32 depth variance
+    (m^2); labels: optional (H, W) uint8 semantic classes or (H, W, C) float32 class probabilities.
+    """
+
+    timestamp: float
+    depth: np.ndarray
+    T_world_cam: np.ndarray
+    uncertainty: np.ndarray | None = None
+    labels: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class AgentOutput:
+    """What an agent hands back at the end of an episode. ``extras``: free-form, JSON-serialisable diagnostics."""
+
+    keyframes: list[KeyframeDepth] = field(default_factory=list)
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class Agent(Protocol):
+    """Structural type of an agent (see the module docstring)."""
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None: ...
+
+    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]: ...
+
+    def finish(self) -> AgentOutput: ...
+
+
+def load_agent(entry_point: str, **kwargs: Any) -> Agent:
+    """Build an agent from a ``"module:Class"`` string (or ``"module:factory"``) with keyword arguments."""
+    module_name, sep, attr = entry_point.partition(":")
+    if not sep or not module_name or not attr:
+        raise SimEnvError(f"agent entry point must look like 'package.module:Class', got {entry_point!r}")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise SimEnvError(f"cannot import the agent module {module_name!r} of {entry_point!r}: {exc}") from exc
+    try:
+        factory = getattr(module, attr)
+    except AttributeError:
+        raise SimEnvError(f"module {module_name!r} has no attribute {attr!r} (agent {entry_point!r})") from None
+    agent = factory(**kwargs)
+    missing = [m for m in ("reset", "step", "finish") if not callable(getattr(agent, m, None))]
+    if missing:
+        raise SimEnvError(f"agent {entry_point!r} lacks the method(s) {', '.join(missing)}; see sim_envs.agent")
+    return agent

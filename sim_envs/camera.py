@@ -1,0 +1,100 @@
+"""Pinhole camera intrinsics, presets of the usual RGB-D datasets, and resolution scaling.
+
+Conventions (used everywhere in this project):
+- camera frame: x right, y down, z forward (OpenCV); pixel (u, v) = (column, row), pixel centres at integers;
+- images are H x W; depth is metric planar z in metres;
+- poses are ``T_world_cam`` 4x4 (camera-to-world).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from sim_envs.errors import SimEnvError, UnknownNameError
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics in pixels for an image of ``width`` x ``height``. fx may differ from fy; cx, cy anywhere."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise SimEnvError(f"image size must be positive, got {self.width}x{self.height}")
+        if not (np.isfinite([self.fx, self.fy, self.cx, self.cy]).all() and self.fx > 0 and self.fy > 0):
+            raise SimEnvError(
+                f"focal lengths must be finite and positive (OpenCV convention, y down), got fx={self.fx}, "
+                f"fy={self.fy}; a dataset with a negative fy (ICL-NUIM) is converted when it is loaded"
+            )
+
+    @property
+    def K(self) -> np.ndarray:
+        """The 3x3 intrinsic matrix, float64."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    def as_array(self) -> np.ndarray:
+        """``[fx, fy, cx, cy]`` as float64, the form agents receive in observations."""
+        return np.array([self.fx, self.fy, self.cx, self.cy], dtype=np.float64)
+
+    def scaled(self, width: int, height: int) -> Intrinsics:
+        """The same camera at another resolution, keeping pixel-centre conventions exact.
+
+        f' = f * s and c' = (c + 0.5) * s - 0.5 per axis, with s = new size / old size.
+        """
+        sx, sy = width / self.width, height / self.height
+        return Intrinsics(
+            fx=self.fx * sx,
+            fy=self.fy * sy,
+            cx=(self.cx + 0.5) * sx - 0.5,
+            cy=(self.cy + 0.5) * sy - 0.5,
+            width=int(width),
+            height=int(height),
+        )
+
+    def with_focal(self, fx: float, fy: float) -> Intrinsics:
+        """The same camera with other focal lengths (for focal-mismatch experiments)."""
+        return replace(self, fx=float(fx), fy=float(fy))
+
+    def fov_deg(self) -> tuple[float, float]:
+        """Horizontal and vertical field of view in degrees (for a centred principal point)."""
+        return (
+            float(np.degrees(2 * np.arctan(self.width / (2 * self.fx)))),
+            float(np.degrees(2 * np.arctan(self.height / (2 * self.fy)))),
+        )
+
+
+# Native 640x480 values (../shared/notes/reference-facts.md). ICL-NUIM's official K has fy = -480 because its raw
+# renders flip y; in this project's OpenCV convention the same camera has fy = +480.
+_NATIVE: dict[str, Intrinsics] = {
+    "icl": Intrinsics(481.20, 480.00, 319.50, 239.50, 640, 480),
+    "tum_fr1": Intrinsics(517.3, 516.5, 318.6, 255.3, 640, 480),
+    "tum_fr2": Intrinsics(520.9, 521.0, 325.1, 249.7, 640, 480),
+    "tum_fr3": Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480),
+    "tum_default": Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480),
+    "nyu": Intrinsics(518.8579, 519.4696, 325.5824, 253.7362, 640, 480),
+}
+
+DEFAULT_WIDTH, DEFAULT_HEIGHT = 320, 240  # the paper runs everything but the CNN at 320x240
+
+
+def camera_presets() -> list[str]:
+    """Names accepted by :func:`preset`."""
+    return sorted(_NATIVE)
+
+
+def preset(name: str, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT) -> Intrinsics:
+    """Intrinsics of a named dataset camera scaled to ``width`` x ``height`` (default 320x240)."""
+    try:
+        native = _NATIVE[name]
+    except KeyError:
+        valid = ", ".join(camera_presets())
+        raise UnknownNameError(f"unknown camera preset {name!r}; valid presets: {valid}") from None
+    return native.scaled(width, height)
