@@ -1,4 +1,17 @@
 """The judge: trajectory and depth metrics, tables, plots, benchmark suites and the regression gate.
 
 Never imports ``cnnslam``: agents are named by ``"module:Class"`` strings, environments by Gymnasium id.
+
+- :mod:`eval.trajectory` (poses, SE(3) helpers), :mod:`eval.association` (TUM greedy / evo nearest),
+  :mod:`eval.alignment` (SE(3), Sim(3), origin, none; rotation-only fallback), :mod:`eval.metrics` (ATE, RPE,
+  rotation and scale error, tracked share, length);
+- :mod:`eval.depth_metrics` (the paper's percentage of correct depth, density, AbsRel, RMSE, delta < 1.25),
+  :mod:`eval.semantic_metrics` (pixel accuracy, IoU);
+- :mod:`eval.results` (score an episode, run records, long-form frames), :mod:`eval.tables` (Table 1),
+  :mod:`eval.paper_table1` (the paper's numbers), :mod:`eval.plots`, :mod:`eval.regress` (the gate);
+- command lines: ``cnnslam eval`` (:mod:`eval.cli_ape`), ``cnnslam regress``, ``cnnslam export``;
+  ``python -m eval.bench_metrics`` times the metrics on 100k poses.
+
+File formats (TUM, KITTI) and dataset folders live in ``sim_envs.formats`` / ``sim_envs.datasets``: the world reads
+and writes them and must not import the judge.
 """

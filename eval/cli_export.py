@@ -1,0 +1,51 @@
+"""``cnnslam export SEQUENCE FOLDER``: write a registered simulated sequence as a TUM RGB-D folder.
+
+The folder layout (rgb/, depth/ 16-bit x5000, labels/, instances/, rgb.txt, depth.txt, groundtruth.txt and the
+``cnnslam.json`` side file with the intrinsics) is described in :mod:`sim_envs.datasets`. The sequence registry
+(:mod:`sim_envs.sequences`) and the renderers are imported only when the command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from sim_envs.datasets import export_tum_rgbd
+from sim_envs.errors import SimEnvError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("sequence", help="a registered sequence name (see sim_envs.sequences)")
+    parser.add_argument("folder", help="output folder (must not exist or be empty, unless --overwrite)")
+    parser.add_argument("--renderer", default="mujoco", help="renderer backend (default: mujoco)")
+    parser.add_argument("--frames", type=int, default=None, help="export only the first N frames")
+    parser.add_argument("--overwrite", action="store_true", help="write into a non-empty folder")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def open_sequence(name: str, renderer: str) -> Any:
+    """A registered sequence as a frame source (lazy imports: the registry pulls in scenes and renderers)."""
+    from sim_envs.sequences import get_sequence
+
+    try:
+        from sim_envs.sequences import SimulatedSequence
+    except ImportError:
+        from sim_envs.simsource import SimulatedSequence
+    return SimulatedSequence(get_sequence(name), renderer=renderer)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        source = open_sequence(args.sequence, args.renderer)
+        try:
+            folder = export_tum_rgbd(
+                source, args.folder, overwrite=args.overwrite, progress=not args.no_progress, max_frames=args.frames
+            )
+        finally:
+            source.close()
+    except SimEnvError as exc:
+        print(f"cnnslam export: error: {exc}", file=sys.stderr)
+        return 1
+    print(f"exported {args.sequence} to {folder}")
+    return 0

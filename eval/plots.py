@@ -1,0 +1,188 @@
+"""Plots of the judge (the only module of ``eval`` that imports matplotlib).
+
+Plot functions draw into axes the caller passes in and return them; the ``save_*`` wrappers build a
+:class:`matplotlib.figure.Figure` (no pyplot, no global state, works headless) and write it to a file.
+
+- :func:`plot_trajectory_top`: estimated vs ground-truth trajectory seen from above (two world axes);
+- :func:`plot_trajectory_axes`: x, y, z over time;
+- :func:`plot_error_over_time`: a per-pose error (ATE) over time;
+- :func:`plot_depth_error_map`: a key-frame's depth error like the paper's Fig. 3/4: blue where the estimate is
+  within 10 % of the ground truth (correct), red shades for wrong estimates (darker = larger error, saturating at
+  50 %), grey where the ground truth is valid but there is no estimate, black where there is no ground truth.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+from eval.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
+
+GT_STYLE = {"color": "0.25", "linestyle": "--", "linewidth": 1.2, "label": "ground truth"}
+EST_STYLE = {"color": "tab:blue", "linewidth": 1.2, "label": "estimate"}
+CORRECT_RGB = (0.12, 0.35, 0.95)
+MISSING_RGB = (0.55, 0.55, 0.55)
+NO_GT_RGB = (0.0, 0.0, 0.0)
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def plot_trajectory_top(ax: Axes, gt_positions: np.ndarray, est_positions: np.ndarray, plane: str = "xy") -> Axes:
+    """Both trajectories projected on ``plane`` (two of x, y, z, e.g. "xy" or "xz"), equal axis scale, metres."""
+    a, b = (_AXES[c] for c in plane)
+    gt, est = np.asarray(gt_positions), np.asarray(est_positions)
+    ax.plot(gt[:, a], gt[:, b], **GT_STYLE)
+    ax.plot(est[:, a], est[:, b], **EST_STYLE)
+    ax.plot(gt[:1, a], gt[:1, b], "o", color="0.25", markersize=4)
+    ax.plot(est[:1, a], est[:1, b], "o", color="tab:blue", markersize=4)
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(loc="best", fontsize="small")
+    ax.set_title("trajectory (top view)")
+    return ax
+
+
+def plot_trajectory_axes(
+    axes: Sequence[Axes], timestamps: np.ndarray, gt_positions: np.ndarray, est_positions: np.ndarray
+) -> Sequence[Axes]:
+    """x, y and z [m] over time [s] (relative to the first timestamp), one axis each (3 axes)."""
+    t = np.asarray(timestamps) - float(timestamps[0])
+    for k, ax in enumerate(axes[:3]):
+        ax.plot(t, np.asarray(gt_positions)[:, k], **GT_STYLE)
+        ax.plot(t, np.asarray(est_positions)[:, k], **EST_STYLE)
+        ax.set_ylabel(f"{'xyz'[k]} [m]")
+    axes[2].set_xlabel("time [s]")
+    axes[0].legend(loc="best", fontsize="small")
+    return axes
+
+
+def plot_error_over_time(
+    ax: Axes, timestamps: np.ndarray, errors: np.ndarray, label: str = "ATE", unit: str = "m"
+) -> Axes:
+    """A per-pose error over time with its RMSE as a horizontal line."""
+    t = np.asarray(timestamps) - float(timestamps[0])
+    e = np.asarray(errors)
+    ax.plot(t, e, color="tab:red", linewidth=1.0, label=label)
+    if e.size:
+        rmse = float(np.sqrt(np.mean(e * e)))
+        ax.axhline(rmse, color="k", linewidth=0.8, linestyle=":", label=f"RMSE {rmse:.4f} {unit}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{label} [{unit}]")
+    ax.set_ylim(bottom=0)
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+def depth_error_image(
+    depth_est: np.ndarray, depth_gt: np.ndarray, threshold: float = CORRECT_THRESHOLD, saturate: float = 0.5
+) -> np.ndarray:
+    """(H, W, 3) float RGB in 0..1 coding each pixel (see the module docstring for the colours)."""
+    gt_ok = valid_depth(depth_gt)
+    rel = relative_depth_error(depth_est, depth_gt)
+    correct = correct_depth_mask(depth_est, depth_gt, threshold)
+    wrong = np.isfinite(rel) & ~correct
+    img = np.zeros((*gt_ok.shape, 3))
+    img[gt_ok] = MISSING_RGB
+    strength = np.clip((np.nan_to_num(rel) - threshold) / max(saturate - threshold, 1e-9), 0.0, 1.0)
+    red = np.stack([0.95 - 0.45 * strength, 0.55 * (1 - strength), 0.45 * (1 - strength)], axis=-1)
+    img[wrong] = red[wrong]
+    img[correct] = CORRECT_RGB
+    img[~gt_ok] = NO_GT_RGB
+    return img
+
+
+def plot_depth_error_map(
+    ax: Axes, depth_est: np.ndarray, depth_gt: np.ndarray, threshold: float = CORRECT_THRESHOLD, title: str = ""
+) -> Axes:
+    """The coded error image of one key-frame; the title gives the share of correct and estimated pixels."""
+    gt_ok = valid_depth(depth_gt)
+    n_gt = max(int(gt_ok.sum()), 1)
+    correct = 100.0 * int(correct_depth_mask(depth_est, depth_gt, threshold).sum()) / n_gt
+    dense = 100.0 * int((gt_ok & valid_depth(depth_est)).sum()) / n_gt
+    ax.imshow(depth_error_image(depth_est, depth_gt, threshold), interpolation="nearest")
+    ax.set_title(f"{title}{' ' if title else ''}{correct:.1f}% correct, {dense:.1f}% dense", fontsize="small")
+    ax.set_axis_off()
+    return ax
+
+
+def plot_depth_map(ax: Axes, depth: np.ndarray, vmax: float | None = None, title: str = "") -> Axes:
+    """A depth map in metres (0 / NaN shown black)."""
+    d = np.where(valid_depth(depth), depth, np.nan)
+    cmap = colormaps["viridis"].with_extremes(bad="black")
+    ax.imshow(d, cmap=cmap, vmin=0.0, vmax=vmax, interpolation="nearest")
+    ax.set_title(title, fontsize="small")
+    ax.set_axis_off()
+    return ax
+
+
+def depth_legend_handles(threshold: float = CORRECT_THRESHOLD) -> list[Patch]:
+    """Legend patches for :func:`depth_error_image`'s colours."""
+    return [
+        Patch(color=CORRECT_RGB, label=f"correct (< {100 * threshold:.0f} %)"),
+        Patch(color=(0.95, 0.55, 0.45), label="wrong (darker = larger)"),
+        Patch(color=MISSING_RGB, label="no estimate"),
+        Patch(color=NO_GT_RGB, label="no ground truth"),
+    ]
+
+
+# ---------------------------------------------------------------------------------------------- figure wrappers
+def save_trajectory_figure(
+    path: str | Path,
+    timestamps: np.ndarray,
+    gt_positions: np.ndarray,
+    est_positions: np.ndarray,
+    errors: np.ndarray | None = None,
+    title: str = "",
+    plane: str = "xy",
+    dpi: int = 120,
+) -> Path:
+    """Top view, x/y/z over time and (if given) the ATE per pose over time, in one figure written to ``path``."""
+    fig = Figure(figsize=(12, 6.5), layout="constrained")
+    grid = fig.add_gridspec(4, 2)
+    plot_trajectory_top(fig.add_subplot(grid[:3, 0]), gt_positions, est_positions, plane)
+    axes = [fig.add_subplot(grid[k, 1]) for k in range(3)]
+    plot_trajectory_axes(axes, timestamps, gt_positions, est_positions)
+    if errors is not None:
+        plot_error_over_time(fig.add_subplot(grid[3, :]), timestamps, errors)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path, dpi)
+
+
+def save_depth_error_figure(
+    path: str | Path,
+    depth_est: Sequence[np.ndarray],
+    depth_gt: Sequence[np.ndarray],
+    titles: Sequence[str] | None = None,
+    threshold: float = CORRECT_THRESHOLD,
+    dpi: int = 120,
+) -> Path:
+    """One row per key-frame: ground-truth depth, estimated depth, coded error map (like the paper's Fig. 4)."""
+    n = len(depth_est)
+    fig = Figure(figsize=(10, 2.7 * max(n, 1) + 0.6), layout="constrained")
+    axes = fig.subplots(max(n, 1), 3, squeeze=False)
+    for k in range(n):
+        vmax = (
+            float(np.nanmax(np.where(valid_depth(depth_gt[k]), depth_gt[k], np.nan)))
+            if valid_depth(depth_gt[k]).any()
+            else None
+        )
+        name = titles[k] if titles else f"key-frame {k}"
+        plot_depth_map(axes[k, 0], depth_gt[k], vmax, f"{name}: ground truth")
+        plot_depth_map(axes[k, 1], depth_est[k], vmax, "estimate")
+        plot_depth_error_map(axes[k, 2], depth_est[k], depth_gt[k], threshold)
+    fig.legend(handles=depth_legend_handles(threshold), loc="outside lower center", ncols=4, fontsize="small")
+    return _save(fig, path, dpi)
+
+
+def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    return path

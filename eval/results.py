@@ -1,0 +1,250 @@
+"""One run's evaluation as a JSON-ready record, and many runs gathered in a pandas frame in long form.
+
+A run record (what :func:`evaluate_episode` returns and :func:`save_run` writes) is a dict::
+
+    {"schema": "cnnslam-run/1", "sequence": str, "method": str, "agent": str, "uses_ground_truth": bool,
+     "alignment": {...}, "association": {...}, "warnings": [str, ...],
+     "metrics": {name: float, ...},           # flat scalar metrics (names below)
+     "keyframes": [{"timestamp": s, "percent_correct": ..., ...}, ...],
+     "metadata": {name: scalar, ...}}         # run settings (seed, config...), free-form scalars
+
+Metric names: ``ate_{rmse,mean,median,std,min,max,pairs}`` (m), ``rot_deg_*`` (deg), ``rpe_trans_*`` (m),
+``rpe_rot_deg_*`` (deg), ``scale``, ``scale_error``, ``length_gt_m``, ``length_est_m``, ``tracked_share`` (0..1),
+``depth_percent_correct`` (pooled over key-frames; the Table-1 figure), ``depth_percent_correct_mean`` (mean over
+key-frames), ``depth_density``, ``depth_abs_rel``, ``depth_rmse``, ``depth_delta_1_25``, ``depth_keyframes``,
+``semantic_pixel_accuracy``, ``semantic_mean_iou``, ``semantic_iou_<class>``, ``step_ms_{mean,median,max}``,
+``fps``, ``frames``.
+
+Long form (:func:`runs_frame`): one row per (run, metric) with columns ``sequence, method, metric, value`` plus
+``run`` (the run's index or file), ``agent``, ``uses_ground_truth``, ``alignment``, ``alignment_used``,
+``association`` and one column per metadata key.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from eval.alignment import AlignmentMethod
+from eval.association import AssociationRule
+from eval.depth_metrics import (
+    CORRECT_THRESHOLD,
+    DepthMetrics,
+    aggregate_depth_metrics,
+    depth_metrics,
+)
+from eval.errors import EvalError
+from eval.metrics import RpeUnit, evaluate_trajectory
+from eval.semantic_metrics import confusion_matrix, metrics_from_confusion
+from eval.trajectory import PoseTrajectory
+from sim_envs.frames import NUM_CLASSES
+
+RUN_SCHEMA = "cnnslam-run/1"
+LONG_COLUMNS = ["sequence", "method", "metric", "value"]
+
+
+class ResultsError(EvalError):
+    """A run record or results file that cannot be read."""
+
+
+# ------------------------------------------------------------------------------------------------- one episode
+def evaluate_episode(
+    result: Any,
+    *,
+    alignment: str | AlignmentMethod = AlignmentMethod.SE3,
+    rpe_delta: float = 1.0,
+    rpe_unit: str | RpeUnit = RpeUnit.SECONDS,
+    depth_threshold: float = CORRECT_THRESHOLD,
+    method: str | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Score a driver's episode result (duck-typed on the fields of ``sim_envs.driver.EpisodeResult``).
+
+    Uses ``sequence``, ``agent``, ``timestamps`` (N,), ``T_world_cam_est`` (N, 4, 4), ``T_world_cam_gt``
+    (N, 4, 4), ``tracked`` (N,), ``keyframes`` (list of ``KeyframeDepth``), ``keyframe_gt`` (list of ``Frame``, the
+    ground truth at each key-frame), ``step_seconds`` (N,), ``uses_ground_truth`` and ``extras``. Estimated and
+    ground-truth poses are paired by index (rule ``"index"``). A key-frame is matched to the ground-truth frame with
+    its timestamp; one that cannot be scored is skipped with a warning, never losing the rest.
+    ``method``: the name shown in tables (default: the agent string).
+    """
+    timestamps = np.asarray(result.timestamps, dtype=np.float64)
+    gt = PoseTrajectory(timestamps, result.T_world_cam_gt)
+    est = PoseTrajectory(timestamps, result.T_world_cam_est)
+    traj = evaluate_trajectory(
+        gt,
+        est,
+        alignment=alignment,
+        association=AssociationRule.INDEX,
+        rpe_delta=rpe_delta,
+        rpe_unit=rpe_unit,
+        tracked=np.asarray(result.tracked, dtype=bool),
+    )
+    warnings = list(traj.warnings)
+    metrics: dict[str, float] = traj.flat_metrics()
+    metrics["frames"] = float(len(timestamps))
+    metrics.update(_timing_metrics(np.asarray(getattr(result, "step_seconds", []), dtype=np.float64)))
+    per_kf, kf_rows, conf = _score_keyframes(result.keyframes, result.keyframe_gt, depth_threshold, warnings)
+    pooled = aggregate_depth_metrics(per_kf, "pooled")
+    mean = aggregate_depth_metrics(per_kf, "mean")
+    metrics.update(
+        {
+            "depth_percent_correct": pooled.percent_correct,
+            "depth_percent_correct_mean": mean.percent_correct,
+            "depth_density": pooled.density,
+            "depth_abs_rel": pooled.abs_rel,
+            "depth_rmse": pooled.rmse,
+            "depth_delta_1_25": pooled.delta_1_25,
+            "depth_keyframes": float(len(per_kf)),
+        }
+    )
+    if conf is not None:
+        sem = metrics_from_confusion(conf)
+        metrics.update({f"semantic_{k}": float(v) for k, v in sem.to_dict().items() if k != "n_pixels"})
+    agent = str(result.agent)
+    return {
+        "schema": RUN_SCHEMA,
+        "sequence": str(result.sequence),
+        "method": method or agent,
+        "agent": agent,
+        "uses_ground_truth": bool(getattr(result, "uses_ground_truth", False)),
+        "alignment": traj.alignment.describe(),
+        "association": traj.association.describe(),
+        "warnings": warnings,
+        "metrics": metrics,
+        "keyframes": kf_rows,
+        "metadata": dict(metadata or {}),
+    }
+
+
+def _timing_metrics(step_seconds: np.ndarray) -> dict[str, float]:
+    s = step_seconds[np.isfinite(step_seconds)]
+    if s.size == 0:
+        return {}
+    return {
+        "step_ms_mean": 1000.0 * float(s.mean()),
+        "step_ms_median": 1000.0 * float(np.median(s)),
+        "step_ms_max": 1000.0 * float(s.max()),
+        "fps": float(1.0 / s.mean()) if s.mean() > 0 else math.nan,
+    }
+
+
+def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[str]):
+    """Per key-frame depth metrics, JSON rows, and the summed semantic confusion (None if no labels to score)."""
+    gt_frames = list(keyframe_gt)
+    gt_stamps = np.array([float(f.timestamp) for f in gt_frames])
+    per_kf: list[DepthMetrics] = []
+    rows: list[dict[str, Any]] = []
+    conf = None
+    for k, kf in enumerate(keyframes):
+        t = float(kf.timestamp)
+        if k < len(gt_frames) and abs(gt_stamps[k] - t) <= 1e-6:
+            frame = gt_frames[k]
+        else:
+            near = int(np.argmin(np.abs(gt_stamps - t))) if gt_stamps.size else -1
+            if near < 0 or abs(gt_stamps[near] - t) > 1e-6:
+                warnings.append(f"key-frame {k} at t={t:.6f} s has no ground-truth frame; skipped")
+                continue
+            frame = gt_frames[near]
+        depth_est = np.asarray(kf.depth, dtype=np.float32)
+        depth_gt = np.asarray(frame.depth, dtype=np.float32)
+        if depth_est.shape != depth_gt.shape:
+            if depth_est.ndim != 2:
+                warnings.append(f"key-frame {k}: depth of shape {depth_est.shape} is not (H, W); skipped")
+                continue
+            warnings.append(
+                f"key-frame {k}: depth {depth_est.shape} resized (nearest) to the ground truth's {depth_gt.shape}"
+            )
+            depth_est = cv2.resize(depth_est, depth_gt.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        m = depth_metrics(depth_est, depth_gt, threshold)
+        per_kf.append(m)
+        rows.append({"timestamp": t, **m.to_dict()})
+        labels = getattr(kf, "labels", None)
+        if labels is not None and frame.labels is not None:
+            pred = np.asarray(labels)
+            pred = pred if pred.ndim == 2 else np.argmax(pred, axis=2)
+            if pred.shape != frame.labels.shape:
+                pred = cv2.resize(pred.astype(np.uint8), frame.labels.shape[::-1], interpolation=cv2.INTER_NEAREST)
+            c = confusion_matrix(pred, frame.labels, NUM_CLASSES)
+            conf = c if conf is None else conf + c
+    return per_kf, rows, conf
+
+
+# ------------------------------------------------------------------------------------------------------ files
+def json_ready(obj: Any) -> Any:
+    """Replace NaN/inf by None and numpy scalars/arrays by Python values, recursively (strict JSON)."""
+    if isinstance(obj, Mapping):
+        return {str(k): json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_ready(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def save_run(record: Mapping[str, Any], path: str | Path) -> Path:
+    """Write a run record as strict JSON (NaN -> null)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(json_ready(record), indent=2, allow_nan=False) + "\n")
+    return path
+
+
+def load_run(path: str | Path) -> dict[str, Any]:
+    """Read a run record; null metrics come back as NaN."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ResultsError(f"{path}: not a readable JSON run record: {exc}") from exc
+    if not isinstance(record, dict) or not isinstance(record.get("metrics"), dict):
+        raise ResultsError(f"{path}: a run record is a JSON object with a 'metrics' object")
+    for key in ("sequence", "method"):
+        if key not in record:
+            raise ResultsError(f"{path}: the run record has no {key!r}")
+    record["metrics"] = {k: math.nan if v is None else float(v) for k, v in record["metrics"].items()}
+    return record
+
+
+# ------------------------------------------------------------------------------------------------------- tables
+def runs_frame(records: Iterable[Mapping[str, Any]], run_ids: Iterable[str] | None = None) -> pd.DataFrame:
+    """Many run records in long form: one row per (run, metric); see the module docstring for the columns."""
+    rows = []
+    ids = list(run_ids) if run_ids is not None else None
+    for n, rec in enumerate(records):
+        base = {
+            "sequence": rec["sequence"],
+            "method": rec.get("method") or rec.get("agent"),
+            "run": ids[n] if ids is not None else str(n),
+            "agent": rec.get("agent", rec.get("method")),
+            "uses_ground_truth": bool(rec.get("uses_ground_truth", False)),
+            "alignment": (rec.get("alignment") or {}).get("requested"),
+            "alignment_used": (rec.get("alignment") or {}).get("used"),
+            "association": (rec.get("association") or {}).get("rule"),
+        }
+        meta = {k: v for k, v in (rec.get("metadata") or {}).items() if isinstance(v, str | int | float | bool)}
+        for metric, value in rec["metrics"].items():
+            rows.append({**base, **meta, "metric": metric, "value": math.nan if value is None else float(value)})
+    if not rows:
+        return pd.DataFrame(columns=[*LONG_COLUMNS, "run"])
+    frame = pd.DataFrame(rows)
+    first = [*LONG_COLUMNS, "run"]
+    return frame[first + [c for c in frame.columns if c not in first]]
+
+
+def load_runs(paths: Iterable[str | Path]) -> pd.DataFrame:
+    """Read run-record JSON files (files, or folders searched for ``*.json``) into one long frame."""
+    files: list[Path] = []
+    for p in map(Path, paths):
+        files += sorted(p.rglob("*.json")) if p.is_dir() else [p]
+    return runs_frame([load_run(f) for f in files], run_ids=[str(f) for f in files])

@@ -1,0 +1,167 @@
+"""Pose trajectories and the SE(3)/SO(3) helpers the metrics are built from.
+
+A :class:`PoseTrajectory` is timestamps (N,) float64 seconds plus ``T_world_cam`` (N, 4, 4) float64 camera-to-world
+poses (OpenCV camera axes). Functions are batched over the leading axis and named after the maths, like evo's
+``lie_algebra``: ``relative_se3(T_a, T_b) = T_a^-1 T_b``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from eval.errors import EvalError
+from sim_envs.errors import FormatError
+from sim_envs.formats import (
+    DuplicatePolicy,
+    read_kitti_poses,
+    read_tum_trajectory,
+    write_kitti_poses,
+    write_tum_trajectory,
+)
+
+
+class TrajectoryError(EvalError):
+    """A trajectory that cannot be used (bad shapes, unreadable file)."""
+
+
+# ------------------------------------------------------------------------------------------------------ SE(3) maths
+def se3_inverse(T: np.ndarray) -> np.ndarray:
+    """Inverse of rigid transforms (..., 4, 4): [R t; 0 1]^-1 = [R^T -R^T t; 0 1]."""
+    T = np.asarray(T, dtype=np.float64)
+    out = np.zeros_like(T)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def relative_se3(T_a: np.ndarray, T_b: np.ndarray) -> np.ndarray:
+    """T_a^-1 T_b for stacks (..., 4, 4): the pose of b expressed in the frame of a."""
+    return se3_inverse(T_a) @ np.asarray(T_b, dtype=np.float64)
+
+
+def so3_angle(R: np.ndarray) -> np.ndarray:
+    """Rotation angle in radians, [0, pi], of rotation matrices (..., 3, 3).
+
+    atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2): accurate near 0 and near pi, unlike arccos of the trace alone.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    cos = (np.trace(R, axis1=-2, axis2=-1) - 1.0) / 2.0
+    skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    sin = np.linalg.norm(skew, axis=-1) / 2.0
+    return np.arctan2(sin, cos)
+
+
+def sim3_matrix(rotation: np.ndarray, translation: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """4x4 similarity [s R t; 0 1]."""
+    S = np.eye(4)
+    S[:3, :3] = scale * np.asarray(rotation, dtype=np.float64)
+    S[:3, 3] = np.asarray(translation, dtype=np.float64)
+    return S
+
+
+def transform_poses(T_world_cam: np.ndarray, rotation: np.ndarray, translation: np.ndarray, scale: float = 1.0):
+    """Apply the similarity x -> s R x + t to the world frame of poses (N, 4, 4).
+
+    The camera axes stay orthonormal: R' = R R_i, t' = s R t_i + t (the scale moves positions, it does not shrink
+    the cameras). Returns a new (N, 4, 4) float64 array.
+    """
+    T = np.asarray(T_world_cam, dtype=np.float64)
+    R = np.asarray(rotation, dtype=np.float64)
+    out = T.copy()
+    out[..., :3, :3] = R @ T[..., :3, :3]
+    out[..., :3, 3] = scale * (T[..., :3, 3] @ R.T) + np.asarray(translation, dtype=np.float64)
+    return out
+
+
+def path_length(positions: np.ndarray) -> float:
+    """Length in metres of the polyline through positions (N, 3): sum of |p_{i+1} - p_i|."""
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) if p.shape[0] > 1 else 0.0
+
+
+def distances_along_path(positions: np.ndarray) -> np.ndarray:
+    """Cumulative distance travelled (N,) metres, 0 at the first pose."""
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+# --------------------------------------------------------------------------------------------------- the data type
+@dataclass(frozen=True, eq=False)
+class PoseTrajectory:
+    """Timestamps (N,) float64 seconds and ``T_world_cam`` (N, 4, 4) float64 camera-to-world poses.
+
+    The arrays are copied and made read-only. Timestamps need not be increasing here (an association may repeat a
+    pose); the file readers enforce increasing timestamps.
+    """
+
+    timestamps: np.ndarray
+    T_world_cam: np.ndarray
+
+    def __post_init__(self) -> None:
+        stamps = np.array(self.timestamps, dtype=np.float64).reshape(-1)
+        T = np.array(self.T_world_cam, dtype=np.float64)
+        if T.ndim != 3 or T.shape[1:] != (4, 4):
+            raise TrajectoryError(f"T_world_cam must have shape (N, 4, 4), got {T.shape}")
+        if T.shape[0] != stamps.shape[0]:
+            raise TrajectoryError(f"{stamps.shape[0]} timestamps but {T.shape[0]} poses; they must pair one to one")
+        if not (np.isfinite(stamps).all() and np.isfinite(T).all()):
+            raise TrajectoryError("timestamps and poses must be finite numbers")
+        stamps.flags.writeable = False
+        T.flags.writeable = False
+        object.__setattr__(self, "timestamps", stamps)
+        object.__setattr__(self, "T_world_cam", T)
+
+    def __len__(self) -> int:
+        return int(self.timestamps.shape[0])
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(N, 3) camera centres in the world, metres."""
+        return self.T_world_cam[:, :3, 3]
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """(N, 3, 3) camera-to-world rotations."""
+        return self.T_world_cam[:, :3, :3]
+
+    def subset(self, indices: np.ndarray) -> PoseTrajectory:
+        """The poses at ``indices`` (an int array; repeats allowed)."""
+        idx = np.asarray(indices, dtype=np.int64)
+        return PoseTrajectory(self.timestamps[idx], self.T_world_cam[idx])
+
+    def length(self) -> float:
+        """Path length in metres."""
+        return path_length(self.positions)
+
+    # ------------------------------------------------------------------------------------------------------ files
+    @classmethod
+    def from_tum_file(cls, path: str | Path, *, duplicate_timestamps: DuplicatePolicy = "error") -> PoseTrajectory:
+        """Read a TUM trajectory file (see :func:`sim_envs.formats.read_tum_trajectory`)."""
+        try:
+            stamps, T = read_tum_trajectory(path, duplicate_timestamps=duplicate_timestamps)
+        except FormatError as exc:
+            raise TrajectoryError(str(exc)) from exc
+        return cls(stamps, T)
+
+    @classmethod
+    def from_kitti_file(cls, path: str | Path, *, rate_hz: float = 10.0) -> PoseTrajectory:
+        """Read a KITTI pose file; KITTI has no timestamps, so pose i gets ``i / rate_hz`` seconds."""
+        try:
+            T = read_kitti_poses(path)
+        except FormatError as exc:
+            raise TrajectoryError(str(exc)) from exc
+        return cls(np.arange(T.shape[0]) / float(rate_hz), T)
+
+    def to_tum_file(self, path: str | Path, *, header: str | None = None) -> Path:
+        """Write as a TUM trajectory file."""
+        return write_tum_trajectory(path, self.timestamps, self.T_world_cam, header=header)
+
+    def to_kitti_file(self, path: str | Path) -> Path:
+        """Write as a KITTI pose file (timestamps are dropped)."""
+        return write_kitti_poses(path, self.T_world_cam)

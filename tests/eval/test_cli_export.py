@@ -1,0 +1,53 @@
+import numpy as np
+import pytest
+
+import eval.cli_export as cli_export
+from cnnslam.cli import main
+from sim_envs.camera import preset
+from sim_envs.datasets import RgbdFolder
+from sim_envs.frames import Frame
+
+
+class TinySource:
+    """A 4-frame source of random images (the exporter needs nothing else)."""
+
+    def __init__(self):
+        self.name = "tiny"
+        self.intrinsics = preset("tum_fr3", 32, 24)
+        self.timestamps = np.arange(4) / 30.0
+        self.poses = np.tile(np.eye(4), (4, 1, 1))
+        self.poses[:, 0, 3] = np.arange(4) * 0.1
+        self.closed = False
+
+    def __len__(self):
+        return 4
+
+    def frame(self, i):
+        rng = np.random.default_rng(i)
+        rgb = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+        depth = rng.uniform(0.5, 5.0, (24, 32)).astype(np.float32)
+        return Frame(i, float(self.timestamps[i]), rgb, depth, self.poses[i])
+
+    def close(self):
+        self.closed = True
+
+
+def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
+    source = TinySource()
+    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer: source)
+    out = tmp_path / "tiny"
+    assert main(["export", "tiny", str(out), "--no-progress", "--frames", "3"]) == 0
+    assert "exported tiny" in capsys.readouterr().out and source.closed
+    loaded = RgbdFolder(out)
+    assert len(loaded) == 3 and loaded.intrinsics == source.intrinsics
+    np.testing.assert_array_equal(loaded.frame(2).rgb, source.frame(2).rgb)
+    np.testing.assert_allclose(loaded.poses, source.poses[:3], atol=1e-9)
+    assert loaded.frame(0).labels is None
+    assert main(["export", "tiny", str(out), "--no-progress"]) == 1  # not empty
+    assert "not empty" in capsys.readouterr().err
+
+
+def test_export_command_unknown_sequence(tmp_path, capsys):
+    pytest.importorskip("sim_envs.sequences")
+    assert main(["export", "no-such-sequence", str(tmp_path / "x"), "--no-progress"]) == 1
+    assert "no-such-sequence" in capsys.readouterr().err
