@@ -1,0 +1,83 @@
+"""Two trivial agents for tests and as reference points: a ground-truth oracle and a constant-pose agent.
+
+Both follow the agent contract of :mod:`sim_envs.agent`. The oracle declares ``uses_ground_truth = True`` and so
+receives the env's ``info`` (``step(observation, info)``); results of such agents are marked by the driver.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sim_envs.agent import AgentOutput, KeyframeDepth
+from sim_envs.errors import SimEnvError
+
+
+class OracleAgent:
+    """Returns the ground-truth pose every frame and reports a key-frame with ground-truth depth every
+    ``keyframe_every`` frames (frames 0, k, 2k, ...; none when the env gives no ``gt_depth``).
+
+    An upper bound for tracking (zero error) and for depth (100 % correct on key-frames), and a check of the
+    evaluation pipeline end to end.
+    """
+
+    uses_ground_truth = True
+    name = "oracle"
+
+    def __init__(self, keyframe_every: int = 10) -> None:
+        if int(keyframe_every) < 1:
+            raise SimEnvError(f"keyframe_every must be >= 1, got {keyframe_every}")
+        self.keyframe_every = int(keyframe_every)
+        self._keyframes: list[KeyframeDepth] = []
+        self._n = 0
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """Forget the previous episode."""
+        self._keyframes, self._n = [], 0
+
+    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, Any]:
+        """The ground-truth pose of this frame (from ``info["gt_T_world_cam"]``), tracked."""
+        if "gt_T_world_cam" not in info:
+            raise SimEnvError("OracleAgent needs info['gt_T_world_cam'] from the environment")
+        T = np.array(info["gt_T_world_cam"], dtype=np.float64)
+        if self._n % self.keyframe_every == 0 and "gt_depth" in info:
+            self._keyframes.append(
+                KeyframeDepth(
+                    timestamp=float(observation["timestamp"][0]),
+                    depth=np.array(info["gt_depth"], dtype=np.float32),
+                    T_world_cam=T.copy(),
+                    labels=None if "gt_labels" not in info else np.array(info["gt_labels"], dtype=np.uint8),
+                )
+            )
+        self._n += 1
+        return {"T_world_cam": T, "tracked": 1}
+
+    def finish(self) -> AgentOutput:
+        """The key-frames collected (ground-truth depth and pose) and the number of frames seen."""
+        return AgentOutput(keyframes=list(self._keyframes), extras={"frames": self._n})
+
+
+class ConstantPoseAgent:
+    """Answers the identity pose for every frame and reports no key-frames: the "does nothing" baseline (its ATE
+    after alignment is the spread of the ground-truth trajectory). ``tracked``: what it claims each frame."""
+
+    uses_ground_truth = False
+    name = "constant_pose"
+
+    def __init__(self, tracked: bool = True) -> None:
+        self.tracked = bool(tracked)
+        self._n = 0
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """Forget the previous episode."""
+        self._n = 0
+
+    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
+        """The identity pose."""
+        self._n += 1
+        return {"T_world_cam": np.eye(4), "tracked": int(self.tracked)}
+
+    def finish(self) -> AgentOutput:
+        """No key-frames; the number of frames seen."""
+        return AgentOutput(keyframes=[], extras={"frames": self._n})

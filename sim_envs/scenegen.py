@@ -1,0 +1,801 @@
+"""Seedable procedural rooms: ``generate_scene(style, seed)`` -> :class:`~sim_envs.scene.Scene`.
+
+Test styles ``office`` and ``living`` (like ICL-NUIM's office and living room); training-only styles ``bedroom``,
+``kitchen``, ``classroom`` and ``study`` share the same generators (rooms, openings, furniture, objects, textures), so
+a network trained on them sees the same kind of world laid out differently.
+
+A room: floor, four walls, ceiling (closed: a window is a textured pane, so every pixel hits a surface), 1-2 doors,
+windows, posters or a whiteboard; furniture from :mod:`sim_envs.furniture` placed without overlaps, mostly against
+walls (front to the room), some free-standing with chairs around; small objects placed on furniture tops, shelves and
+the floor, then dropped and settled with MuJoCo physics (:mod:`sim_envs.physics`) so they rest plausibly.
+
+Determinism: one ``numpy.random.Generator`` for the layout and one for textures, both seeded from ``(seed, style)``;
+nothing is cached between calls. The texture generator draws the same numbers whatever ``texture_density``, so the
+same seed at another density gives the same room with fewer and fainter textures.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from sim_envs import furniture as fur
+from sim_envs.errors import SimEnvError, UnknownNameError
+from sim_envs.frames import SemanticClass
+from sim_envs.materials import MaterialBank
+from sim_envs.physics import FreeBody, settle_bodies
+from sim_envs.scene import Light, Material, Primitive, Scene
+
+TEST_STYLES: tuple[str, ...] = ("office", "living")
+TRAIN_STYLES: tuple[str, ...] = ("bedroom", "kitchen", "classroom", "study")
+ROOM_STYLES: tuple[str, ...] = TEST_STYLES + TRAIN_STYLES
+
+WALL_THICKNESS = 0.1  # metres (ours)
+CLEARANCE = 0.04  # metres kept free between pieces of furniture (ours)
+DROP_HEIGHT = 0.004  # metres above its support an object starts falling from (ours)
+VERT, FLOOR = SemanticClass.VERTICAL_STRUCTURE, SemanticClass.FLOOR
+
+
+@dataclass(frozen=True)
+class Item:
+    """A kind of furniture a style places: FURNITURE builder name, (min, max) count, "wall" or "free", and a group.
+
+    group: "" (alone), "chair" (a chair in front, facing it), "chairs" (chairs around a table), "coffee" (a coffee
+    table in front of a sofa), "rows" (a grid of pupils' desks with chairs, all facing wall 0).
+    """
+
+    builder: str
+    count: tuple[int, int]
+    place: str = "wall"
+    group: str = ""
+
+
+@dataclass(frozen=True)
+class Style:
+    """Everything a room style decides: size ranges (m), floor/wall material slots, openings, furniture, clutter."""
+
+    name: str
+    size_xy: tuple[float, float]
+    height: tuple[float, float]
+    floors: tuple[str, ...]
+    walls: tuple[str, ...]
+    items: tuple[Item, ...]
+    windows: tuple[int, int] = (1, 2)
+    doors: tuple[int, int] = (1, 2)
+    posters: tuple[int, int] = (1, 3)
+    whiteboard: bool = False
+    rug: float = 0.0  # probability of a rug in the middle of the room
+    clutter: float = 6.0  # objects per square metre of support (furniture tops), before caps
+    floor_objects: tuple[int, int] = (1, 3)
+
+
+_OFFICE_WALLS = ("wall_paint", "wall_paint", "wall_wallpaper")
+STYLES: dict[str, Style] = {
+    "office": Style(
+        name="office", size_xy=(4.5, 6.0), height=(2.6, 2.8),
+        floors=("floor_carpet", "floor_tiles"), walls=_OFFICE_WALLS,
+        items=(
+            Item("desk", (2, 4), "wall", "chair"), Item("bookshelf", (1, 2)), Item("cabinet", (1, 2)),
+            Item("desk", (0, 1), "free", "chair"), Item("table", (0, 1), "free", "chairs"),
+        ),
+        windows=(1, 2), posters=(1, 3), whiteboard=True, clutter=7.0,
+    ),
+    "living": Style(
+        name="living", size_xy=(4.5, 6.0), height=(2.5, 2.7),
+        floors=("floor_wood", "floor_wood", "floor_carpet"), walls=("wall_paint", "wall_wallpaper"),
+        items=(
+            Item("sofa", (1, 1), "wall", "coffee"), Item("tv_stand", (1, 1)), Item("bookshelf", (1, 2)),
+            Item("armchair", (0, 1)), Item("cabinet", (0, 1)), Item("table", (0, 1), "free", "chairs"),
+        ),
+        windows=(1, 3), posters=(1, 3), rug=0.7, clutter=5.0,
+    ),
+    "bedroom": Style(
+        name="bedroom", size_xy=(3.5, 5.0), height=(2.4, 2.7),
+        floors=("floor_wood", "floor_carpet"), walls=("wall_paint", "wall_wallpaper"),
+        items=(
+            Item("bed", (1, 1)), Item("nightstand", (1, 2)), Item("wardrobe", (1, 1)),
+            Item("desk", (0, 1), "wall", "chair"), Item("bookshelf", (0, 1)), Item("cabinet", (0, 1)),
+        ),
+        windows=(1, 2), posters=(0, 2), rug=0.5,
+    ),
+    "kitchen": Style(
+        name="kitchen", size_xy=(3.5, 5.0), height=(2.4, 2.7),
+        floors=("floor_tiles", "floor_concrete"), walls=("wall_tiles", "wall_paint"),
+        items=(
+            Item("counter", (1, 2)), Item("fridge", (1, 1)), Item("table", (1, 1), "free", "chairs"),
+            Item("cabinet", (0, 1)),
+        ),
+        windows=(1, 2), posters=(0, 1), clutter=8.0, floor_objects=(0, 2),
+    ),
+    "classroom": Style(
+        name="classroom", size_xy=(6.0, 8.0), height=(2.8, 3.2),
+        floors=("floor_tiles", "floor_concrete"), walls=("wall_paint",),
+        items=(
+            Item("small_desk", (6, 16), "free", "rows"), Item("teacher_desk", (1, 1), "wall", "chair"),
+            Item("bookshelf", (1, 2)), Item("cabinet", (1, 2)),
+        ),
+        windows=(2, 3), posters=(1, 3), whiteboard=True, clutter=4.0,
+    ),
+    "study": Style(
+        name="study", size_xy=(3.5, 5.0), height=(2.5, 2.8),
+        floors=("floor_wood", "floor_carpet"), walls=("wall_wallpaper", "wall_paint"),
+        items=(
+            Item("bookshelf", (2, 3)), Item("desk", (1, 1), "wall", "chair"), Item("armchair", (1, 1)),
+            Item("coffee_table", (0, 1), "free"), Item("cabinet", (0, 1)),
+        ),
+        windows=(1, 2), posters=(1, 2), rug=0.6,
+    ),
+}  # fmt: skip
+
+# What stands on what: furniture kind (or "floor") -> (object builder, weight); support kind "shelf" uses SHELF_OBJECTS
+OBJECTS_ON: dict[str, tuple[tuple[str, float], ...]] = {
+    "desk": (("book", 3), ("cup", 2), ("lamp", 1), ("plant", 1), ("box", 1), ("laptop", 1), ("bottle", 1)),
+    "table": (("cup", 3), ("bowl", 2), ("bottle", 2), ("vase", 1), ("book", 1), ("plant", 1)),
+    "coffee_table": (("book", 3), ("cup", 2), ("vase", 1), ("bowl", 1), ("plant", 1)),
+    "cabinet": (("vase", 2), ("plant", 2), ("book", 2), ("box", 2), ("lamp", 1)),
+    "nightstand": (("lamp", 3), ("book", 2), ("cup", 1)),
+    "counter": (("cup", 2), ("bottle", 3), ("bowl", 2), ("box", 1), ("plant", 1)),
+    "tv_stand": (("box", 1), ("vase", 1), ("book", 1)),
+    "sofa": (("pillow", 1),),
+    "armchair": (("pillow", 1),),
+    "floor": (("large_plant", 3), ("bin", 2), ("box", 2)),
+}
+SHELF_OBJECTS: tuple[tuple[str, float], ...] = (("box", 1), ("vase", 1), ("book", 1))
+MAX_OBJECTS_PER_SUPPORT = 7  # (ours)
+TUMBLING = frozenset({"book", "box", "pillow", "bottle", "cup", "bowl", "vase"})  # may be tossed (ours)
+TUMBLE_PROBABILITY = 0.35  # share of those tossed from a few cm with a random tilt rather than set down (ours)
+
+
+@dataclass(frozen=True)
+class Rect:
+    """An oriented footprint: centre (cx, cy), yaw (rad), half sizes (hx, hy) in metres; occupies z in [z0, z1]."""
+
+    cx: float
+    cy: float
+    yaw: float
+    hx: float
+    hy: float
+    z0: float = 0.0
+    z1: float = np.inf
+
+    def cv(self, grow: float = 0.0) -> tuple[tuple[float, float], tuple[float, float], float]:
+        """The rectangle in OpenCV's RotatedRect form, grown by ``grow`` metres on each side."""
+        return ((self.cx, self.cy), (2 * (self.hx + grow), 2 * (self.hy + grow)), float(np.degrees(self.yaw)))
+
+    def corners(self) -> np.ndarray:
+        """(4, 2) corner points (m)."""
+        c, s = np.cos(self.yaw), np.sin(self.yaw)
+        local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [self.hx, self.hy]
+        return local @ np.array([[c, s], [-s, c]]) + [self.cx, self.cy]
+
+    def overlaps(self, other: Rect, grow: float = 0.0) -> bool:
+        """Whether the two footprints intersect (after growing this one by ``grow``) and their heights overlap."""
+        if self.z1 <= other.z0 or other.z1 <= self.z0:
+            return False
+        if (
+            np.hypot(self.cx - other.cx, self.cy - other.cy)
+            > np.hypot(self.hx, self.hy) + np.hypot(other.hx, other.hy) + 2 * grow
+        ):
+            return False
+        return cv2.rotatedRectangleIntersection(self.cv(grow), other.cv())[0] != cv2.INTERSECT_NONE
+
+
+@dataclass(frozen=True)
+class Drop:
+    """A small object about to be dropped.
+
+    assembly: the object; T_world: (4, 4) upright pose ``lift`` metres above its resting place; tilt: (roll, pitch)
+    in radians it is tumbled by before falling (0 for objects set down upright), used only with physics.
+    """
+
+    assembly: fur.Assembly
+    T_world: np.ndarray
+    lift: float
+    tilt: tuple[float, float] = (0.0, 0.0)
+
+    def start_pose(self) -> np.ndarray:
+        """(4, 4) initial pose for physics: tilted about the object's origin, raised so no corner starts lower."""
+        if not any(self.tilt):
+            return self.T_world
+        R = fur.pose((0.0, 0.0, 0.0), (self.tilt[0], self.tilt[1], 0.0))
+        corners = np.concatenate([fur.part_corners(p) for p in self.assembly.parts])
+        low = (corners @ R[:3, :3].T)[:, 2].min()  # <= 0: how far the tilted object reaches below its origin
+        return self.T_world @ _T(0.0, 0.0, -low, 0.0) @ R
+
+
+@dataclass
+class Placed:
+    """An assembly placed in the room: its pose (yaw about z, translation) and footprint."""
+
+    assembly: fur.Assembly
+    T_world: np.ndarray
+    rect: Rect
+
+
+class Layout:
+    """The room's floor plan: what occupies which footprint (furniture, door clearances, window zones)."""
+
+    def __init__(self, size: np.ndarray) -> None:
+        self.size = size
+        self.rects: list[Rect] = []
+
+    def inside(self, rect: Rect, margin: float = 0.0) -> bool:
+        """Whether a footprint lies inside the room, ``margin`` metres from the walls."""
+        c = rect.corners()
+        return bool((c >= margin - 1e-9).all() and (c[:, 0] <= self.size[0] - margin + 1e-9).all()
+                    and (c[:, 1] <= self.size[1] - margin + 1e-9).all())  # fmt: skip
+
+    def fits(self, rects: list[Rect]) -> bool:
+        """Whether all ``rects`` lie inside the room, clear of everything placed and of each other."""
+        for k, r in enumerate(rects):
+            if not self.inside(r) or any(r.overlaps(o, CLEARANCE) for o in self.rects + rects[:k]):
+                return False
+        return True
+
+
+def _wall_frame(wall: int, size: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Wall ``wall`` (0: y = 0, 1: x = Lx, 2: y = Ly, 3: x = 0): (origin (2,), tangent (2,), length).
+
+    The tangent runs so that the inward normal is its left-hand perpendicular: n = (-t_y, t_x).
+    """
+    Lx, Ly = size[0], size[1]
+    return {
+        0: (np.array([0.0, 0.0]), np.array([1.0, 0.0]), Lx),
+        1: (np.array([Lx, 0.0]), np.array([0.0, 1.0]), Ly),
+        2: (np.array([Lx, Ly]), np.array([-1.0, 0.0]), Lx),
+        3: (np.array([0.0, Ly]), np.array([0.0, -1.0]), Ly),
+    }[wall]
+
+
+def _inward(tangent: np.ndarray) -> np.ndarray:
+    """The inward normal (2,) of a wall with unit ``tangent`` (its left-hand perpendicular)."""
+    return np.array([-tangent[1], tangent[0]])
+
+
+def _yaw_facing(direction: np.ndarray) -> float:
+    """The yaw that turns an assembly's front (+y) towards ``direction`` (2,)."""
+    return float(np.arctan2(-direction[0], direction[1]))
+
+
+def _T(x: float, y: float, z: float, yaw: float) -> np.ndarray:
+    """(4, 4) pose: yaw about z (radians), then translation (x, y, z) metres."""
+    return fur.pose((x, y, z), (0.0, 0.0, yaw))
+
+
+@dataclass(frozen=True)
+class Opening:
+    """A door or window on a wall: wall index, centre along the wall s (m), width, bottom and top heights (m)."""
+
+    kind: str
+    wall: int
+    s: float
+    width: float
+    z0: float
+    z1: float
+
+
+class _Builder:
+    """Builds one scene; holds the generators, the material bank, the layout and the primitives made so far."""
+
+    def __init__(self, style: Style, seed: int, texture_density: float) -> None:
+        key = zlib.crc32(style.name.encode())
+        layout_seq, texture_seq = np.random.SeedSequence([int(seed), key]).spawn(2)
+        self.rng = np.random.default_rng(layout_seq)
+        self.bank = MaterialBank(np.random.default_rng(texture_seq), texture_density)
+        self.style = style
+        self.size = np.array(
+            [self.rng.uniform(*style.size_xy), self.rng.uniform(*style.size_xy), self.rng.uniform(*style.height)]
+        )
+        self.layout = Layout(self.size)
+        self.primitives: list[Primitive] = []
+        self.counts: dict[str, int] = {}
+        self.n_instances = 0
+        self.openings: list[Opening] = []
+        self.placed: list[Placed] = []
+        self.wall_items: list[tuple[int, float, float, float]] = []  # (wall, s0, s1, top height) of furniture
+        self.opening_zones: list[Rect] = []  # kept clear in front of doors, and above the height of window sills
+
+    # ------------------------------------------------------------------------------------------------ primitives
+    def _instance(self, kind: str) -> tuple[int, str]:
+        """A new instance id and its name ``<kind>_<n>`` (n counts instances of that kind)."""
+        n = self.counts.get(kind, 0)
+        self.counts[kind] = n + 1
+        self.n_instances += 1
+        return self.n_instances - 1, f"{kind}_{n}"
+
+    def add_box(self, kind: str, parts: list[tuple[str, np.ndarray, tuple[float, float, float], Material]],
+                semantic: SemanticClass) -> None:  # fmt: skip
+        """One new instance made of boxes ``(part name, T_world_obj, half sizes, material)``."""
+        inst, name = self._instance(kind)
+        for part, T, half, mat in parts:
+            self.primitives.append(Primitive("box", half, T, mat, semantic, inst, f"{name}/{part}"))
+
+    def add_assembly(self, a: fur.Assembly, T_world: np.ndarray) -> None:
+        """One new instance holding the parts of ``a`` placed at ``T_world``."""
+        inst, name = self._instance(a.kind)
+        for part in a.parts:
+            self.primitives.append(
+                Primitive(
+                    part.kind, part.size, T_world @ part.T, part.material, a.semantic, inst, f"{name}/{part.name}"
+                )
+            )
+
+    # ------------------------------------------------------------------------------------------------ structure
+    def structure(self) -> None:
+        """Floor, ceiling, walls."""
+        Lx, Ly, H = self.size
+        t = WALL_THICKNESS
+        floor = self.bank.shared(self.rng.choice(self.style.floors))
+        wall = self.bank.shared(self.rng.choice(self.style.walls))
+        self.add_box("floor", [("slab", _T(Lx / 2, Ly / 2, -t / 2, 0), (Lx / 2 + t, Ly / 2 + t, t / 2), floor)], FLOOR)
+        ceiling = self.bank.shared("ceiling")
+        self.add_box(
+            "ceiling", [("slab", _T(Lx / 2, Ly / 2, H + t / 2, 0), (Lx / 2 + t, Ly / 2 + t, t / 2), ceiling)], VERT
+        )
+        for w in range(4):
+            origin, tangent, length = _wall_frame(w, self.size)
+            centre = origin + tangent * length / 2 - _inward(tangent) * t / 2
+            yaw = float(np.arctan2(tangent[1], tangent[0]))
+            self.add_box("wall", [("slab", _T(*centre, H / 2, yaw), (length / 2 + t, t / 2, H / 2), wall)], VERT)
+
+    def openings_(self) -> None:
+        """Doors and windows on the walls, apart from each other and from the corners; keep their zones clear."""
+        H = self.size[2]
+        wants = ["door"] * int(self.rng.integers(self.style.doors[0], self.style.doors[1] + 1))
+        wants += ["window"] * int(self.rng.integers(self.style.windows[0], self.style.windows[1] + 1))
+        for kind in wants:
+            for _ in range(30):
+                w = int(self.rng.integers(4))
+                _, _, length = _wall_frame(w, self.size)
+                width = self.rng.uniform(0.8, 0.95) if kind == "door" else self.rng.uniform(0.8, min(1.8, length / 2.5))
+                if length < width + 0.8:
+                    continue
+                s = self.rng.uniform(0.4 + width / 2, length - 0.4 - width / 2)
+                if kind == "door":
+                    z0, z1 = 0.0, self.rng.uniform(2.0, min(2.15, H - 0.2))
+                else:
+                    z0 = self.rng.uniform(0.8, 1.0)
+                    z1 = min(H - 0.25, z0 + self.rng.uniform(1.0, 1.5))
+                if any(o.wall == w and abs(o.s - s) < (o.width + width) / 2 + 0.3 for o in self.openings):
+                    continue
+                self.openings.append(Opening(kind, w, s, width, z0, z1))
+                break
+        for o in self.openings:
+            origin, tangent, _ = _wall_frame(o.wall, self.size)
+            n = _inward(tangent)
+            depth = 0.9 if o.kind == "door" else 0.75
+            c = origin + tangent * o.s + n * depth / 2
+            yaw = float(np.arctan2(tangent[1], tangent[0]))
+            grow = 0.15 if o.kind == "door" else 0.0
+            # a door's swing zone is blocked at every height; a window only above its sill
+            z0 = 0.0 if o.kind == "door" else o.z0 - 0.08  # below the sill
+            zone = Rect(c[0], c[1], yaw, o.width / 2 + grow, depth / 2, z0, np.inf)
+            self.layout.rects.append(zone)
+            self.opening_zones.append(zone)
+            self._opening_primitives(o)
+
+    def _opening_primitives(self, o: Opening) -> None:
+        """The primitives of a door (leaf, jambs, lintel) or a window (textured pane, sill) as one instance."""
+        origin, tangent, _ = _wall_frame(o.wall, self.size)
+        n = _inward(tangent)
+        yaw = float(np.arctan2(tangent[1], tangent[0]))
+        c = origin + tangent * o.s
+        h = o.z1 - o.z0
+        parts: list[tuple[str, np.ndarray, tuple[float, float, float], Material]] = []
+        if o.kind == "door":
+            leaf = self.bank.unique("door")
+            frame = self.bank.shared("door_frame")
+            p = c + n * 0.02
+            parts.append(("leaf", _T(*p, h / 2, yaw), (o.width / 2, 0.02, h / 2), leaf))
+            for k, sgn in enumerate((-1, 1)):
+                q = c + tangent * sgn * (o.width / 2 + 0.04) + n * 0.015
+                parts.append((f"jamb_{k}", _T(*q, (h + 0.06) / 2, yaw), (0.04, 0.015, (h + 0.06) / 2), frame))
+            q = c + n * 0.015
+            parts.append(("lintel", _T(*q, h + 0.03, yaw), (o.width / 2 + 0.08, 0.015, 0.03), frame))
+        else:
+            pane = self.bank.unique("window")
+            p = c + n * 0.01
+            parts.append(("pane", _T(*p, o.z0 + h / 2, yaw), (o.width / 2, 0.01, h / 2), pane))
+            q = c + n * 0.06
+            parts.append(("sill", _T(*q, o.z0 - 0.02, yaw), (o.width / 2 + 0.06, 0.06, 0.02), self.bank.shared("sill")))
+        self.add_box(o.kind, parts, VERT)
+
+    # ------------------------------------------------------------------------------------------------ furniture
+    def place(self, a: fur.Assembly, rect: Rect, wall: int | None = None, s: float = 0.0) -> None:
+        """Put ``a`` at ``rect`` (its footprint joins the layout); ``wall``, ``s``: where it stands against a wall."""
+        T = _T(rect.cx, rect.cy, 0.0, rect.yaw)
+        self.layout.rects.append(rect)
+        self.placed.append(Placed(a, T, rect))
+        self.add_assembly(a, T)
+        if wall is not None:
+            self.wall_items.append((wall, s - a.half[0], s + a.half[0], a.height))
+
+    def try_wall(self, a: fur.Assembly, tries: int = 40) -> tuple[Rect, int, float] | None:
+        """A free spot against a wall for ``a`` (its back to the wall), or None."""
+        hx, hy = a.half
+        for _ in range(tries):
+            w = int(self.rng.integers(4))
+            origin, tangent, length = _wall_frame(w, self.size)
+            if length < 2 * hx + 0.1:
+                continue
+            s = self.rng.uniform(hx + 0.02, length - hx - 0.02)
+            n = _inward(tangent)
+            c = origin + tangent * s + n * (hy + 0.01)
+            rect = Rect(c[0], c[1], _yaw_facing(n), hx, hy, 0.0, a.height)
+            if self.layout.fits([rect]):
+                return rect, w, s
+        return None
+
+    def try_free(self, a: fur.Assembly, extra: list[fur.Assembly], arrange: Callable[[Rect], list[Rect]],
+                 tries: int = 40) -> bool:  # fmt: skip
+        """Place ``a`` free-standing with companions ``extra`` arranged by ``arrange(rect) -> [Rect]``."""
+        hx, hy = a.half
+        for _ in range(tries):
+            yaw = float(self.rng.integers(4)) * np.pi / 2 + self.rng.uniform(-0.12, 0.12)
+            cx = self.rng.uniform(0.6 + hx, self.size[0] - 0.6 - hx) if self.size[0] > 1.2 + 2 * hx else None
+            cy = self.rng.uniform(0.6 + hy, self.size[1] - 0.6 - hy) if self.size[1] > 1.2 + 2 * hy else None
+            if cx is None or cy is None:
+                return False
+            rect = Rect(cx, cy, yaw, hx, hy, 0.0, a.height)
+            others = arrange(rect)
+            if self.layout.fits([rect, *others]):
+                self.place(a, rect)
+                for b, r in zip(extra, others, strict=True):
+                    self.place(b, r)
+                return True
+        return False
+
+    def furniture(self) -> None:
+        """Every item of the style: pieces against walls first (in the style's order), then free-standing groups."""
+        items = sorted(self.style.items, key=lambda it: it.place != "wall")
+        for item in items:
+            n = int(self.rng.integers(item.count[0], item.count[1] + 1))
+            if item.group == "rows":
+                self.rows(n)
+                continue
+            for _ in range(n):
+                a = fur.FURNITURE[item.builder](self.rng, self.bank)
+                if item.place == "wall":
+                    spot = self.try_wall(a)
+                    if spot is None:
+                        continue
+                    rect, w, s = spot
+                    companions = self.companions(a, rect, item.group)
+                    if not self.layout.fits([rect] + [r for _, r in companions]):
+                        companions = []
+                    self.place(a, rect, w, s)
+                    for b, r in companions:
+                        self.place(b, r)
+                else:
+                    extra = self.companion_assemblies(a, item.group)
+                    self.try_free(a, extra, lambda r, a=a, extra=extra, g=item.group: self.arrange(a, r, extra, g))
+
+    def companion_assemblies(self, a: fur.Assembly, group: str) -> list[fur.Assembly]:
+        """The furniture that goes with ``a`` in ``group``: a chair, 2+ chairs for a table, a coffee table."""
+        if group == "chair":
+            return [fur.FURNITURE["chair"](self.rng, self.bank)]
+        if group == "chairs":
+            long_side = 2 * a.half[0]
+            per_side = max(1, int(long_side // 0.7))
+            n = int(self.rng.integers(2, 2 * per_side + 1))
+            return [fur.FURNITURE["chair"](self.rng, self.bank) for _ in range(n)]
+        if group == "coffee":
+            return [fur.FURNITURE["coffee_table"](self.rng, self.bank)]
+        return []
+
+    def arrange(self, a: fur.Assembly, rect: Rect, extra: list[fur.Assembly], group: str) -> list[Rect]:
+        """Footprints of companions around ``a`` placed at ``rect``: a chair in front, chairs on both long sides."""
+        c, s = np.cos(rect.yaw), np.sin(rect.yaw)
+        ex, ey = np.array([c, s]), np.array([-s, c])  # the assembly's local x and y axes in the world
+        centre = np.array([rect.cx, rect.cy])
+        out = []
+        if group == "chair":
+            b = extra[0]
+            p = centre + ey * (a.half[1] + b.half[1] + 2 * CLEARANCE)
+            out.append(Rect(p[0], p[1], rect.yaw + np.pi, b.half[0], b.half[1], 0.0, b.height))
+        elif group == "chairs":
+            n = len(extra)
+            sides = [1, -1] * n
+            per = {1: (n + 1) // 2, -1: n // 2}
+            idx = {1: 0, -1: 0}
+            for b, side in zip(extra, sides, strict=False):
+                k = idx[side]
+                idx[side] += 1
+                x = (k + 0.5) / per[side] * 2 * a.half[0] - a.half[0]
+                p = centre + ex * x + ey * side * (a.half[1] + b.half[1] + 2 * CLEARANCE)
+                out.append(
+                    Rect(p[0], p[1], rect.yaw + (np.pi if side > 0 else 0.0), b.half[0], b.half[1], 0.0, b.height)
+                )
+        elif group == "coffee":
+            b = extra[0]
+            p = centre + ey * (a.half[1] + 0.4 + b.half[1])
+            out.append(Rect(p[0], p[1], rect.yaw, b.half[0], b.half[1], 0.0, b.height))
+        return out
+
+    def companions(self, a: fur.Assembly, rect: Rect, group: str) -> list[tuple[fur.Assembly, Rect]]:
+        """Companions of ``a`` placed at ``rect`` with their footprints."""
+        extra = self.companion_assemblies(a, group)
+        return list(zip(extra, self.arrange(a, rect, extra, group), strict=True))
+
+    def rows(self, n: int) -> None:
+        """A classroom: a grid of pupils' desks, each with a chair behind it, all facing wall 0 (y = 0)."""
+        Lx, Ly = self.size[0], self.size[1]
+        proto = fur.FURNITURE["small_desk"](self.rng, self.bank)
+        cols = max(1, int((Lx - 1.6) // (2 * proto.half[0] + 0.5)))
+        nrows = max(1, min(int(np.ceil(n / cols)), int((Ly - 2.4) // 1.3)))
+        x0 = (Lx - cols * (2 * proto.half[0] + 0.5)) / 2 + proto.half[0] + 0.25
+        for r in range(nrows):
+            for k in range(cols):
+                desk = proto if r == 0 and k == 0 else fur.FURNITURE["small_desk"](self.rng, self.bank)
+                chair = fur.FURNITURE["chair"](self.rng, self.bank)
+                cx = x0 + k * (2 * proto.half[0] + 0.5)
+                cy = 2.0 + r * 1.3
+                # desks face wall 0: their users sit on the +y side, looking towards -y
+                rect = Rect(cx, cy, np.pi, desk.half[0], desk.half[1], 0.0, desk.height)
+                crect = Rect(
+                    cx,
+                    cy + desk.half[1] + chair.half[1] + 2 * CLEARANCE,
+                    np.pi,
+                    chair.half[0],
+                    chair.half[1],
+                    0.0,
+                    chair.height,
+                )
+                if self.layout.fits([rect, crect]):
+                    self.place(desk, rect)
+                    self.place(chair, crect)
+
+    # ------------------------------------------------------------------------------------------------ wall decoration
+    def _free_on_wall(self, wall: int, s0: float, s1: float, z0: float) -> bool:
+        """Whether the stretch [s0, s1] of ``wall`` above height ``z0`` is clear of openings and furniture."""
+        for o in self.openings:
+            if o.wall == wall and s1 > o.s - o.width / 2 - 0.15 and s0 < o.s + o.width / 2 + 0.15:
+                return False
+        for w, a0, a1, top in self.wall_items:
+            if w == wall and s1 > a0 - 0.05 and s0 < a1 + 0.05 and top > z0 - 0.05:
+                return False
+        return True
+
+    def decorations(self) -> None:
+        """Posters (and a whiteboard) hung on free wall space."""
+        wants = ["whiteboard"] if self.style.whiteboard else []
+        wants += ["poster"] * int(self.rng.integers(self.style.posters[0], self.style.posters[1] + 1))
+        H = self.size[2]
+        for kind in wants:
+            for _ in range(40):
+                if kind == "whiteboard":
+                    w = self.rng.uniform(1.4, 2.2)
+                    h, z0 = w / 2, self.rng.uniform(0.85, 1.0)
+                    wall = 0 if self.style.name == "classroom" else int(self.rng.integers(4))
+                else:
+                    w = self.rng.uniform(0.35, 0.75)
+                    h, z0 = w * 4 / 3, self.rng.uniform(1.1, 1.45)
+                    wall = int(self.rng.integers(4))
+                if z0 + h > H - 0.15:
+                    continue
+                origin, tangent, length = _wall_frame(wall, self.size)
+                if length < w + 0.4:
+                    continue
+                s = self.rng.uniform(0.2 + w / 2, length - 0.2 - w / 2)
+                if not self._free_on_wall(wall, s - w / 2, s + w / 2, z0):
+                    continue
+                self.wall_items.append((wall, s - w / 2, s + w / 2, H))
+                n = _inward(tangent)
+                yaw = float(np.arctan2(tangent[1], tangent[0]))
+                p = origin + tangent * s + n * 0.008
+                mat = self.bank.unique(kind)
+                self.add_box(kind, [("board", _T(*p, z0 + h / 2, yaw), (w / 2, 0.008, h / 2), mat)],
+                             SemanticClass.SMALL_STRUCTURE)  # fmt: skip
+                break
+
+    def rug(self) -> None:
+        """A thin rug (floor class) near the middle of the room; furniture may stand on it."""
+        if self.rng.random() >= self.style.rug:
+            return
+        Lx, Ly = self.size[0], self.size[1]
+        hx, hy = self.rng.uniform(0.7, min(1.5, Lx / 2 - 0.6)), self.rng.uniform(0.6, min(1.2, Ly / 2 - 0.6))
+        cx = self.rng.uniform(0.5 + hx, Lx - 0.5 - hx)
+        cy = self.rng.uniform(0.5 + hy, Ly - 0.5 - hy)
+        self.add_box("rug", [("mat", _T(cx, cy, 0.004, 0.0), (hx, hy, 0.004), self.bank.unique("rug"))], FLOOR)
+
+    # ------------------------------------------------------------------------------------------------ small objects
+    def _choose(self, table: tuple[tuple[str, float], ...]) -> str:
+        """A name drawn from ``(name, weight)`` pairs."""
+        names = [n for n, _ in table]
+        w = np.array([w for _, w in table], dtype=float)
+        return names[int(self.rng.choice(len(names), p=w / w.sum()))]
+
+    def objects(self) -> list[Drop]:
+        """Small objects with their initial world poses, a few millimetres above their supports (``Drop.lift``)."""
+        out: list[Drop] = []
+        for placed in self.placed:
+            kind = placed.assembly.kind
+            for sup in placed.assembly.supports:
+                occupied: list[Rect] = []
+                if sup.kind == "shelf":
+                    out += self._shelf(placed, sup)
+                    continue
+                if kind == "desk" and self.style.name in ("office", "study") and self.rng.random() < 0.8:
+                    out += self._workstation(placed, sup, occupied)
+                if kind == "tv_stand":
+                    out += self._place_at(
+                        placed, sup, fur.OBJECTS["tv"](self.rng, self.bank), (0.0, -sup.half[1] * 0.3), 0.0, occupied
+                    )
+                table = OBJECTS_ON.get(kind)
+                if table is None:
+                    continue
+                area = 4 * sup.half[0] * sup.half[1]
+                n = min(MAX_OBJECTS_PER_SUPPORT, int(self.rng.poisson(self.style.clutter * area)))
+                if sup.kind == "seat":
+                    n = min(n, 2)
+                for _ in range(n):
+                    name = self._choose(table)
+                    if name == "book" and self.rng.random() < 0.4:
+                        out += self._pile(placed, sup, occupied)
+                        continue
+                    a = fur.OBJECTS[name](self.rng, self.bank)
+                    out += self._random_spot(placed, sup, a, occupied)
+        out += self._floor_objects()
+        return out
+
+    def _fits_support(self, sup: fur.Support, r: Rect, height: float, occupied: list[Rect]) -> bool:
+        """Whether footprint ``r`` (support frame) lies on ``sup``, fits under its headroom and clears ``occupied``."""
+        c = r.corners()
+        lo = np.array(sup.centre) - sup.half
+        hi = np.array(sup.centre) + sup.half
+        return bool((c >= lo).all() and (c <= hi).all() and height < sup.headroom - 0.02
+                    and not any(r.overlaps(o, 0.01) for o in occupied))  # fmt: skip
+
+    def _place_at(self, placed: Placed, sup: fur.Support, a: fur.Assembly, xy: tuple[float, float], yaw: float,
+                  occupied: list[Rect], lift: float = DROP_HEIGHT) -> list[Drop]:  # fmt: skip
+        """``a`` set at ``xy`` with ``yaw`` on ``sup`` of ``placed`` if it fits (else nothing), ``lift`` m above it."""
+        r = Rect(xy[0], xy[1], yaw, a.half[0], a.half[1])
+        if not self._fits_support(sup, r, a.height, occupied):
+            return []
+        # in world coordinates, clear of window sills with room to spare for a tossed object
+        T = placed.T_world @ _T(xy[0], xy[1], sup.z, yaw)
+        world = Rect(
+            T[0, 3], T[1, 3], float(np.arctan2(T[1, 0], T[0, 0])), a.half[0], a.half[1], sup.z, sup.z + a.height + 0.2
+        )
+        if any(world.overlaps(z, 0.02) for z in self.opening_zones):
+            return []
+        occupied.append(r)
+        return [Drop(a, placed.T_world @ _T(xy[0], xy[1], sup.z + lift, yaw), lift)]
+
+    def _random_spot(self, placed: Placed, sup: fur.Support, a: fur.Assembly,
+                     occupied: list[Rect]) -> list[Drop]:  # fmt: skip
+        """``a`` at a random free spot of ``sup`` (some objects tossed with a tilt), or nothing after 12 tries."""
+        for _ in range(12):
+            xy = (
+                sup.centre[0] + self.rng.uniform(-1, 1) * sup.half[0],
+                sup.centre[1] + self.rng.uniform(-1, 1) * sup.half[1],
+            )
+            got = self._place_at(placed, sup, a, xy, float(self.rng.uniform(-np.pi, np.pi)), occupied)
+            if got:
+                # some objects are tossed rather than set down: they tumble and settle in varied poses
+                lift, tilt = self.rng.uniform(0.03, 0.15), tuple(self.rng.uniform(-0.8, 0.8, 2))
+                if a.kind in TUMBLING and self.rng.random() < TUMBLE_PROBABILITY:
+                    d = got[0]
+                    got = [Drop(a, d.T_world @ _T(0.0, 0.0, lift, 0.0), d.lift + lift, tilt)]
+                return got
+        return []
+
+    def _pile(self, placed: Placed, sup: fur.Support, occupied: list[Rect]) -> list[Drop]:
+        """2-4 books dropped on top of each other (physics settles the pile)."""
+        books = [fur.OBJECTS["book"](self.rng, self.bank) for _ in range(int(self.rng.integers(2, 5)))]
+        base = max(books, key=lambda b: b.half[0] * b.half[1])
+        got = self._random_spot(placed, sup, base, occupied)
+        if not got:
+            return []
+        T0, lift = got[0].T_world, got[0].lift
+        z = base.height
+        for b in books:
+            if b is base:
+                continue
+            lift += 0.004
+            T = T0 @ _T(*self.rng.uniform(-0.015, 0.015, 2), z + 0.004, float(self.rng.uniform(-0.3, 0.3)))
+            got.append(Drop(b, T, lift))
+            z += b.height + 0.004
+        return got
+
+    def _workstation(self, placed: Placed, sup: fur.Support,
+                     occupied: list[Rect]) -> list[Drop]:  # fmt: skip
+        """A monitor at the back of a desk facing its user, a keyboard in front of it."""
+        m = fur.OBJECTS["monitor"](self.rng, self.bank)
+        x = self.rng.uniform(-0.3, 0.3) * sup.half[0]
+        out = self._place_at(placed, sup, m, (x, sup.centre[1] - sup.half[1] + m.half[1] + 0.02), 0.0, occupied)
+        if out:
+            k = fur.OBJECTS["keyboard"](self.rng, self.bank)
+            out += self._place_at(placed, sup, k, (x, sup.centre[1] + sup.half[1] * 0.35), 0.0, occupied)
+        return out
+
+    def _shelf(self, placed: Placed, sup: fur.Support) -> list[Drop]:
+        """A row of upright books (spines to the front) and a few other objects along one shelf board."""
+        out: list[Drop] = []
+        occupied: list[Rect] = []
+        x = sup.centre[0] - sup.half[0] + self.rng.uniform(0.0, 0.15)
+        end = sup.centre[0] + sup.half[0]
+        while x < end:
+            if self.rng.random() < 0.75:
+                a = fur.OBJECTS["standing_book"](self.rng, self.bank)
+            else:
+                a = fur.OBJECTS[self._choose(SHELF_OBJECTS)](self.rng, self.bank)
+            w = a.half[0]
+            y = sup.centre[1] - sup.half[1] + a.half[1] + 0.005
+            got = self._place_at(placed, sup, a, (x + w, y), 0.0, occupied, lift=0.002)
+            out += got
+            x += 2 * w + (0.003 if got else 0.0) + (self.rng.uniform(0.1, 0.3) if self.rng.random() < 0.15 else 0.0)
+        return out
+
+    def _floor_objects(self) -> list[Drop]:
+        """Objects standing on the floor along the walls (plants, bins, boxes)."""
+        out = []
+        for _ in range(int(self.rng.integers(self.style.floor_objects[0], self.style.floor_objects[1] + 1))):
+            a = fur.OBJECTS[self._choose(OBJECTS_ON["floor"])](self.rng, self.bank)
+            for _ in range(30):
+                # near a wall or a corner, where such things stand
+                w = int(self.rng.integers(4))
+                origin, tangent, length = _wall_frame(w, self.size)
+                s = self.rng.uniform(a.half[0] + 0.05, length - a.half[0] - 0.05)
+                c = origin + tangent * s + _inward(tangent) * (a.half[1] + 0.05)
+                yaw = _yaw_facing(_inward(tangent))
+                rect = Rect(c[0], c[1], yaw, a.half[0], a.half[1], 0.0, a.height)
+                if self.layout.fits([rect]):
+                    self.layout.rects.append(rect)
+                    out.append(Drop(a, _T(c[0], c[1], DROP_HEIGHT, yaw), DROP_HEIGHT))
+                    break
+        return out
+
+    def lights(self) -> tuple[tuple[Light, ...], float]:
+        """Two static directional lights (one from above, one from a side) and an ambient term summing to <= 0.95."""
+        ambient = float(self.rng.uniform(0.45, 0.55))
+        d1 = np.array([*self.rng.uniform(-0.5, 0.5, 2), -1.0])
+        phi = self.rng.uniform(0, 2 * np.pi)
+        d2 = np.array([np.cos(phi), np.sin(phi), -self.rng.uniform(0.2, 0.5)])
+        i1 = float(self.rng.uniform(0.2, 0.3))
+        i2 = float(max(0.05, 0.95 - ambient - i1))
+        lights = tuple(Light(tuple(float(v) for v in d / np.linalg.norm(d)), i) for d, i in ((d1, i1), (d2, i2)))
+        return lights, ambient
+
+
+def generate_scene(style: str, seed: int, texture_density: float = 1.0, settle: bool = True) -> Scene:
+    """A furnished room of ``style`` from ``seed``: the same arguments always give the same scene (bit for bit).
+
+    style: one of :data:`ROOM_STYLES`; seed: any non-negative int; texture_density in [0, 1]: how many surfaces are
+    textured and how strongly (0 = nearly textureless); settle: drop the small objects with MuJoCo physics until they
+    rest (False: they are placed exactly on their supports, which is faster but allows no piles to topple).
+    """
+    if style not in STYLES:
+        raise UnknownNameError(f"unknown room style {style!r}; valid styles: {', '.join(ROOM_STYLES)}")
+    if not 0.0 <= float(texture_density) <= 1.0:
+        raise SimEnvError(f"texture_density must be in [0, 1], got {texture_density}")
+    if int(seed) < 0:
+        raise SimEnvError(f"seed must be a non-negative integer, got {seed}")
+    b = _Builder(STYLES[style], int(seed), float(texture_density))
+    b.structure()
+    b.openings_()
+    b.furniture()
+    b.decorations()
+    b.rug()
+    drops = b.objects()
+    if settle and drops:
+        bodies = [FreeBody([(p.kind, p.size, p.T) for p in d.assembly.parts], d.start_pose()) for d in drops]
+        result = settle_bodies(list(b.primitives), bodies)
+        keep = np.flatnonzero(result.valid)
+        if len(keep) < len(drops):  # objects resting on a removed one fall again
+            again = [FreeBody(bodies[i].parts, result.T_world_body[i]) for i in keep]
+            second = settle_bodies(list(b.primitives), again, max_time=1.0)
+            keep, poses = keep[second.valid], second.T_world_body[second.valid]
+        else:
+            poses = result.T_world_body
+        placed = [(drops[i].assembly, T) for i, T in zip(keep, poses, strict=True)]
+    else:  # without physics, objects are put down exactly on their supports (upright, so lowering them is enough)
+        placed = [(d.assembly, _T(0.0, 0.0, -d.lift, 0.0) @ d.T_world) for d in drops]
+    for a, T in placed:
+        b.add_assembly(a, T)
+    lights, ambient = b.lights()
+    return Scene(style, int(seed), b.size, tuple(b.primitives), lights, ambient, float(texture_density))

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from sim_envs.agent import AgentOutput, load_agent
+from sim_envs.agents import ConstantPoseAgent, OracleAgent
+from sim_envs.errors import SimEnvError
+
+
+def _obs(t: float) -> dict:
+    return {
+        "rgb": np.zeros((4, 6, 3), np.uint8),
+        "timestamp": np.array([t]),
+        "intrinsics": np.array([5.0, 5.0, 2.5, 1.5]),
+    }
+
+
+def _info(i: int, with_depth: bool = True) -> dict:
+    T = np.eye(4)
+    T[:3, 3] = [0.1 * i, -0.2 * i, 0.05]
+    info = {"frame_index": i, "timestamp": i / 30, "gt_T_world_cam": T}
+    if with_depth:
+        info["gt_depth"] = np.full((4, 6), 1.0 + i, np.float32)
+        info["gt_labels"] = np.zeros((4, 6), np.uint8)
+    return info
+
+
+def test_oracle_returns_ground_truth_and_keyframes_every_k():
+    agent = OracleAgent(keyframe_every=3)
+    assert agent.uses_ground_truth
+    agent.reset(np.array([5.0, 5.0, 2.5, 1.5]), (4, 6))
+    for i in range(7):
+        action = agent.step(_obs(i / 30), _info(i))
+        np.testing.assert_array_equal(action["T_world_cam"], _info(i)["gt_T_world_cam"])
+        assert action["tracked"] == 1
+    out = agent.finish()
+    assert isinstance(out, AgentOutput)
+    assert [kf.timestamp for kf in out.keyframes] == pytest.approx([0.0, 3 / 30, 6 / 30])
+    assert [float(kf.depth[0, 0]) for kf in out.keyframes] == [1.0, 4.0, 7.0]
+    assert out.keyframes[1].depth.dtype == np.float32 and out.keyframes[1].labels.dtype == np.uint8
+    assert out.extras["frames"] == 7
+    # a new episode forgets the old key-frames
+    agent.reset(np.array([5.0, 5.0, 2.5, 1.5]), (4, 6))
+    assert agent.finish().keyframes == []
+
+
+def test_oracle_without_depth_reports_no_keyframes_and_rejects_missing_pose():
+    agent = OracleAgent(keyframe_every=1)
+    agent.reset(np.zeros(4), (4, 6))
+    agent.step(_obs(0.0), _info(0, with_depth=False))
+    assert agent.finish().keyframes == []
+    with pytest.raises(SimEnvError, match="gt_T_world_cam"):
+        agent.step(_obs(0.0), {})
+    with pytest.raises(SimEnvError, match="keyframe_every"):
+        OracleAgent(keyframe_every=0)
+
+
+def test_constant_pose_agent_and_loading_by_entry_point():
+    agent = load_agent("sim_envs.agents:ConstantPoseAgent", tracked=False)
+    assert isinstance(agent, ConstantPoseAgent) and not agent.uses_ground_truth
+    agent.reset(np.zeros(4), (4, 6))
+    a1, a2 = agent.step(_obs(0.0)), agent.step(_obs(1 / 30))
+    np.testing.assert_array_equal(a1["T_world_cam"], np.eye(4))
+    assert a1["tracked"] == 0
+    a1["T_world_cam"][0, 3] = 5.0  # the agent hands out a fresh array every step
+    np.testing.assert_array_equal(a2["T_world_cam"], np.eye(4))
+    out = agent.finish()
+    assert out.keyframes == [] and out.extras["frames"] == 2

@@ -1,0 +1,136 @@
+import logging
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import sim_envs  # noqa: F401  (registers the environments)
+from sim_envs.agent import AgentOutput, KeyframeDepth
+from sim_envs.agents import ConstantPoseAgent, OracleAgent
+from sim_envs.camera import Intrinsics
+from sim_envs.driver import EpisodeResult, run_episode
+from sim_envs.env import SlamEnv
+from sim_envs.errors import SimEnvError
+from sim_envs.frames import Frame
+from sim_envs.simsource import FrameListSource
+
+N = 8
+
+
+def _source(n: int = N) -> FrameListSource:
+    intr = Intrinsics(30.0, 31.0, 15.5, 11.5, 32, 24)
+    rng = np.random.default_rng(0)
+    frames = []
+    for i in range(n):
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("y", 2.0 * i, degrees=True).as_matrix()
+        T[:3, 3] = [0.05 * i, 0.0, 0.01 * i]
+        frames.append(
+            Frame(
+                index=i,
+                timestamp=100.0 + i / 30,
+                rgb=rng.integers(0, 256, (24, 32, 3), dtype=np.uint8),
+                depth=np.full((24, 32), 1.0 + 0.1 * i, np.float32),
+                T_world_cam=T,
+                labels=np.full((24, 32), i % 4, np.uint8),
+                instances=np.full((24, 32), i, np.int32),
+            )
+        )
+    return FrameListSource("arrays", intr, frames)
+
+
+def test_oracle_episode_has_exact_poses_and_keyframe_ground_truth():
+    env = SlamEnv(source=_source())
+    result = run_episode(env, OracleAgent(keyframe_every=3), progress=False)
+    assert isinstance(result, EpisodeResult)
+    assert result.n_frames == N and result.sequence == "arrays" and result.agent == "oracle"
+    assert result.uses_ground_truth and result.env_id is None
+    np.testing.assert_array_equal(result.frame_indices, np.arange(N))
+    np.testing.assert_allclose(result.timestamps, 100.0 + np.arange(N) / 30)
+    np.testing.assert_array_equal(result.T_world_cam_est, result.T_world_cam_gt)
+    np.testing.assert_array_equal(result.T_world_cam_gt, env.source.poses)
+    assert result.tracked.all() and result.step_seconds.shape == (N,) and (result.step_seconds >= 0).all()
+    # key-frames at frames 0, 3, 6 with ground-truth depth; keyframe_gt are the matching source frames
+    assert [kf.timestamp for kf in result.keyframes] == pytest.approx(100.0 + np.array([0, 3, 6]) / 30)
+    assert [f.index for f in result.keyframe_gt] == [0, 3, 6]
+    for kf, gt in zip(result.keyframes, result.keyframe_gt, strict=True):
+        np.testing.assert_array_equal(kf.depth, gt.depth)
+    assert result.extras["frames"] == N and result.extras["finish_seconds"] >= 0
+
+
+def test_constant_pose_agent_with_max_frames():
+    result = run_episode(SlamEnv(source=_source()), ConstantPoseAgent(tracked=False), max_frames=5, progress=False)
+    assert result.n_frames == 5 and not result.uses_ground_truth
+    np.testing.assert_array_equal(result.T_world_cam_est, np.tile(np.eye(4), (5, 1, 1)))
+    assert not result.tracked.any() and result.keyframes == [] and result.keyframe_gt == []
+    np.testing.assert_array_equal(result.T_world_cam_gt, _source().poses[:5])
+
+
+class _Scripted:
+    """An agent whose step returns what a test scripts, to exercise the driver's checks."""
+
+    def __init__(self, bad_step: int, bad_action: object, output: object = None) -> None:
+        self.bad_step, self.bad_action, self.output = bad_step, bad_action, output
+        self.n = 0
+
+    def reset(self, intrinsics, image_size):
+        self.n = 0
+
+    def step(self, observation):
+        self.n += 1
+        if self.n - 1 == self.bad_step:
+            return self.bad_action
+        return {"T_world_cam": np.eye(4), "tracked": True}
+
+    def finish(self):
+        return self.output if self.output is not None else AgentOutput()
+
+
+@pytest.mark.parametrize(
+    ("action", "message"),
+    [
+        ({"T_world_cam": np.eye(3), "tracked": 1}, r"shape \(4, 4\)"),
+        ({"T_world_cam": 2.0 * np.eye(4), "tracked": 1}, "not a rigid transform"),
+        ({"T_world_cam": np.diag([1.0, 1.0, -1.0, 1.0]), "tracked": 1}, "not a rigid transform"),
+        ({"T_world_cam": np.full((4, 4), np.nan), "tracked": 1}, "NaN"),
+        ({"T_world_cam": np.eye(4), "tracked": 7}, "'tracked' must be 0 or 1"),
+        ({"pose": np.eye(4)}, "must return a dict with 'T_world_cam'"),
+        (np.eye(4), "must return a dict"),
+    ],
+)
+def test_malformed_actions_are_named_by_step(action, message):
+    env = SlamEnv(source=_source())
+    with pytest.raises(SimEnvError, match=message) as err:
+        run_episode(env, _Scripted(bad_step=4, bad_action=action), progress=False)
+    assert "step 4 (frame 4)" in str(err.value)
+
+
+def test_finish_may_return_a_dict_and_unmatched_keyframes_are_dropped(caplog):
+    output = {
+        "keyframes": [
+            {"timestamp": 100.0 + 2 / 30, "depth": np.ones((24, 32), np.float32), "T_world_cam": np.eye(4)},
+            KeyframeDepth(timestamp=55.0, depth=np.ones((24, 32), np.float32), T_world_cam=np.eye(4)),
+        ],
+        "extras": {"note": "x"},
+    }
+    with caplog.at_level(logging.WARNING, logger="sim_envs.driver"):
+        result = run_episode(SlamEnv(source=_source()), _Scripted(-1, None, output), progress=False)
+    assert len(result.keyframes) == 1 and result.keyframe_gt[0].index == 2
+    assert result.extras["note"] == "x" and result.extras["unmatched_keyframes"] == [55.0]
+    assert "match no frame" in caplog.text
+    with pytest.raises(SimEnvError, match="unknown key"):
+        run_episode(SlamEnv(source=_source()), _Scripted(-1, None, {"kf": []}), progress=False)
+
+
+def test_ground_truth_agent_gets_full_ground_truth_from_a_pose_only_env():
+    env = gym.make("sim_envs/Replay-v0", source=_source(), ground_truth="pose")
+    result = run_episode(env, OracleAgent(keyframe_every=4), progress=False)
+    assert result.env_id == "sim_envs/Replay-v0"
+    assert len(result.keyframes) == 2  # frames 0 and 4: the env was asked for gt_depth although built with "pose"
+    np.testing.assert_array_equal(result.keyframes[1].labels, result.keyframe_gt[1].labels)
+
+
+def test_driver_rejects_non_slam_envs():
+    with pytest.raises(SimEnvError, match="SlamEnv"):
+        run_episode(gym.make("CartPole-v1"), ConstantPoseAgent(), progress=False)
