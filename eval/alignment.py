@@ -187,6 +187,28 @@ def align(
             reason = str(exc)
     R, t = rotation_only_alignment(T_gt[:, :3, :3], T_est[:, :3, :3], p_gt, p_est)
     warning = f"{method.value} alignment is not determined: {reason}; used rotation-only alignment instead"
+    scale = 1.0
     if method == AlignmentMethod.SIM3:
-        warning += " (scale not observable, kept at 1)"
-    return Alignment(method, ROTATION_ONLY, R, t, 1.0, warning)
+        scale = line_scale(p_gt, p_est, R, min_spread)
+        if scale is None:
+            warning += " (scale not observable, kept at 1)"
+            scale = 1.0
+        else:  # positions along a line still fix the scale once the rotation comes from the orientations
+            warning += " (scale fitted along the line of motion)"
+            t = p_gt.mean(axis=0) - scale * R @ p_est.mean(axis=0)
+    return Alignment(method, ROTATION_ONLY, R, t, scale, warning)
+
+
+def line_scale(p_gt: np.ndarray, p_est: np.ndarray, R: np.ndarray, min_spread: float = MIN_SPREAD_M) -> float | None:
+    """Least-squares scale s of y ~ s R x + t for a FIXED rotation R: s = sum(y_c . R x_c) / sum(|x_c|^2), with
+    centred positions (N, 3). Defined when the ground truth moves at least ``min_spread`` metres (RMS) along some
+    axis (a straight line is enough) and the fit is positive; None otherwise (pure rotation)."""
+    if p_gt.shape[0] < 2 or principal_spreads(p_gt)[0] < min_spread:
+        return None
+    xc = (p_est - p_est.mean(axis=0)) @ R.T
+    yc = p_gt - p_gt.mean(axis=0)
+    denominator = float((xc**2).sum())
+    if denominator <= 0.0:
+        return None
+    s = float((yc * xc).sum()) / denominator
+    return s if s > 0.0 else None

@@ -115,3 +115,14 @@ def test_principal_spreads_and_bad_input():
         align(np.eye(4)[None], np.eye(4)[None], "affine")
     with pytest.raises(AlignmentError, match="non-empty"):
         align(np.zeros((0, 4, 4)), np.zeros((0, 4, 4)))
+
+
+def test_straight_line_still_gives_the_sim3_scale():
+    """A straight dolly fixes the scale once orientations give the rotation (tum_structure_far-like motion)."""
+    T = random_trajectory(40, seed=7)
+    T[:, :3, 3] = np.outer(np.linspace(0, 2, 40), [1.0, 0.5, 0.0])
+    est = moved(T, R0, t0, 0.5)  # the estimate is half the true size
+    fit = align(T, est, "sim3")
+    assert fit.used == ROTATION_ONLY and "fitted along the line" in fit.warning
+    assert fit.scale == pytest.approx(2.0, rel=1e-9)
+    np.testing.assert_allclose(fit.apply(est), T, atol=1e-9)
