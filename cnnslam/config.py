@@ -1,0 +1,407 @@
+"""The one configuration of CNN-SLAM: a frozen dataclass per stage of the paper's Fig. 2, each field with its source.
+
+Sources: "paper" (Tateno et al., CVPR 2017), "LSD" (tum-vision/lsd_slam, the paper's baseline [4]; its constants are
+listed in ``../shared/notes/reference-facts.md`` sec. 4 and in LSD-SLAM's ``util/settings.{h,cpp}``), "ours" (a
+choice the paper and LSD-SLAM do not make for us; the comment says why).
+
+Resolution note: LSD-SLAM runs at 640x480 and tracks on pyramid levels 1..4 (320x240 down to 40x30), never at full
+resolution. CNN-SLAM runs every stage but the CNN at 320x240 (paper Sec. 4), which is LSD-SLAM's level 1. So our
+level 0 (320x240) is LSD's level 1 and every per-level LSD constant is shifted by one level.
+
+Switches for the paper's ablation (Fig. 3) and for the baselines of the paper's Table 1 (LSD, LSD-BS) are fields of
+this same config (:func:`ablation_config`, :func:`baseline_config`): the baselines are configurations of this code,
+not forks of it.
+
+Usage::
+
+    cfg = CnnSlamConfig()                                   # the paper's system
+    cfg = cfg.with_overrides({"depth.focal_adjustment": False, "refinement.enabled": False})
+    cfg = ablation_config("adjusted")                       # Fig. 3 (b)
+    cfg = baseline_config("lsd_bs")                         # LSD-SLAM with ground-truth scale bootstrap
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Literal, get_args
+
+from cnnslam.errors import CnnSlamError
+
+DepthSource = Literal["cnn", "constant", "random", "ground_truth_first"]
+RefinementDensity = Literal["dense", "semi_dense"]
+MotionModel = Literal["constant_velocity", "last_pose"]
+AblationName = Literal["raw", "adjusted", "refined"]
+BaselineName = Literal["cnn_slam", "lsd", "lsd_constant", "lsd_bs"]
+
+DEPTH_SOURCES: tuple[str, ...] = get_args(DepthSource)
+REFINEMENT_DENSITIES: tuple[str, ...] = get_args(RefinementDensity)
+MOTION_MODELS: tuple[str, ...] = get_args(MotionModel)
+ABLATIONS: tuple[str, ...] = get_args(AblationName)
+BASELINES: tuple[str, ...] = get_args(BaselineName)
+
+
+def _positive(section: str, name: str, value: float, allow_zero: bool = False) -> None:
+    ok = value >= 0 if allow_zero else value > 0
+    if not ok or value != value:  # NaN check without numpy
+        bound = ">= 0" if allow_zero else "> 0"
+        raise CnnSlamError(f"{section}.{name} must be {bound}, got {value!r}")
+
+
+def _choice(section: str, name: str, value: str, valid: tuple[str, ...]) -> None:
+    if value not in valid:
+        raise CnnSlamError(f"{section}.{name} must be one of {', '.join(valid)}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Frame-to-key-frame direct tracking (CNN-SLAM Sec. 3.1, eq. 1-4; LSD-SLAM's SE3Tracker)."""
+
+    # LSD: 5 levels at 640x480 (40x30 at the top); at 320x240 the same image sizes are 4 levels.
+    pyramid_levels: int = 4
+    # LSD: SE3TRACKING_MIN_LEVEL = 1 at 640x480, i.e. 320x240 = our level 0.
+    finest_level: int = 0
+    # LSD maxIterations {5, 20, 50, 100, 100} on its levels 0..4; ours are its levels 1..4.
+    max_iterations: tuple[int, ...] = (20, 50, 100, 100)
+    # LSD convergenceEps: stop a level when E_new / E_old > 0.999.
+    convergence_eps: float = 0.999
+    # LSD stepSizeMin: stop when the squared update norm is below this.
+    step_size_min: float = 1e-8
+    # LSD lambdaSuccessFac / lambdaFailFac; lambda starts at 0 and jumps to 0.2 on the first failure (LSD).
+    lambda_success_factor: float = 0.5
+    lambda_fail_factor: float = 2.0
+    lambda_first_fail: float = 0.2
+    # LSD minUseGrad: a pixel is used where the 3x3 max of |grad I| (8-bit intensities) is at least this.
+    min_gradient: float = 5.0
+    # LSD cameraPixelNoise2 = 4^2: sigma_I^2 of eq. 1's residual uncertainty (intensity levels^2).
+    photometric_variance: float = 16.0
+    # LSD var_weight: multiplies the propagated depth variance in the residual uncertainty.
+    depth_variance_weight: float = 1.0
+    # LSD huber_d / 2 = 1.5: Huber threshold on r / sigma(r) (eq. 1's rho).
+    huber_threshold: float = 1.5
+    # LSD MAX_DIFF_CONSTANT = 40^2 and MAX_DIFF_GRAD_MULT = 0.5^2: a residual is "good" when
+    # r^2 / (MAX_DIFF_CONSTANT + MAX_DIFF_GRAD_MULT * |grad I|^2) < 1.
+    max_diff_constant: float = 1600.0
+    max_diff_grad_mult: float = 0.25
+    # LSD MIN_GOODPERGOODBAD_PIXEL: a frame is lost when good / (good + bad) residuals fall below this.
+    min_good_per_good_bad: float = 0.5
+    # LSD MIN_GOODPERALL_PIXEL: ... or when good residuals are fewer than this share of the finest level's pixels.
+    min_good_per_all: float = 0.04
+    # Ours: ... or when eq. 1's energy per point at the solution exceeds max(energy_floor, max_energy_ratio *
+    # E_null), E_null being the energy of the key-frame's own intensities about their median (what an alignment
+    # that explains nothing leaves). LSD's "good" residual (|r| < 40 intensity levels) accepts most residuals of
+    # low-contrast indoor images even for a wrong pose; a correct pose explains most of the key-frame's contrast
+    # (E / E_null ~ 0.05-0.3), a wrong one none of it (~1). The floor (energy of residuals about twice sigma_I)
+    # keeps nearly textureless key-frames, whose E_null is itself small, from being declared lost on noise.
+    max_energy_ratio: float = 0.5
+    energy_floor: float = 1.0
+    # LSD MIN_GOODPERALL_PIXEL_ABSMIN: a level diverges when fewer points than this share of its pixels project in.
+    min_points_per_all: float = 0.01
+    # Initial guess of each frame's pose. LSD (useMotionModel = false) starts from the last pose; we start from a
+    # constant-velocity prediction and fall back to the last pose when that tracks worse (ours).
+    motion_model: MotionModel = "constant_velocity"
+    # LSD INITIALIZATION_PHASE_COUNT: while the map has at most this many key-frames and key-frame depth does not
+    # come from the CNN (the LSD baselines, whose first depth is random or constant and must first converge), a
+    # frame counts as lost only when tracking diverges (LSD-SLAM does the same). With CNN depth it has no effect.
+    initialization_keyframes: int = 5
+    # Recovery after a lost frame: re-track against up to this many other key-frames near the last good pose
+    # (LSD re-localises against key-frames found by findEuclideanOverlapFrames; ours: the number tried).
+    recovery_candidates: int = 3
+
+    def validate(self) -> None:
+        if not 1 <= self.pyramid_levels <= 8:
+            raise CnnSlamError(f"tracking.pyramid_levels must be in 1..8, got {self.pyramid_levels}")
+        if not 0 <= self.finest_level < self.pyramid_levels:
+            raise CnnSlamError(
+                f"tracking.finest_level must be in 0..{self.pyramid_levels - 1}, got {self.finest_level}"
+            )
+        if len(self.max_iterations) != self.pyramid_levels or min(self.max_iterations) < 1:
+            raise CnnSlamError(
+                f"tracking.max_iterations needs one positive count per pyramid level ({self.pyramid_levels}), "
+                f"got {self.max_iterations}"
+            )
+        if not 0 < self.convergence_eps <= 1:
+            raise CnnSlamError(f"tracking.convergence_eps must be in (0, 1], got {self.convergence_eps}")
+        for name in ("photometric_variance", "huber_threshold", "max_diff_constant", "lambda_first_fail",
+                     "max_energy_ratio", "energy_floor",
+                     "lambda_fail_factor", "lambda_success_factor"):
+            _positive("tracking", name, getattr(self, name))
+        for name in ("min_gradient", "depth_variance_weight", "max_diff_grad_mult", "step_size_min",
+                     "min_good_per_good_bad", "min_good_per_all", "min_points_per_all"):
+            _positive("tracking", name, getattr(self, name), allow_zero=True)
+        _choice("tracking", "motion_model", self.motion_model, MOTION_MODELS)
+        if self.initialization_keyframes < 0:
+            raise CnnSlamError(f"tracking.initialization_keyframes must be >= 0, got {self.initialization_keyframes}")
+        if self.recovery_candidates < 0:
+            raise CnnSlamError(f"tracking.recovery_candidates must be >= 0, got {self.recovery_candidates}")
+
+
+@dataclass(frozen=True)
+class KeyframeConfig:
+    """Key-frame selection (CNN-SLAM Sec. 3.3: "if the currently estimated pose is far from that of existing
+    key-frames"); the paper gives no rule, so LSD-SLAM's score is used."""
+
+    # LSD KFDistWeight and KFUsageWeight: score = (dist * 4)^2 + ((1 - usage) * 3)^2, dist = |t_kf_cur| * mean
+    # inverse depth of the key-frame, usage = share of key-frame points still seen (weighted by depth change).
+    distance_weight: float = 4.0
+    usage_weight: float = 3.0
+    # LSD: a new key-frame when the score exceeds 1 (after its initialisation phase; CNN depth needs none).
+    score_threshold: float = 1.0
+    # LSD MIN_NUM_MAPPED = 5: at least this many frames tracked on a key-frame before it may be replaced.
+    min_frames_per_keyframe: int = 5
+
+    def validate(self) -> None:
+        for name in ("distance_weight", "usage_weight", "score_threshold"):
+            _positive("keyframes", name, getattr(self, name))
+        if self.min_frames_per_keyframe < 0:
+            raise CnnSlamError(f"keyframes.min_frames_per_keyframe must be >= 0, got {self.min_frames_per_keyframe}")
+
+
+@dataclass(frozen=True)
+class DepthConfig:
+    """Key-frame depth and uncertainty initialisation (CNN-SLAM Sec. 3.2-3.3, eq. 5-9)."""
+
+    # Where a key-frame's depth comes from. "cnn": the network on that frame (the paper). Without a CNN (the LSD
+    # baselines) the first key-frame is initialised from "constant" depth, "random" depth (LSD's
+    # initializeRandomly) or "ground_truth_first" (LSD-BS: the paper's scale bootstrap; needs an agent that
+    # receives ground truth); later key-frames inherit depth propagated from the previous key-frame.
+    source: DepthSource = "cnn"
+    # Paper eq. 5 (Fig. 3 (a) vs (b)): multiply the CNN depth by f_cur / f_tr. False = raw CNN depth.
+    focal_adjustment: bool = True
+    # Paper eq. 7-9: fuse a new key-frame's CNN depth with the depth propagated from the nearest key-frame.
+    fuse_with_previous: bool = True
+    # Paper eq. 7: sigma_p^2, the white-noise variance added to propagated uncertainty (m^2). The paper gives no
+    # value (nor does LSD-SLAM's code): ours, (5 cm)^2, about the error of a well-refined depth at 2-3 m.
+    propagation_noise_variance: float = 0.0025
+    # Occlusion test before eq. 7-9 (LSD DIFF_FAC_PROP_MERGE = 1: a propagated and an existing hypothesis are merged
+    # only when diff^2 * factor <= the sum of their variances, else they see different surfaces). Here: the CNN's
+    # prior (first_keyframe_relative_sigma * D)^2 plus eq. 7's U~. Pixels that fail keep the CNN depth with the
+    # unmatched prior, as the neighbour saw another surface there (an occluder or what it hid).
+    occlusion_diff_factor: float = 1.0
+    # The very first key-frame has no neighbour for eq. 6. Ours: U = (r * D)^2 with r the CNN's typical relative
+    # error (FCRN: rel 0.127 on NYU v2, reference-facts sec. 5), rounded up to 0.2.
+    first_keyframe_relative_sigma: float = 0.2
+    # Pixels of a new key-frame that eq. 6 cannot evaluate (the nearest key-frame does not see them) get the same
+    # prior as the first key-frame (ours).
+    unmatched_relative_sigma: float = 0.2
+    # Floor on the uncertainty of eq. 6: U >= (r * D)^2. Without it a pixel where two CNN predictions agree
+    # exactly would get U = 0 and could never be refined (ours).
+    min_relative_sigma: float = 0.01
+    # Depth of the "constant" source (m) for the first key-frame; LSD-like inverse-depth variance below.
+    constant_depth: float = 1.0
+    # LSD initializeRandomly: inverse depth uniform in [0.5, 1.5] 1/m ...
+    random_inverse_depth_range: tuple[float, float] = (0.5, 1.5)
+    # ... with inverse-depth variance VAR_RANDOM_INIT_INITIAL = 0.5 * MAX_VAR = 0.125 (1/m)^2 (LSD).
+    random_inverse_depth_variance: float = 0.125
+    # LSD VAR_GT_INIT_INITIAL = 0.01^2 (1/m)^2: inverse-depth variance of a ground-truth-initialised key-frame.
+    ground_truth_inverse_depth_variance: float = 1e-4
+
+    def validate(self) -> None:
+        _choice("depth", "source", self.source, DEPTH_SOURCES)
+        for name in ("first_keyframe_relative_sigma", "unmatched_relative_sigma", "constant_depth",
+                     "random_inverse_depth_variance", "ground_truth_inverse_depth_variance"):
+            _positive("depth", name, getattr(self, name))
+        for name in ("propagation_noise_variance", "min_relative_sigma", "occlusion_diff_factor"):
+            _positive("depth", name, getattr(self, name), allow_zero=True)
+        lo, hi = self.random_inverse_depth_range
+        if not 0 < lo < hi:
+            raise CnnSlamError(f"depth.random_inverse_depth_range must be (lo, hi) with 0 < lo < hi, got {(lo, hi)}")
+
+    @property
+    def uses_cnn(self) -> bool:
+        """True when key-frame depth comes from the CNN (False for the LSD baselines)."""
+        return self.source == "cnn"
+
+
+@dataclass(frozen=True)
+class RefinementConfig:
+    """Frame-wise depth refinement by small-baseline epipolar stereo (CNN-SLAM Sec. 3.4, eq. 10-11; the stereo is
+    LSD-SLAM's / semi-dense VO's [5] ``doLineStereo``)."""
+
+    # Paper Fig. 3 (c) vs (b): refine key-frame depth with every tracked frame.
+    enabled: bool = True
+    # "dense": every key-frame pixel is attempted (the paper); "semi_dense": only pixels with |grad I| >=
+    # min_gradient_create, and without a CNN only those pixels carry depth at all (LSD-SLAM).
+    density: RefinementDensity = "dense"
+    # LSD MIN_ABS_GRAD_CREATE (= minUseGrad = 5): pixels of the semi-dense map.
+    min_gradient_create: float = 5.0
+    # LSD MIN_EPL_LENGTH_SQUARED, MIN_EPL_GRAD_SQUARED, MIN_EPL_ANGLE_SQUARED: a pixel is not searched when its
+    # epipolar line is shorter than 1 px, its gradient along the line below 2, or the angle term below 0.3^2.
+    min_epl_length_squared: float = 1.0
+    min_epl_grad_squared: float = 4.0
+    min_epl_angle_squared: float = 0.09
+    # LSD STEREO_EPL_VAR_FAC: search inverse depth mean +- 2 standard deviations.
+    search_sigmas: float = 2.0
+    # LSD MAX_EPL_LENGTH_CROP / MIN_EPL_LENGTH_CROP: searched segment 3 to 30 px.
+    max_epl_length: float = 30.0
+    min_epl_length: float = 3.0
+    # LSD GRADIENT_SAMPLE_DIST: the 5 SSD samples are 1 px apart along the epipolar line.
+    sample_distance: float = 1.0
+    # LSD SAMPLE_POINT_TO_BORDER: search positions stay this many px inside the image.
+    border: float = 7.0
+    # LSD MAX_ERROR_STEREO: reject when the best SSD over the 5 samples exceeds 4 * 1300 ...
+    max_error_stereo: float = 1300.0
+    # LSD MIN_DISTANCE_ERROR_STEREO: ... or when a non-adjacent second best is within a factor 1.5 (ambiguous).
+    min_distance_error_stereo: float = 1.5
+    # LSD useSubpixelStereo = true.
+    subpixel: bool = True
+    # LSD: the search is skipped when the depth ratio between the frames (rescale factor) leaves [0.7, 1.4].
+    min_rescale: float = 0.7
+    max_rescale: float = 1.4
+    # LSD MIN_DEPTH = 0.05 m: nearest depth searched for a pixel without a prior (max inverse depth 20).
+    min_depth: float = 0.05
+    # LSD SUCC_VAR_INC_FAC: the prior variance is inflated by 1.01 before each fusion, so that it never collapses.
+    prior_variance_inflation: float = 1.01
+    # LSD MAX_VAR = 0.5^2 (1/m)^2: a semi-dense hypothesis whose inverse-depth variance exceeds this is dropped.
+    max_inverse_depth_variance: float = 0.25
+    # The photometric noise sigma_I^2 of the observation variance (LSD cameraPixelNoise2, as in tracking).
+    photometric_variance: float = 16.0
+
+    def validate(self) -> None:
+        _choice("refinement", "density", self.density, REFINEMENT_DENSITIES)
+        for name in ("min_epl_length", "max_epl_length", "sample_distance", "max_error_stereo",
+                     "min_distance_error_stereo", "min_rescale", "max_rescale", "min_depth", "search_sigmas",
+                     "max_inverse_depth_variance", "photometric_variance"):
+            _positive("refinement", name, getattr(self, name))
+        for name in ("min_gradient_create", "min_epl_length_squared", "min_epl_grad_squared",
+                     "min_epl_angle_squared", "border"):
+            _positive("refinement", name, getattr(self, name), allow_zero=True)
+        if self.min_epl_length > self.max_epl_length:
+            raise CnnSlamError(
+                f"refinement.min_epl_length ({self.min_epl_length}) must not exceed max_epl_length "
+                f"({self.max_epl_length})"
+            )
+        if not self.min_rescale < self.max_rescale:
+            raise CnnSlamError(f"refinement.min_rescale must be below max_rescale, got {self.min_rescale}")
+        if self.prior_variance_inflation < 1:
+            raise CnnSlamError(f"refinement.prior_variance_inflation must be >= 1, got {self.prior_variance_inflation}")
+
+
+@dataclass(frozen=True)
+class PoseGraphConfig:
+    """Key-frame pose graph (CNN-SLAM Sec. 3.3: edges to key-frames "that share a similar field of view (i.e.
+    having a small relative pose)", global optimisation at each new key-frame)."""
+
+    enabled: bool = True
+    # LSD findCandidates: neighbours within (|t| * mean inverse depth)^2 < closenessTH * 15 / KFDistWeight^2
+    # with closenessTH = 1 ...
+    neighbour_distance_squared: float = 15.0 / 16.0
+    # ... and viewing directions within 1 - 0.25 * closenessTH = 0.75 of the mean field of view (LSD).
+    neighbour_angle_fov_fraction: float = 0.75
+    # LSD maxLoopClosureCandidates: at most this many candidate key-frames are aligned per new key-frame.
+    max_candidates: int = 10
+    # Levels of the key-frame-to-key-frame direct alignment (coarse to fine). LSD's constraint search runs its
+    # Sim3 tracker on levels 4..1 at 640x480, i.e. ours 3..0; we stop at level 1 to keep the key-frame thread fast
+    # (ours).
+    alignment_finest_level: int = 1
+    # An edge is accepted when both directions track well and agree (LSD checks the reciprocal tracking too):
+    # |log(T_ij T_ji)| translation below this times the mean depth, rotation below the angle (ours).
+    consistency_translation_relative: float = 0.02
+    consistency_rotation_deg: float = 1.0
+    # Edges to key-frames further back than this in creation order count as loop closures (reported) (ours).
+    loop_min_index_gap: int = 5
+    # LSD maxOptimizationIterations = 100; given to scipy's least_squares as its evaluation budget per variable.
+    max_iterations: int = 100
+
+    def validate(self) -> None:
+        for name in ("neighbour_distance_squared", "neighbour_angle_fov_fraction", "consistency_translation_relative",
+                     "consistency_rotation_deg"):
+            _positive("pose_graph", name, getattr(self, name))
+        if self.max_candidates < 0 or self.max_iterations < 1 or self.loop_min_index_gap < 1:
+            raise CnnSlamError(
+                "pose_graph.max_candidates must be >= 0, max_iterations >= 1, loop_min_index_gap >= 1; got "
+                f"{self.max_candidates}, {self.max_iterations}, {self.loop_min_index_gap}"
+            )
+        if self.alignment_finest_level < 0:
+            raise CnnSlamError(f"pose_graph.alignment_finest_level must be >= 0, got {self.alignment_finest_level}")
+
+
+@dataclass(frozen=True)
+class SystemConfig:
+    """The two threads of the paper (Sec. 4) and determinism."""
+
+    # Paper Sec. 4: a frame thread (tracking + refinement) and a key-frame thread (CNN, key-frame initialisation
+    # and fusion, pose graph). False: everything in the caller's thread, in a fixed order (deterministic; tests).
+    threads: bool = True
+    # Seeds the numpy Generator of the "random" depth source (the only randomness of the system).
+    seed: int = 0
+
+    def validate(self) -> None:
+        if self.seed < 0:
+            raise CnnSlamError(f"system.seed must be >= 0, got {self.seed}")
+
+
+@dataclass(frozen=True)
+class CnnSlamConfig:
+    """Every parameter of the system, one section per stage. Frozen; derive variants with :meth:`with_overrides`."""
+
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
+    depth: DepthConfig = field(default_factory=DepthConfig)
+    refinement: RefinementConfig = field(default_factory=RefinementConfig)
+    pose_graph: PoseGraphConfig = field(default_factory=PoseGraphConfig)
+    system: SystemConfig = field(default_factory=SystemConfig)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            getattr(self, f.name).validate()
+        if self.pose_graph.alignment_finest_level >= self.tracking.pyramid_levels:
+            raise CnnSlamError(
+                f"pose_graph.alignment_finest_level ({self.pose_graph.alignment_finest_level}) must be below "
+                f"tracking.pyramid_levels ({self.tracking.pyramid_levels})"
+            )
+
+    def with_overrides(self, overrides: dict[str, Any] | None = None, **kwargs: Any) -> CnnSlamConfig:
+        """A copy with ``{"section.field": value}`` entries (or ``section__field=value`` keywords) replaced.
+
+        Raises :class:`CnnSlamError` naming an unknown section or field and listing the valid ones.
+        """
+        items = dict(overrides or {})
+        items.update({k.replace("__", "."): v for k, v in kwargs.items()})
+        sections: dict[str, dict[str, Any]] = {}
+        names = [f.name for f in fields(self)]
+        for key, value in items.items():
+            section, sep, name = key.partition(".")
+            if not sep or section not in names:
+                raise CnnSlamError(f"unknown config key {key!r}; keys look like 'section.field' with section in "
+                                   f"{', '.join(names)}")
+            valid = [f.name for f in fields(getattr(self, section))]
+            if name not in valid:
+                raise CnnSlamError(f"unknown config field {key!r}; fields of {section}: {', '.join(valid)}")
+            if isinstance(value, list):
+                value = tuple(value)
+            sections.setdefault(section, {})[name] = value
+        return replace(self, **{s: replace(getattr(self, s), **v) for s, v in sections.items()})
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Nested plain dict (JSON-serialisable) of every field, for result records."""
+        return dataclasses.asdict(self)
+
+
+def ablation_config(name: AblationName, base: CnnSlamConfig | None = None) -> CnnSlamConfig:
+    """The paper's Fig. 3 variants: "raw" CNN depth (no eq. 5, no refinement), "adjusted" (eq. 5, no refinement),
+    "refined" (eq. 5 and eq. 10-11: the full system)."""
+    _choice("ablation", "name", name, ABLATIONS)
+    base = base or CnnSlamConfig()
+    if name == "raw":
+        return base.with_overrides({"depth.focal_adjustment": False, "refinement.enabled": False})
+    if name == "adjusted":
+        return base.with_overrides({"depth.focal_adjustment": True, "refinement.enabled": False})
+    return base.with_overrides({"depth.focal_adjustment": True, "refinement.enabled": True})
+
+
+def baseline_config(name: BaselineName, base: CnnSlamConfig | None = None) -> CnnSlamConfig:
+    """Configurations of this code that play the paper's Table-1 baselines.
+
+    "cnn_slam": the paper's system. "lsd": LSD-SLAM-like: no CNN, random first key-frame depth, semi-dense
+    refinement, depth propagated between key-frames. "lsd_constant": the same with a constant first depth.
+    "lsd_bs": LSD-BS, the first key-frame's depth bootstrapped from ground truth (needs a ground-truth agent).
+    """
+    _choice("baseline", "name", name, BASELINES)
+    base = base or CnnSlamConfig()
+    if name == "cnn_slam":
+        return base
+    source = {"lsd": "random", "lsd_constant": "constant", "lsd_bs": "ground_truth_first"}[name]
+    return base.with_overrides(
+        {"depth.source": source, "refinement.enabled": True, "refinement.density": "semi_dense"}
+    )

@@ -1,0 +1,461 @@
+"""Frame-wise depth refinement (CNN-SLAM Sec. 3.4, eq. 10-11) by small-baseline epipolar stereo.
+
+For every new tracked frame t, each key-frame pixel u gets a depth observation D_t(u) with uncertainty U_t(u) from
+the semi-dense stereo of LSD-SLAM / semi-dense VO [5] (``DepthMap::doLineStereo``): 5 intensity samples 1 px apart
+along the epipolar line in the key-frame are matched by SSD against 5 samples stepping 1 px at a time along the
+epipolar segment in frame t that the pixel's current depth +- 2 standard deviations allows (3 to 30 px), the best
+match is refined to sub-pixel precision, and its inverse depth triangulated. The observation variance is
+LSD-SLAM's: alpha^2 (discretisation + geometric + photometric disparity error), alpha = d(inverse depth) / d(pixel
+along the line), the geometric error growing where the line is parallel to the image gradient, the photometric
+error 4 sigma_I^2 / (gradient along the line)^2. The observation is then fused with the key-frame's depth by eq. 10-11.
+
+The paper does this DENSELY (``RefinementConfig.density = "dense"``): every pixel is attempted. A pixel whose
+epipolar line is too short, whose gradient along the line is too weak or at too steep an angle (LSD-SLAM's checks),
+or whose match is ambiguous or too poor, gets U_t = infinity, the limit in which eq. 10-11 leave it unchanged: it
+keeps the CNN depth, exactly the paper's "elements within low-textured regions gradually hold the predicted depth".
+``"semi_dense"`` attempts only high-gradient pixels (LSD-SLAM); without a CNN, pixels without a depth get one from
+a search over the whole inverse-depth range [0, 1 / MIN_DEPTH] (LSD-SLAM's hypothesis creation).
+
+Hot loop: one numba kernel over the key-frame (``@njit(cache=True, nogil=True)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from cnnslam.config import RefinementConfig
+from cnnslam.errors import CnnSlamError
+
+_MIN_IDEPTH = 1e-3  # 1/m: observations farther than 1 km carry no usable depth indoors (ours)
+
+# status codes of the per-pixel search (counted in RefinementStats)
+OK, SKIPPED, EPL_SHORT, EPL_GRAD, EPL_ANGLE, OUT_OF_IMAGE, BIG_ERROR, AMBIGUOUS, BAD_DEPTH = range(9)
+STATUS_NAMES = ("ok", "skipped", "epl_short", "epl_grad", "epl_angle", "out_of_image", "big_error", "ambiguous",
+                "bad_depth")
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _interp(img: np.ndarray, x: float, y: float) -> float:
+    ix = int(x)
+    iy = int(y)
+    ax = x - ix
+    ay = y - iy
+    return ((1.0 - ax) * (1.0 - ay) * img[iy, ix] + ax * (1.0 - ay) * img[iy, ix + 1]
+            + (1.0 - ax) * ay * img[iy + 1, ix] + ax * ay * img[iy + 1, ix + 1])
+
+
+@njit(cache=True, nogil=True)
+def _epipolar_stereo(
+    kf_img: np.ndarray, kf_gx: np.ndarray, kf_gy: np.ndarray, cur_img: np.ndarray,
+    depth: np.ndarray, variance: np.ndarray, attempt: np.ndarray,
+    R: np.ndarray, t: np.ndarray, t_kf_cur: np.ndarray, intr: np.ndarray,
+    tracking_residual: float, params: np.ndarray, subpixel: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """LSD-SLAM's makeAndCheckEPL + doLineStereo for every key-frame pixel with ``attempt`` set.
+
+    kf_img, cur_img: (H, W) float32 intensities; kf_gx, kf_gy: key-frame central-difference gradients (per px);
+    depth (m, 0 = no prior), variance (m^2): the key-frame's maps; R, t: T_cur_kf (key-frame -> current);
+    t_kf_cur: position of the current camera in key-frame coordinates; params: the numeric RefinementConfig fields
+    (see :func:`_params`). Returns (inverse depth (H, W) float32, inverse-depth variance (H, W) float32, status
+    (H, W) int8); inverse depth 0 and variance inf where there is no observation.
+    """
+    (min_epl_len_sq, min_epl_grad_sq, min_epl_angle_sq, var_fac, max_crop, min_crop, sample_dist, border,
+     max_err, min_dist_err, min_rescale, max_rescale, max_idepth_create, sigma_i2) = (
+        params[0], params[1], params[2], params[3], params[4], params[5], params[6], params[7], params[8],
+        params[9], params[10], params[11], params[12], params[13])
+    h, w = kf_img.shape
+    fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
+    fxi, fyi = 1.0 / fx, 1.0 / fy
+    cxi, cyi = -cx / fx, -cy / fy
+    out_id = np.zeros((h, w), np.float32)
+    out_var = np.full((h, w), np.inf, np.float32)
+    status = np.full((h, w), SKIPPED, np.int8)
+    # K R and K t (the warp of a key-frame ray into the current image)
+    KR = np.empty((3, 3))
+    Kt = np.empty(3)
+    for j in range(3):
+        KR[0, j] = fx * R[0, j] + cx * R[2, j]
+        KR[1, j] = fy * R[1, j] + cy * R[2, j]
+        KR[2, j] = R[2, j]
+    Kt[0] = fx * t[0] + cx * t[2]
+    Kt[1] = fy * t[1] + cy * t[2]
+    Kt[2] = t[2]
+    tracking_fac = 0.25 * (1.0 + tracking_residual)
+    for y in range(3, h - 3):
+        for x in range(3, w - 3):
+            if not attempt[y, x]:
+                continue
+            # ---- makeAndCheckEPL: epipolar line through the pixel, in the key-frame
+            epx = -fx * t_kf_cur[0] + t_kf_cur[2] * (x - cx)
+            epy = -fy * t_kf_cur[1] + t_kf_cur[2] * (y - cy)
+            epl_len_sq = epx * epx + epy * epy
+            if not epl_len_sq >= min_epl_len_sq:
+                status[y, x] = EPL_SHORT
+                continue
+            gx2 = kf_img[y, x + 1] - kf_img[y, x - 1]
+            gy2 = kf_img[y + 1, x] - kf_img[y - 1, x]
+            epl_grad_sq = gx2 * epx + gy2 * epy
+            epl_grad_sq = epl_grad_sq * epl_grad_sq / epl_len_sq
+            if epl_grad_sq < min_epl_grad_sq:
+                status[y, x] = EPL_GRAD
+                continue
+            if epl_grad_sq / (gx2 * gx2 + gy2 * gy2) < min_epl_angle_sq:
+                status[y, x] = EPL_ANGLE
+                continue
+            scale = sample_dist / np.sqrt(epl_len_sq)
+            epxn = epx * scale
+            epyn = epy * scale
+            # ---- search range from the prior (mean +- var_fac sigma in inverse depth), or the full range
+            d = depth[y, x]
+            if d > 0.0:
+                prior_id = 1.0 / d
+                sv = np.sqrt(variance[y, x]) * prior_id * prior_id
+                min_id = prior_id - var_fac * sv
+                max_id = prior_id + var_fac * sv
+                if min_id < 0.0:
+                    min_id = 0.0
+                if max_id > max_idepth_create:
+                    max_id = max_idepth_create
+            else:
+                prior_id = 1.0
+                min_id = 0.0
+                max_id = max_idepth_create
+            # ---- doLineStereo
+            kx = fxi * x + cxi
+            ky = fyi * y + cyi
+            pinf0 = KR[0, 0] * kx + KR[0, 1] * ky + KR[0, 2]
+            pinf1 = KR[1, 0] * kx + KR[1, 1] * ky + KR[1, 2]
+            pinf2 = KR[2, 0] * kx + KR[2, 1] * ky + KR[2, 2]
+            preal2 = pinf2 / prior_id + Kt[2]
+            rescale = preal2 * prior_id
+            if not (rescale > min_rescale and rescale < max_rescale):
+                status[y, x] = OUT_OF_IMAGE
+                continue
+            sx = epxn * rescale
+            sy = epyn * rescale
+            first_x = x - 2.0 * sx
+            first_y = y - 2.0 * sy
+            last_x = x + 2.0 * sx
+            last_y = y + 2.0 * sy
+            if (first_x <= 0 or first_x >= w - 2 or first_y <= 0 or first_y >= h - 2 or last_x <= 0
+                    or last_x >= w - 2 or last_y <= 0 or last_y >= h - 2):
+                status[y, x] = OUT_OF_IMAGE
+                continue
+            real_p1 = _interp(kf_img, x + sx, y + sy)
+            real_m1 = _interp(kf_img, x - sx, y - sy)
+            real_0 = _interp(kf_img, float(x), float(y))
+            real_m2 = _interp(kf_img, x - 2.0 * sx, y - 2.0 * sy)
+            real_p2 = _interp(kf_img, x + 2.0 * sx, y + 2.0 * sy)
+            pc0 = pinf0 + Kt[0] * max_id
+            pc1 = pinf1 + Kt[1] * max_id
+            pc2 = pinf2 + Kt[2] * max_id
+            if pc2 < 0.001:
+                max_id = (0.001 - pinf2) / Kt[2]
+                pc0 = pinf0 + Kt[0] * max_id
+                pc1 = pinf1 + Kt[1] * max_id
+                pc2 = pinf2 + Kt[2] * max_id
+            pf0 = pinf0 + Kt[0] * min_id
+            pf1 = pinf1 + Kt[1] * min_id
+            pf2 = pinf2 + Kt[2] * min_id
+            if pf2 < 0.001 or max_id < min_id:
+                status[y, x] = OUT_OF_IMAGE
+                continue
+            close_x = pc0 / pc2
+            close_y = pc1 / pc2
+            far_x = pf0 / pf2
+            far_y = pf1 / pf2
+            incx = close_x - far_x
+            incy = close_y - far_y
+            epl_length = np.sqrt(incx * incx + incy * incy)
+            if not (epl_length > 0.0) or not np.isfinite(epl_length):
+                status[y, x] = OUT_OF_IMAGE
+                continue
+            if epl_length > max_crop:
+                close_x = far_x + incx * max_crop / epl_length
+                close_y = far_y + incy * max_crop / epl_length
+            incx *= sample_dist / epl_length
+            incy *= sample_dist / epl_length
+            far_x -= incx
+            far_y -= incy
+            close_x += incx
+            close_y += incy
+            if epl_length < min_crop:
+                pad = (min_crop - epl_length) / 2.0
+                far_x -= incx * pad
+                far_y -= incy * pad
+                close_x += incx * pad
+                close_y += incy * pad
+            if far_x <= border or far_x >= w - border or far_y <= border or far_y >= h - border:
+                status[y, x] = OUT_OF_IMAGE
+                continue
+            if close_x <= border or close_x >= w - border or close_y <= border or close_y >= h - border:
+                # move the near end inside along the line
+                if close_x <= border:
+                    k = (border - close_x) / incx
+                    close_x += k * incx
+                    close_y += k * incy
+                if close_x >= w - border:
+                    k = (w - border - close_x) / incx
+                    close_x += k * incx
+                    close_y += k * incy
+                if close_y <= border:
+                    k = (border - close_y) / incy
+                    close_x += k * incx
+                    close_y += k * incy
+                if close_y >= h - border:
+                    k = (h - border - close_y) / incy
+                    close_x += k * incx
+                    close_y += k * incy
+                nl = np.sqrt((close_x - far_x) ** 2 + (close_y - far_y) ** 2)
+                if (close_x <= border - 1e-3 or close_x >= w - border + 1e-3 or close_y <= border - 1e-3
+                        or close_y >= h - border + 1e-3 or not nl >= min_crop or not np.isfinite(nl)):
+                    status[y, x] = OUT_OF_IMAGE
+                    continue
+            # ---- SSD over 5 samples, stepping 1 px along the segment
+            cpx = far_x
+            cpy = far_y
+            v_m2 = _interp(cur_img, cpx - 2.0 * incx, cpy - 2.0 * incy)
+            v_m1 = _interp(cur_img, cpx - incx, cpy - incy)
+            v_0 = _interp(cur_img, cpx, cpy)
+            v_p1 = _interp(cur_img, cpx + incx, cpy + incy)
+            best_err = 1e50
+            second_err = 1e50
+            best_x = -1.0
+            best_y = -1.0
+            loop_best = -1
+            loop_second = -1
+            err_pre = -1.0
+            err_post = -1.0
+            last_err = -1.0
+            best_was_last = False
+            n_loop = 0
+            n_steps = int(np.sqrt((close_x - far_x) ** 2 + (close_y - far_y) ** 2) / sample_dist) + 1
+            while n_loop < n_steps:
+                v_p2 = _interp(cur_img, cpx + 2.0 * incx, cpy + 2.0 * incy)
+                e1 = v_p2 - real_p2
+                e2 = v_p1 - real_p1
+                e3 = v_0 - real_0
+                e4 = v_m1 - real_m1
+                e5 = v_m2 - real_m2
+                ee = e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5
+                if ee < best_err:
+                    second_err = best_err
+                    loop_second = loop_best
+                    best_err = ee
+                    loop_best = n_loop
+                    err_pre = last_err
+                    err_post = -1.0
+                    best_x = cpx
+                    best_y = cpy
+                    best_was_last = True
+                else:
+                    if best_was_last:
+                        err_post = ee
+                        best_was_last = False
+                    if ee < second_err:
+                        second_err = ee
+                        loop_second = n_loop
+                last_err = ee
+                v_m2 = v_m1
+                v_m1 = v_0
+                v_0 = v_p1
+                v_p1 = v_p2
+                cpx += incx
+                cpy += incy
+                n_loop += 1
+            if best_err > 4.0 * max_err:
+                status[y, x] = BIG_ERROR
+                continue
+            if abs(loop_best - loop_second) > 1 and min_dist_err * best_err > second_err:
+                status[y, x] = AMBIGUOUS
+                continue
+            did_subpixel = False
+            if subpixel and err_pre >= 0.0 and err_post >= 0.0:
+                denom = err_pre - 2.0 * best_err + err_post
+                if denom > 0.0:
+                    off = 0.5 * (err_pre - err_post) / denom
+                    if off > 0.5:
+                        off = 0.5
+                    if off < -0.5:
+                        off = -0.5
+                    best_x += off * incx
+                    best_y += off * incy
+                    best_err = best_err - 0.25 * (err_pre - err_post) * off
+                    did_subpixel = True
+            sample_d = sample_dist * rescale
+            grad_along = ((real_p2 - real_p1) ** 2 + (real_p1 - real_0) ** 2 + (real_0 - real_m1) ** 2
+                          + (real_m1 - real_m2) ** 2) / (sample_d * sample_d)
+            if best_err > max_err + np.sqrt(grad_along) * 20.0:
+                status[y, x] = BIG_ERROR
+                continue
+            # ---- triangulate the inverse depth of the key-frame pixel
+            if incx * incx > incy * incy:
+                old = fxi * best_x + cxi
+                nom = old * t[2] - t[0]
+                dot0 = R[0, 0] * kx + R[0, 1] * ky + R[0, 2]
+                dot2 = R[2, 0] * kx + R[2, 1] * ky + R[2, 2]
+                id_new = (dot0 - old * dot2) / nom
+                alpha = incx * fxi * (dot0 * t[2] - dot2 * t[0]) / (nom * nom)
+            else:
+                old = fyi * best_y + cyi
+                nom = old * t[2] - t[1]
+                dot1 = R[1, 0] * kx + R[1, 1] * ky + R[1, 2]
+                dot2 = R[2, 0] * kx + R[2, 1] * ky + R[2, 2]
+                id_new = (dot1 - old * dot2) / nom
+                alpha = incy * fyi * (dot1 * t[2] - dot2 * t[1]) / (nom * nom)
+            if not (id_new > 0.0) or not np.isfinite(id_new) or not np.isfinite(alpha):
+                status[y, x] = BAD_DEPTH
+                continue
+            # ---- observation variance (LSD-SLAM): alpha^2 (discretisation + geometric + photometric)
+            photo = 4.0 * sigma_i2 / (grad_along + 1e-10)
+            ggx = kf_gx[y, x]
+            ggy = kf_gy[y, x]
+            geo = ggx * epxn + ggy * epyn + 1e-10
+            geo = tracking_fac * tracking_fac * (ggx * ggx + ggy * ggy) / (geo * geo)
+            disc = 0.05 if did_subpixel else 0.5
+            out_id[y, x] = id_new
+            out_var[y, x] = alpha * alpha * (disc * sample_d * sample_d + geo + photo)
+            status[y, x] = OK
+    return out_id, out_var, status
+
+
+def _params(cfg: RefinementConfig) -> np.ndarray:
+    return np.array([
+        cfg.min_epl_length_squared, cfg.min_epl_grad_squared, cfg.min_epl_angle_squared, cfg.search_sigmas,
+        cfg.max_epl_length, cfg.min_epl_length, cfg.sample_distance, cfg.border, cfg.max_error_stereo,
+        cfg.min_distance_error_stereo, cfg.min_rescale, cfg.max_rescale, 1.0 / cfg.min_depth,
+        cfg.photometric_variance,
+    ], dtype=np.float64)
+
+
+# ------------------------------------------------------------------------------------------------- eq. 10 and 11
+
+
+def fuse_observation_depth(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
+                           uncertainty_obs: np.ndarray) -> np.ndarray:
+    """CNN-SLAM eq. 10: D_ki = (U_t D_ki + U_ki D_t) / (U_ki + U_t), element-wise (metres).
+
+    depth_kf, uncertainty_kf: the key-frame's D_ki (m) and U_ki (m^2); depth_obs, uncertainty_obs: the frame's
+    observation D_t (m) and U_t (m^2). Callers pass only pixels with a finite U_t (U_t = inf leaves D_ki unchanged).
+    """
+    u_kf = np.asarray(uncertainty_kf, dtype=np.float64)
+    u_obs = np.asarray(uncertainty_obs, dtype=np.float64)
+    return (u_obs * depth_kf + u_kf * depth_obs) / (u_kf + u_obs)
+
+
+def fuse_observation_uncertainty(uncertainty_kf: np.ndarray, uncertainty_obs: np.ndarray) -> np.ndarray:
+    """CNN-SLAM eq. 11: U_ki = U_t U_ki / (U_ki + U_t), element-wise (m^2)."""
+    u_kf = np.asarray(uncertainty_kf, dtype=np.float64)
+    u_obs = np.asarray(uncertainty_obs, dtype=np.float64)
+    return u_obs * u_kf / (u_kf + u_obs)
+
+
+# --------------------------------------------------------------------------------------------------- the stage
+
+
+@dataclass(frozen=True)
+class StereoObservation:
+    """One frame's depth observation of a key-frame (the D_t and U_t of eq. 10-11).
+
+    depth: (H, W) float32 metres (0 = no observation); variance: (H, W) float32 m^2 (inf = no observation);
+    status: (H, W) int8 per-pixel outcome (:data:`STATUS_NAMES`).
+    """
+
+    depth: np.ndarray
+    variance: np.ndarray
+    status: np.ndarray
+
+    def counts(self) -> dict[str, int]:
+        """Pixels per outcome."""
+        values = np.bincount(self.status.ravel().astype(np.intp), minlength=len(STATUS_NAMES))
+        return {name: int(n) for name, n in zip(STATUS_NAMES, values, strict=True)}
+
+
+def stereo_observation(
+    kf_image: np.ndarray, kf_grad_x: np.ndarray, kf_grad_y: np.ndarray, depth: np.ndarray, variance: np.ndarray,
+    cur_image: np.ndarray, T_kf_cur: np.ndarray, intrinsics: np.ndarray, config: RefinementConfig,
+    tracking_residual: float = 0.0,
+) -> StereoObservation:
+    """The depth map D_t and uncertainty map U_t that frame t observes for the key-frame (Sec. 3.4), by epipolar
+    stereo at every pixel the density setting attempts.
+
+    kf_image, cur_image: (H, W) float32 intensities 0..255; kf_grad_x/y: (H, W) float32 central differences;
+    depth (m, 0 = none) and variance (m^2): the key-frame's current maps, which set each pixel's search range;
+    T_kf_cur: (4, 4) current camera into key-frame coordinates (from tracking); tracking_residual: the frame's mean
+    normalised squared tracking residual (scales LSD-SLAM's geometric error).
+    """
+    depth = np.ascontiguousarray(depth, dtype=np.float32)
+    if depth.shape != kf_image.shape or cur_image.shape != kf_image.shape:
+        raise CnnSlamError(f"image/depth shapes differ: {kf_image.shape}, {depth.shape}, {cur_image.shape}")
+    if config.density == "dense":
+        attempt = np.ones(depth.shape, np.bool_)
+    else:
+        attempt = np.sqrt(kf_grad_x**2 + kf_grad_y**2) >= config.min_gradient_create
+    T_cur_kf = np.linalg.inv(np.asarray(T_kf_cur, dtype=np.float64))
+    idepth, id_var, status = _epipolar_stereo(
+        np.ascontiguousarray(kf_image, np.float32), np.ascontiguousarray(kf_grad_x, np.float32),
+        np.ascontiguousarray(kf_grad_y, np.float32), np.ascontiguousarray(cur_image, np.float32), depth,
+        np.ascontiguousarray(variance, np.float32), attempt, np.ascontiguousarray(T_cur_kf[:3, :3]),
+        np.ascontiguousarray(T_cur_kf[:3, 3]), np.ascontiguousarray(np.asarray(T_kf_cur, np.float64)[:3, 3]),
+        np.asarray(intrinsics, np.float64), float(tracking_residual), _params(config), bool(config.subpixel),
+    )
+    ok = idepth > _MIN_IDEPTH
+    status[(idepth > 0) & ~ok] = BAD_DEPTH
+    d_obs = np.zeros(depth.shape, np.float32)
+    var_obs = np.full(depth.shape, np.inf, np.float32)
+    id_ok = idepth[ok].astype(np.float64)
+    d_obs[ok] = 1.0 / id_ok
+    var_obs[ok] = id_var[ok] / id_ok**4  # inverse-depth variance -> depth variance (first order)
+    return StereoObservation(d_obs, var_obs, status)
+
+
+@dataclass(frozen=True)
+class RefinementStats:
+    """What one refinement step did: pixels observed, pixels fused, pixels dropped (semi-dense), per-status counts."""
+
+    observed: int
+    fused: int
+    created: int
+    dropped: int
+    status_counts: dict[str, int]
+
+
+def refine_keyframe(
+    depth: np.ndarray, variance: np.ndarray, observation: StereoObservation, config: RefinementConfig,
+    keep_without_observation: bool = True,
+) -> tuple[np.ndarray, np.ndarray, RefinementStats]:
+    """Fuse one frame's observation into the key-frame maps by eq. 10-11 (new arrays; the inputs are not changed).
+
+    depth (m), variance (m^2): (H, W) float32 key-frame maps. Pixels with a prior and an observation are fused
+    (after LSD-SLAM's prior inflation, ``prior_variance_inflation``); pixels without a prior take the observation
+    (hypothesis creation). With ``keep_without_observation=False`` (semi-dense without a CNN, LSD-SLAM),
+    hypotheses whose inverse-depth variance exceeds ``max_inverse_depth_variance`` are dropped.
+    Returns (depth (H, W) float32, variance (H, W) float32, stats).
+    """
+    d = np.asarray(depth, dtype=np.float32)
+    u = np.asarray(variance, dtype=np.float32)
+    obs = np.isfinite(observation.variance) & (observation.depth > 0)
+    prior = d > 0
+    fuse = obs & prior
+    create = obs & ~prior
+    new_d = d.copy()
+    new_u = u.copy()
+    u_prior = u[fuse].astype(np.float64) * config.prior_variance_inflation
+    new_d[fuse] = fuse_observation_depth(d[fuse], u_prior, observation.depth[fuse], observation.variance[fuse])
+    new_u[fuse] = fuse_observation_uncertainty(u_prior, observation.variance[fuse])
+    new_d[create] = observation.depth[create]
+    new_u[create] = observation.variance[create]
+    dropped = 0
+    if not keep_without_observation:
+        has = new_d > 0
+        id_var = np.full(new_d.shape, np.inf, np.float32)
+        id_var[has] = new_u[has] / new_d[has] ** 2 / new_d[has] ** 2
+        drop = has & (id_var > config.max_inverse_depth_variance)
+        dropped = int(drop.sum())
+        new_d[drop] = 0.0
+        new_u[drop] = np.inf
+    stats = RefinementStats(int(obs.sum()), int(fuse.sum()), int(create.sum()), dropped, observation.counts())
+    return new_d, new_u, stats

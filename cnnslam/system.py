@@ -1,0 +1,567 @@
+"""CNN-SLAM as a system: the frame thread and the key-frame thread of the paper (Sec. 4, Fig. 2).
+
+One frame per call (:meth:`CnnSlam.process`), trajectory and key-frames at the end (:meth:`CnnSlam.finish`).
+
+The two threads
+---------------
+- Frame thread (the caller's thread, i.e. the agent's ``step``): builds the frame's image pyramid, tracks it
+  against the active key-frame (eq. 1-4, :mod:`cnnslam.tracking`), refines the active key-frame's depth with it
+  (eq. 10-11, :mod:`cnnslam.refinement`), and decides whether the frame becomes a new key-frame (LSD-SLAM's score).
+- Key-frame thread (``cnnslam-keyframe``, a daemon thread): initialises new key-frames (CNN depth on that frame,
+  eq. 5; uncertainty, eq. 6; fusion with the previous key-frame, eq. 7-9; or propagation without a CNN) and
+  maintains the pose graph (edges by direct alignment to key-frames with a similar view, loop edges, global
+  optimisation at each new key-frame).
+
+Hand-over (who pushes, reads and clears what)
+---------------------------------------------
+- At a key-frame switch the frame thread PUSHES an initialisation job (the frame's image and pyramid, timestamp,
+  the previous key-frame, the tracked T_prev_new and its Hessian, and the frame's ground truth only when an agent
+  with ``uses_ground_truth`` gave it) and WAITS for its result: the only time the frame thread waits for the other
+  thread. From the switch on, the previous key-frame's maps are never written again (frozen); the key-frame thread
+  READS them for eq. 6-9 and for later alignments.
+- The key-frame thread PUBLISHES the new :class:`~cnnslam.keyframes.Keyframe` through the job's future and appends
+  it to the key-frame list (under a lock); the frame thread makes it the active key-frame and then PUSHES a pose-
+  graph job for it, which runs while the frame thread goes on tracking. The pose-graph work is split into small
+  jobs (add the key-frame, one alignment per candidate, one optimisation), and initialisation jobs jump the queue,
+  so a key-frame switch waits for at most one small job.
+- The pose-graph job WRITES optimised ``T_world_kf`` of every key-frame (atomic attribute swaps); the frame thread
+  READS ``T_world_kf`` of its active key-frame to report T_world_cur = T_world_kf T_kf_cur, so reported poses move
+  with the graph. Refinement WRITES the active key-frame's ``maps`` (atomic swaps of an immutable record).
+- Errors raised in the key-frame thread are re-raised in the frame thread at its next call; :meth:`finish` waits
+  for the queue to drain (CLEARS it) and stops the thread.
+
+With ``SystemConfig.threads = False`` every job runs in the caller's thread at the point where it would be pushed,
+in the same order: the deterministic mode (same inputs, same bytes). With threads, tracking and refinement of a frame
+are identical, but the moment at which a pose-graph optimisation lands (and so the reported world poses and the
+candidate key-frames of later alignments) depends on timing.
+
+Tracking loss and recovery
+--------------------------
+A frame is first tracked from the constant-velocity prediction and, when that fails (or ``motion_model =
+"last_pose"``), from the previous frame's pose and from the last tracked pose. If all fail, it is re-tracked against
+up to ``recovery_candidates`` other key-frames nearest to the predicted pose (LSD-SLAM re-localises the same way);
+success makes that key-frame active again (its depth is refined further). If all fail the frame is reported lost
+(``tracked = 0``) with the motion-model prediction as its pose, and the velocity is zeroed: later lost frames hold
+that pose rather than extrapolate it. Lost frames neither refine depth nor create key-frames.
+
+The first key-frame is the first frame, at the world origin (T_world_kf = identity).
+"""
+
+from __future__ import annotations
+
+import itertools
+import queue
+import threading
+import time
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cnnslam.config import CnnSlamConfig
+from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import orthonormalize, se3_inverse
+from cnnslam.keyframes import (
+    Keyframe,
+    KeyframeInit,
+    KeyframeMaps,
+    init_cnn_keyframe,
+    init_first_keyframe_without_cnn,
+    keyframe_score,
+    needs_new_keyframe,
+    propagate_keyframe,
+)
+from cnnslam.pose_graph import PoseGraph, PoseGraphEdge, align_keyframes, field_of_view, neighbour_candidates
+from cnnslam.refinement import refine_keyframe, stereo_observation
+from cnnslam.tracking import (
+    ImagePyramid,
+    TrackingResult,
+    build_image_pyramid,
+    build_tracking_reference,
+    gradient_masks,
+    to_gray,
+    track_frame,
+)
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What the system answers for one frame.
+
+    T_world_cam: (4, 4) float64 current estimate (T_world_kf T_kf_cur); tracked: False when lost; keyframe: index
+    of the key-frame the frame was tracked against (the new one on a switch: its frame IS that key-frame);
+    new_keyframe: this frame became a key-frame; good_share, usage: tracking quality (LSD-SLAM); score: key-frame
+    score; recovered: tracked only after switching to another key-frame; seconds: wall time per stage.
+    """
+
+    T_world_cam: np.ndarray
+    tracked: bool
+    keyframe: int
+    new_keyframe: bool
+    good_share: float
+    usage: float
+    score: float
+    recovered: bool
+    seconds: dict[str, float]
+
+
+@dataclass(frozen=True)
+class KeyframeOutput:
+    """A key-frame as the system finally holds it.
+
+    depth: (H, W) float32 metres refined (0 = none); variance: (H, W) float32 m^2 (inf = none); T_world_kf: (4, 4)
+    float64 pose-graph-optimised pose; label_probs: (H, W, C) float32 CNN class probabilities or None; cnn_depth:
+    (H, W) float32 the CNN depth it was initialised with (None without a CNN); rgb: (H, W, 3) uint8 its image.
+    """
+
+    index: int
+    timestamp: float
+    rgb: np.ndarray
+    depth: np.ndarray
+    variance: np.ndarray
+    T_world_kf: np.ndarray
+    label_probs: np.ndarray | None
+    cnn_depth: np.ndarray | None
+    parent: int | None
+
+
+@dataclass(frozen=True)
+class SlamResult:
+    """Everything at the end of a sequence.
+
+    timestamps: (N,) float64 s; T_world_cam: (N, 4, 4) float64 final trajectory (each frame re-expressed through
+    its key-frame's optimised pose: T_world_kf T_kf_cur); T_world_cam_online: (N, 4, 4) the poses answered frame by
+    frame; tracked: (N,) bool; keyframes: list of :class:`KeyframeOutput`; edges: (i, j, kind) of the pose graph;
+    stats: JSON-serialisable diagnostics (counts, timings).
+    """
+
+    timestamps: np.ndarray
+    T_world_cam: np.ndarray
+    T_world_cam_online: np.ndarray
+    tracked: np.ndarray
+    keyframes: list[KeyframeOutput]
+    edges: list[tuple[int, int, str]]
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+class _KeyframeWorker:
+    """The key-frame thread: a priority queue of jobs (0 = key-frame initialisation, 1 = pose graph), FIFO within a
+    priority. With ``threaded=False`` jobs run at once in the caller's thread."""
+
+    def __init__(self, threaded: bool) -> None:
+        self.threaded = threaded
+        self._queue: queue.PriorityQueue = queue.PriorityQueue()
+        self._seq = itertools.count()
+        self.error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        if threaded:
+            self._thread = threading.Thread(target=self._loop, name="cnnslam-keyframe", daemon=True)
+            self._thread.start()
+
+    def submit(self, priority: int, fn: Any, *args: Any) -> Future:
+        fut: Future = Future()
+        if not self.threaded:
+            try:
+                fut.set_result(fn(*args))
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller through the future
+                fut.set_exception(exc)
+            return fut
+        self._queue.put((priority, next(self._seq), (fn, args, fut)))
+        return fut
+
+    def _loop(self) -> None:
+        while True:
+            _, _, item = self._queue.get()
+            try:
+                if item is None:
+                    return
+                fn, args, fut = item
+                try:
+                    fut.set_result(fn(*args))
+                except BaseException as exc:  # noqa: BLE001 - re-raised in the frame thread
+                    self.error = exc
+                    fut.set_exception(exc)
+            finally:
+                self._queue.task_done()
+
+    def drain(self) -> None:
+        """Wait until every queued job has run."""
+        if self.threaded:
+            self._queue.join()
+
+    def close(self) -> None:
+        if self._thread is not None and self._thread.is_alive():
+            self._queue.put((99, next(self._seq), None))
+            self._thread.join()
+        self._thread = None
+
+
+class CnnSlam:
+    """The CNN-SLAM system (see the module docstring for the threads and their hand-over).
+
+    config: :class:`CnnSlamConfig`; intrinsics: [fx, fy, cx, cy] pixels; image_size: (H, W), divisible by
+    2^(pyramid_levels - 1); predictor: the depth network (``predict_raw``, ``train_focal``) when
+    ``config.depth.source == "cnn"``, else unused.
+    """
+
+    def __init__(self, config: CnnSlamConfig, intrinsics: np.ndarray, image_size: tuple[int, int],
+                 predictor: Any = None) -> None:
+        self.config = config
+        self.intrinsics = np.asarray(intrinsics, dtype=np.float64).reshape(4)
+        if not (np.isfinite(self.intrinsics).all() and self.intrinsics[0] > 0 and self.intrinsics[1] > 0):
+            raise CnnSlamError(f"intrinsics must be finite [fx, fy, cx, cy] with fx, fy > 0, got {intrinsics!r}")
+        self.image_size = (int(image_size[0]), int(image_size[1]))
+        step = 1 << (config.tracking.pyramid_levels - 1)
+        if self.image_size[0] % step or self.image_size[1] % step:
+            raise CnnSlamError(f"image size {self.image_size} must be divisible by {step} "
+                               f"(tracking.pyramid_levels = {config.tracking.pyramid_levels})")
+        if config.depth.uses_cnn and predictor is None:
+            raise CnnSlamError("depth.source = 'cnn' needs a depth predictor")
+        self.predictor = predictor
+        self._rng = np.random.default_rng(config.system.seed)
+        self._fov = field_of_view(self.intrinsics, self.image_size)
+        self._worker = _KeyframeWorker(config.system.threads)
+        self._graph = PoseGraph()  # owned by the key-frame thread
+        self._keyframes: list[Keyframe] = []  # appended by the key-frame thread, read by both (under the lock)
+        self._kf_lock = threading.Lock()
+        self._graph_futures: list[Future] = []
+        # frame-thread state
+        self._active: Keyframe | None = None
+        self._prev: tuple[Keyframe, np.ndarray] | None = None  # (key-frame, T_kf_prev) of the last frame
+        self._last_good: tuple[Keyframe, np.ndarray] | None = None  # (key-frame, T_kf) of the last tracked frame
+        self._velocity = np.eye(4)  # T_prev_cur of the last tracked motion
+        self._frames: list[tuple[float, Keyframe, np.ndarray, bool]] = []  # (timestamp, kf, T_kf_cur, tracked)
+        self._online: list[np.ndarray] = []
+        self._counters = {"lost": 0, "recovered": 0, "refined_pixels": 0, "observed_pixels": 0,
+                          "alignments": 0, "edges_rejected": 0, "optimisations": 0}
+        self._seconds = {"tracking": 0.0, "refinement": 0.0, "keyframe_wait": 0.0, "pyramid": 0.0,
+                         "keyframe_init": 0.0, "pose_graph": 0.0, "prediction": 0.0}
+        self._finished = False
+
+    # ------------------------------------------------------------------------------------------------ frame thread
+
+    def process(self, rgb: np.ndarray, timestamp: float, ground_truth: GroundTruthHint | None = None) -> FrameResult:
+        """Track one frame (and refine, and maybe switch key-frames). rgb: (H, W, 3) uint8; timestamp: seconds.
+
+        ground_truth: only from agents with ``uses_ground_truth`` (the development predictor, LSD-BS); it is handed
+        to the key-frame initialisation of this frame if the frame becomes a key-frame, and used for nothing else.
+        """
+        if self._finished:
+            raise CnnSlamError("process() after finish(); make a new CnnSlam for a new sequence")
+        self._raise_worker_error()
+        rgb = np.asarray(rgb)
+        if rgb.shape[:2] != self.image_size:
+            raise CnnSlamError(f"frame of size {rgb.shape[:2]} but the system was made for {self.image_size}")
+        t0 = time.perf_counter()
+        pyramid = build_image_pyramid(to_gray(rgb), self.intrinsics, self.config.tracking.pyramid_levels)
+        seconds = {"pyramid": time.perf_counter() - t0}
+        self._seconds["pyramid"] += seconds["pyramid"]
+        if self._active is None:
+            return self._start(rgb, pyramid, float(timestamp), ground_truth, seconds)
+
+        t0 = time.perf_counter()
+        active = self._active
+        assert self._prev is not None
+        T_world_prev = self._prev[0].T_world_kf @ self._prev[1]
+        T_world_pred = self._predicted_world_pose()
+        result, keyframe, recovered = self._track(pyramid, active, T_world_pred)
+        seconds["tracking"] = time.perf_counter() - t0
+        self._seconds["tracking"] += seconds["tracking"]
+        if result is None or keyframe is None:  # lost: report the prediction, then hold it (no extrapolation)
+            self._counters["lost"] += 1
+            T_kf_cur = orthonormalize(se3_inverse(active.T_world_kf) @ T_world_pred)
+            self._record(float(timestamp), active, T_kf_cur, False)
+            self._prev = (active, T_kf_cur)
+            self._velocity = np.eye(4)
+            return FrameResult(active.T_world_kf @ T_kf_cur, False, active.index, False, 0.0, 0.0, 0.0, False,
+                               seconds)
+        if recovered:
+            self._counters["recovered"] += 1
+            self._active = keyframe
+        T_kf_cur = result.T_kf_cur
+        T_world_cur = keyframe.T_world_kf @ T_kf_cur
+        self._velocity = orthonormalize(se3_inverse(T_world_prev) @ T_world_cur)
+        keyframe.frames_tracked += 1
+        self._last_good = (keyframe, T_kf_cur)
+
+        if self.config.refinement.enabled:
+            t0 = time.perf_counter()
+            self._refine(keyframe, pyramid, T_kf_cur, result)
+            seconds["refinement"] = time.perf_counter() - t0
+            self._seconds["refinement"] += seconds["refinement"]
+
+        score = keyframe_score(T_kf_cur[:3, 3], keyframe.mean_inverse_depth, result.usage, self.config.keyframes)
+        new_kf = needs_new_keyframe(score, keyframe.frames_tracked, self.config.keyframes)
+        if new_kf:
+            t0 = time.perf_counter()
+            fut = self._worker.submit(0, self._make_keyframe, rgb, pyramid, float(timestamp), ground_truth,
+                                      keyframe, T_kf_cur)
+            new = fut.result()  # the frame thread's only wait
+            seconds["keyframe_wait"] = time.perf_counter() - t0
+            self._seconds["keyframe_wait"] += seconds["keyframe_wait"]
+            self._graph_futures.append(self._worker.submit(1, self._update_graph, new, keyframe, T_kf_cur,
+                                                           result.hessian))
+            self._active = new
+            keyframe, T_kf_cur = new, np.eye(4)
+            self._last_good = (new, T_kf_cur)
+        self._record(float(timestamp), keyframe, T_kf_cur, True)
+        self._prev = (keyframe, T_kf_cur)
+        return FrameResult(keyframe.T_world_kf @ T_kf_cur, True, keyframe.index, new_kf, result.good_share,
+                           result.usage, score, recovered, seconds)
+
+    def _start(self, rgb: np.ndarray, pyramid: ImagePyramid, timestamp: float, ground_truth: GroundTruthHint | None,
+               seconds: dict[str, float]) -> FrameResult:
+        t0 = time.perf_counter()
+        first = self._worker.submit(0, self._make_keyframe, rgb, pyramid, timestamp, ground_truth, None, None).result()
+        seconds["keyframe_wait"] = time.perf_counter() - t0
+        self._seconds["keyframe_wait"] += seconds["keyframe_wait"]
+        self._graph_futures.append(self._worker.submit(1, self._update_graph, first, None, None, None))
+        self._active = first
+        self._record(timestamp, first, np.eye(4), True)
+        self._prev = self._last_good = (first, np.eye(4))
+        return FrameResult(first.T_world_kf.copy(), True, first.index, True, 1.0, 1.0, 0.0, False, seconds)
+
+    def _predicted_world_pose(self) -> np.ndarray:
+        assert self._prev is not None
+        kf, T_kf_prev = self._prev
+        T_world_prev = kf.T_world_kf @ T_kf_prev
+        if self.config.tracking.motion_model == "constant_velocity":
+            return T_world_prev @ self._velocity
+        return T_world_prev
+
+    def _track(self, pyramid: ImagePyramid, active: Keyframe, T_world_pred: np.ndarray,
+               ) -> tuple[TrackingResult | None, Keyframe | None, bool]:
+        """Track against the active key-frame from the prediction, then from the last pose, then recover."""
+        cfg = self.config.tracking
+        assert self._prev is not None
+        kf_prev, T_kfprev_prev = self._prev
+        T_world_prev = kf_prev.T_world_kf @ T_kfprev_prev
+        starts = [T_world_pred]
+        if not np.allclose(T_world_pred, T_world_prev):
+            starts.append(T_world_prev)
+        if self._last_good is not None:
+            T_world_good = self._last_good[0].T_world_kf @ self._last_good[1]
+            if not any(np.allclose(T_world_good, T) for T in starts):
+                starts.append(T_world_good)
+        # LSD-SLAM's initialisation phase (no CNN): only divergence counts as lost
+        lenient = (not self.config.depth.uses_cnn) and len(self._keyframes) <= cfg.initialization_keyframes
+        best: TrackingResult | None = None
+        for T_world_start in starts:
+            res = track_frame(active.maps.reference, pyramid, se3_inverse(active.T_world_kf) @ T_world_start, cfg)
+            if res.tracked or (lenient and not res.diverged):
+                best = res
+                break
+        if best is not None:
+            return best, active, False
+        for cand in self._recovery_candidates(active, T_world_pred):
+            for T_world_start in starts:
+                res = track_frame(cand.maps.reference, pyramid, se3_inverse(cand.T_world_kf) @ T_world_start, cfg)
+                if res.tracked:
+                    return res, cand, True
+        return None, None, False
+
+    def _recovery_candidates(self, active: Keyframe, T_world_pred: np.ndarray) -> list[Keyframe]:
+        n = self.config.tracking.recovery_candidates
+        if n == 0:
+            return []
+        with self._kf_lock:
+            others = [k for k in self._keyframes if k is not active]
+        pos = T_world_pred[:3, 3]
+        view = T_world_pred[:3, 2]
+        scored = []
+        for k in others:
+            dist = float(np.linalg.norm(k.T_world_kf[:3, 3] - pos) * k.mean_inverse_depth)
+            angle = float(np.arccos(np.clip(k.T_world_kf[:3, 2] @ view, -1.0, 1.0)))
+            scored.append((dist + angle, k.index, k))
+        scored.sort(key=lambda s: (s[0], s[1]))
+        return [k for _, _, k in scored[:n]]
+
+    def _refine(self, keyframe: Keyframe, pyramid: ImagePyramid, T_kf_cur: np.ndarray, result: TrackingResult) -> None:
+        """Eq. 10-11 on the active key-frame with this frame, then publish the new maps (one atomic swap)."""
+        cfg = self.config
+        maps = keyframe.maps
+        obs = stereo_observation(
+            keyframe.pyramid.images[0], keyframe.pyramid.grad_x[0], keyframe.pyramid.grad_y[0], maps.depth,
+            maps.variance, pyramid.images[0], T_kf_cur, self.intrinsics, cfg.refinement,
+            tracking_residual=2.0 * result.mean_energy,
+        )
+        keep = cfg.depth.uses_cnn or cfg.refinement.density == "dense"
+        depth, variance, stats = refine_keyframe(maps.depth, maps.variance, obs, cfg.refinement,
+                                                 keep_without_observation=keep)
+        self._counters["observed_pixels"] += stats.observed
+        self._counters["refined_pixels"] += stats.fused + stats.created
+        reference = build_tracking_reference(keyframe.pyramid, depth, variance, cfg.tracking, keyframe.gradient_masks)
+        keyframe.maps = KeyframeMaps(depth, variance, reference)
+
+    def _record(self, timestamp: float, keyframe: Keyframe, T_kf_cur: np.ndarray, tracked: bool) -> None:
+        self._frames.append((timestamp, keyframe, np.array(T_kf_cur), tracked))
+        self._online.append(keyframe.T_world_kf @ T_kf_cur)
+
+    def _raise_worker_error(self) -> None:
+        if self._worker.error is not None:
+            err = self._worker.error
+            raise CnnSlamError(f"the key-frame thread failed: {type(err).__name__}: {err}") from err
+
+    # --------------------------------------------------------------------------------------------- key-frame thread
+
+    def _make_keyframe(self, rgb: np.ndarray, pyramid: ImagePyramid, timestamp: float,
+                       ground_truth: GroundTruthHint | None, parent: Keyframe | None,
+                       T_parent_new: np.ndarray | None) -> Keyframe:
+        """Initialise a key-frame from its frame: CNN depth (eq. 5), eq. 6-9 against the parent; or, without a
+        CNN, the first key-frame's configured initial depth / the parent's propagated depth."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        label_probs = cnn_depth = None
+        if cfg.depth.uses_cnn:
+            tp = time.perf_counter()
+            pred = predict_keyframe_depth(self.predictor, rgb, self.intrinsics, cfg.depth.focal_adjustment,
+                                          ground_truth)
+            self._seconds["prediction"] += time.perf_counter() - tp
+            label_probs, cnn_depth = pred.label_probs, pred.depth
+            if parent is None:
+                init = init_cnn_keyframe(pred.depth, self.intrinsics, cfg.depth)
+            else:
+                parent_maps = parent.maps
+                init = init_cnn_keyframe(pred.depth, self.intrinsics, cfg.depth, parent_maps.depth,
+                                         parent_maps.variance, T_parent_new)
+        elif parent is None:
+            mask = None
+            if cfg.refinement.density == "semi_dense":
+                gx, gy = pyramid.grad_x[0], pyramid.grad_y[0]
+                mask = np.sqrt(gx * gx + gy * gy) >= cfg.refinement.min_gradient_create
+            gt_depth = None if ground_truth is None else ground_truth.depth
+            init = init_first_keyframe_without_cnn(self.image_size, cfg.depth, self._rng, mask, gt_depth)
+        else:
+            parent_maps = parent.maps
+            init = propagate_keyframe(parent_maps.depth, parent_maps.variance, self.intrinsics,
+                                      se3_inverse(T_parent_new), cfg.depth)
+        keyframe = self._publish(init, rgb, pyramid, timestamp, label_probs, cnn_depth, parent, T_parent_new)
+        self._seconds["keyframe_init"] += time.perf_counter() - t0
+        return keyframe
+
+    def _publish(self, init: KeyframeInit, rgb: np.ndarray, pyramid: ImagePyramid, timestamp: float,
+                 label_probs: np.ndarray | None, cnn_depth: np.ndarray | None, parent: Keyframe | None,
+                 T_parent_new: np.ndarray | None) -> Keyframe:
+        masks = gradient_masks(pyramid, self.config.tracking.min_gradient)
+        reference = build_tracking_reference(pyramid, init.depth, init.variance, self.config.tracking, masks)
+        T_world_kf = np.eye(4) if parent is None else orthonormalize(parent.T_world_kf @ T_parent_new)
+        with self._kf_lock:
+            keyframe = Keyframe(len(self._keyframes), timestamp, rgb, pyramid,
+                                KeyframeMaps(init.depth, init.variance, reference), T_world_kf, label_probs,
+                                cnn_depth, None if parent is None else parent.index, masks)
+            self._keyframes.append(keyframe)
+        return keyframe
+
+    def _update_graph(self, keyframe: Keyframe, parent: Keyframe | None, T_parent_new: np.ndarray | None,
+                      hessian: np.ndarray | None) -> None:
+        """Add the key-frame and its sequential edge to the pose graph, then queue one alignment job per candidate
+        neighbour and an optimisation job (small jobs, so that a key-frame initialisation never waits long)."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        graph = self._graph
+        graph.add_keyframe(keyframe.index, keyframe.T_world_kf)
+        if parent is None:
+            return
+        graph.add_edge(PoseGraphEdge(parent.index, keyframe.index, T_parent_new, hessian, "sequential"))
+        if cfg.pose_graph.enabled:
+            with self._kf_lock:
+                older = [k for k in self._keyframes if k.index < keyframe.index and k.index != parent.index]
+            others = {k.index: (graph.poses[k.index], k.mean_inverse_depth) for k in older}
+            candidates = neighbour_candidates(graph.poses[keyframe.index], keyframe.mean_inverse_depth, others,
+                                              self._fov, cfg.pose_graph)
+            self._seconds["pose_graph"] += time.perf_counter() - t0
+            for idx in candidates:
+                self._worker.submit(1, self._align_candidate, keyframe, idx)
+            self._worker.submit(1, self._optimise_graph)
+        else:
+            self._seconds["pose_graph"] += time.perf_counter() - t0
+
+    def _align_candidate(self, keyframe: Keyframe, idx: int) -> None:
+        """Direct alignment of a new key-frame with candidate ``idx``; an edge when both directions agree."""
+        t0 = time.perf_counter()
+        cfg = self.config
+        graph = self._graph
+        cand = self._keyframes[idx]
+        cand_maps, new_maps = cand.maps, keyframe.maps
+        kind = "loop" if keyframe.index - idx >= cfg.pose_graph.loop_min_index_gap else "neighbour"
+        self._counters["alignments"] += 1
+        res = align_keyframes(
+            idx, cand_maps.reference, cand.pyramid, 1.0 / cand_maps.reference.mean_inverse_depth,
+            keyframe.index, new_maps.reference, keyframe.pyramid,
+            se3_inverse(graph.poses[idx]) @ graph.poses[keyframe.index], cfg.tracking, cfg.pose_graph, kind,
+        )
+        if res.edge is None:
+            self._counters["edges_rejected"] += 1
+        else:
+            graph.add_edge(res.edge)
+        self._seconds["pose_graph"] += time.perf_counter() - t0
+
+    def _optimise_graph(self) -> None:
+        """Global optimisation; the optimised poses are written to the key-frames (atomic swaps)."""
+        t0 = time.perf_counter()
+        result = self._graph.optimise(self.config.pose_graph)
+        self._counters["optimisations"] += 1
+        self._graph.set_poses(result.poses)
+        with self._kf_lock:
+            for k in self._keyframes:
+                if k.index in result.poses:
+                    k.T_world_kf = result.poses[k.index].copy()
+        self._seconds["pose_graph"] += time.perf_counter() - t0
+
+    # ------------------------------------------------------------------------------------------------------ end
+
+    @property
+    def keyframes(self) -> list[Keyframe]:
+        """The key-frames so far (a copy of the list; the objects are live)."""
+        with self._kf_lock:
+            return list(self._keyframes)
+
+    def finish(self) -> SlamResult:
+        """Wait for the key-frame thread, stop it, and return the trajectory and the key-frames."""
+        if not self._finished:
+            self._worker.drain()
+            self._worker.close()
+            self._finished = True
+        self._raise_worker_error()
+        for fut in self._graph_futures:
+            fut.result()
+        n = len(self._frames)
+        stamps = np.array([f[0] for f in self._frames], dtype=np.float64)
+        final = np.stack([f[1].T_world_kf @ f[2] for f in self._frames]) if n else np.zeros((0, 4, 4))
+        online = np.stack(self._online) if n else np.zeros((0, 4, 4))
+        tracked = np.array([f[3] for f in self._frames], dtype=bool)
+        keyframes = [
+            KeyframeOutput(
+                index=k.index, timestamp=k.timestamp, rgb=k.rgb, depth=k.maps.depth.copy(),
+                variance=k.maps.variance.copy(),
+                T_world_kf=k.T_world_kf.copy(),
+                label_probs=None if k.label_probs is None else k.label_probs.astype(np.float32),
+                cnn_depth=None if k.cnn_depth is None else k.cnn_depth.copy(), parent=k.parent,
+            )
+            for k in self.keyframes
+        ]
+        edges = [(e.i, e.j, e.kind) for e in self._graph.edges]
+        stats: dict[str, Any] = {
+            "frames": n,
+            "tracked_share": float(tracked.mean()) if n else 0.0,
+            "keyframes": len(keyframes),
+            "edges": len(edges),
+            "loop_edges": sum(1 for e in edges if e[2] == "loop"),
+            "neighbour_edges": sum(1 for e in edges if e[2] == "neighbour"),
+            **self._counters,
+            "seconds": dict(self._seconds),
+            "threads": self.config.system.threads,
+        }
+        return SlamResult(stamps, final, online, tracked, keyframes, edges, stats)
+
+    def close(self) -> None:
+        """Stop the key-frame thread without collecting results (idempotent)."""
+        self._worker.close()
+        self._finished = True
+
+    def __del__(self) -> None:
+        worker = getattr(self, "_worker", None)
+        if worker is not None and worker._thread is not None:
+            worker.close()

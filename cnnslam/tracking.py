@@ -1,0 +1,548 @@
+"""Camera pose estimation against a key-frame (CNN-SLAM Sec. 3.1, eq. 1-4), in LSD-SLAM's SE3Tracker manner.
+
+The pose ``T_kf_cur`` (current-camera coordinates into the key-frame's) minimises eq. 1, the Huber norm of the
+photometric residuals of eq. 2 normalised by their standard deviation, over the key-frame pixels with a high
+intensity gradient (3x3 max of |grad I| >= 5, LSD-SLAM) and a depth. The residual variance is LSD-SLAM's
+``sigma_I^2 + var(D) (dr/dD)^2``: photometric noise plus the key-frame's depth variance propagated through the warp.
+The minimisation is Levenberg-Marquardt on an image pyramid, coarse to fine, with LSD-SLAM's constants
+(:class:`cnnslam.config.TrackingConfig`); the world pose follows as T_world_cur = T_world_kf T_kf_cur (the paper's
+T_t = T_t^ki T_ki in our direction convention).
+
+Tracking quality is LSD-SLAM's: the share of "good" residuals (r^2 < 40^2 + 0.5^2 |grad I|^2) among those computed,
+and their number relative to the image size; plus (ours) eq. 1's energy per point, which must be well below that
+of the key-frame's own contrast (``TrackingConfig.max_energy_ratio``). A frame failing any bound is reported lost.
+
+Hot loops are numba kernels (``@njit(cache=True, nogil=True)``) that fuse eq. 2-4 with the accumulation of the 6x6
+normal equations; :func:`photometric_residual`, :func:`residual_variance` and :func:`tracking_energy` are the plain
+numpy forms of the same equations (used for key-frame-level checks and in the tests against the kernel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numba import njit
+
+from cnnslam.config import TrackingConfig
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import (
+    orthonormalize,
+    project_to_pixels,
+    pyramid_intrinsics,
+    se3_exp,
+    se3_inverse,
+    transform_points,
+    vertex_map,
+)
+
+# ----------------------------------------------------------------------------------------------------- image pyramid
+
+
+@dataclass(frozen=True)
+class ImagePyramid:
+    """Grey images of one frame at every pyramid level, with central-difference gradients (LSD-SLAM).
+
+    images[l], grad_x[l], grad_y[l]: (H / 2^l, W / 2^l) float32, intensities 0..255 and their derivative per pixel
+    (0 on the one-pixel border), strided views into ``stacked``; intrinsics[l]: (4,) float64 [fx, fy, cx, cy] of
+    level l; stacked[l]: (H / 2^l, W / 2^l, 3) float32 [I, dI/dx, dI/dy] interleaved, so that the tracking kernel
+    reads a pixel's three values from one cache line.
+    """
+
+    images: tuple[np.ndarray, ...]
+    grad_x: tuple[np.ndarray, ...]
+    grad_y: tuple[np.ndarray, ...]
+    intrinsics: tuple[np.ndarray, ...]
+    stacked: tuple[np.ndarray, ...]
+
+    @property
+    def levels(self) -> int:
+        return len(self.images)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of level 0."""
+        return self.images[0].shape  # type: ignore[return-value]
+
+
+def to_gray(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 RGB -> (H, W) float32 intensities 0..255 (OpenCV's BT.601 weights)."""
+    rgb = np.asarray(rgb)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise CnnSlamError(f"expected an (H, W, 3) uint8 RGB image, got shape {rgb.shape} dtype {rgb.dtype}")
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+
+
+def central_gradients(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences (I(x+1) - I(x-1)) / 2 of an (H, W) float32 image; 0 on the border (LSD-SLAM)."""
+    gx = np.zeros_like(image, dtype=np.float32)
+    gy = np.zeros_like(image, dtype=np.float32)
+    gx[:, 1:-1] = 0.5 * (image[:, 2:] - image[:, :-2])
+    gy[1:-1, :] = 0.5 * (image[2:, :] - image[:-2, :])
+    return gx, gy
+
+
+def build_image_pyramid(gray: np.ndarray, intrinsics: np.ndarray, levels: int) -> ImagePyramid:
+    """The pyramid of an (H, W) float32 grey image: each level halves the previous by 2x2 averaging (LSD-SLAM).
+
+    H and W must be divisible by 2^(levels - 1).
+    """
+    gray = np.ascontiguousarray(gray, dtype=np.float32)
+    h, w = gray.shape
+    if h % (1 << (levels - 1)) or w % (1 << (levels - 1)):
+        raise CnnSlamError(f"image size {w}x{h} must be divisible by 2^{levels - 1} for a {levels}-level pyramid")
+    images, gxs, gys, intr = [], [], [], []
+    img = gray
+    for level in range(levels):
+        if level:
+            img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        gx, gy = central_gradients(img)
+        images.append(img)
+        gxs.append(gx)
+        gys.append(gy)
+        intr.append(pyramid_intrinsics(intrinsics, level))
+    # one interleaved array per level; images and gradients are views into it (no second copy is kept)
+    stacked = tuple(np.ascontiguousarray(np.stack([i, gx, gy], axis=-1)) for i, gx, gy in zip(images, gxs, gys,
+                                                                                               strict=True))
+    return ImagePyramid(tuple(s[..., 0] for s in stacked), tuple(s[..., 1] for s in stacked),
+                        tuple(s[..., 2] for s in stacked), tuple(intr), stacked)
+
+
+# ------------------------------------------------------------------------------------------- the key-frame reference
+
+
+@dataclass(frozen=True)
+class ReferenceLevel:
+    """Key-frame points used for tracking at one pyramid level.
+
+    points: (N, 3) float32 metres in key-frame coordinates (eq. 4's vertex map at the selected pixels);
+    intensity: (N,) float32 key-frame intensities I_kf(u); depth_variance: (N,) float32 m^2; pixel count of the
+    level: ``n_pixels``; null_energy: eq. 1's energy per point of the intensities about their median with
+    sigma = sigma_I (what an alignment that explains nothing would leave; the scale of the lost-frame test).
+    """
+
+    points: np.ndarray
+    intensity: np.ndarray
+    depth_variance: np.ndarray
+    n_pixels: int
+    null_energy: float
+
+
+@dataclass(frozen=True)
+class TrackingReference:
+    """What a frame is tracked against: a key-frame's high-gradient pixels with depth, per pyramid level.
+
+    levels[l]: :class:`ReferenceLevel`; mean_inverse_depth: 1/m over the level-0 points (LSD's meanIdepth, used by
+    the key-frame score).
+    """
+
+    levels: tuple[ReferenceLevel, ...]
+    mean_inverse_depth: float
+
+
+@njit(cache=True, nogil=True)
+def _downsample_depth(depth: np.ndarray, variance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """2x2 down-sampling of depth (m) and depth variance (m^2) in inverse depth, weighted by inverse-depth
+    information (LSD-SLAM's idepth pyramid). 0 depth = none; a block without depth stays 0."""
+    h, w = depth.shape[0] // 2, depth.shape[1] // 2
+    out_d = np.zeros((h, w), np.float32)
+    out_v = np.zeros((h, w), np.float32)
+    for y in range(h):
+        for x in range(w):
+            info_sum = 0.0
+            id_sum = 0.0
+            n = 0
+            for dy in range(2):
+                for dx in range(2):
+                    d = depth[2 * y + dy, 2 * x + dx]
+                    var = variance[2 * y + dy, 2 * x + dx]
+                    if d > 0.0 and var > 0.0 and np.isfinite(var):
+                        idep = 1.0 / d
+                        id_var = var * idep**4
+                        info_sum += 1.0 / id_var
+                        id_sum += idep / id_var
+                        n += 1
+            if n > 0:
+                idep = id_sum / info_sum
+                id_var = n / info_sum
+                out_d[y, x] = 1.0 / idep
+                out_v[y, x] = id_var / idep**4
+    return out_d, out_v
+
+
+def gradient_masks(pyramid: ImagePyramid, min_gradient: float) -> tuple[np.ndarray, ...]:
+    """Per level, (H_l, W_l) bool: the 3x3 max of |grad I| reaches ``min_gradient`` (LSD-SLAM's pixel selection).
+    They depend on the image only, so a key-frame computes them once."""
+    kernel = np.ones((3, 3), np.uint8)
+    masks = []
+    for gx, gy in zip(pyramid.grad_x, pyramid.grad_y, strict=True):
+        masks.append(cv2.dilate(np.sqrt(gx * gx + gy * gy), kernel) >= min_gradient)
+    return tuple(masks)
+
+
+@njit(cache=True, nogil=True)
+def _select_points(depth: np.ndarray, variance: np.ndarray, image: np.ndarray, mask: np.ndarray, intr: np.ndarray,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (N, 3), intensities (N,) and depth variances (N,) of the masked pixels with depth (eq. 4)."""
+    h, w = depth.shape
+    fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x] and depth[y, x] > 0.0 and variance[y, x] > 0.0 and np.isfinite(variance[y, x]):
+                n += 1
+    points = np.empty((n, 3), np.float32)
+    intensity = np.empty(n, np.float32)
+    var = np.empty(n, np.float32)
+    k = 0
+    for y in range(h):
+        for x in range(w):
+            d = depth[y, x]
+            if mask[y, x] and d > 0.0 and variance[y, x] > 0.0 and np.isfinite(variance[y, x]):
+                points[k, 0] = (x - cx) / fx * d
+                points[k, 1] = (y - cy) / fy * d
+                points[k, 2] = d
+                intensity[k] = image[y, x]
+                var[k] = variance[y, x]
+                k += 1
+    return points, intensity, var
+
+
+def build_tracking_reference(
+    pyramid: ImagePyramid, depth: np.ndarray, variance: np.ndarray, config: TrackingConfig,
+    masks: tuple[np.ndarray, ...] | None = None,
+) -> TrackingReference:
+    """The tracking points of a key-frame: pixels with depth whose 3x3 max of |grad I| reaches
+    ``config.min_gradient`` (LSD-SLAM), at every pyramid level.
+
+    pyramid: the key-frame's :class:`ImagePyramid`; depth: (H, W) float32 metres (0 = none); variance: (H, W)
+    float32 depth variance m^2 (the key-frame's uncertainty map U); masks: :func:`gradient_masks` of the pyramid
+    (computed here when not given).
+    """
+    if masks is None:
+        masks = gradient_masks(pyramid, config.min_gradient)
+    depth_l = np.ascontiguousarray(depth, dtype=np.float32)
+    var_l = np.ascontiguousarray(np.where(depth_l > 0, variance, 0), dtype=np.float32)
+    levels = []
+    for level in range(pyramid.levels):
+        if level:
+            depth_l, var_l = _downsample_depth(depth_l, var_l)
+        points, intensity, var = _select_points(depth_l, var_l, pyramid.images[level], masks[level],
+                                                pyramid.intrinsics[level])
+        null = (float(np.mean(huber((intensity - np.median(intensity)) / np.sqrt(config.photometric_variance),
+                                    config.huber_threshold))) if intensity.size else 0.0)
+        levels.append(ReferenceLevel(points=points, intensity=intensity, depth_variance=var,
+                                     n_pixels=int(depth_l.size), null_energy=null))
+    d0 = levels[0].points[:, 2]
+    mean_idepth = float(np.mean(1.0 / d0)) if d0.size else 1.0
+    return TrackingReference(tuple(levels), mean_idepth)
+
+
+# ---------------------------------------------------------------------------------- the equations, in numpy form
+
+
+def bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear samples of an (H, W) float32 image at (N, 2) float positions (u, v) (OpenCV remap, border 0)."""
+    uv = np.asarray(uv, dtype=np.float32).reshape(-1, 2)
+    n = uv.shape[0]
+    cols = 1024  # cv2.remap needs maps narrower than 32767
+    rows = max(1, -(-n // cols))
+    padded = np.zeros((rows * cols, 2), np.float32)
+    padded[:n] = uv
+    padded = padded.reshape(rows, cols, 2)
+    out = cv2.remap(image, padded[..., 0], padded[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                    borderValue=0)
+    return out.reshape(-1)[:n]
+
+
+def photometric_residual(
+    image_kf: np.ndarray,
+    depth_kf: np.ndarray,
+    image_cur: np.ndarray,
+    intrinsics: np.ndarray,
+    T_cur_kf: np.ndarray,
+    pixels: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CNN-SLAM eq. 2: r(u, T) = I_kf(u) - I_cur(pi(K T V_kf(u))) at the given key-frame pixels.
+
+    image_kf, image_cur: (H, W) float32 intensities; depth_kf: (H, W) metres; T_cur_kf: (4, 4) maps key-frame
+    coordinates into the current camera's (the inverse of T_kf_cur); pixels: (N, 2) int (u, v) key-frame pixels.
+    Returns (r (N,) float64, uv_cur (N, 2) float64 warped positions, valid (N,) bool: inside the current image,
+    with depth, in front of the camera).
+    """
+    pixels = np.asarray(pixels, dtype=np.intp)
+    u, v = pixels[:, 0], pixels[:, 1]
+    points_kf = vertex_map(depth_kf, intrinsics)[v, u]  # eq. 4
+    points_cur = transform_points(T_cur_kf, points_kf)
+    uv = project_to_pixels(points_cur, intrinsics)  # eq. 3
+    h, w = image_cur.shape
+    valid = (depth_kf[v, u] > 0) & (points_cur[:, 2] > 0) & np.isfinite(uv).all(axis=1)
+    valid &= (uv[:, 0] > 1) & (uv[:, 0] < w - 2) & (uv[:, 1] > 1) & (uv[:, 1] < h - 2)
+    r = image_kf[v, u].astype(np.float64) - bilinear(image_cur, np.where(valid[:, None], uv, 0.0))
+    return np.where(valid, r, 0.0), uv, valid
+
+
+def residual_variance(
+    grad_cur: np.ndarray,
+    points_cur: np.ndarray,
+    depth_kf: np.ndarray,
+    depth_variance: np.ndarray,
+    t_cur_kf: np.ndarray,
+    intrinsics: np.ndarray,
+    photometric_variance: float,
+) -> np.ndarray:
+    """sigma(r)^2 of CNN-SLAM eq. 1 as in LSD-SLAM [4]: sigma_I^2 + var(D) (dr/dD)^2.
+
+    dr/dD is the change of the residual with the key-frame depth D through the warp:
+    g . du/dD with du/dD = (fx (x t_z - t_x z), fy (y t_z - t_y z)) / (D z^2) for the warped point (x, y, z).
+    grad_cur: (N, 2) current-image gradient at the warped positions (intensity / px); points_cur: (N, 3) warped
+    points in the current camera; depth_kf: (N,) key-frame depth D (m); depth_variance: (N,) m^2; t_cur_kf: (3,)
+    translation of T_cur_kf. Returns (N,) float64 variances (intensity^2).
+    """
+    fx, fy = float(intrinsics[0]), float(intrinsics[1])
+    x, y, z = points_cur[:, 0], points_cur[:, 1], points_cur[:, 2]
+    tx, ty, tz = t_cur_kf
+    denom = depth_kf * z * z
+    drdd = (grad_cur[:, 0] * fx * (x * tz - tx * z) + grad_cur[:, 1] * fy * (y * tz - ty * z)) / denom
+    return photometric_variance + depth_variance * drdd * drdd
+
+
+def huber(x: np.ndarray, k: float) -> np.ndarray:
+    """The Huber norm rho(x) = x^2 / 2 for |x| <= k, k (|x| - k / 2) beyond (eq. 1's rho)."""
+    a = np.abs(x)
+    return np.where(a <= k, 0.5 * a * a, k * (a - 0.5 * k))
+
+
+def tracking_energy(residuals: np.ndarray, variances: np.ndarray, huber_threshold: float) -> float:
+    """CNN-SLAM eq. 1: E(T) = sum_u rho(r(u, T) / sigma(r(u, T))) over the used pixels (float)."""
+    return float(np.sum(huber(np.asarray(residuals) / np.sqrt(variances), huber_threshold)))
+
+
+# ------------------------------------------------------------------------------------------------ the numba kernel
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _normal_equations(
+    points: np.ndarray,
+    ref_intensity: np.ndarray,
+    ref_variance: np.ndarray,
+    stacked: np.ndarray,
+    T_cur_kf: np.ndarray,
+    t_weight: np.ndarray,
+    intr: np.ndarray,
+    sigma_i2: float,
+    var_weight: float,
+    huber_k: float,
+    max_diff_constant: float,
+    max_diff_grad_mult: float,
+) -> tuple[np.ndarray, np.ndarray, float, int, int, int, float]:
+    """Eq. 1-4 fused: warp every reference point, compute its residual (eq. 2), its LSD-SLAM variance, its Huber
+    weight, and accumulate the Gauss-Newton system H = sum w J^T J, b = sum w J^T r of eq. 1 for a left-multiplied
+    twist of T_cur_kf.
+
+    ``t_weight`` (3,) is the translation of T_cur_kf used in the variance's dr/dD. The tracker holds it fixed over
+    a pyramid level (the translation the level started from): were it the pose being evaluated, the energy would
+    fall merely by growing the translation (a larger translation inflates sigma(r) wherever the depth is uncertain)
+    and the minimum would be biased; with it fixed, eq. 1 is a fixed function of the pose within a level, as the
+    iteratively re-weighted scheme of LSD-SLAM assumes.
+
+    Returns (H (6, 6), b (6,), energy = sum rho(r / sigma) (eq. 1), points used, good, bad, usage); usage sums
+    min(z_kf / z_cur, 1) over the used points (LSD-SLAM's pointUsage numerator).
+    """
+    fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
+    h, w = stacked.shape[0], stacked.shape[1]
+    H = np.zeros((6, 6))
+    b = np.zeros(6)
+    J = np.zeros(6)
+    energy = 0.0
+    n_used = 0
+    n_good = 0
+    n_bad = 0
+    usage = 0.0
+    r00, r01, r02, t0 = T_cur_kf[0, 0], T_cur_kf[0, 1], T_cur_kf[0, 2], T_cur_kf[0, 3]
+    r10, r11, r12, t1 = T_cur_kf[1, 0], T_cur_kf[1, 1], T_cur_kf[1, 2], T_cur_kf[1, 3]
+    r20, r21, r22, t2 = T_cur_kf[2, 0], T_cur_kf[2, 1], T_cur_kf[2, 2], T_cur_kf[2, 3]
+    tw0, tw1, tw2 = t_weight[0], t_weight[1], t_weight[2]
+    for i in range(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        x = r00 * px + r01 * py + r02 * pz + t0
+        y = r10 * px + r11 * py + r12 * pz + t1
+        z = r20 * px + r21 * py + r22 * pz + t2
+        if z <= 1e-6:
+            continue
+        iz = 1.0 / z
+        u = fx * x * iz + cx
+        v = fy * y * iz + cy
+        if not (u > 1.0 and v > 1.0 and u < w - 2.0 and v < h - 2.0):
+            continue
+        iu = int(u)
+        iv = int(v)
+        au = u - iu
+        av = v - iv
+        w00 = (1.0 - au) * (1.0 - av)
+        w01 = au * (1.0 - av)
+        w10 = (1.0 - au) * av
+        w11 = au * av
+        i_cur = (w00 * stacked[iv, iu, 0] + w01 * stacked[iv, iu + 1, 0] + w10 * stacked[iv + 1, iu, 0]
+                 + w11 * stacked[iv + 1, iu + 1, 0])
+        gx = (w00 * stacked[iv, iu, 1] + w01 * stacked[iv, iu + 1, 1] + w10 * stacked[iv + 1, iu, 1]
+              + w11 * stacked[iv + 1, iu + 1, 1])
+        gy = (w00 * stacked[iv, iu, 2] + w01 * stacked[iv, iu + 1, 2] + w10 * stacked[iv + 1, iu, 2]
+              + w11 * stacked[iv + 1, iu + 1, 2])
+        r = ref_intensity[i] - i_cur  # eq. 2
+        n_used += 1
+        ratio = pz * iz
+        usage += ratio if ratio < 1.0 else 1.0
+        if r * r / (max_diff_constant + max_diff_grad_mult * (gx * gx + gy * gy)) < 1.0:
+            n_good += 1
+        else:
+            n_bad += 1
+        gxf = gx * fx
+        gyf = gy * fy
+        # residual variance (LSD-SLAM): sigma_I^2 + var(D) (dr/dD)^2
+        drdd = (gxf * (x * tw2 - tw0 * z) + gyf * (y * tw2 - tw1 * z)) / (pz * z * z)
+        wp = 1.0 / (sigma_i2 + var_weight * ref_variance[i] * drdd * drdd)
+        nr = abs(r) * np.sqrt(wp)
+        if nr <= huber_k:
+            hw = 1.0
+            energy += 0.5 * nr * nr
+        else:
+            hw = huber_k / nr
+            energy += huber_k * (nr - 0.5 * huber_k)
+        weight = hw * wp
+        # J = dI_cur(warp) / dxi for T_cur_kf <- exp(xi) T_cur_kf; the residual's Jacobian is -J
+        J[0] = gxf * iz
+        J[1] = gyf * iz
+        J[2] = -(gxf * x + gyf * y) * iz * iz
+        J[3] = -(gxf * x * y * iz * iz + gyf * (1.0 + y * y * iz * iz))
+        J[4] = gxf * (1.0 + x * x * iz * iz) + gyf * x * y * iz * iz
+        J[5] = (-gxf * y + gyf * x) * iz
+        for a in range(6):
+            wa = weight * J[a]
+            b[a] += wa * r
+            for c in range(a, 6):
+                H[a, c] += wa * J[c]
+    for a in range(6):
+        for c in range(a):
+            H[a, c] = H[c, a]
+    return H, b, energy, n_used, n_good, n_bad, usage
+
+
+# ------------------------------------------------------------------------------------------------------ the tracker
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """The outcome of tracking one frame against one key-frame.
+
+    T_kf_cur: (4, 4) float64, maps current-camera coordinates into the key-frame's. tracked: False when the frame
+    is lost (LSD-SLAM's bounds on good residuals, or divergence). good_share: good / (good + bad) residuals at the
+    finest level; good_count, bad_count: their numbers; usage: LSD-SLAM's pointUsage (share of key-frame points
+    still seen, weighted by depth change); mean_energy: eq. 1's energy per used point at the finest level (the
+    "tracking residual" of LSD-SLAM's stereo error model); hessian: (6, 6) float64 Gauss-Newton H at the solution
+    (information of T_cur_kf under left perturbation, used by the pose graph); iterations: LM iterations per level
+    (finest last); diverged: a level had too few points in the image.
+    """
+
+    T_kf_cur: np.ndarray
+    tracked: bool
+    good_share: float
+    good_count: int
+    bad_count: int
+    usage: float
+    mean_energy: float
+    hessian: np.ndarray
+    iterations: tuple[int, ...]
+    diverged: bool
+
+
+def _evaluate(ref: ReferenceLevel, frame: ImagePyramid, level: int, T_cur_kf: np.ndarray, t_weight: np.ndarray,
+              cfg: TrackingConfig):
+    return _normal_equations(
+        ref.points, ref.intensity, ref.depth_variance, frame.stacked[level], T_cur_kf, t_weight,
+        frame.intrinsics[level], cfg.photometric_variance,
+        cfg.depth_variance_weight, cfg.huber_threshold, cfg.max_diff_constant, cfg.max_diff_grad_mult,
+    )
+
+
+def track_frame(
+    reference: TrackingReference,
+    frame: ImagePyramid,
+    T_kf_cur_init: np.ndarray,
+    config: TrackingConfig,
+    finest_level: int | None = None,
+) -> TrackingResult:
+    """Estimate ``T_kf_cur`` by minimising eq. 1 coarse to fine with Levenberg-Marquardt (LSD-SLAM's schedule).
+
+    reference: the key-frame's :class:`TrackingReference`; frame: the current :class:`ImagePyramid`;
+    T_kf_cur_init: (4, 4) initial guess; finest_level: stop at this level (default ``config.finest_level``; the
+    pose graph's key-frame alignment stops earlier). Never raises on bad data: a frame that cannot be tracked comes
+    back with ``tracked=False``.
+    """
+    finest = config.finest_level if finest_level is None else int(finest_level)
+    T = se3_inverse(orthonormalize(T_kf_cur_init))  # T_cur_kf, LSD's referenceToFrame
+    iterations: list[int] = []
+    diverged = False
+    stats = (np.zeros((6, 6)), np.zeros(6), np.inf, 0, 0, 0, 0.0)
+    for level in range(len(reference.levels) - 1, finest - 1, -1):
+        ref = reference.levels[level]
+        min_points = max(6, int(config.min_points_per_all * ref.n_pixels))
+        t_weight = T[:3, 3].copy()
+        stats = _evaluate(ref, frame, level, T, t_weight, config)
+        if stats[3] < min_points:
+            diverged = True
+            iterations.append(0)
+            break
+        H, b, energy, n_used = stats[0], stats[1], stats[2] / stats[3], stats[3]
+        lam = 0.0
+        its = 0
+        converged = False
+        while its < config.max_iterations[level] and not converged:
+            its += 1
+            while True:
+                A = H.copy()
+                A[np.diag_indices(6)] *= 1.0 + lam
+                try:
+                    inc = np.linalg.solve(A, b)
+                except np.linalg.LinAlgError:
+                    converged = True
+                    break
+                T_new = se3_exp(inc) @ T
+                new_stats = _evaluate(ref, frame, level, T_new, t_weight, config)
+                n_new = new_stats[3]
+                new_energy = new_stats[2] / n_new if n_new >= min_points else np.inf
+                if new_energy < energy:
+                    ratio = new_energy / energy
+                    T, stats, H, b, energy, n_used = T_new, new_stats, new_stats[0], new_stats[1], new_energy, n_new
+                    lam = 0.0 if lam <= config.lambda_first_fail else lam * config.lambda_success_factor
+                    if ratio > config.convergence_eps:
+                        converged = True
+                    break
+                if float(inc @ inc) < config.step_size_min:
+                    converged = True
+                    break
+                lam = config.lambda_first_fail if lam == 0.0 else lam * config.lambda_fail_factor
+        iterations.append(its)
+    _, _, energy_sum, n_used, n_good, n_bad, usage = stats
+    finest_ref = reference.levels[finest]
+    good_share = n_good / max(n_good + n_bad, 1)
+    tracked = (
+        not diverged
+        and np.isfinite(T).all()
+        and good_share >= config.min_good_per_good_bad
+        and n_good >= config.min_good_per_all * finest_ref.n_pixels
+        and energy_sum / max(n_used, 1) <= max(config.energy_floor, config.max_energy_ratio * finest_ref.null_energy)
+    )
+    return TrackingResult(
+        T_kf_cur=orthonormalize(se3_inverse(T)),
+        tracked=bool(tracked),
+        good_share=float(good_share),
+        good_count=int(n_good),
+        bad_count=int(n_bad),
+        usage=float(usage / max(finest_ref.points.shape[0], 1)),
+        mean_energy=float(energy_sum / max(n_used, 1)),
+        hessian=np.array(stats[0]),
+        iterations=tuple(iterations),
+        diverged=bool(diverged),
+    )

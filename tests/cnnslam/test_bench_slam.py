@@ -1,0 +1,23 @@
+"""Tests of the speed benchmark: it runs, returns every figure, prints them (speed itself is not asserted)."""
+
+from __future__ import annotations
+
+import json
+
+from cnnslam.bench_slam import benchmark, format_figures, main
+
+
+def test_benchmark_reports_every_figure() -> None:
+    figures = benchmark("office0", n_frames=12, predictor="degraded_ground_truth")
+    assert figures["frames"] == 12 and figures["resolution"] == "320x240"
+    for key in ("tracking_fps", "whole_system_fps", "single_thread_fps", "refinement_ms_per_frame"):
+        assert figures[key] > 0, key
+    assert figures["tracked_share"] == 1.0
+    text = format_figures(figures)
+    assert "tracking_fps" in text and "whole_system_fps" in text
+
+
+def test_command_line_prints_json(capsys) -> None:
+    assert main(["--frames", "8", "--predictor", "degraded_ground_truth", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["frames"] == 8 and figures["predictor"] == "degraded_ground_truth"

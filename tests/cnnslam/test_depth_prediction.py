@@ -1,0 +1,98 @@
+"""Tests of the CNN depth-prediction stage: the focal-length adjustment (CNN-SLAM eq. 5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnnslam.depth_prediction import focal_length_adjustment
+from cnnslam.errors import CnnSlamError
+
+
+def test_eq5_known_values() -> None:
+    raw = np.array([[1.0, 2.0], [0.0, 4.0]], np.float32)
+    out = focal_length_adjustment(raw, f_cur=240.0, f_tr=480.0)
+    np.testing.assert_allclose(out, [[0.5, 1.0], [0.0, 2.0]])
+    assert out.dtype == np.float32
+
+
+def test_eq5_icl_vs_nyu_at_320x240() -> None:
+    # ICL-NUIM (481.2 + 480) / 2 / 2 = 240.3 px; NYU (518.8579 + 519.4696) / 2 / 2 = 259.582 px at 320x240
+    out = focal_length_adjustment(np.full((2, 2), 3.0, np.float32), 240.3, 259.582)
+    np.testing.assert_allclose(out, 3.0 * 240.3 / 259.582, rtol=1e-6)
+
+
+def test_eq5_identity_for_same_camera() -> None:
+    raw = np.random.default_rng(0).uniform(0.5, 5, (3, 4)).astype(np.float32)
+    np.testing.assert_array_equal(focal_length_adjustment(raw, 259.6, 259.6), raw)
+
+
+@pytest.mark.parametrize("f_cur,f_tr", [(0.0, 1.0), (1.0, -2.0), (float("nan"), 1.0), (1.0, float("inf"))])
+def test_eq5_rejects_bad_focal_lengths(f_cur: float, f_tr: float) -> None:
+    with pytest.raises(CnnSlamError):
+        focal_length_adjustment(np.ones((2, 2), np.float32), f_cur, f_tr)
+
+
+# --------------------------------------------------------------------------- predictors and the raw/adjusted switch
+
+
+class _FixedNet:
+    """A stand-in network: returns a fixed depth, trained at focal 480 px."""
+
+    train_focal = 480.0
+
+    def predict_raw(self, rgb: np.ndarray):
+        from cnnslam.depth_prediction import DegradedPrediction
+
+        h, w = rgb.shape[:2]
+        return DegradedPrediction(np.full((h, w), 2.0, np.float32), np.full((h, w, 4), 0.25, np.float32))
+
+
+def test_raw_and_adjusted_switch() -> None:
+    from cnnslam.depth_prediction import predict_keyframe_depth
+
+    rgb = np.zeros((4, 6, 3), np.uint8)
+    k = np.array([240.0, 240.0, 2.5, 1.5])
+    adjusted = predict_keyframe_depth(_FixedNet(), rgb, k, focal_adjustment=True)
+    raw = predict_keyframe_depth(_FixedNet(), rgb, k, focal_adjustment=False)
+    np.testing.assert_allclose(adjusted.depth, 1.0)  # eq. 5: 240 / 480 * 2
+    np.testing.assert_allclose(raw.depth, 2.0)
+    np.testing.assert_allclose(adjusted.raw_depth, raw.raw_depth)
+    assert adjusted.focal_ratio == pytest.approx(0.5) and raw.focal_ratio == 1.0
+    assert adjusted.label_probs is not None and adjusted.label_probs.shape == (4, 6, 4)
+
+
+def test_degraded_predictor_imitates_a_cnn() -> None:
+    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint, predict_keyframe_depth
+
+    gt = np.full((48, 64), 3.0, np.float32)
+    gt[20:28, 30:34] = 1.0  # a small near object
+    gt[:, 50:] = 2.0  # a depth edge
+    gt[0:3, 0:3] = 0.0  # no surface
+    labels = np.zeros((48, 64), np.uint8)
+    labels[20:28, 30:34] = 3
+    k = np.array([50.0, 50.0, 31.5, 23.5])
+    pred = DegradedGroundTruthPredictor(train_focal=60.0, scale=1.1, scale_jitter=0.0, lowfreq_noise=0.0,
+                                        pixel_noise=0.0, seed=0)
+    out = predict_keyframe_depth(pred, np.zeros((48, 64, 3), np.uint8), k, True, GroundTruthHint(gt, labels))
+    assert np.all(out.depth > 0)
+    np.testing.assert_allclose(out.raw_depth[24, 10] / out.depth[24, 10], 60.0 / 50.0, rtol=1e-5)  # f_tr / f_cur
+    np.testing.assert_allclose(out.depth[24, 10], 3.3, rtol=1e-3)  # the wrong global scale, eq. 5 applied
+    assert out.depth[24, 32] > 2.0  # the small near object is smoothed away
+    assert 2.2 < out.depth[24, 50] < 3.3  # the depth edge is blurred
+    assert out.label_probs is not None
+    np.testing.assert_allclose(out.label_probs.sum(axis=-1), 1.0, rtol=1e-5)
+    assert out.label_probs[24, 10].argmax() == 0
+    a = DegradedGroundTruthPredictor(seed=5).degrade_depth(gt)
+    b = DegradedGroundTruthPredictor(seed=5).degrade_depth(gt)
+    np.testing.assert_array_equal(a, b)  # same seed, same bytes
+
+
+def test_degraded_predictor_needs_ground_truth() -> None:
+    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, make_predictor, predict_keyframe_depth
+
+    with pytest.raises(CnnSlamError, match="GroundTruthAidedAgent"):
+        predict_keyframe_depth(DegradedGroundTruthPredictor(), np.zeros((4, 4, 3), np.uint8),
+                               np.array([4.0, 4.0, 1.5, 1.5]), True)
+    with pytest.raises(CnnSlamError, match="valid predictors"):
+        make_predictor("oracle")

@@ -1,0 +1,141 @@
+"""Tests of key-frame selection and of CNN-SLAM eq. 6-9 (uncertainty, propagation and fusion)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnnslam.config import DepthConfig, KeyframeConfig
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import relative_pose, se3_exp
+from cnnslam.keyframes import (
+    fuse_keyframe_depth,
+    fuse_keyframe_uncertainty,
+    init_cnn_keyframe,
+    init_first_keyframe_without_cnn,
+    initial_uncertainty,
+    keyframe_score,
+    needs_new_keyframe,
+    propagate_keyframe,
+    propagated_uncertainty,
+)
+
+K = np.array([240.6, 240.0, 159.5, 119.5])
+
+
+def test_eq6_squared_difference() -> None:
+    np.testing.assert_allclose(initial_uncertainty(np.array([2.0, 3.0]), np.array([2.5, 2.0])), [0.25, 1.0])
+
+
+def test_eq7_propagated_uncertainty() -> None:
+    # U~ = D_kj(v) / D_ki(u) * U_kj(v) + sigma_p^2 = 3 / 2 * 0.04 + 0.01
+    np.testing.assert_allclose(propagated_uncertainty(np.array([3.0]), np.array([2.0]), np.array([0.04]), 0.01),
+                               [0.07])
+
+
+def test_eq8_eq9_fusion_by_hand() -> None:
+    # D_ki = 2 with U_ki = 0.3, propagated D_kj = 2.4 with U~ = 0.1:
+    # eq. 8: (0.1 * 2 + 0.3 * 2.4) / 0.4 = 2.3; eq. 9: 0.1 * 0.3 / 0.4 = 0.075
+    np.testing.assert_allclose(fuse_keyframe_depth(np.array([2.0]), np.array([0.3]), np.array([2.4]),
+                                                   np.array([0.1])), [2.3])
+    np.testing.assert_allclose(fuse_keyframe_uncertainty(np.array([0.3]), np.array([0.1])), [0.075])
+    # equal uncertainties: the mean, and half the uncertainty
+    np.testing.assert_allclose(fuse_keyframe_depth(np.array([1.0]), np.array([0.2]), np.array([3.0]),
+                                                   np.array([0.2])), [2.0])
+    np.testing.assert_allclose(fuse_keyframe_uncertainty(np.array([0.2]), np.array([0.2])), [0.1])
+
+
+def test_keyframe_score_is_lsd_slams() -> None:
+    cfg = KeyframeConfig()
+    # (4 * 0.1 * 0.5)^2 + (3 * (1 - 0.8))^2 = 0.04 + 0.36
+    assert keyframe_score(np.array([0.1, 0.0, 0.0]), 0.5, 0.8, cfg) == pytest.approx(0.4)
+    assert not needs_new_keyframe(0.4, 10, cfg)
+    assert needs_new_keyframe(1.2, 10, cfg)
+    assert not needs_new_keyframe(1.2, 2, cfg)  # too few frames on the key-frame (LSD MIN_NUM_MAPPED)
+
+
+def test_first_keyframe_prior() -> None:
+    cfg = DepthConfig()
+    d = np.full((6, 8), 2.0, np.float32)
+    init = init_cnn_keyframe(d, K, cfg)
+    np.testing.assert_allclose(init.variance, (cfg.first_keyframe_relative_sigma * 2.0) ** 2, rtol=1e-6)
+    assert init.matched_share == 0.0
+    with pytest.raises(CnnSlamError, match="positive"):
+        init_cnn_keyframe(np.zeros((6, 8), np.float32), K, cfg)
+
+
+def test_cnn_keyframe_fusion_with_a_neighbour() -> None:
+    """A new key-frame 0.3 m in front of its neighbour looking at a wall: the neighbour's refined depth (exact) is
+    fused with a CNN depth 10 % too far, per eq. 6-9 pixel by pixel."""
+    cfg = DepthConfig(propagation_noise_variance=0.0025)
+    T_world_j = np.eye(4)
+    T_world_i = se3_exp(np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0]))
+    T_j_i = relative_pose(T_world_j, T_world_i)
+    d_j = np.full((240, 320), 3.0, np.float32)  # the wall at 3 m from j
+    u_j = np.full((240, 320), 0.01, np.float32)
+    d_cnn = np.full((240, 320), 2.7 * 1.1, np.float32)  # truth from i: 2.7 m
+    init = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, T_j_i)
+    centre = (slice(100, 140), slice(140, 180))
+    u_new = (2.97 - 2.7) ** 2  # eq. 6 against the neighbour's depth seen from i
+    u_prop = 3.0 / 2.97 * 0.01 + 0.0025  # eq. 7 with D_kj(v) = 3.0 and D_ki(u) = 2.97
+    expected_d = (u_prop * 2.97 + u_new * 2.7) / (u_prop + u_new)  # eq. 8
+    expected_u = u_prop * u_new / (u_prop + u_new)  # eq. 9
+    np.testing.assert_allclose(init.depth[centre], expected_d, rtol=1e-4)
+    np.testing.assert_allclose(init.variance[centre], expected_u, rtol=1e-4)
+    assert init.matched_share > 0.95
+    # pixels where the neighbour has no depth keep the CNN depth with the unmatched prior
+    d_j_holed = d_j.copy()
+    d_j_holed[:, :160] = 0.0
+    holed = init_cnn_keyframe(d_cnn, K, cfg, d_j_holed, u_j, T_j_i)
+    np.testing.assert_allclose(holed.depth[100:140, :100], 2.97, rtol=1e-6)
+    np.testing.assert_allclose(holed.variance[100:140, :100], (cfg.unmatched_relative_sigma * 2.97) ** 2, rtol=1e-5)
+    np.testing.assert_allclose(holed.depth[100:140, 220:], expected_d, rtol=1e-4)
+    assert 0.3 < holed.matched_share < 0.7
+
+
+def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:
+    cfg = DepthConfig()
+    d = np.full((240, 320), 2.0, np.float32)
+    init = init_cnn_keyframe(d, K, cfg, d, np.full(d.shape, 0.01, np.float32), np.eye(4))
+    assert np.all(init.variance > 0)
+    np.testing.assert_allclose(init.depth, 2.0, rtol=1e-6)
+
+
+def test_propagation_without_cnn_forward_warps() -> None:
+    cfg = DepthConfig(source="random")
+    d_j = np.full((240, 320), 3.0, np.float32)
+    u_j = np.full((240, 320), 0.04, np.float32)
+    T_new_j = relative_pose(se3_exp(np.array([0.0, 0.0, 0.5, 0, 0, 0])), np.eye(4))  # new camera 0.5 m forward
+    init = propagate_keyframe(d_j, u_j, K, T_new_j, cfg)
+    has = init.depth > 0
+    np.testing.assert_allclose(init.depth[has], 2.5, rtol=1e-6)
+    np.testing.assert_allclose(init.variance[has], 3.0 / 2.5 * 0.04 + cfg.propagation_noise_variance, rtol=1e-5)
+    assert 0.5 < init.matched_share < 1.0  # moving forward leaves the border empty
+
+
+def test_first_keyframe_without_cnn_sources() -> None:
+    rng = np.random.default_rng(0)
+    mask = np.zeros((4, 5), bool)
+    mask[1:3, 1:4] = True
+    const = init_first_keyframe_without_cnn((4, 5), DepthConfig(source="constant"), rng, mask)
+    assert np.all(const.depth[mask] == 1.0) and np.all(const.depth[~mask] == 0)
+    rand = init_first_keyframe_without_cnn((4, 5), DepthConfig(source="random"), rng, mask)
+    assert np.all((rand.depth[mask] > 1 / 1.5 - 1e-6) & (rand.depth[mask] < 2.0 + 1e-6))
+    gt = np.full((4, 5), 2.0, np.float32)
+    boot = init_first_keyframe_without_cnn((4, 5), DepthConfig(source="ground_truth_first"), rng, None, gt)
+    np.testing.assert_allclose(boot.depth, 2.0)
+    np.testing.assert_allclose(boot.variance, 1e-4 * 2.0**4, rtol=1e-5)  # LSD VAR_GT_INIT_INITIAL in depth units
+    with pytest.raises(CnnSlamError, match="ground-truth"):
+        init_first_keyframe_without_cnn((4, 5), DepthConfig(source="ground_truth_first"), rng)
+
+
+def test_occlusion_test_keeps_the_cnn_where_the_neighbour_saw_another_surface() -> None:
+    cfg = DepthConfig()
+    d_cnn = np.full((240, 320), 3.0, np.float32)
+    d_j = np.full((240, 320), 3.0, np.float32)
+    d_j[:, :160] = 1.0  # an occluder in front of the neighbour, on the left half of its view
+    u_j = np.full((240, 320), 0.01, np.float32)
+    init = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, np.eye(4))
+    np.testing.assert_allclose(init.depth[:, :150], 3.0)  # not pulled towards the occluder's 1 m
+    np.testing.assert_allclose(init.variance[:, :150], (cfg.unmatched_relative_sigma * 3.0) ** 2, rtol=1e-5)
+    assert 0.4 < init.matched_share < 0.6

@@ -1,0 +1,112 @@
+"""Tests of frame-wise refinement (CNN-SLAM eq. 10-11) and of the epipolar stereo that observes depth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnnslam.config import RefinementConfig
+from cnnslam.depth_prediction import DegradedGroundTruthPredictor
+from cnnslam.geometry import relative_pose
+from cnnslam.refinement import (
+    OK,
+    StereoObservation,
+    fuse_observation_depth,
+    fuse_observation_uncertainty,
+    refine_keyframe,
+    stereo_observation,
+)
+from cnnslam.tracking import build_image_pyramid, to_gray
+
+CFG = RefinementConfig()
+
+
+def test_eq10_eq11_by_hand() -> None:
+    # D_ki = 2.0 (U 0.04), observation D_t = 2.2 (U 0.01): eq. 10 (0.01*2 + 0.04*2.2)/0.05 = 2.16, eq. 11 0.008
+    np.testing.assert_allclose(fuse_observation_depth(np.array([2.0]), np.array([0.04]), np.array([2.2]),
+                                                      np.array([0.01])), [2.16])
+    np.testing.assert_allclose(fuse_observation_uncertainty(np.array([0.04]), np.array([0.01])), [0.008])
+    # an infinitely uncertain observation changes nothing
+    np.testing.assert_allclose(fuse_observation_uncertainty(np.array([0.04]), np.array([1e30])), [0.04])
+
+
+def test_refine_keyframe_fuses_creates_and_keeps() -> None:
+    d = np.array([[2.0, 3.0, 0.0]], np.float32)
+    u = np.array([[0.04, 0.09, np.inf]], np.float32)
+    obs = StereoObservation(np.array([[2.2, 0.0, 1.5]], np.float32), np.array([[0.01, np.inf, 0.02]], np.float32),
+                            np.array([[OK, 2, OK]], np.int8))
+    cfg = RefinementConfig(prior_variance_inflation=1.0)
+    new_d, new_u, stats = refine_keyframe(d, u, obs, cfg)
+    np.testing.assert_allclose(new_d, [[2.16, 3.0, 1.5]], rtol=1e-6)  # fused, unchanged, created
+    np.testing.assert_allclose(new_u, [[0.008, 0.09, 0.02]], rtol=1e-6)
+    assert (stats.observed, stats.fused, stats.created) == (2, 1, 1)
+    np.testing.assert_array_equal(d, [[2.0, 3.0, 0.0]])  # inputs untouched
+
+
+def _stereo_pair(room, T_world_cur):
+    T_world_kf = room.pose((0.0, 0.0, 0.0))
+    rgb0, d0 = room.render(T_world_kf)
+    rgb1, _ = room.render(T_world_cur)
+    pyr = build_image_pyramid(to_gray(rgb0), room.intrinsics, 1)
+    return pyr, d0, to_gray(rgb1), relative_pose(T_world_kf, T_world_cur)
+
+
+def test_stereo_observes_true_depth_analytic(room) -> None:
+    pyr, d0, cur, T_kf_cur = _stereo_pair(room, room.pose((0.15, 0.02, 0.03), (0.3, -0.5, 0.0)))
+    prior = (d0 * 1.05).astype(np.float32)  # 5 % off, with an uncertainty that covers it
+    var = ((0.1 * prior) ** 2).astype(np.float32)
+    obs = stereo_observation(pyr.images[0], pyr.grad_x[0], pyr.grad_y[0], prior, var, cur, T_kf_cur, room.intrinsics,
+                             CFG)
+    ok = obs.status == OK
+    assert ok.mean() > 0.4
+    rel = np.abs(obs.depth[ok] - d0[ok]) / d0[ok]
+    assert np.median(rel) < 0.01
+    # the observation variance describes the error: mostly within 3 sigma
+    z = np.abs(obs.depth[ok] - d0[ok]) / np.sqrt(obs.variance[ok])
+    assert np.mean(z < 3.0) > 0.9
+    assert np.all(np.isinf(obs.variance[~ok]))
+
+
+def test_refinement_reduces_error_of_degraded_depth_on_rendered_frames() -> None:
+    """Issue 5: refinement reduces the depth error of a degraded (CNN-like) depth map on rendered frames; pixels
+    without a stereo observation (low texture) keep their depth exactly."""
+    from sim_envs.sequences import get_sequence
+    from sim_envs.simsource import SimulatedSequence
+
+    with SimulatedSequence(get_sequence("office0")) as seq:
+        K = seq.intrinsics.as_array()
+        key = seq.frame(0)
+        others = [seq.frame(i) for i in (6, 12)]
+    gt = key.depth
+    degraded = DegradedGroundTruthPredictor(train_focal=float(K[:2].mean()), scale=1.05, seed=3).degrade_depth(gt)
+    var = ((0.15 * degraded) ** 2).astype(np.float32)
+    pyr = build_image_pyramid(to_gray(key.rgb), K, 1)
+    depth = degraded
+    valid = gt > 0
+    err_before = np.mean(np.abs(degraded - gt)[valid] / gt[valid])
+    for frame in others:
+        obs = stereo_observation(pyr.images[0], pyr.grad_x[0], pyr.grad_y[0], depth, var, to_gray(frame.rgb),
+                                 relative_pose(key.T_world_cam, frame.T_world_cam), K, CFG)
+        new_depth, var, stats = refine_keyframe(depth, var, obs, CFG)
+        untouched = obs.status != OK
+        np.testing.assert_array_equal(new_depth[untouched], depth[untouched])
+        assert stats.fused > 1000
+        depth = new_depth
+    err_after = np.mean(np.abs(depth - gt)[valid] / gt[valid])
+    correct = lambda d: np.mean(np.abs(d - gt)[valid] < 0.1 * gt[valid])  # noqa: E731
+    assert err_after < 0.9 * err_before, (err_before, err_after)
+    assert correct(depth) > correct(degraded)
+
+
+@pytest.mark.parametrize("density", ["dense", "semi_dense"])
+def test_density_selects_the_attempted_pixels(room, density: str) -> None:
+    pyr, d0, cur, T_kf_cur = _stereo_pair(room, room.pose((0.05, 0.0, 0.0)))
+    cfg = RefinementConfig(density=density)
+    obs = stereo_observation(pyr.images[0], pyr.grad_x[0], pyr.grad_y[0], d0, ((0.1 * d0) ** 2).astype(np.float32),
+                             cur, T_kf_cur, room.intrinsics, cfg)
+    grad = np.hypot(pyr.grad_x[0], pyr.grad_y[0])
+    skipped = obs.status == 1
+    if density == "semi_dense":
+        assert np.all(skipped[grad < cfg.min_gradient_create])
+    else:
+        assert not skipped[5:-5, 5:-5].any()

@@ -1,0 +1,100 @@
+"""Tests of the whole system: single-thread determinism, the threaded mode, key-frames and pose graph on a known
+sequence, lost frames, and the LSD configurations of the same code."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cnnslam.config import CnnSlamConfig, baseline_config
+from cnnslam.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import relative_pose, se3_inverse, se3_log
+from cnnslam.system import CnnSlam
+
+# key-frames every ~25 cm at the room's 3 m, so that a short sequence makes several
+CFG = CnnSlamConfig().with_overrides({"keyframes.score_threshold": 0.05, "system.threads": False})
+
+
+def _run(frames, config: CnnSlamConfig, intrinsics: np.ndarray, noise_at: int | None = None):
+    predictor = DegradedGroundTruthPredictor(train_focal=259.58, seed=7)
+    slam = CnnSlam(config, intrinsics, (240, 320), predictor if config.depth.uses_cnn else None)
+    answers = []
+    for k, (rgb, depth, _) in enumerate(frames):
+        if k == noise_at:
+            rgb = np.random.default_rng(1).integers(0, 256, rgb.shape, dtype=np.uint8)
+        answers.append(slam.process(rgb, k / 30.0, GroundTruthHint(depth)))
+    return answers, slam.finish()
+
+
+def _rel_error(frames, result) -> tuple[float, float]:
+    """Worst translation (m) and rotation (deg) error of every frame relative to frame 0."""
+    worst_t = worst_r = 0.0
+    for k, (_, _, T_true) in enumerate(frames):
+        err = se3_log(se3_inverse(relative_pose(frames[0][2], T_true)) @ result.T_world_cam[k])
+        worst_t, worst_r = max(worst_t, np.linalg.norm(err[:3])), max(worst_r, np.degrees(np.linalg.norm(err[3:])))
+    return worst_t, worst_r
+
+
+def test_single_thread_is_deterministic_and_accurate(room, room_sequence) -> None:
+    a_answers, a = _run(room_sequence, CFG, room.intrinsics)
+    b_answers, b = _run(room_sequence, CFG, room.intrinsics)
+    assert a.T_world_cam.tobytes() == b.T_world_cam.tobytes()
+    assert [x.T_world_cam.tobytes() for x in a_answers] == [x.T_world_cam.tobytes() for x in b_answers]
+    assert len(a.keyframes) == len(b.keyframes) >= 3
+    for ka, kb in zip(a.keyframes, b.keyframes, strict=True):
+        assert ka.depth.tobytes() == kb.depth.tobytes() and ka.T_world_kf.tobytes() == kb.T_world_kf.tobytes()
+    assert a.tracked.all()
+    worst_t, worst_r = _rel_error(room_sequence, a)
+    travelled = np.linalg.norm(room_sequence[-1][2][:3, 3] - room_sequence[0][2][:3, 3])
+    assert worst_t < 0.05 * travelled and worst_r < 0.5, (worst_t, worst_r)
+    # every key-frame after the first got a sequential edge; the first sits at the origin
+    assert sum(1 for e in a.edges if e[2] == "sequential") == len(a.keyframes) - 1
+    np.testing.assert_array_equal(a.keyframes[0].T_world_kf, np.eye(4))
+    assert a.keyframes[0].label_probs is not None and a.keyframes[0].label_probs.shape == (240, 320, 4)
+    assert a.stats["frames"] == len(room_sequence) and a.stats["tracked_share"] == 1.0
+
+
+def test_refinement_improves_keyframe_depth_over_the_cnn(room, room_sequence) -> None:
+    _, result = _run(room_sequence, CFG, room.intrinsics)
+    first = result.keyframes[0]
+    gt = room_sequence[0][1]
+    correct = lambda d: np.mean(np.abs(d - gt) < 0.1 * gt)  # noqa: E731
+    assert first.cnn_depth is not None
+    assert correct(first.depth) > correct(first.cnn_depth)
+
+
+def test_threaded_mode_tracks_the_same_sequence(room, room_sequence) -> None:
+    _, single = _run(room_sequence, CFG, room.intrinsics)
+    _, threaded = _run(room_sequence, CFG.with_overrides({"system.threads": True}), room.intrinsics)
+    assert threaded.stats["threads"] and threaded.tracked.all()
+    assert len(threaded.keyframes) == len(single.keyframes)
+    # tracking relative to the key-frames is the same code on the same data; only graph timing differs
+    worst_t, worst_r = _rel_error(room_sequence, threaded)
+    assert worst_t < 0.05 and worst_r < 0.5
+
+
+def test_a_lost_frame_is_reported_and_tracking_resumes(room, room_sequence) -> None:
+    answers, result = _run(room_sequence[:12], CFG, room.intrinsics, noise_at=6)
+    assert not answers[6].tracked and not result.tracked[6]
+    assert all(a.tracked for k, a in enumerate(answers) if k != 6)
+    assert result.stats["lost"] == 1
+
+
+def test_lsd_configuration_runs_without_a_cnn(room, room_sequence) -> None:
+    cfg = baseline_config("lsd_bs").with_overrides({"system.threads": False, "keyframes.score_threshold": 0.05})
+    answers, result = _run(room_sequence, cfg, room.intrinsics)
+    assert result.tracked.mean() > 0.9
+    first = result.keyframes[0]
+    assert first.label_probs is None and first.cnn_depth is None
+    assert 0.05 < np.mean(first.depth > 0) < 1.0  # semi-dense: depth only on high-gradient pixels
+
+
+def test_bad_inputs_are_named(room) -> None:
+    with pytest.raises(CnnSlamError, match="predictor"):
+        CnnSlam(CFG, room.intrinsics, (240, 320), None)
+    with pytest.raises(CnnSlamError, match="divisible"):
+        CnnSlam(CFG, room.intrinsics, (241, 320), DegradedGroundTruthPredictor())
+    slam = CnnSlam(CFG, room.intrinsics, (240, 320), DegradedGroundTruthPredictor())
+    with pytest.raises(CnnSlamError, match="size"):
+        slam.process(np.zeros((120, 160, 3), np.uint8), 0.0)
