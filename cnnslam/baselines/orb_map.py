@@ -1,0 +1,257 @@
+"""The sparse map of the ORB-SLAM baseline: key-frames and map points with their observations (ORB-SLAM's ``Map``,
+``KeyFrame``, ``MapPoint``).
+
+A key-frame holds its ORB features, its extrinsics ``T_cam_world`` (world -> camera, ORB-SLAM's Tcw; the project's
+``T_world_cam`` is its inverse) and, per keypoint, the id of the map point it observes (-1 = none). A map point holds
+its world position (map units: the monocular map has no absolute scale), a representative descriptor (the
+observation descriptor with the least median distance to the others, ORB-SLAM's ComputeDistinctiveDescriptors), its
+mean viewing direction and the distance range over which ORB can detect it (ORB-SLAM's scale invariance region),
+its observations ``{key-frame id: keypoint index}`` and the counters of map-point culling (frames in which it was
+predicted visible / actually found). Points and key-frames are never deleted, only flagged bad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cnnslam.baselines.orb_features import Features, hamming
+from cnnslam.geometry import se3_inverse
+
+
+@dataclass
+class KeyFrame:
+    """A key-frame. features: its ORB features (N of them); point_ids: (N,) int64 map point per keypoint (-1 none);
+    T_cam_world: (4, 4) float64 world -> camera (written by bundle adjustment)."""
+
+    id: int
+    frame_index: int
+    timestamp: float
+    T_cam_world: np.ndarray
+    features: Features
+    point_ids: np.ndarray
+    bad: bool = False
+
+    @property
+    def T_world_cam(self) -> np.ndarray:
+        """(4, 4) camera -> world."""
+        return se3_inverse(self.T_cam_world)
+
+    @property
+    def center(self) -> np.ndarray:
+        """(3,) camera centre in world coordinates."""
+        return -self.T_cam_world[:3, :3].T @ self.T_cam_world[:3, 3]
+
+    def tracked_points(self) -> np.ndarray:
+        """Ids of the (not necessarily good) map points it observes."""
+        return self.point_ids[self.point_ids >= 0]
+
+
+@dataclass
+class SparseMap:
+    """Key-frames and map points (see the module docstring). Point attributes are arrays indexed by point id."""
+
+    scale_factor: float
+    n_levels: int
+    keyframes: dict[int, KeyFrame] = field(default_factory=dict)
+    positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    descriptors: np.ndarray = field(default_factory=lambda: np.zeros((0, 32), np.uint8))
+    normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    max_distance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    min_distance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bad: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    first_kf: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    n_visible: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    n_found: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    observations: list[dict[int, int]] = field(default_factory=list)
+    next_kf_id: int = 0
+    # bumped by every change of an observation; covisibility is cached per key-frame against it
+    version: int = 0
+    _covisibility: dict[int, tuple[int, dict[int, int]]] = field(default_factory=dict, repr=False)
+
+    # ----------------------------------------------------------------------------------------------- key-frames
+
+    def new_keyframe(self, frame_index: int, timestamp: float, T_cam_world: np.ndarray, features: Features) -> KeyFrame:
+        """Create and register a key-frame without observations."""
+        kf = KeyFrame(self.next_kf_id, int(frame_index), float(timestamp), np.array(T_cam_world, dtype=np.float64),
+                      features, np.full(len(features), -1, dtype=np.int64))
+        self.keyframes[kf.id] = kf
+        self.next_kf_id += 1
+        return kf
+
+    def good_keyframes(self) -> list[KeyFrame]:
+        """Key-frames not flagged bad, by id."""
+        return [kf for _, kf in sorted(self.keyframes.items()) if not kf.bad]
+
+    def covisibility(self, kf: KeyFrame) -> dict[int, int]:
+        """Other good key-frames sharing good map points with ``kf``: {key-frame id: shared point count}."""
+        cached = self._covisibility.get(kf.id)
+        if cached is not None and cached[0] == self.version:
+            return cached[1]
+        counts: dict[int, int] = {}
+        for pid in kf.tracked_points():
+            if self.bad[pid]:
+                continue
+            for other in self.observations[pid]:
+                if other != kf.id:
+                    counts[other] = counts.get(other, 0) + 1
+        result = {k: c for k, c in counts.items() if not self.keyframes[k].bad}
+        self._covisibility[kf.id] = (self.version, result)
+        return result
+
+    def best_covisible(self, kf: KeyFrame, n: int, min_shared: int = 1) -> list[KeyFrame]:
+        """Up to ``n`` key-frames sharing most points with ``kf`` (at least ``min_shared``), most shared first."""
+        cov = sorted(((-c, k) for k, c in self.covisibility(kf).items() if c >= min_shared))
+        return [self.keyframes[k] for _, k in cov[:n]]
+
+    def set_keyframe_bad(self, kf: KeyFrame) -> None:
+        """Flag a key-frame bad and drop its observations (points left with fewer than 2 become bad)."""
+        for kp in np.flatnonzero(kf.point_ids >= 0):
+            self.erase_observation(int(kf.point_ids[kp]), kf)
+        kf.bad = True
+        self.version += 1
+
+    # ----------------------------------------------------------------------------------------------- map points
+
+    @property
+    def n_points(self) -> int:
+        """Number of point ids ever created."""
+        return int(self.positions.shape[0])
+
+    def good_point_ids(self) -> np.ndarray:
+        """Ids of points not flagged bad."""
+        return np.flatnonzero(~self.bad)
+
+    def add_points(self, positions: np.ndarray, kf_a: KeyFrame, kp_a: np.ndarray, kf_b: KeyFrame,
+                   kp_b: np.ndarray) -> np.ndarray:
+        """New points at ``positions`` ((M, 3) world) observed by keypoints ``kp_a`` of ``kf_a`` and ``kp_b`` of
+        ``kf_b`` ((M,) int). Returns their ids (M,) int64. ``kf_a`` is their reference key-frame."""
+        m = len(positions)
+        ids = np.arange(self.n_points, self.n_points + m, dtype=np.int64)
+        self.positions = np.concatenate([self.positions, np.asarray(positions, dtype=np.float64).reshape(m, 3)])
+        self.descriptors = np.concatenate([self.descriptors, kf_a.features.descriptors[kp_a]])
+        self.normals = np.concatenate([self.normals, np.zeros((m, 3))])
+        self.max_distance = np.concatenate([self.max_distance, np.zeros(m)])
+        self.min_distance = np.concatenate([self.min_distance, np.zeros(m)])
+        self.bad = np.concatenate([self.bad, np.zeros(m, bool)])
+        self.first_kf = np.concatenate([self.first_kf, np.full(m, kf_a.id, np.int64)])
+        self.n_visible = np.concatenate([self.n_visible, np.ones(m, np.int64)])
+        self.n_found = np.concatenate([self.n_found, np.ones(m, np.int64)])
+        for pid, a, b in zip(ids, kp_a, kp_b, strict=True):
+            self.observations.append({kf_a.id: int(a), kf_b.id: int(b)})
+            kf_a.point_ids[a] = pid
+            kf_b.point_ids[b] = pid
+        self.version += 1
+        self.update_points(ids)
+        return ids
+
+    def add_observation(self, pid: int, kf: KeyFrame, kp: int) -> None:
+        """Record that keypoint ``kp`` of ``kf`` observes point ``pid`` (replacing what that keypoint observed)."""
+        old = int(kf.point_ids[kp])
+        if old == pid:
+            return
+        if old >= 0:
+            self.erase_observation(old, kf)
+        if kf.id in self.observations[pid]:  # the point already had another keypoint in this key-frame
+            kf.point_ids[self.observations[pid][kf.id]] = -1
+        self.observations[pid][kf.id] = int(kp)
+        kf.point_ids[kp] = pid
+        self.version += 1
+
+    def erase_observation(self, pid: int, kf: KeyFrame) -> None:
+        """Remove ``kf``'s observation of ``pid``; a point left with fewer than 2 observations becomes bad."""
+        kp = self.observations[pid].pop(kf.id, None)
+        if kp is not None and kf.point_ids[kp] == pid:
+            kf.point_ids[kp] = -1
+        self.version += 1
+        if len(self.observations[pid]) < 2:
+            self.set_point_bad(pid)
+
+    def set_point_bad(self, pid: int) -> None:
+        """Flag a point bad and detach it from every key-frame."""
+        for kf_id, kp in list(self.observations[pid].items()):
+            kf = self.keyframes[kf_id]
+            if kf.point_ids[kp] == pid:
+                kf.point_ids[kp] = -1
+        self.observations[pid] = {}
+        self.bad[pid] = True
+        self.version += 1
+
+    def replace_point(self, old: int, new: int) -> None:
+        """Fuse duplicate ``old`` into ``new`` (ORB-SLAM's MapPoint::Replace): ``old``'s observations move to ``new``
+        where that key-frame does not already observe ``new``; ``old`` becomes bad. Call :meth:`update_points` on
+        ``new`` afterwards."""
+        if old == new or self.bad[old] or self.bad[new]:
+            return
+        for kf_id, kp in list(self.observations[old].items()):
+            kf = self.keyframes[kf_id]
+            if kf_id in self.observations[new]:
+                kf.point_ids[kp] = -1
+            else:
+                self.observations[new][kf_id] = kp
+                kf.point_ids[kp] = new
+        self.n_visible[new] += self.n_visible[old]
+        self.n_found[new] += self.n_found[old]
+        self.observations[old] = {}
+        self.bad[old] = True
+        self.version += 1
+
+    def update_points(self, ids: np.ndarray, descriptors: bool = True) -> None:
+        """Recompute the viewing direction, distance range and (``descriptors=True``) representative descriptor of
+        points ``ids`` from their observations. Vectorised over points with the same number of observations."""
+        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = ids[~self.bad[ids]]
+        if ids.size == 0:
+            return
+        levels = self.scale_factor ** np.arange(self.n_levels)
+        kf_ids = sorted({k for pid in ids for k in self.observations[pid]})
+        slot = {k: i for i, k in enumerate(kf_ids)}
+        centers = np.stack([self.keyframes[k].center for k in kf_ids])
+        counts = np.array([len(self.observations[pid]) for pid in ids])
+        for n in np.unique(counts):
+            group = ids[counts == n]
+            obs = [self.observations[pid] for pid in group]
+            kslot = np.array([[slot[k] for k in o] for o in obs], dtype=np.int64)  # (G, n)
+            kps = np.array([list(o.values()) for o in obs], dtype=np.int64)  # (G, n)
+            X = self.positions[group]
+            rays = X[:, None, :] - centers[kslot]
+            rays /= np.maximum(np.linalg.norm(rays, axis=2), 1e-12)[..., None]
+            mean = rays.sum(axis=1)
+            self.normals[group] = mean / np.maximum(np.linalg.norm(mean, axis=1), 1e-12)[:, None]
+            # reference observation: the creating key-frame if it still observes the point, else the first one
+            first = self.first_kf[group]
+            ref_col = np.zeros(len(group), dtype=np.int64)
+            for g, o in enumerate(obs):
+                if int(first[g]) in o:
+                    ref_col[g] = list(o).index(int(first[g]))
+            ref_kf = [kf_ids[kslot[g, c]] for g, c in enumerate(ref_col)]
+            octave = np.array([self.keyframes[k].features.octave[kps[g, c]]
+                               for g, (k, c) in enumerate(zip(ref_kf, ref_col, strict=True))], dtype=np.int64)
+            dist = np.linalg.norm(X - centers[kslot[np.arange(len(group)), ref_col]], axis=1)
+            self.max_distance[group] = dist * levels[octave]
+            self.min_distance[group] = self.max_distance[group] / levels[-1]
+            if not descriptors:
+                continue
+            descs = np.stack([np.stack([self.keyframes[k].features.descriptors[i] for k, i in o.items()])
+                              for o in obs])  # (G, n, 32)
+            if n > 2:
+                d = hamming(descs[:, :, None, :], descs[:, None, :, :])  # (G, n, n)
+                best = np.argmin(np.median(d, axis=2), axis=1)
+            else:
+                best = np.zeros(len(group), dtype=np.int64)
+            self.descriptors[group] = descs[np.arange(len(group)), best]
+
+    def predict_octave(self, ids: np.ndarray, distance: np.ndarray) -> np.ndarray:
+        """ORB-SLAM's PredictScale: the pyramid level at which points ``ids`` seen from ``distance`` (map units)
+        should be detected, (M,) int64 in [0, n_levels)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            level = np.ceil(np.log(self.max_distance[ids] / distance) / np.log(self.scale_factor))
+        return np.clip(np.nan_to_num(level, nan=0.0), 0, self.n_levels - 1).astype(np.int64)
+
+    def points_of(self, keyframes: list[KeyFrame]) -> np.ndarray:
+        """Sorted ids of the good points observed by any of ``keyframes``."""
+        if not keyframes:
+            return np.zeros(0, np.int64)
+        ids = np.unique(np.concatenate([kf.tracked_points() for kf in keyframes]))
+        return ids[~self.bad[ids]]

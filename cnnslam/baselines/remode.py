@@ -1,0 +1,693 @@
+"""REMODE (Pizzoli, Forster, Scaramuzza, ICRA 2014; the paper's [23]): per-pixel probabilistic monocular dense depth,
+as a baseline agent on the LSD-BS trajectory, scored on depth only (CNN-SLAM Sec. 4.1, Table 1).
+
+``"cnnslam.baselines.remode:RemodeAgent"``; keyword arguments (all optional)::
+
+    RemodeAgent(config={"patch_size": 5, ...},        # RemodeConfig field overrides
+                lsd_config={"section.field": value},   # overrides of the LSD-BS preset (cnnslam.config)
+                threads=False,                         # LSD-BS's two threads, or deterministic single-thread
+                seed=None)                             # LSD-BS's system.seed (None: the preset's)
+
+The depth filter (:class:`DepthFilter`, usable alone with any poses):
+
+- Every pixel of a reference image carries a "seed": the Vogiatzis-Hernandez (IVC 2011) posterior over its depth d
+  (metres along the pixel's unit bearing vector, as in REMODE) and its inlier probability, a Gaussian x Beta
+  ``N(d | mu, sigma^2) Beta(pi | a, b)``, initialised as REMODE does: mu = the middle of the scene's depth range,
+  sigma^2 = range^2 / 36, a = b = 10.
+- Each later frame with a known pose ``T_world_cam`` updates every seed still in play: the seed's depth interval
+  mu +- 3 sigma projects to a segment of the epipolar line in the new frame; a 5x5 patch around the reference pixel
+  is matched along it every 0.7 px by zero-mean normalised cross-correlation (ZNCC); the best match (ZNCC >= 0.5)
+  is triangulated into a depth measurement x with the uncertainty tau of one pixel of disparity
+  (:func:`triangulation_uncertainty`), and the posterior is updated by the moment-matched Gaussian x Beta update of
+  Vogiatzis & Hernandez (:func:`vogiatzis_update`). A seed whose patch projects into the image but finds no match
+  gets b += 1 (REMODE's NO_MATCH), so textureless pixels drift to outliers.
+- A seed converges when its inlier ratio a / (a + b) > 0.7 and sigma falls below ``convergence_sigma_ratio`` times
+  its depth; it diverges when (a - 1) / (a + b - 2) < 0.05 (REMODE's seedCheck).
+- :func:`tv_smooth`: the final map is smoothed by a weighted Huber-ROF total-variation model, solved by the first-
+  order primal-dual algorithm (Chambolle & Pock 2011): the regulariser is weighted per pixel by REMODE's
+  G = E[pi] sigma^2 / sigma_max^2 + (1 - E[pi]) (confident pixels are smoothed little), the data term is active
+  on converged pixels only. Pixels that have not converged are 0 in the output (no estimate).
+
+The agent: LSD-BS (``cnnslam.agent``'s ``"lsd_bs"`` preset: LSD-SLAM with the first key-frame's depth from ground
+truth, hence ``uses_ground_truth = True``; ground truth reaches nothing else) gives the pose of every frame and its
+key-frames; each LSD-BS key-frame becomes a REMODE reference frame, updated by the following frames (up to
+``max_updates``, at most ``max_active_references`` at a time) with the poses LSD-BS reports, re-expressed relative to
+the key-frame's current (pose-graph optimised) pose. ``finish()`` returns LSD-BS's key-frames with REMODE's depth.
+The trajectory it answers is LSD-BS's; Table 1 shows '-' for REMODE's ATE (the suite's choice, not the agent's).
+
+Hot loops (the per-pixel epipolar search and update, the TV iterations) are serial numba kernels (on two shared cores
+a parallel kernel measured 3x slower than a serial one).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+import cv2
+import numpy as np
+from numba import njit
+
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import se3_inverse
+
+# seed states (REMODE's ConvergenceStates)
+UPDATE, CONVERGED, DIVERGED, BORDER = 0, 1, 2, 3
+# per-frame outcome of a seed (counted in FilterUpdate)
+SKIPPED, UPDATED, NO_MATCH, NOT_VISIBLE, FLAT = 0, 1, 2, 3, 4
+
+
+@dataclass(frozen=True)
+class RemodeConfig:
+    """Every parameter of the REMODE baseline. Source: "REMODE" (Pizzoli et al. 2014 and rpg_open_remode), "VH"
+    (Vogiatzis & Hernandez 2011), "SVO" (Forster et al. 2014, whose depth filter REMODE shares), or "ours"."""
+
+    # REMODE: 5x5 ZNCC patches (RMD_CORR_PATCH_SIDE), samples every 0.7 px along the epipolar segment.
+    patch_size: int = 5
+    search_step_px: float = 0.7
+    # REMODE caps the searched segment (MAX_EXTENT_EPIPOLAR_SEARCH); ours: 50 px at 320x240.
+    max_search_px: float = 50.0
+    # REMODE: a match needs ZNCC >= 0.5, else NO_MATCH.
+    min_zncc: float = 0.5
+    # Ours: a template whose intensity standard deviation is below this (grey levels) has no defined ZNCC (REMODE's
+    # ZNCC is then 0, a NO_MATCH); it is treated as NO_MATCH without searching.
+    min_template_std: float = 1.0
+    # REMODE seedInit: a = b = 10; sigma^2 = range^2 / 36 (the range covers +-3 sigma).
+    init_a: float = 10.0
+    init_b: float = 10.0
+    # SVO / REMODE: the measurement noise is the depth change of one pixel of disparity.
+    pixel_noise: float = 1.0
+    # REMODE seedCheck: converged when a / (a + b) > eta_inlier and sigma^2 < epsilon; diverged when
+    # (a - 1) / (a + b - 2) < eta_outlier.
+    eta_inlier: float = 0.7
+    eta_outlier: float = 0.05
+    # REMODE's epsilon is an absolute variance set per scene; ours is relative: sigma < this x mu.
+    convergence_sigma_ratio: float = 0.02
+    # Depth range of a reference frame from its LSD-BS key-frame depth (ours; REMODE takes SVO's min/max feature
+    # depth): the 2nd..98th percentiles widened by this factor on each side; `default_depth_range` when it has none.
+    depth_range_margin: float = 1.5
+    default_depth_range: tuple[float, float] = (0.3, 8.0)
+    # Agent: a reference frame is updated by at most this many frames (ours; REMODE's reference frames live until
+    # replaced), and at most this many reference frames are updated at a time (ours: the newest are kept).
+    max_updates: int = 60
+    max_active_references: int = 3
+    # TV smoothing (REMODE's denoiser: 200 primal-dual iterations, Huber norm); lambda and epsilon are ours (depth
+    # in metres): data weight (1/m) and Huber threshold (m per pixel).
+    tv_iterations: int = 200
+    tv_lambda: float = 50.0
+    tv_huber_epsilon: float = 0.005
+    tv_enabled: bool = True
+
+    def __post_init__(self) -> None:
+        if self.patch_size < 3 or self.patch_size % 2 == 0:
+            raise CnnSlamError(f"remode.patch_size must be an odd number >= 3, got {self.patch_size!r}")
+        for name in ("search_step_px", "max_search_px", "init_a", "init_b", "pixel_noise", "convergence_sigma_ratio",
+                     "depth_range_margin", "tv_lambda", "tv_huber_epsilon"):
+            if not float(getattr(self, name)) > 0:
+                raise CnnSlamError(f"remode.{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("min_zncc", "eta_inlier", "eta_outlier"):
+            if not 0 < float(getattr(self, name)) < 1:
+                raise CnnSlamError(f"remode.{name} must be in (0, 1), got {getattr(self, name)!r}")
+        if self.min_template_std < 0:
+            raise CnnSlamError(f"remode.min_template_std must be >= 0, got {self.min_template_std!r}")
+        lo, hi = self.default_depth_range
+        if not 0 < lo < hi:
+            raise CnnSlamError(f"remode.default_depth_range must be 0 < min < max, got {self.default_depth_range!r}")
+        for name in ("max_updates", "max_active_references"):
+            if int(getattr(self, name)) < 1:
+                raise CnnSlamError(f"remode.{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.tv_iterations < 0:
+            raise CnnSlamError(f"remode.tv_iterations must be >= 0, got {self.tv_iterations!r}")
+
+    def with_overrides(self, overrides: dict[str, Any] | None = None) -> RemodeConfig:
+        """A copy with ``{"field": value}`` entries replaced (:class:`CnnSlamError` naming an unknown field)."""
+        items = dict(overrides or {})
+        valid = [f.name for f in fields(self)]
+        unknown = sorted(k for k in items if k not in valid)
+        if unknown:
+            raise CnnSlamError(f"unknown REMODE config field(s) {', '.join(unknown)}; valid: {', '.join(valid)}")
+        return replace(self, **items)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (JSON-serialisable) of every field."""
+        return asdict(self)
+
+
+# ------------------------------------------------------------------------------------------------ the equations
+
+
+@njit(cache=True, nogil=True)
+def _normpdf(x: float, mu: float, var: float) -> float:
+    return math.exp(-(x - mu) * (x - mu) / (2.0 * var)) / math.sqrt(2.0 * math.pi * var)
+
+
+@njit(cache=True, nogil=True)
+def _vh_update(mu: float, sigma2: float, a: float, b: float, x: float, tau2: float,
+               depth_range: float) -> tuple[float, float, float, float]:
+    s2 = 1.0 / (1.0 / sigma2 + 1.0 / tau2)
+    m = s2 * (mu / sigma2 + x / tau2)
+    c1 = a / (a + b) * _normpdf(x, mu, sigma2 + tau2)
+    c2 = b / (a + b) / depth_range
+    norm = c1 + c2
+    if not norm > 0.0:
+        return mu, sigma2, a, b
+    c1 /= norm
+    c2 /= norm
+    f = c1 * (a + 1.0) / (a + b + 1.0) + c2 * a / (a + b + 1.0)
+    e = (c1 * (a + 1.0) * (a + 2.0) / ((a + b + 1.0) * (a + b + 2.0))
+         + c2 * a * (a + 1.0) / ((a + b + 1.0) * (a + b + 2.0)))
+    mu_new = c1 * m + c2 * mu
+    sigma2_new = c1 * (s2 + m * m) + c2 * (sigma2 + mu * mu) - mu_new * mu_new
+    a_new = (e - f) / (f - e / f)
+    b_new = a_new * (1.0 - f) / f
+    return mu_new, sigma2_new, a_new, b_new
+
+
+def vogiatzis_update(mu: float, sigma2: float, a: float, b: float, x: float, tau2: float,
+                     depth_range: float) -> tuple[float, float, float, float]:
+    """Vogiatzis & Hernandez (2011) eq. 19-26, as REMODE's seedUpdate: the Gaussian x Beta posterior
+    N(d | mu, sigma2) Beta(pi | a, b) after a depth measurement x (metres) with variance tau2 (m^2), under the
+    model p(x | d, pi) = pi N(x | d, tau2) + (1 - pi) U(x) with U uniform over ``depth_range`` metres.
+
+    With s2 = 1 / (1 / sigma2 + 1 / tau2), m = s2 (mu / sigma2 + x / tau2), C1 = a / (a + b) N(x | mu, sigma2 + tau2),
+    C2 = b / (a + b) / range (normalised to C1 + C2 = 1), f = C1 (a + 1) / (a + b + 1) + C2 a / (a + b + 1) and
+    e = C1 (a + 1)(a + 2) / ((a + b + 1)(a + b + 2)) + C2 a (a + 1) / ((a + b + 1)(a + b + 2)): mu' = C1 m + C2 mu,
+    sigma2' = C1 (s2 + m^2) + C2 (sigma2 + mu^2) - mu'^2, a' = (e - f) / (f - e / f), b' = a' (1 - f) / f.
+    Returns (mu', sigma2', a', b').
+    """
+    return _vh_update(float(mu), float(sigma2), float(a), float(b), float(x), float(tau2), float(depth_range))
+
+
+@njit(cache=True, nogil=True)
+def _tau(fx: float, fy: float, fz: float, depth: float, tx: float, ty: float, tz: float,
+         px_error_angle: float) -> float:
+    t_norm = math.sqrt(tx * tx + ty * ty + tz * tz)
+    ax, ay, az = fx * depth - tx, fy * depth - ty, fz * depth - tz
+    a_norm = math.sqrt(ax * ax + ay * ay + az * az)
+    if t_norm <= 0.0 or a_norm <= 0.0:
+        return math.inf
+    alpha = math.acos(min(1.0, max(-1.0, (fx * tx + fy * ty + fz * tz) / t_norm)))
+    beta = math.acos(min(1.0, max(-1.0, -(ax * tx + ay * ty + az * tz) / (t_norm * a_norm))))
+    beta_plus = beta + px_error_angle
+    gamma_plus = math.pi - alpha - beta_plus
+    if gamma_plus <= 0.0:
+        return math.inf
+    z_plus = t_norm * math.sin(beta_plus) / math.sin(gamma_plus)
+    return z_plus - depth
+
+
+def triangulation_uncertainty(bearing_ref: np.ndarray, depth: float, t_ref_cur: np.ndarray,
+                              px_error_angle: float) -> float:
+    """SVO's computeTau (used by REMODE): the change of depth along the reference bearing when the match moves by
+    one pixel of disparity.
+
+    bearing_ref: (3,) unit vector of the reference pixel; depth: metres along it; t_ref_cur: (3,) position of the
+    current camera in reference coordinates; px_error_angle: the angle of one pixel, 2 atan(1 / (2 f)) radians.
+    With a = bearing depth - t, alpha = angle(bearing, t), beta = angle(a, -t), the law of sines gives the depth
+    for beta + px_error_angle: z+ = |t| sin(beta+) / sin(pi - alpha - beta+); tau = z+ - depth (metres).
+    """
+    f = np.asarray(bearing_ref, dtype=np.float64)
+    t = np.asarray(t_ref_cur, dtype=np.float64)
+    return float(_tau(f[0], f[1], f[2], float(depth), t[0], t[1], t[2], float(px_error_angle)))
+
+
+# ------------------------------------------------------------------------------------------------ the filter kernel
+
+
+@njit(cache=True, nogil=True)
+def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_std: np.ndarray,
+                  mu: np.ndarray, sigma2: np.ndarray, a: np.ndarray, b: np.ndarray, state: np.ndarray,
+                  R_cr: np.ndarray, t_cr: np.ndarray, t_rc: np.ndarray, intr: np.ndarray, depth_range: float,
+                  params: np.ndarray) -> np.ndarray:
+    """One REMODE update of every seed in state UPDATE (epipolar ZNCC search, triangulation, VH update, check).
+
+    ref, cur: (H, W) float32 intensities; tmpl_mean, tmpl_std: the reference patches' mean and standard deviation;
+    mu, sigma2, a, b: (H, W) float64 seed parameters, updated in place; state: (H, W) uint8, updated in place;
+    R_cr, t_cr: T_cur_ref; t_rc: the current camera's centre in reference coordinates; intr: [fx, fy, cx, cy];
+    params: [half patch, step, max extent, min ZNCC, px error angle, eta_in, eta_out, sigma ratio, min template std].
+    Returns (H, W) uint8 outcome codes (SKIPPED, UPDATED, NO_MATCH, NOT_VISIBLE, FLAT).
+    """
+    h, w = ref.shape
+    fxk, fyk, cxk, cyk = intr[0], intr[1], intr[2], intr[3]
+    half = int(params[0])
+    step, max_extent, min_ncc, px_angle = params[1], params[2], params[3], params[4]
+    eta_in, eta_out, sig_ratio, min_std = params[5], params[6], params[7], params[8]
+    n_patch = (2 * half + 1) * (2 * half + 1)
+    outcome = np.zeros((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            if state[y, x] != UPDATE:
+                continue
+            # unit bearing of the reference pixel
+            bx = (x - cxk) / fxk
+            by = (y - cyk) / fyk
+            bn = math.sqrt(bx * bx + by * by + 1.0)
+            bx, by, bz = bx / bn, by / bn, 1.0 / bn
+            m0 = mu[y, x]
+            sd = math.sqrt(sigma2[y, x])
+            # project the mean, min and max depth
+            pz = R_cr[2, 0] * bx + R_cr[2, 1] * by + R_cr[2, 2] * bz
+            px_ = R_cr[0, 0] * bx + R_cr[0, 1] * by + R_cr[0, 2] * bz
+            py_ = R_cr[1, 0] * bx + R_cr[1, 1] * by + R_cr[1, 2] * bz
+            zc = pz * m0 + t_cr[2]
+            if zc <= 1e-6:
+                outcome[y, x] = NOT_VISIBLE
+                continue
+            u_mean = fxk * (px_ * m0 + t_cr[0]) / zc + cxk
+            v_mean = fyk * (py_ * m0 + t_cr[1]) / zc + cyk
+            if u_mean < half or v_mean < half or u_mean >= w - 1 - half or v_mean >= h - 1 - half:
+                outcome[y, x] = NOT_VISIBLE
+                continue
+            if tmpl_std[y, x] < min_std or tmpl_std[y, x] <= 1e-6:  # ZNCC undefined on a flat template
+                outcome[y, x] = FLAT
+                b[y, x] += 1.0
+                continue
+            d_min = max(m0 - 3.0 * sd, 1e-3)
+            d_max = m0 + 3.0 * sd
+            z_min = pz * d_min + t_cr[2]
+            z_max = pz * d_max + t_cr[2]
+            if z_min <= 1e-6 or z_max <= 1e-6:
+                outcome[y, x] = NOT_VISIBLE
+                continue
+            u0 = fxk * (px_ * d_min + t_cr[0]) / z_min + cxk
+            v0 = fyk * (py_ * d_min + t_cr[1]) / z_min + cyk
+            u1 = fxk * (px_ * d_max + t_cr[0]) / z_max + cxk
+            v1 = fyk * (py_ * d_max + t_cr[1]) / z_max + cyk
+            du, dv = u1 - u0, v1 - v0
+            length = math.sqrt(du * du + dv * dv)
+            if length > 1e-9:
+                du, dv = du / length, dv / length
+            else:
+                du, dv = 1.0, 0.0
+            half_len = 0.5 * min(length, max_extent)
+            t_mean = tmpl_mean[y, x]
+            t_std = tmpl_std[y, x]
+            best = -1.0
+            best_u = 0.0
+            best_v = 0.0
+            n_steps = int(2.0 * half_len / step) + 1
+            for k in range(n_steps):
+                l_ = -half_len + k * step
+                uc = u_mean + l_ * du
+                vc = v_mean + l_ * dv
+                if uc < half or vc < half or uc >= w - 1 - half or vc >= h - 1 - half:
+                    continue
+                # every tap of the patch shares the sample's sub-pixel offset: one set of bilinear weights
+                iu = int(uc)
+                iv0 = int(vc)
+                fu = uc - iu
+                fv = vc - iv0
+                w00 = (1.0 - fu) * (1.0 - fv)
+                w01 = fu * (1.0 - fv)
+                w10 = (1.0 - fu) * fv
+                w11 = fu * fv
+                s_i = 0.0
+                s_ii = 0.0
+                s_it = 0.0
+                for oy in range(-half, half + 1):
+                    r0 = iv0 + oy
+                    for ox in range(-half, half + 1):
+                        c0 = iu + ox
+                        iv = (w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0]
+                              + w11 * cur[r0 + 1, c0 + 1])
+                        tv = ref[y + oy, x + ox]
+                        s_i += iv
+                        s_ii += iv * iv
+                        s_it += iv * tv
+                mean_i = s_i / n_patch
+                var_i = s_ii / n_patch - mean_i * mean_i
+                if var_i <= 1e-12:
+                    continue
+                ncc = (s_it / n_patch - mean_i * t_mean) / (math.sqrt(var_i) * t_std)
+                if ncc > best:
+                    best = ncc
+                    best_u = uc
+                    best_v = vc
+            if best < min_ncc:
+                outcome[y, x] = NO_MATCH
+                b[y, x] += 1.0
+                continue
+            # triangulate along the reference bearing (SVO depthFromTriangulation)
+            cx_ = (best_u - cxk) / fxk
+            cy_ = (best_v - cyk) / fyk
+            cn = math.sqrt(cx_ * cx_ + cy_ * cy_ + 1.0)
+            cx_, cy_, cz_ = cx_ / cn, cy_ / cn, 1.0 / cn
+            rx, ry, rz = px_, py_, pz  # R_cr bearing
+            a11 = rx * rx + ry * ry + rz * rz
+            a12 = rx * cx_ + ry * cy_ + rz * cz_
+            a22 = cx_ * cx_ + cy_ * cy_ + cz_ * cz_
+            det = a11 * a22 - a12 * a12
+            if det < 1e-6:
+                outcome[y, x] = NO_MATCH
+                b[y, x] += 1.0
+                continue
+            r1 = rx * t_cr[0] + ry * t_cr[1] + rz * t_cr[2]
+            r2 = cx_ * t_cr[0] + cy_ * t_cr[1] + cz_ * t_cr[2]
+            depth = abs(-(a22 * r1 - a12 * r2) / det)
+            tau = _tau(bx, by, bz, depth, t_rc[0], t_rc[1], t_rc[2], px_angle)
+            if not (tau > 0.0 and tau < math.inf):
+                outcome[y, x] = NO_MATCH
+                continue
+            nm, ns, na, nb = _vh_update(m0, sigma2[y, x], a[y, x], b[y, x], depth, tau * tau, depth_range)
+            if math.isnan(nm) or math.isnan(ns) or ns <= 0.0:
+                continue
+            mu[y, x], sigma2[y, x], a[y, x], b[y, x] = nm, ns, na, nb
+            outcome[y, x] = UPDATED
+    # REMODE seedCheck
+    for y in range(h):
+        for x in range(w):
+            if state[y, x] != UPDATE:
+                continue
+            aa, bb = a[y, x], b[y, x]
+            if aa / (aa + bb) > eta_in and math.sqrt(sigma2[y, x]) < sig_ratio * mu[y, x]:
+                state[y, x] = CONVERGED
+            elif (aa - 1.0) / (aa + bb - 2.0) < eta_out:
+                state[y, x] = DIVERGED
+    return outcome
+
+
+# ------------------------------------------------------------------------------------------------ TV smoothing
+
+
+@njit(cache=True, nogil=True)
+def _tv_primal_dual(f: np.ndarray, data_weight: np.ndarray, g: np.ndarray, lam: float, eps: float,
+                    iterations: int) -> np.ndarray:
+    h, w = f.shape
+    u = f.copy()
+    u_bar = f.copy()
+    px = np.zeros((h, w))
+    py = np.zeros((h, w))
+    tau = 1.0 / math.sqrt(8.0)
+    sig = 1.0 / math.sqrt(8.0)
+    for _ in range(iterations):
+        # dual ascent with the Huber prox and the projection onto |p| <= g
+        for y in range(h):
+            for x in range(w):
+                gx = u_bar[y, x + 1] - u_bar[y, x] if x + 1 < w else 0.0
+                gy = u_bar[y + 1, x] - u_bar[y, x] if y + 1 < h else 0.0
+                gg = max(g[y, x], 1e-9)
+                qx = (px[y, x] + sig * gx) / (1.0 + sig * eps / gg)
+                qy = (py[y, x] + sig * gy) / (1.0 + sig * eps / gg)
+                n = math.sqrt(qx * qx + qy * qy) / gg
+                if n > 1.0:
+                    qx /= n
+                    qy /= n
+                px[y, x] = qx
+                py[y, x] = qy
+        # primal descent with the weighted quadratic data term, then over-relaxation
+        for y in range(h):
+            for x in range(w):
+                div = px[y, x] - (px[y, x - 1] if x > 0 else 0.0)
+                div += py[y, x] - (py[y - 1, x] if y > 0 else 0.0)
+                if x == w - 1:
+                    div -= px[y, x]
+                if y == h - 1:
+                    div -= py[y, x]
+                old = u[y, x]
+                lw = lam * data_weight[y, x]
+                new = (old + tau * div + tau * lw * f[y, x]) / (1.0 + tau * lw)
+                u[y, x] = new
+                u_bar[y, x] = 2.0 * new - old
+    return u
+
+
+def tv_smooth(depth: np.ndarray, data_weight: np.ndarray, regulariser_weight: np.ndarray, lam: float,
+              huber_epsilon: float, iterations: int) -> np.ndarray:
+    """Weighted Huber-ROF smoothing, min_u sum G |grad u|_eps + lam / 2 sum w (u - f)^2, by the primal-dual
+    algorithm of Chambolle & Pock (2011) (REMODE's denoiser; tau = sigma = 1 / sqrt(8), theta = 1).
+
+    depth: (H, W) f, metres; data_weight: (H, W) w >= 0 (0 = no data: inpainted); regulariser_weight: (H, W) G > 0;
+    lam: 1/m; huber_epsilon: m. Returns (H, W) float64 u.
+    """
+    f = np.asarray(depth, dtype=np.float64)
+    wgt = np.asarray(data_weight, dtype=np.float64)
+    g = np.asarray(regulariser_weight, dtype=np.float64)
+    if f.shape != wgt.shape or f.shape != g.shape or f.ndim != 2:
+        raise CnnSlamError(f"tv_smooth: depth, data_weight and regulariser_weight must be the same (H, W), got "
+                           f"{f.shape}, {wgt.shape}, {g.shape}")
+    return _tv_primal_dual(f, wgt, g, float(lam), float(huber_epsilon), int(iterations))
+
+
+# ------------------------------------------------------------------------------------------------ the filter
+
+
+@dataclass(frozen=True)
+class FilterUpdate:
+    """What one frame did to a reference frame's seeds: counts of seeds updated, without a match (incl. flat
+    templates), not visible; converged and diverged totals afterwards; wall time in milliseconds."""
+
+    updated: int
+    no_match: int
+    not_visible: int
+    converged: int
+    diverged: int
+    milliseconds: float
+
+
+class DepthFilter:
+    """REMODE's seeds of one reference frame (see the module docstring).
+
+    reference: (H, W) uint8 or float grey image (or (H, W, 3) uint8 RGB); T_world_ref: (4, 4) float64 its pose;
+    intrinsics: [fx, fy, cx, cy] pixels; depth_range: (min, max) metres of the scene, for the initial seeds and the
+    uniform outlier density; config: :class:`RemodeConfig`.
+    """
+
+    def __init__(self, reference: np.ndarray, T_world_ref: np.ndarray, intrinsics: np.ndarray,
+                 depth_range: tuple[float, float], config: RemodeConfig | None = None) -> None:
+        self.config = config or RemodeConfig()
+        self.reference = _gray(reference)
+        self.T_world_ref = np.array(T_world_ref, dtype=np.float64)
+        self.intrinsics = np.asarray(intrinsics, dtype=np.float64).reshape(4)
+        lo, hi = (float(depth_range[0]), float(depth_range[1]))
+        if not 0 < lo < hi:
+            raise CnnSlamError(f"depth_range must be 0 < min < max metres, got {depth_range!r}")
+        self.depth_min, self.depth_max = lo, hi
+        self.depth_range = hi - lo
+        h, w = self.reference.shape
+        self.sigma2_max = self.depth_range**2 / 36.0
+        self.mu = np.full((h, w), 0.5 * (lo + hi))
+        self.sigma2 = np.full((h, w), self.sigma2_max)
+        self.a = np.full((h, w), self.config.init_a)
+        self.b = np.full((h, w), self.config.init_b)
+        half = self.config.patch_size // 2
+        self.state = np.full((h, w), UPDATE, np.uint8)
+        self.state[:half + 1] = BORDER
+        self.state[h - half - 1:] = BORDER
+        self.state[:, :half + 1] = BORDER
+        self.state[:, w - half - 1:] = BORDER
+        k = (self.config.patch_size, self.config.patch_size)
+        img = self.reference.astype(np.float64)
+        self.template_mean = cv2.blur(img, k, borderType=cv2.BORDER_REFLECT)
+        var = cv2.blur(img * img, k, borderType=cv2.BORDER_REFLECT) - self.template_mean**2
+        self.template_std = np.sqrt(np.maximum(var, 0.0))
+        fx, fy = self.intrinsics[:2]
+        self.px_error_angle = 2.0 * math.atan(self.config.pixel_noise / (2.0 * 0.5 * (fx + fy)))
+        u = (np.arange(w) - self.intrinsics[2]) / fx
+        v = (np.arange(h) - self.intrinsics[3]) / fy
+        self.ray_norm = np.sqrt(u[None, :] ** 2 + v[:, None] ** 2 + 1.0)  # |K^-1 (u, v, 1)|: depth along ray / z
+        self.n_updates = 0
+        self.milliseconds = 0.0
+
+    def update(self, image: np.ndarray, T_world_cur: np.ndarray) -> FilterUpdate:
+        """Update the seeds with one more image (H, W grey or RGB) taken at ``T_world_cur`` ((4, 4))."""
+        t0 = time.perf_counter()
+        cur = _gray(image)
+        if cur.shape != self.reference.shape:
+            raise CnnSlamError(f"image of size {cur.shape} for a reference of size {self.reference.shape}")
+        T_cur_ref = se3_inverse(np.asarray(T_world_cur, dtype=np.float64)) @ self.T_world_ref
+        T_ref_cur = se3_inverse(T_cur_ref)
+        cfg = self.config
+        params = np.array([cfg.patch_size // 2, cfg.search_step_px, cfg.max_search_px, cfg.min_zncc,
+                           self.px_error_angle, cfg.eta_inlier, cfg.eta_outlier, cfg.convergence_sigma_ratio,
+                           cfg.min_template_std])
+        outcome = _update_seeds(self.reference, cur, self.template_mean, self.template_std, self.mu, self.sigma2,
+                                self.a, self.b, self.state, np.ascontiguousarray(T_cur_ref[:3, :3]),
+                                np.ascontiguousarray(T_cur_ref[:3, 3]), np.ascontiguousarray(T_ref_cur[:3, 3]),
+                                self.intrinsics, self.depth_range, params)
+        self.n_updates += 1
+        ms = 1e3 * (time.perf_counter() - t0)
+        self.milliseconds += ms
+        counts = np.bincount(outcome.ravel(), minlength=5)
+        return FilterUpdate(int(counts[UPDATED]), int(counts[NO_MATCH] + counts[FLAT]), int(counts[NOT_VISIBLE]),
+                            int((self.state == CONVERGED).sum()), int((self.state == DIVERGED).sum()), ms)
+
+    @property
+    def converged(self) -> np.ndarray:
+        """(H, W) bool: seeds that have converged."""
+        return self.state == CONVERGED
+
+    def inlier_probability(self) -> np.ndarray:
+        """(H, W) E[pi] = a / (a + b)."""
+        return self.a / (self.a + self.b)
+
+    def depth(self, smooth: bool | None = None) -> np.ndarray:
+        """(H, W) float32 planar depth z in metres of the converged seeds, 0 elsewhere; TV-smoothed when ``smooth``
+        (default: ``config.tv_enabled``), with REMODE's confidence weights (see :func:`tv_smooth`)."""
+        cfg = self.config
+        smooth = cfg.tv_enabled if smooth is None else smooth
+        conv = self.converged
+        z = self.mu / self.ray_norm
+        if smooth and conv.any() and cfg.tv_iterations > 0:
+            pi = self.inlier_probability()
+            g = pi * np.minimum(self.sigma2 / self.sigma2_max, 1.0) + (1.0 - pi)
+            start = np.where(conv, z, float(np.median(z[conv])))
+            z = tv_smooth(start, conv.astype(np.float64), g, cfg.tv_lambda, cfg.tv_huber_epsilon, cfg.tv_iterations)
+        return np.where(conv & (z > 0), z, 0.0).astype(np.float32)
+
+    def depth_variance(self) -> np.ndarray:
+        """(H, W) float32 variance of the planar depth (m^2) of converged seeds, inf elsewhere."""
+        var = self.sigma2 / self.ray_norm**2
+        return np.where(self.converged, var, np.inf).astype(np.float32)
+
+
+def _gray(image: np.ndarray) -> np.ndarray:
+    image = np.asarray(image)
+    if image.ndim == 3:
+        if image.shape[2] != 3 or image.dtype != np.uint8:
+            raise CnnSlamError(f"expected an (H, W, 3) uint8 RGB image, got {image.shape} {image.dtype}")
+        return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    if image.ndim != 2:
+        raise CnnSlamError(f"expected an (H, W) grey or (H, W, 3) RGB image, got shape {image.shape}")
+    return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def depth_range_of(depth: np.ndarray, config: RemodeConfig) -> tuple[float, float]:
+    """The scene depth range of a reference frame from a (sparse) depth map (metres, 0 = none): the 2nd..98th
+    percentiles widened by ``depth_range_margin``; ``default_depth_range`` when fewer than 100 pixels have depth."""
+    d = np.asarray(depth, dtype=np.float64)
+    d = d[np.isfinite(d) & (d > 0)]
+    if d.size < 100:
+        return config.default_depth_range
+    lo, hi = np.percentile(d, [2.0, 98.0])
+    lo, hi = lo / config.depth_range_margin, hi * config.depth_range_margin
+    return (float(max(lo, 1e-2)), float(max(hi, 2 * max(lo, 1e-2))))
+
+
+# ------------------------------------------------------------------------------------------------ the agent
+
+
+@dataclass
+class _Reference:
+    """A REMODE reference frame tied to an LSD-BS key-frame (its index and timestamp)."""
+
+    keyframe: int
+    timestamp: float
+    filter: DepthFilter
+    updates: int = 0
+
+
+class RemodeAgent:
+    """REMODE on the LSD-BS trajectory as a ``sim_envs`` agent (see the module docstring for the arguments).
+
+    Depth only: Table 1 shows '-' for REMODE's ATE (the trajectory it answers is LSD-BS's). Receives ground truth
+    (``uses_ground_truth = True``) for LSD-BS's first key-frame depth only.
+    """
+
+    uses_ground_truth = True
+    name = "remode"
+
+    def __init__(self, config: RemodeConfig | dict[str, Any] | None = None, lsd_config: dict[str, Any] | None = None,
+                 threads: bool = False, seed: int | None = None) -> None:
+        from cnnslam.agent import build_config
+
+        if isinstance(config, RemodeConfig):
+            self.config = config
+        elif config is None or isinstance(config, dict):
+            self.config = RemodeConfig().with_overrides(config)
+        else:
+            raise CnnSlamError(f"config must be a RemodeConfig or a dict of its fields, got {type(config).__name__}")
+        lsd_overrides = dict(lsd_config or {})
+        if seed is not None:
+            lsd_overrides["system.seed"] = int(seed)
+        self.lsd_config = build_config("lsd_bs", lsd_overrides, threads)
+        self._system: Any = None
+        self._intrinsics = np.zeros(4)
+        self._active: list[_Reference] = []
+        self._done: dict[int, tuple[np.ndarray, np.ndarray, dict[str, float]]] = {}
+        self._ms: list[float] = []
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """Start a new episode: ``intrinsics`` [fx, fy, cx, cy] pixels, ``image_size`` (H, W)."""
+        from cnnslam.system import CnnSlam
+
+        if self._system is not None:
+            self._system.close()
+        self._intrinsics = np.asarray(intrinsics, dtype=np.float64).reshape(4)
+        self._system = CnnSlam(self.lsd_config, self._intrinsics, tuple(image_size), None)
+        self._active, self._done, self._ms = [], {}, []
+
+    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Track the frame with LSD-BS (``info["gt_depth"]`` bootstraps its first key-frame), update the active
+        REMODE reference frames with it, and start one on each new LSD-BS key-frame. Answers LSD-BS's pose."""
+        from cnnslam.depth_prediction import GroundTruthHint
+
+        if self._system is None:
+            raise CnnSlamError("call reset(intrinsics, image_size) before step()")
+        hint = None
+        if info is not None and "gt_depth" in info:
+            hint = GroundTruthHint(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
+        out = self._system.process(observation["rgb"], stamp, hint)
+        gray = _gray(observation["rgb"])
+        t0 = time.perf_counter()
+        if out.tracked:
+            keyframes = {k.index: k for k in self._system.keyframes}
+            for ref in list(self._active):
+                kf = keyframes[ref.keyframe]
+                # the frame's pose relative to the key-frame as LSD-BS holds it now, in the filter's frame
+                T_kf_cur = se3_inverse(kf.T_world_kf) @ out.T_world_cam
+                ref.filter.update(gray, ref.filter.T_world_ref @ T_kf_cur)
+                ref.updates += 1
+                if ref.updates >= self.config.max_updates:
+                    self._retire(ref)
+            if out.new_keyframe:
+                kf = keyframes[out.keyframe]
+                rng = depth_range_of(kf.maps.depth, self.config)
+                self._active.append(_Reference(kf.index, kf.timestamp,
+                                               DepthFilter(gray, kf.T_world_kf, self._intrinsics, rng, self.config)))
+                while len(self._active) > self.config.max_active_references:
+                    self._retire(self._active[0])
+        self._ms.append(1e3 * (time.perf_counter() - t0))
+        return {"T_world_cam": out.T_world_cam, "tracked": int(out.tracked)}
+
+    def _retire(self, ref: _Reference) -> None:
+        """Finish a reference frame: its (smoothed) depth and variance are kept for ``finish``."""
+        f = ref.filter
+        depth = f.depth()
+        stats = {"updates": float(ref.updates), "converged_share": float(f.converged.mean()),
+                 "diverged_share": float((f.state == DIVERGED).mean()),
+                 "ms_per_update": f.milliseconds / max(f.n_updates, 1)}
+        self._done[ref.keyframe] = (depth, f.depth_variance(), stats)
+        self._active.remove(ref)
+
+    def finish(self) -> Any:
+        """An ``AgentOutput``: LSD-BS's key-frames (final poses) with REMODE's depth (0 where not converged)."""
+        from sim_envs.agent import AgentOutput, KeyframeDepth
+
+        if self._system is None:
+            raise CnnSlamError("finish() before reset()")
+        for ref in list(self._active):
+            self._retire(ref)
+        result = self._system.finish()
+        h, w = self._system.image_size
+        keyframes = []
+        per_kf = []
+        for k in result.keyframes:
+            depth, var, stats = self._done.get(k.index, (np.zeros((h, w), np.float32),
+                                                         np.full((h, w), np.inf, np.float32), {"updates": 0.0}))
+            keyframes.append(KeyframeDepth(timestamp=k.timestamp, depth=depth, T_world_cam=k.T_world_kf,
+                                           uncertainty=var))
+            per_kf.append({"keyframe": k.index, **stats, "density": float((depth > 0).mean())})
+        ms = np.asarray(self._ms)
+        extras: dict[str, Any] = {
+            "lsd_bs": dict(result.stats),
+            "remode_keyframes": per_kf,
+            "remode_ms_per_frame": float(ms.mean()) if ms.size else 0.0,
+            "mean_density": float(np.mean([p["density"] for p in per_kf])) if per_kf else 0.0,
+            "trajectory": "lsd_bs",
+            "config": self.config.to_dict(),
+            "lsd_config": self.lsd_config.to_dict(),
+        }
+        return AgentOutput(keyframes=keyframes, extras=extras)

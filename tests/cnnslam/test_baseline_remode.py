@@ -1,0 +1,177 @@
+"""The REMODE baseline: the depth filter's equations against hand-computed cases, the TV smoothing, the filter on a
+rendered sequence with ground-truth poses (textured surfaces converge to the right depth, a plain wall does not), and
+the agent on the LSD-BS trajectory."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from cnnslam.baselines.remode import (
+    CONVERGED,
+    DepthFilter,
+    RemodeAgent,
+    RemodeConfig,
+    depth_range_of,
+    triangulation_uncertainty,
+    tv_smooth,
+    vogiatzis_update,
+)
+from cnnslam.errors import CnnSlamError
+from eval.depth_metrics import depth_metrics
+from sim_envs.driver import run_episode
+from sim_envs.env import SlamEnv
+from sim_envs.frames import SemanticClass
+from sim_envs.sequences import get_sequence
+from sim_envs.simsource import SimulatedSequence
+
+# ------------------------------------------------------------------------------------------------ equations
+
+
+def test_vogiatzis_update_hand_computed_inlier() -> None:
+    # mu = 2, sigma2 = 0.04, a = b = 10; measurement x = 2.1 with tau2 = 0.01; uniform outliers over 4 m.
+    # s2 = 1 / (25 + 100) = 0.008; m = 0.008 (2 / 0.04 + 2.1 / 0.01) = 2.08
+    # N(2.1 | 2, 0.05) = exp(-0.01 / 0.1) / sqrt(2 pi 0.05) = 1.6143423; C1 = 0.5 N, C2 = 0.5 / 4, normalised:
+    # C1 = 0.8659045, C2 = 0.1340955; f = C1 11/21 + C2 10/21 = 0.5174240; e = C1 132/462 + C2 110/462 = 0.2793288
+    # mu' = C1 2.08 + C2 2 = 2.0692724; sigma2' = C1 (0.008 + 2.08^2) + C2 (0.04 + 4) - mu'^2 = 0.0130342
+    # a' = (e - f) / (f - e / f) = 10.619295; b' = a' (1 - f) / f = 9.904095
+    mu, sigma2, a, b = vogiatzis_update(2.0, 0.04, 10.0, 10.0, 2.1, 0.01, 4.0)
+    assert mu == pytest.approx(2.0692724, abs=1e-6)
+    assert sigma2 == pytest.approx(0.0130342, abs=1e-6)
+    assert a == pytest.approx(10.619295, abs=1e-5)
+    assert b == pytest.approx(9.904095, abs=1e-5)
+
+
+def test_vogiatzis_update_outlier_measurement_only_raises_b() -> None:
+    # x = 3.5 is 6.7 standard deviations away: C1 = 1.2e-9, so the Gaussian stays and the Beta gains an outlier
+    mu, sigma2, a, b = vogiatzis_update(2.0, 0.04, 10.0, 10.0, 3.5, 0.01, 4.0)
+    assert mu == pytest.approx(2.0, abs=1e-8) and sigma2 == pytest.approx(0.04, abs=1e-8)
+    assert a == pytest.approx(10.0, abs=1e-7) and b == pytest.approx(11.0, abs=1e-7)
+
+
+def test_triangulation_uncertainty_hand_computed() -> None:
+    # bearing (0, 0, 1) at 2 m, current camera 0.1 m to the side: alpha = 90 deg, tan(beta) = 2 / 0.1 = 20, and
+    # the law of sines gives z+ = 0.1 tan(beta + px_angle); one pixel at f = 240 is px_angle = 2 atan(1 / 480)
+    px_angle = 2.0 * math.atan(1.0 / 480.0)
+    expected = 0.1 * math.tan(math.atan(20.0) + px_angle) - 2.0  # = 0.182274 m
+    tau = triangulation_uncertainty(np.array([0.0, 0.0, 1.0]), 2.0, np.array([0.1, 0.0, 0.0]), px_angle)
+    assert tau == pytest.approx(expected, rel=1e-9)
+    assert tau == pytest.approx(0.182274, abs=1e-6)
+    # a longer baseline makes the measurement more precise; no baseline makes it useless
+    assert triangulation_uncertainty(np.array([0.0, 0.0, 1.0]), 2.0, np.array([0.4, 0.0, 0.0]), px_angle) < 0.05
+    assert triangulation_uncertainty(np.array([0.0, 0.0, 1.0]), 2.0, np.zeros(3), px_angle) == math.inf
+
+
+def test_tv_smooth_denoises_keeps_edges_and_inpaints() -> None:
+    rng = np.random.default_rng(0)
+    clean = np.where(np.arange(64)[None, :] < 32, 1.0, 2.0) * np.ones((48, 1))
+    noisy = clean + rng.normal(0.0, 0.02, clean.shape)
+    weight = np.ones_like(clean)
+    weight[10:20, 5:15] = 0.0  # a hole without data
+    noisy[10:20, 5:15] = 7.0  # whatever is there is ignored
+    out = tv_smooth(noisy, weight, np.ones_like(clean), lam=50.0, huber_epsilon=0.005, iterations=2000)
+    flat = (weight > 0) & (np.abs(np.arange(64)[None, :] - 31.5) > 3)
+    assert np.std((out - clean)[flat]) < 0.5 * 0.02  # noise reduced
+    assert abs(out[:, 40:].mean() - out[25:, :24].mean() - 1.0) < 0.02  # the 1 m step survives
+    np.testing.assert_allclose(out[10:20, 5:15], 1.0, atol=0.02)  # the hole takes its surroundings' depth
+    with pytest.raises(CnnSlamError, match="same"):
+        tv_smooth(noisy, weight[:10], weight, 1.0, 0.01, 1)
+
+
+def test_depth_range_of() -> None:
+    cfg = RemodeConfig()
+    depth = np.zeros((20, 20), np.float32)
+    assert depth_range_of(depth, cfg) == cfg.default_depth_range
+    depth[:] = np.linspace(1.0, 3.0, 400).reshape(20, 20)
+    lo, hi = depth_range_of(depth, cfg)
+    assert lo == pytest.approx(np.percentile(depth, 2) / 1.5) and hi == pytest.approx(np.percentile(depth, 98) * 1.5)
+
+
+def test_config_validation() -> None:
+    with pytest.raises(CnnSlamError, match="odd"):
+        RemodeConfig(patch_size=4)
+    with pytest.raises(CnnSlamError, match="unknown REMODE config"):
+        RemodeConfig().with_overrides({"patch": 5})
+    with pytest.raises(CnnSlamError, match="depth_range"):
+        DepthFilter(np.zeros((20, 20), np.float32), np.eye(4), np.array([20.0, 20.0, 10.0, 10.0]), (2.0, 1.0))
+
+
+# ------------------------------------------------------------------------------------------------ rendered
+
+
+@pytest.fixture(scope="module")
+def office_filter():
+    """A depth filter on frame 0 of the office0 analogue, updated by frames 1..40 with ground-truth poses."""
+    spec = get_sequence("office0").with_frames(41)
+    with SimulatedSequence(spec) as seq:
+        frames = [seq.frame(i) for i in range(len(seq))]
+        intrinsics = seq.intrinsics.as_array()
+    ref = frames[0]
+    filt = DepthFilter(ref.rgb, ref.T_world_cam, intrinsics, (0.5, 5.0))
+    updates = [filt.update(f.rgb, f.T_world_cam) for f in frames[1:]]
+    return ref, filt, updates
+
+
+def test_filter_converges_on_texture_and_not_on_a_plain_wall(office_filter) -> None:
+    ref, filt, updates = office_filter
+    gray = cv2.cvtColor(ref.rgb, cv2.COLOR_RGB2GRAY).astype(np.float64)
+    mean = cv2.blur(gray, (9, 9))
+    local_std = np.sqrt(np.maximum(cv2.blur(gray * gray, (9, 9)) - mean**2, 0.0))
+    textured = np.isin(ref.labels, [SemanticClass.LARGE_STRUCTURE, SemanticClass.SMALL_STRUCTURE]) & (local_std >= 8)
+    wall = (ref.labels == SemanticClass.VERTICAL_STRUCTURE) & (local_std < 2)
+    assert textured.mean() > 0.05 and wall.mean() > 0.05  # the view holds both
+    depth = filt.depth()
+    assert depth.dtype == np.float32
+    np.testing.assert_array_equal(depth > 0, filt.state == CONVERGED)  # 0 = not converged
+    rel = np.abs(depth - ref.depth) / np.maximum(ref.depth, 1e-6)
+    has = depth > 0
+    # measured: 64 % of the textured pixels converge, 93 % of those within 10 %; 2 % of the plain wall converges
+    assert has[textured].mean() > 0.4
+    assert np.mean(rel[textured & has] < 0.1) > 0.85
+    assert has[wall].mean() < 0.1
+    m = depth_metrics(depth, ref.depth)
+    assert m.percent_correct > 25.0 and m.density < 80.0
+    assert updates[-1].converged == int(has.sum())
+    assert all(u.milliseconds > 0 for u in updates)
+
+
+def test_filter_without_tv_gives_the_seed_means(office_filter) -> None:
+    _, filt, _ = office_filter
+    raw = filt.depth(smooth=False)
+    conv = filt.converged
+    np.testing.assert_allclose(raw[conv], (filt.mu / filt.ray_norm)[conv], rtol=1e-6)
+    var = filt.depth_variance()
+    assert np.isfinite(var[conv]).all() and np.isinf(var[~conv]).all()
+
+
+def test_remode_agent_on_the_lsd_bs_trajectory() -> None:
+    spec = get_sequence("office0").with_frames(45)
+    agent = RemodeAgent(config={"max_updates": 40})
+    res = run_episode(SlamEnv(spec=spec), agent, progress=False)
+    assert res.uses_ground_truth and res.tracked.all()
+    assert len(res.keyframes) >= 1 and res.extras["trajectory"] == "lsd_bs"
+    lsd = res.extras["lsd_bs"]
+    assert lsd["keyframes"] == len(res.keyframes)
+    for kf, gt, stats in zip(res.keyframes, res.keyframe_gt, res.extras["remode_keyframes"], strict=True):
+        assert kf.depth.shape == gt.depth.shape and kf.depth.dtype == np.float32
+        assert stats["density"] == pytest.approx(float((kf.depth > 0).mean()))
+        assert np.isinf(kf.uncertainty[kf.depth == 0]).all()
+    first = depth_metrics(res.keyframes[0].depth, res.keyframe_gt[0].depth)
+    # LSD-BS's first key-frame has ground-truth scale, so REMODE's depth on it is metric: measured 41 % correct
+    assert first.percent_correct > 20.0 and 20.0 < first.density < 90.0
+    assert res.extras["remode_ms_per_frame"] > 0
+    json.dumps(res.extras)  # JSON-serialisable diagnostics
+
+
+def test_remode_agent_contract() -> None:
+    agent = RemodeAgent()
+    assert agent.uses_ground_truth and agent.lsd_config.depth.source == "ground_truth_first"
+    with pytest.raises(CnnSlamError, match="reset"):
+        agent.step({"rgb": np.zeros((240, 320, 3), np.uint8), "timestamp": np.zeros(1)}, {})
+    with pytest.raises(CnnSlamError, match="RemodeConfig"):
+        RemodeAgent(config=3)  # type: ignore[arg-type]
+    assert RemodeAgent(seed=5).lsd_config.system.seed == 5
