@@ -651,7 +651,12 @@ def far_structure(
             continue
         omega = speed / half
         s = half * np.sin(omega * (times - times[0]))
-        eye = mid + np.outer(s, along)
+        # hand-held: the sweep bobs up and down and drifts away from the wall a little, so the positions span a
+        # plane (a perfectly straight dolly leaves a trajectory alignment's rotation about the line undetermined)
+        phase = rng.uniform(0.0, 2.0 * np.pi, 2)
+        bob = rng.uniform(0.06, 0.1) * np.sin(2.0 * np.pi / 7.0 * (times - times[0]) + phase[0])  # 7 s period
+        drift = rng.uniform(0.1, 0.2) * 0.5 * (1.0 - np.cos(2.0 * np.pi / 19.0 * (times - times[0]) + phase[1]))
+        eye = mid + np.outer(s, along) + np.outer(drift, inward) + np.outer(bob, [0.0, 0.0, 1.0])
         knots = np.linspace(times[0], times[-1], 3)
         tgt = CubicSpline(knots, np.stack(ends), bc_type="natural")(times)
         dist = np.linalg.norm(tgt - eye, axis=1)
