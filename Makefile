@@ -6,6 +6,9 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
+# bench size of the Table-1 suite: the first BENCH_FRAMES frames of each of the 9 sequences x 7 methods, JOBS runs
+# at a time (<= 20 minutes on 2 cores; see docs/benchmarks.md). Finished runs under runs/ are reused.
+BENCH_FRAMES ?= 200
 
 .PHONY: bench test venv lint clean
 
@@ -23,7 +26,7 @@ test: venv lint
 	$(BIN)/python -m pytest -n $(JOBS) --dist loadfile -q
 
 bench: venv
-	$(BIN)/cnnslam bench
+	$(BIN)/cnnslam bench table1 --frames $(BENCH_FRAMES) --jobs $(JOBS)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache *.egg-info

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -178,6 +179,59 @@ def save_depth_error_figure(
         plot_depth_map(axes[k, 1], depth_est[k], vmax, "estimate")
         plot_depth_error_map(axes[k, 2], depth_est[k], depth_gt[k], threshold)
     fig.legend(handles=depth_legend_handles(threshold), loc="outside lower center", ncols=4, fontsize="small")
+    return _save(fig, path, dpi)
+
+
+def save_depth_error_row_figure(
+    path: str | Path,
+    depth_est: Sequence[np.ndarray],
+    depth_gt: Sequence[np.ndarray],
+    titles: Sequence[str],
+    title: str = "",
+    threshold: float = CORRECT_THRESHOLD,
+    dpi: int = 110,
+) -> Path:
+    """One coded depth error map per column (e.g. one key-frame per ablation variant, like the paper's Fig. 3 B)."""
+    n = len(depth_est)
+    fig = Figure(figsize=(4.0 * max(n, 1), 3.6), layout="constrained")
+    axes = fig.subplots(1, max(n, 1), squeeze=False)[0]
+    for ax, est, gt, name in zip(axes, depth_est, depth_gt, titles, strict=True):
+        plot_depth_error_map(ax, est, gt, threshold, title=f"{name}:")
+    if title:
+        fig.suptitle(title)
+    fig.legend(handles=depth_legend_handles(threshold), loc="outside lower center", ncols=4, fontsize="small")
+    return _save(fig, path, dpi)
+
+
+def save_sweep_figure(
+    points: pd.DataFrame, path: str | Path, methods: Sequence[str], axes_titles: dict[str, str], dpi: int = 110
+) -> Path:
+    """ATE (top row) and correct depth (bottom row) against each difficulty axis (columns), one line per method.
+
+    ``points``: one row per run with columns axis, x, method, ate_rmse, depth_percent_correct; ``axes_titles``:
+    axis name -> x-axis label, in column order.
+    """
+    names = list(axes_titles)
+    fig = Figure(figsize=(4.2 * len(names), 7.0), layout="constrained")
+    grid = fig.subplots(2, len(names), squeeze=False)
+    for col, axis in enumerate(names):
+        sub = points[points["axis"] == axis]
+        for row, (metric, label) in enumerate((("ate_rmse", "ATE RMSE [m]"),
+                                               ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
+            ax = grid[row, col]
+            for method in methods:
+                line = sub[sub["method"] == method].groupby("x")[metric].mean().sort_index()
+                if line.notna().any():
+                    ax.plot(line.index, line.to_numpy(), marker="o", label=method)
+            ax.set_xlabel(axes_titles[axis])
+            ax.set_ylabel(label)
+            ax.grid(True, alpha=0.3)
+            if axis == "focal":
+                ax.axvline(1.0, color="0.5", linestyle=":", linewidth=1)
+        grid[0, col].set_title(axes_titles[axis])
+    handles, labels = grid[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 6), fontsize="small")
     return _save(fig, path, dpi)
 
 

@@ -1,0 +1,306 @@
+"""The method table: what each benchmark method is (an agent entry point with keyword arguments, or a folder of a
+third-party system's output), which metric groups apply to it, and a check that it can run here.
+
+The table itself is data, :file:`eval/methods.toml` (the judge names agents by ``"module:Class"`` strings and never
+imports the agents' package; see that file for the fields). A user adds a method by adding a table there or by
+passing another file of the same shape (:func:`load_methods`).
+
+Two kinds of method:
+
+- ``agent``: an agent of :mod:`sim_envs.agent` run in the environment of each sequence by :mod:`eval.runner`;
+- ``external``: a third-party SLAM system that ran on an exported sequence (``cnnslam export``, ``cnnslam generate
+  rotation --export``) and wrote, per sequence, a TUM trajectory and optionally depth maps into a folder
+  (:func:`external_method`; layout in :data:`EXTERNAL_LAYOUT`). Its output is scored exactly like an agent's.
+
+Metric groups (:data:`METRIC_GROUPS`): ``trajectory`` (ATE, rotation error, RPE, scale, path lengths, tracked share),
+``depth`` (percentage of correct depth, density, AbsRel, RMSE, delta < 1.25, key-frame count), ``semantic`` (pixel
+accuracy, IoU). ``frames`` is always kept. A method without the ``trajectory`` group (REMODE, which runs on LSD-BS
+poses) gets no ATE column, as in the paper's Table 1.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+import numpy as np
+
+from eval.errors import EvalError
+
+MethodKind = Literal["agent", "external"]
+METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
+METHODS_FILE: Path = Path(__file__).with_name("methods.toml")
+
+# metric name prefixes (eval.results' flat names) of each group
+METRIC_GROUPS: dict[str, tuple[str, ...]] = {
+    "trajectory": ("ate_", "rot_deg_", "rpe_", "scale", "length_", "tracked_share"),
+    "depth": ("depth_",),
+    "semantic": ("semantic_",),
+}
+ALWAYS_KEPT: tuple[str, ...] = ("frames",)
+# wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
+TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps")
+
+EXTERNAL_LAYOUT = """\
+FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps
+FOLDER/<sequence>.txt                (alternative to the above)
+FOLDER/<sequence>/depth/<t>.png      optional key-frame depth, 16-bit PNG, 5000 = 1 m (TUM), t = the timestamp
+FOLDER/<sequence>/depth/<t>.npy      optional key-frame depth, (H, W) float32 metres, 0 = no estimate"""
+
+_FILE_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+class MethodError(EvalError):
+    """A method definition that cannot be used (bad table, unknown name, an agent that cannot be imported)."""
+
+
+@dataclass(frozen=True)
+class Method:
+    """One benchmark method.
+
+    name: shown in results; kind: "agent" or "external"; entry_point: ``"module:Class"`` (agents); kwargs: the
+    agent's keyword arguments as sorted ``(name, value)`` pairs (a mapping is accepted); seed: where a run's seed
+    goes (see :meth:`agent_kwargs`), None when the agent takes none; metrics: metric groups reported; paper: the
+    method's column in the paper's Table 1, if any; description: one line; folder: the output folder (external).
+    """
+
+    name: str
+    kind: MethodKind = "agent"
+    entry_point: str | None = None
+    kwargs: tuple[tuple[str, Any], ...] = ()
+    seed: str | None = None
+    metrics: tuple[str, ...] = ("trajectory", "depth")
+    paper: str | None = None
+    description: str = ""
+    folder: str | None = None
+
+    def __post_init__(self) -> None:
+        kwargs = self.kwargs
+        items = kwargs.items() if isinstance(kwargs, Mapping) else kwargs
+        object.__setattr__(self, "kwargs", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
+        object.__setattr__(self, "metrics", tuple(self.metrics))
+        if not self.name or _FILE_SAFE.sub("", self.name) == "":
+            raise MethodError(f"a method needs a name with at least one letter or digit, got {self.name!r}")
+        if self.kind not in METHOD_KINDS:
+            raise MethodError(f"method {self.name!r}: kind must be one of {METHOD_KINDS}, got {self.kind!r}")
+        bad = [g for g in self.metrics if g not in METRIC_GROUPS]
+        if bad or not self.metrics:
+            raise MethodError(
+                f"method {self.name!r}: unknown metric group(s) {bad or '(none given)'}; "
+                f"valid: {', '.join(METRIC_GROUPS)}"
+            )
+        if self.kind == "agent":
+            module, sep, attr = (self.entry_point or "").partition(":")
+            if not (module and sep and attr):
+                raise MethodError(
+                    f"method {self.name!r}: entry_point must look like 'package.module:Class', got {self.entry_point!r}"
+                )
+        elif not self.folder:
+            raise MethodError(f"external method {self.name!r} needs the folder holding its output")
+        if self.seed is not None and not re.fullmatch(r"[A-Za-z_]\w*(\.[^.\s]+(\.[^.\s]+)*)?", self.seed):
+            raise MethodError(f"method {self.name!r}: seed must be 'keyword' or 'keyword.key', got {self.seed!r}")
+
+    @property
+    def slug(self) -> str:
+        """The name made safe for a folder name."""
+        return _FILE_SAFE.sub("_", self.name).strip("_")
+
+    def agent_kwargs(self, seed: int | None = None) -> dict[str, Any]:
+        """The agent's keyword arguments, with ``seed`` put where :attr:`seed` says (``"config.system.seed"``:
+        ``kwargs["config"]["system.seed"] = seed``, merged into a config dict already given)."""
+        kwargs = {k: _thaw(v) for k, v in self.kwargs}
+        if seed is None or self.seed is None:
+            return kwargs
+        keyword, _, key = self.seed.partition(".")
+        if not key:
+            kwargs[keyword] = int(seed)
+            return kwargs
+        inner = kwargs.get(keyword) or {}
+        if not isinstance(inner, dict):
+            raise MethodError(f"method {self.name!r}: seed goes into {keyword!r}, which is {inner!r}, not a dict")
+        kwargs[keyword] = {**inner, key: int(seed)}
+        return kwargs
+
+    def keeps(self, metric: str) -> bool:
+        """Whether the metric (a flat name of :mod:`eval.results`) belongs to one of the method's groups."""
+        if metric in ALWAYS_KEPT:
+            return True
+        return any(metric.startswith(p) for g in self.metrics for p in METRIC_GROUPS[g])
+
+    def select_metrics(self, metrics: Mapping[str, float]) -> dict[str, float]:
+        """The metrics that apply to this method (its groups), timing figures left out."""
+        return {k: v for k, v in metrics.items() if k not in TIMING_METRICS and self.keeps(k)}
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description (for run metadata and listings)."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "entry_point": self.entry_point,
+            "kwargs": {k: _thaw(v) for k, v in self.kwargs},
+            "seed": self.seed,
+            "metrics": list(self.metrics),
+            "paper": self.paper,
+            "folder": self.folder,
+        }
+
+
+def _freeze(value: Any) -> Any:
+    """Dicts become sorted pair tuples and lists tuples, so a method stays hashable."""
+    if isinstance(value, Mapping):
+        return ("__dict__", tuple(sorted((str(k), _freeze(v)) for k, v in value.items())))
+    if isinstance(value, list | tuple):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+def _thaw(value: Any) -> Any:
+    if isinstance(value, tuple) and len(value) == 2 and value[0] == "__dict__":
+        return {k: _thaw(v) for k, v in value[1]}
+    if isinstance(value, tuple):
+        return [_thaw(v) for v in value]
+    return value
+
+
+# ------------------------------------------------------------------------------------------------------ the table
+_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder"}
+
+
+def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[str, Method]:
+    """Methods of a parsed table (``{"methods": {name: {...}}}``), in file order."""
+    table = data.get("methods")
+    if not isinstance(table, Mapping) or not table:
+        raise MethodError(f"{source}: expected a non-empty [methods.<name>] table")
+    methods: dict[str, Method] = {}
+    for name, entry in table.items():
+        if not isinstance(entry, Mapping):
+            raise MethodError(f"{source}: methods.{name} must be a table")
+        unknown = sorted(set(entry) - _FIELDS)
+        if unknown:
+            raise MethodError(f"{source}: methods.{name} has unknown field(s) {unknown}; valid: {sorted(_FIELDS)}")
+        try:
+            methods[name] = Method(name=name, **dict(entry))
+        except TypeError as exc:
+            raise MethodError(f"{source}: methods.{name}: {exc}") from exc
+    return methods
+
+
+def load_methods(path: str | Path | None = None) -> dict[str, Method]:
+    """The method table of ``path`` (default :data:`METHODS_FILE`), name -> :class:`Method`, in file order."""
+    path = Path(path) if path is not None else METHODS_FILE
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise MethodError(f"{path}: cannot read the method table: {exc.strerror or exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise MethodError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_methods(data, str(path))
+
+
+def get_method(name: str, table: Mapping[str, Method] | None = None) -> Method:
+    """A method by name; :class:`MethodError` listing the valid names otherwise."""
+    table = load_methods() if table is None else table
+    try:
+        return table[name]
+    except KeyError:
+        raise MethodError(f"unknown method {name!r}; valid methods: {', '.join(table)}") from None
+
+
+def external_method(name: str, folder: str | Path, metrics: Sequence[str] = ("trajectory", "depth")) -> Method:
+    """A third-party system's output in ``folder`` (layout: :data:`EXTERNAL_LAYOUT`) as a method named ``name``."""
+    return Method(
+        name=name,
+        kind="external",
+        folder=str(Path(folder).resolve()),
+        metrics=tuple(metrics),
+        description=f"external system, output read from {folder}",
+    )
+
+
+def parse_external(text: str) -> Method:
+    """``NAME=FOLDER`` (the ``--external`` option) as an external method."""
+    name, sep, folder = text.partition("=")
+    if not sep or not name.strip() or not folder.strip():
+        raise MethodError(f"--external takes NAME=FOLDER, got {text!r}")
+    return external_method(name.strip(), folder.strip())
+
+
+# ------------------------------------------------------------------------------------------------ availability
+def check_available(method: Method, build: bool = True) -> str | None:
+    """None when the method can run here, else a one-line reason.
+
+    Agents: the entry point's module imports and has the attribute; with ``build``, the agent is also built with
+    its keyword arguments, reset for a 320x240 camera and stepped once on a synthetic image (:func:`_smoke_test`:
+    this loads a network's weights, so a missing weights file is found before any run starts). External: the
+    folder exists.
+    """
+    if method.kind == "external":
+        folder = Path(method.folder or "")
+        return None if folder.is_dir() else f"the output folder {folder} does not exist"
+    module_name, _, attr = (method.entry_point or "").partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # noqa: BLE001 - any import failure makes the method unavailable, with its reason
+        return f"cannot import {module_name!r}: {type(exc).__name__}: {exc}"
+    factory = getattr(module, attr, None)
+    if factory is None:
+        return f"module {module_name!r} has no attribute {attr!r}"
+    if not build:
+        return None
+    try:
+        _smoke_test(factory(**method.agent_kwargs(0)))
+    except Exception as exc:  # noqa: BLE001 - the reason is reported, the method skipped
+        return f"cannot run {method.entry_point} with {method.agent_kwargs(0)}: {type(exc).__name__}: {exc}"
+    return None
+
+
+def _smoke_test(agent: Any) -> None:
+    """Reset ``agent`` for a 320x240 camera, step it once on a fixed random image (with a plausible ``info`` for an
+    agent that declares ``uses_ground_truth``), then let it finish. Raises whatever the agent raises."""
+    h, w = 240, 320
+    intrinsics = np.array([0.75 * w, 0.75 * w, (w - 1) / 2, (h - 1) / 2])
+    rng = np.random.default_rng(0)
+    observation = {
+        "rgb": rng.integers(0, 256, (h, w, 3), dtype=np.uint8),
+        "timestamp": np.zeros(1),
+        "intrinsics": intrinsics.copy(),
+    }
+    agent.reset(intrinsics.copy(), (h, w))
+    if getattr(agent, "uses_ground_truth", False):
+        info = {
+            "frame_index": 0,
+            "timestamp": 0.0,
+            "gt_T_world_cam": np.eye(4),
+            "gt_depth": np.full((h, w), 2.0, dtype=np.float32),
+            "gt_labels": np.zeros((h, w), dtype=np.uint8),
+        }
+        agent.step(observation, info)
+    else:
+        agent.step(observation)
+    agent.finish()
+
+
+@dataclass(frozen=True)
+class MethodCheck:
+    """Which of a suite's methods can run (``available``) and why the others cannot (``skipped``: name -> reason)."""
+
+    available: tuple[Method, ...]
+    skipped: dict[str, str] = field(default_factory=dict)
+
+
+def check_methods(methods: Sequence[Method], build: bool = True) -> MethodCheck:
+    """Split ``methods`` into those that can run and those skipped (with the reason)."""
+    ok: list[Method] = []
+    skipped: dict[str, str] = {}
+    for method in methods:
+        reason = check_available(method, build)
+        if reason is None:
+            ok.append(method)
+        else:
+            skipped[method.name] = reason
+    return MethodCheck(tuple(ok), skipped)

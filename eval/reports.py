@@ -1,0 +1,363 @@
+"""What each suite leaves under ``results/``: tables (Markdown, CSV, LaTeX), plots, and the long-form CSV of all its
+runs (``<suite>_long.csv``: sequence, method, metric, value, plus run metadata: seed, frames, agent entry point and
+keyword arguments, git revision, wall time).
+
+- ``table1``: ``table1.{md,csv,tex}`` shaped like the paper's Table 1 (ATE block, percentage-of-correct-depth block,
+  Avg. row); the Markdown quotes the paper's number beside each of ours, ``ours (paper)``;
+- ``rotation``: ``rotation.{md,csv,tex}``: tracked share, rotation error, correct depth per sequence and method;
+- ``ablation``: ``ablation.{md,csv,tex}`` and ``ablation.png`` (one key-frame's depth error per variant, Fig. 3);
+- ``sweep``: ``sweep.png`` (ATE and correct depth against each difficulty axis) and ``sweep.{md,csv}``;
+- ``quick``: ``quick.md`` and ``quick_runs.json`` (the run records the gate compares, ``cnnslam regress``).
+
+Every Markdown file starts with how it was made (command, frames, seeds, revision) and ends with the state of the
+runs: methods skipped (and why), runs that failed (and their errors).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from eval.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
+from eval.plots import save_depth_error_row_figure, save_sweep_figure
+from eval.results import runs_frame
+from eval.runner import SuiteRun, suite_records_json
+from eval.suites import SWEEP_AXES
+from eval.tables import AVG_LABEL, TABLE1_BLOCKS, table1, table_to_csv, table_to_latex, table_to_markdown
+
+ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
+    ("Tracked share", "tracked_share"),
+    ("Rotation error [deg]", "rot_deg_rmse"),
+    ("Perc. Correct Depth [%]", "depth_percent_correct"),
+)
+QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, ("Tracked share", "tracked_share"))
+PAPER_NAMES: dict[str, str] = dict(
+    zip(("office0", "office1", "office2", "living0", "living1", "living2", "tum_long_office",
+         "tum_nostructure_near", "tum_structure_far"), PAPER_SEQUENCES, strict=True)
+)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------------- long form
+def long_frame(run: SuiteRun) -> pd.DataFrame:
+    """All finished runs in long form (:func:`eval.results.runs_frame`) with ``wall_s`` from each run's timing."""
+    records = []
+    for record in run.records:
+        meta = dict(record.get("metadata") or {})
+        meta["wall_s"] = run.timings.get(record["run"], {}).get("wall_s", math.nan)
+        records.append({**record, "metadata": meta})
+    return runs_frame(records, run_ids=[r["run"] for r in run.records])
+
+
+def write_long_csv(run: SuiteRun, results_dir: str | Path) -> Path:
+    """``<suite>_long.csv`` in ``results_dir``."""
+    path = Path(results_dir) / f"{run.suite.name}_long.csv"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    long_frame(run).to_csv(path, index=False, float_format="%.6g")
+    return path
+
+
+# ------------------------------------------------------------------------------------------------ Markdown parts
+def header_markdown(run: SuiteRun, title: str, command: str) -> str:
+    """Title, what the suite is, and how it was made."""
+    suite = run.suite
+    revisions = sorted({str((r.get("metadata") or {}).get("git_revision")) for r in run.records}) or ["-"]
+    frames = "whole sequences" if suite.frames is None else f"the first {suite.frames} frames of each sequence"
+    return (
+        f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
+        f"Made by `{command}`: {frames}, seed(s) {', '.join(map(str, suite.seeds))}, ATE after "
+        f"{suite.alignment.upper()} alignment, git revision {', '.join(revisions)}. Per-run artifacts (trajectories, "
+        f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every figure in long form in "
+        f"`{suite.name}_long.csv`.\n"
+    )
+
+
+def status_markdown(run: SuiteRun) -> str:
+    """Runs done / failed, methods skipped with their reasons, failed runs with their errors."""
+    counts = run.counts()
+    lines = [
+        "## Runs\n",
+        f"{len(run.specs)} runs: {counts.get('done', 0)} run now, {counts.get('cached', 0)} reused from earlier, "
+        f"{counts.get('failed', 0)} failed.",
+    ]
+    if run.skipped_methods:
+        lines.append("\nMethods skipped (they cannot run here):\n")
+        lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.skipped_methods.items()]
+    if run.failed:
+        lines.append("\nFailed runs (rerun the same command to retry them):\n")
+        lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]
+    return "\n".join(lines) + "\n"
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]]) -> pd.DataFrame:
+    frame = long_frame(run)
+    if frame.empty:
+        frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
+    return table1(frame, methods=list(run.suite.methods), sequences=[s.name for s in run.suite.sequences],
+                  blocks=blocks)  # fmt: skip
+
+
+def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3) -> list[Path]:
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
+    csv.write_text(table_to_csv(table))
+    tex.write_text(table_to_latex(table, digits, caption))
+    return [csv, tex]
+
+
+# ----------------------------------------------------------------------------------------------------- table1
+def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int) -> str:
+    """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number."""
+    paper = paper_table1_frame()
+    paper = paper[paper["metric"] == metric]
+    paper_value = {(row.sequence, row.method): row.value for row in paper.itertuples()}
+    paper_avg = PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH
+    block = ours[metric_block] if metric_block in ours.columns.get_level_values(0) else pd.DataFrame(index=ours.index)
+    header = ["sequence", *block.columns]
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(block.columns)]
+    for label, row in block.iterrows():
+        cells = []
+        for method, value in row.items():
+            text = "-" if pd.isna(value) else f"{value:.{digits}f}"
+            if label == AVG_LABEL:
+                quoted = paper_avg.get(method, math.nan)
+            else:
+                quoted = paper_value.get((PAPER_NAMES.get(str(label), ""), method), math.nan)
+            if not math.isnan(quoted):
+                text += f" ({quoted:.{digits}f})"
+            cells.append(text)
+        name = str(label) if label == AVG_LABEL else f"{label} ({PAPER_NAMES.get(str(label), 'ours only')})"
+        lines.append("| " + " | ".join([name, *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``table1.{md,csv,tex}`` and ``table1_long.csv``."""
+    results_dir = Path(results_dir)
+    table = _suite_table(run, TABLE1_BLOCKS)
+    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)")
+    ate_title, ate_metric = TABLE1_BLOCKS[0]
+    depth_title, depth_metric = TABLE1_BLOCKS[1]
+    text = [
+        header_markdown(run, "Table 1 analogue: absolute trajectory error and percentage of correct depth", command),
+        "Each cell: **ours (the paper's Table 1)**. Our sequences are simulated analogues of the paper's "
+        "(ICL-NUIM office/living room, TUM fr3 sequences), not the same images: compare shapes (which method is "
+        "best, by how much), not values. `oracle` is the ground truth fed through the same pipeline (a sanity "
+        "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a failed run). "
+        "The Avg. row is shown only where a method has every sequence.\n",
+        f"## {ate_title}\n",
+        ours_beside_paper(table, ate_title, ate_metric, 3),
+        f"## {depth_title}\n",
+        "A pixel is correct when its depth is within 10 % of the ground truth; the share is over all pixels of the "
+        "key-frames with valid ground truth (a sparse method is penalised for the pixels it has no depth for).\n",
+        ours_beside_paper(table, depth_title, depth_metric, 3),
+        "## Ours alone (as in table1.csv / table1.tex)\n",
+        table_to_markdown(table),
+        status_markdown(run),
+    ]
+    md = results_dir / "table1.md"
+    md.write_text("\n".join(text))
+    return [md, *paths, write_long_csv(run, results_dir)]
+
+
+# --------------------------------------------------------------------------------------------------- rotation
+def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``rotation.{md,csv,tex}`` and ``rotation_long.csv``."""
+    results_dir = Path(results_dir)
+    table = _suite_table(run, ROTATION_BLOCKS)
+    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences")
+    text = [
+        header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
+        "Sequences `rot_<axes>_<deg/s>`: the camera turns about a fixed optical centre (like TUM fr1/rpy), so a "
+        "monocular method gets no parallax to triangulate from. Tracked share: frames the method reported as "
+        "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after "
+        "alignment (rotation-only, since the positions do not move). Correct depth as in Table 1.\n",
+        table_to_markdown(table),
+        status_markdown(run),
+    ]
+    md = results_dir / "rotation.md"
+    md.write_text("\n".join(text))
+    return [md, *paths, write_long_csv(run, results_dir)]
+
+
+# --------------------------------------------------------------------------------------------------- ablation
+def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``ablation.{md,csv,tex}``, ``ablation.png`` (when there are key-frames) and ``ablation_long.csv``."""
+    results_dir = Path(results_dir)
+    table = _suite_table(run, TABLE1_BLOCKS)
+    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)")
+    figure = save_ablation_figure(run, results_dir / "ablation.png")
+    text = [
+        header_markdown(run, "Ablation (the paper's Fig. 3): raw CNN depth, focal-length adjustment, refinement",
+                        command),  # fmt: skip
+        "`raw-CNN`: the network's depth as predicted; `focal-adjusted`: with the focal-length adjustment of eq. 5 "
+        "(the test camera's focal length differs from the training camera's); `adjusted+refined`: the full system, "
+        "the adjusted depth refined by small-baseline stereo (eq. 10-11).\n",
+        table_to_markdown(table),
+        f"![one key-frame's depth error per variant]({figure.name})\n" if figure else "",
+        status_markdown(run),
+    ]
+    md = results_dir / "ablation.md"
+    md.write_text("\n".join(text))
+    return [md, *paths, *([figure] if figure else []), write_long_csv(run, results_dir)]
+
+
+def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray] | None:
+    path = run.out_root / record["run"] / "keyframes.npz"
+    if not path.is_file():
+        return None
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    return arrays if "depth" in arrays and arrays["depth"].shape[0] else None
+
+
+def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
+    """For the first sequence where every variant has key-frames: the key-frame of each variant nearest to the
+    middle of the run, its depth error map (blue correct, red wrong, grey missing) against the ground truth."""
+    by_sequence: dict[str, dict[str, dict[str, Any]]] = {}
+    for record in run.records:
+        by_sequence.setdefault(record["sequence"], {})[record["method"]] = record
+    methods = list(run.suite.methods)
+    for ref in run.suite.sequences:
+        found = by_sequence.get(ref.name, {})
+        keyframes = {m: _keyframes_of(run, found[m]) for m in methods if m in found}
+        if len(keyframes) != len(methods) or any(v is None for v in keyframes.values()):
+            continue
+        estimates, truths, titles = [], [], []
+        source = ref.make_source()
+        try:
+            for method in methods:
+                kf = keyframes[method]
+                stamps = kf["timestamps"]
+                frames = int(found[method]["metrics"].get("frames", len(source)))
+                middle = float(source.timestamps[min(frames // 2, len(source) - 1)])
+                k = int(np.argmin(np.abs(stamps - middle)))
+                i = int(np.argmin(np.abs(np.asarray(source.timestamps) - stamps[k])))
+                estimates.append(kf["depth"][k])
+                truths.append(source.frame(i).depth)
+                titles.append(f"{method}, t={stamps[k]:.2f} s")
+        finally:
+            source.close()
+        return save_depth_error_row_figure(
+            path, estimates, truths, titles, title=f"{ref.name}: depth error of one key-frame per variant"
+        )
+    return None
+
+
+# ------------------------------------------------------------------------------------------------------ sweep
+def sweep_points(run: SuiteRun) -> pd.DataFrame:
+    """One row per finished sweep run: axis, x (the axis value; for the rotation axis the measured rotation
+    share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share``."""
+    rows = []
+    for record in run.records:
+        meta = record.get("metadata") or {}
+        axis = meta.get("axis")
+        if axis is None:
+            continue
+        x = meta.get("rotation_share") if axis == "rotation" else meta.get("axis_value")
+        metrics = record["metrics"]
+        rows.append(
+            {
+                "axis": axis,
+                "x": math.nan if x is None else float(x),
+                "setting": meta.get("axis_value"),
+                "sequence": record["sequence"],
+                "method": record["method"],
+                "ate_rmse": metrics.get("ate_rmse", math.nan),
+                "depth_percent_correct": metrics.get("depth_percent_correct", math.nan),
+                "tracked_share": metrics.get("tracked_share", math.nan),
+            }
+        )
+    columns = ["axis", "x", "setting", "sequence", "method", "ate_rmse", "depth_percent_correct", "tracked_share"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``sweep.png``, ``sweep.md``, ``sweep.csv`` (one row per point) and ``sweep_long.csv``."""
+    results_dir = Path(results_dir)
+    points = sweep_points(run)
+    csv = results_dir / "sweep.csv"
+    csv.parent.mkdir(parents=True, exist_ok=True)
+    points.to_csv(csv, index=False, float_format="%.6g")
+    figure = save_sweep_figure(points, results_dir / "sweep.png", list(run.suite.methods), SWEEP_AXES)
+    text = [
+        header_markdown(run, "Difficulty sweep: one axis at a time", command),
+        "Axes: texture density of the room (share of textured surfaces); share of rotation in the motion (the "
+        "hand-held trajectory with an extra pan at 0-60 deg/s; x = measured share of image motion due to "
+        "rotation, for a scene 2 m away); focal length of the test camera over the training camera's (NYU) at the "
+        "same resolution (1 = no mismatch; the base sequence's ICL camera is 0.93).\n",
+        f"![ATE and correct depth against each axis]({figure.name})\n",
+    ]
+    for axis, title in SWEEP_AXES.items():
+        sub = points[points["axis"] == axis]
+        if sub.empty:
+            continue
+        wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"])
+        text.append(f"### {title}\n\n" + _pivot_markdown(wide))
+    text.append(status_markdown(run))
+    md = results_dir / "sweep.md"
+    md.write_text("\n".join(text))
+    return [md, csv, figure, write_long_csv(run, results_dir)]
+
+
+def _pivot_markdown(wide: pd.DataFrame) -> str:
+    header = ["setting", "x", *(f"{metric}: {method}" for metric, method in wide.columns)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
+    for (setting, x), row in wide.iterrows():
+        cells = ["-" if pd.isna(v) else f"{v:.3f}" for v in row.to_numpy()]
+        lines.append("| " + " | ".join([f"{setting:g}", f"{x:.3f}", *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------------------ quick
+def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``quick.md``, ``quick_runs.json`` (the gate's run file) and ``quick_long.csv``."""
+    results_dir = Path(results_dir)
+    results_dir.mkdir(parents=True, exist_ok=True)
+    runs_json = results_dir / "quick_runs.json"
+    runs_json.write_text(suite_records_json(run.records))
+    table = _suite_table(run, QUICK_BLOCKS)
+    text = [
+        header_markdown(run, "Quick suite (the CI regression baseline)", command),
+        "Compared metric by metric with `results/baselines/quick.json` by `cnnslam bench quick` and by "
+        "`tests/eval/test_quick_regression.py`; after an intended change: `cnnslam bench quick --update-baseline`.\n",
+        table_to_markdown(table),
+        status_markdown(run),
+    ]
+    md = results_dir / "quick.md"
+    md.write_text("\n".join(text))
+    return [md, runs_json, write_long_csv(run, results_dir)]
+
+
+def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``."""
+    results_dir = Path(results_dir)
+    table = _suite_table(run, QUICK_BLOCKS)
+    paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}")
+    md = results_dir / f"{run.suite.name}.md"
+    md.write_text("\n".join([header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table),
+                             status_markdown(run)]))  # fmt: skip
+    return [md, *paths, write_long_csv(run, results_dir)]
+
+
+REPORTS = {
+    "table1": report_table1,
+    "rotation": report_rotation,
+    "ablation": report_ablation,
+    "sweep": report_sweep,
+    "quick": report_quick,
+}
+
+
+def write_report(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """The suite's outputs in ``results_dir`` (see the module docstring); returns the files written."""
+    return REPORTS.get(run.suite.name, report_generic)(run, results_dir, command)

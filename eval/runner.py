@@ -1,0 +1,591 @@
+"""One benchmark run = (suite, sequence, method, seed, frames) -> a folder of artifacts; many runs -> a suite run.
+
+A run (:func:`execute_run`, in a worker process) makes the sequence's environment, runs the method's agent over the
+first ``frames`` frames with :func:`sim_envs.driver.run_episode` (or reads an external system's output), scores it
+with :func:`eval.results.evaluate_episode`, and returns its artifacts as bytes; the parent process writes them
+(:func:`store_result`), so the executor may be a process pool or a Ray cluster without a shared file system.
+
+Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN_FILES`):
+
+- ``metrics.json``: the run record (:mod:`eval.results`) with the method's metric groups only, and ``metadata``
+  (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
+  fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
+- ``timing.json``: wall time of the run, per-frame step times, frames per second (never compared by the gate);
+- ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
+- ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
+- ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
+  the ground truth's size where it differed, as scored), ``uncertainty`` (K, H, W) when every key-frame has one;
+- ``trajectory.png`` (top view, axes over time, ATE over time) and ``depth.png`` (up to 3 key-frames' error maps),
+  unless plots are off.
+
+A failed run's folder holds only ``failed.json`` (error, traceback, wall time). Writes are atomic: files go to a
+hidden temporary folder that is renamed into place, so an interrupted run leaves no half-written result. Resuming:
+a run whose folder holds a ``metrics.json`` with the same fingerprint (method, sequence definition, seed, frames,
+alignment, renderer) is skipped; failed runs are retried.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+import traceback
+import uuid
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from tqdm import tqdm
+
+from eval.association import associate
+from eval.errors import EvalError
+from eval.executors import Executor, SerialExecutor
+from eval.methods import TIMING_METRICS, Method, check_methods
+from eval.results import evaluate_episode, json_ready, load_run
+from eval.suites import SequenceRef, Suite, rotation_share
+from eval.trajectory import PoseTrajectory
+
+RUN_FILES: tuple[str, ...] = (
+    "metrics.json",
+    "timing.json",
+    "agent_extras.json",
+    "trajectory.tum",
+    "groundtruth.tum",
+    "keyframes.npz",
+    "trajectory.png",
+    "depth.png",
+)
+DONE_FILE = "metrics.json"
+FAILED_FILE = "failed.json"
+RunStatus = Literal["done", "cached", "failed"]
+DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
+DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
+
+
+class RunnerError(EvalError):
+    """A run that cannot be planned or stored (a bad output folder, an unreadable result)."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything one run needs; picklable (sent to workers). ``frames``: the first N frames (None: all)."""
+
+    suite: str
+    sequence: SequenceRef
+    method: Method
+    seed: int = 0
+    frames: int | None = None
+    alignment: str = "se3"
+    renderer: str = "mujoco"
+    plots: bool = True
+    git_revision: str | None = None
+
+    @property
+    def relpath(self) -> Path:
+        """The run's folder relative to the output root."""
+        frames = "all" if self.frames is None else str(self.frames)
+        return Path(self.suite) / self.sequence.name / self.method.slug / f"seed{self.seed}-frames{frames}"
+
+    @property
+    def key(self) -> str:
+        """A readable unique name of the run (its relative folder)."""
+        return self.relpath.as_posix()
+
+    def fingerprint(self) -> str:
+        """Hash of what determines the run's result (method, sequence definition, seed, frames, alignment,
+        renderer); not the git revision, so a new commit does not invalidate finished runs."""
+        data = {
+            "sequence": self.sequence.describe(),
+            "method": self.method.describe(),
+            "seed": self.seed,
+            "frames": self.frames,
+            "alignment": self.alignment,
+            "renderer": self.renderer,
+        }
+        text = json.dumps(json_ready(data), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a worker hands back: ``status`` "done" with ``files`` (name -> bytes), or "failed" with ``error``."""
+
+    spec: RunSpec
+    status: RunStatus
+    files: dict[str, bytes] = field(default_factory=dict)
+    error: str | None = None
+    traceback: str | None = None
+    wall_s: float = 0.0
+
+
+# ------------------------------------------------------------------------------------------------- one run
+@dataclass(frozen=True)
+class ExternalEpisode:
+    """An external system's output in the shape :func:`eval.results.evaluate_episode` reads (the fields of
+    ``sim_envs.driver.EpisodeResult`` it uses); poses already associated with the ground truth, pair k = k."""
+
+    sequence: str
+    agent: str
+    timestamps: np.ndarray
+    T_world_cam_est: np.ndarray
+    T_world_cam_gt: np.ndarray
+    tracked: np.ndarray
+    keyframes: list[Any]
+    keyframe_gt: list[Any]
+    step_seconds: np.ndarray
+    uses_ground_truth: bool = False
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
+    """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
+    start = time.perf_counter()
+    try:
+        files = _run_and_package(spec, progress, start)
+    except Exception as exc:  # noqa: BLE001 - a failing run is recorded with its error; the others go on
+        return RunResult(
+            spec,
+            "failed",
+            error=f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(),
+            wall_s=time.perf_counter() - start,
+        )
+    return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
+
+
+def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
+    method, ref = spec.method, spec.sequence
+    if method.kind == "external":
+        episode, n_frames = _external_episode(spec)
+    else:
+        episode = _agent_episode(spec, progress)
+        n_frames = int(episode.timestamps.shape[0])
+    metadata = {
+        "suite": spec.suite,
+        "seed": spec.seed,
+        "frames_requested": spec.frames,
+        "entry_point": method.entry_point or f"external:{method.folder}",
+        "agent_kwargs": json.dumps(method.agent_kwargs(spec.seed), sort_keys=True),
+        "env_id": ref.env_id,
+        "renderer": spec.renderer,
+        "axis": ref.axis,
+        "axis_value": ref.axis_value,
+        "rotation_share": rotation_share(np.asarray(episode.T_world_cam_gt)),
+        "git_revision": spec.git_revision,
+        "fingerprint": spec.fingerprint(),
+        "sequence_definition": ref.describe(),
+        "method_definition": method.describe(),
+    }
+    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
+    record["sequence"] = ref.name
+    metrics = dict(record["metrics"])
+    if method.kind == "external":
+        metrics["frames"] = float(n_frames)
+        metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
+    timing = {k: metrics[k] for k in TIMING_METRICS if k in metrics}
+    record["metrics"] = method.select_metrics(metrics)
+    timing["finish_seconds"] = episode.extras.get("finish_seconds")
+
+    with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
+        folder = Path(tmp)
+        _write_json(folder / "metrics.json", record)
+        _write_json(folder / "agent_extras.json", episode.extras)
+        _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
+        _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")
+        depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
+        if spec.plots:
+            _write_plots(folder, spec, episode, depth_est, depth_gt)
+        timing["wall_s"] = time.perf_counter() - start
+        _write_json(folder / "timing.json", timing)
+        return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def _agent_episode(spec: RunSpec, progress: bool) -> Any:
+    from sim_envs.agent import load_agent
+    from sim_envs.driver import run_episode
+
+    agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
+    env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer)
+    try:
+        return run_episode(env, agent, progress=progress)
+    finally:
+        env.close()
+
+
+def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
+    """The external system's trajectory (and depth maps) for the sequence, associated with the ground truth of the
+    first ``frames`` frames (TUM greedy association, 0.02 s); returns the episode and the number of frames."""
+    from sim_envs.agent import KeyframeDepth
+    from sim_envs.driver import KEYFRAME_TIME_TOLERANCE
+
+    ref, method = spec.sequence, spec.method
+    folder = Path(method.folder or "")
+    candidates = [folder / ref.name / "trajectory.txt", folder / f"{ref.name}.txt"]
+    path = next((p for p in candidates if p.is_file()), None)
+    if path is None:
+        raise RunnerError(
+            f"external method {method.name!r}: no trajectory for {ref.name!r}; looked for "
+            f"{', '.join(str(p) for p in candidates)}"
+        )
+    source = ref.make_source(spec.renderer)
+    try:
+        n = len(source) if spec.frames is None else min(len(source), int(spec.frames))
+        gt = PoseTrajectory(np.asarray(source.timestamps)[:n], np.asarray(source.poses)[:n])
+        est = PoseTrajectory.from_tum_file(path)
+        assoc = associate(gt, est, "tum")
+        T_est = est.T_world_cam[assoc.est_indices]
+        stamps = gt.timestamps[assoc.gt_indices]
+        keyframes, keyframe_gt = [], []
+        depth_dir = folder / ref.name / "depth"
+        files = sorted(depth_dir.glob("*.png")) + sorted(depth_dir.glob("*.npy")) if depth_dir.is_dir() else []
+        for file in files:
+            t = float(file.stem)
+            i = int(np.argmin(np.abs(gt.timestamps - t)))
+            if abs(gt.timestamps[i] - t) > KEYFRAME_TIME_TOLERANCE:
+                continue
+            k = int(np.argmin(np.abs(stamps - t))) if stamps.size else -1
+            pose = T_est[k] if k >= 0 else np.eye(4)
+            keyframes.append(KeyframeDepth(float(gt.timestamps[i]), _read_depth(file), pose))
+            keyframe_gt.append(source.frame(i))
+    finally:
+        source.close()
+    episode = ExternalEpisode(
+        sequence=ref.name,
+        agent=f"external:{folder}",
+        timestamps=stamps,
+        T_world_cam_est=T_est,
+        T_world_cam_gt=gt.T_world_cam[assoc.gt_indices],
+        tracked=np.ones(len(assoc), dtype=bool),
+        keyframes=keyframes,
+        keyframe_gt=keyframe_gt,
+        step_seconds=np.zeros(0),
+        extras={"trajectory_file": str(path), "depth_files": len(files)},
+    )
+    return episode, n
+
+
+def _read_depth(path: Path) -> np.ndarray:
+    """An external depth map: 16-bit PNG (5000 = 1 m) or ``.npy`` float metres; (H, W) float32, 0 = none."""
+    import cv2
+
+    if path.suffix == ".npy":
+        depth = np.load(path).astype(np.float32)
+    else:
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if raw is None:
+            raise RunnerError(f"cannot read the depth map {path}")
+        depth = raw.astype(np.float32) / DEPTH_PNG_SCALE
+    if depth.ndim != 2:
+        raise RunnerError(f"{path}: a depth map must be (H, W), got {depth.shape}")
+    return np.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def _write_json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(json_ready(data), indent=2, allow_nan=False, default=str) + "\n")
+
+
+def _write_tum(path: Path, timestamps: np.ndarray, T: np.ndarray, header: str) -> None:
+    from sim_envs.formats import write_tum_trajectory
+
+    write_tum_trajectory(path, np.asarray(timestamps), np.asarray(T), header=header)
+
+
+def _write_keyframes(path: Path, episode: Any) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Key-frame arrays as scored (see the module docstring); returns the (estimate, ground truth) depth lists.
+    Ground-truth depth is not stored: the sequence renders it again (``SequenceRef.make_source().frame(i)``)."""
+    import cv2
+
+    depth_est, depth_gt, stamps, poses, unc = [], [], [], [], []
+    for kf, frame in zip(episode.keyframes, episode.keyframe_gt, strict=False):
+        gt = np.asarray(frame.depth, dtype=np.float32)
+        est = np.asarray(kf.depth, dtype=np.float32)
+        if est.shape != gt.shape:
+            est = cv2.resize(est, gt.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        depth_est.append(est)
+        depth_gt.append(gt)
+        stamps.append(float(kf.timestamp))
+        poses.append(np.asarray(kf.T_world_cam, dtype=np.float64))
+        u = getattr(kf, "uncertainty", None)
+        unc.append(None if u is None or np.shape(u) != est.shape else np.asarray(u, dtype=np.float32))
+    arrays: dict[str, np.ndarray] = {
+        "timestamps": np.asarray(stamps, dtype=np.float64),
+        "T_world_cam": np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4),
+    }
+    if depth_est:
+        arrays["depth"] = np.stack(depth_est)
+        if all(u is not None for u in unc):
+            arrays["uncertainty"] = np.stack(unc)  # type: ignore[arg-type]
+    np.savez_compressed(path, **arrays)
+    return depth_est, depth_gt
+
+
+def _write_plots(folder: Path, spec: RunSpec, episode: Any, depth_est: list, depth_gt: list) -> None:
+    from eval.metrics import evaluate_trajectory
+    from eval.plots import save_depth_error_figure, save_trajectory_figure
+
+    title = f"{spec.method.name} on {spec.sequence.name} (seed {spec.seed})"
+    if "trajectory" in spec.method.metrics and len(episode.timestamps) >= 2:
+        stamps = np.asarray(episode.timestamps)
+        m = evaluate_trajectory(
+            PoseTrajectory(stamps, episode.T_world_cam_gt),
+            PoseTrajectory(stamps, episode.T_world_cam_est),
+            alignment=spec.alignment,
+            association="index",
+        )
+        save_trajectory_figure(
+            folder / "trajectory.png", m.gt.timestamps, m.gt.positions, m.est_aligned.positions, m.ate_errors, title
+        )
+    if depth_est:
+        picks = sorted({0, len(depth_est) // 2, len(depth_est) - 1})[:DEPTH_PLOT_KEYFRAMES]
+        stamps = [float(t) for t in (kf.timestamp for kf in episode.keyframes)]
+        save_depth_error_figure(
+            folder / "depth.png",
+            [depth_est[k] for k in picks],
+            [depth_gt[k] for k in picks],
+            [f"{title}\nkey-frame t={stamps[k]:.2f} s" for k in picks],
+        )
+
+
+# ------------------------------------------------------------------------------------------------ the folders
+def run_folder(out_root: str | Path, spec: RunSpec) -> Path:
+    """Where a run's artifacts live."""
+    return Path(out_root) / spec.relpath
+
+
+def is_finished(out_root: str | Path, spec: RunSpec) -> bool:
+    """True when the run's folder holds a readable ``metrics.json`` with this run's fingerprint."""
+    path = run_folder(out_root, spec) / DONE_FILE
+    if not path.is_file():
+        return False
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return False
+    return (record.get("metadata") or {}).get("fingerprint") == spec.fingerprint()
+
+
+def store_result(out_root: str | Path, result: RunResult) -> Path:
+    """Write a run's files (or ``failed.json``) into its folder atomically (temporary folder, then rename)."""
+    final = run_folder(out_root, result.spec)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tag = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    tmp = final.parent / f".{final.name}.tmp-{tag}"
+    tmp.mkdir()
+    try:
+        if result.status == "done":
+            for name, data in result.files.items():
+                if Path(name).name != name:
+                    raise RunnerError(f"run {result.spec.key}: refusing to write the file name {name!r}")
+                (tmp / name).write_bytes(data)
+        else:
+            failure = {
+                "run": result.spec.key,
+                "status": "failed",
+                "error": result.error,
+                "traceback": result.traceback,
+                "wall_s": result.wall_s,
+                "fingerprint": result.spec.fingerprint(),
+                "git_revision": result.spec.git_revision,
+            }
+            _write_json(tmp / FAILED_FILE, failure)
+        old = None
+        if final.exists():  # an earlier failed or outdated result: moved aside, restored if the rename fails
+            old = final.parent / f".{final.name}.old-{tag}"
+            os.rename(final, old)
+        try:
+            os.rename(tmp, final)
+        except BaseException:
+            if old is not None:
+                os.rename(old, final)
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return final
+
+
+def remove_stale_temporaries(folders: Sequence[Path]) -> int:
+    """Clean up after benchmark processes that were killed while storing a run (their pid is no longer alive):
+    remove their temporary folders (``.<run>.tmp-<pid>-...``) and put a result they had moved aside
+    (``.<run>.old-<pid>-...``) back where its replacement never arrived. Returns how many were handled."""
+    removed = 0
+    for parent in {Path(f) for f in folders}:
+        if not parent.is_dir():
+            continue
+        for path in parent.iterdir():
+            if not (path.name.startswith(".") and (".tmp-" in path.name or ".old-" in path.name)):
+                continue
+            pid_text = path.name.rsplit("-", 2)[-2]
+            if pid_text.isdigit() and _alive(int(pid_text)):
+                continue
+            final = parent / path.name[1:].split(".old-")[0]
+            if ".old-" in path.name and not final.exists():
+                os.rename(path, final)  # killed between its two renames: the earlier result comes back
+            else:
+                shutil.rmtree(path, ignore_errors=True)
+            removed += 1
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+# -------------------------------------------------------------------------------------------------- a suite run
+@dataclass(frozen=True)
+class RunOutcome:
+    """How one run of a suite ended: "done" (ran now), "cached" (finished earlier), "failed" (with its error)."""
+
+    key: str
+    status: RunStatus
+    folder: Path
+    error: str | None = None
+    wall_s: float | None = None
+
+
+@dataclass(frozen=True)
+class SuiteRun:
+    """A suite's runs: the plan, how each ended, the methods skipped (name -> reason) and the run records of the
+    finished runs (in plan order), each with its run key; ``timings``: key -> timing.json content."""
+
+    suite: Suite
+    out_root: Path
+    specs: tuple[RunSpec, ...]
+    outcomes: dict[str, RunOutcome]
+    skipped_methods: dict[str, str]
+    records: list[dict[str, Any]]
+    timings: dict[str, dict[str, Any]]
+    methods: tuple[Method, ...] = ()
+
+    @property
+    def failed(self) -> list[RunOutcome]:
+        return [o for o in self.outcomes.values() if o.status == "failed"]
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for o in self.outcomes.values():
+            out[o.status] = out.get(o.status, 0) + 1
+        return out
+
+
+def git_revision(root: str | Path | None = None) -> str | None:
+    """``git describe --always --dirty`` of the repository holding ``root`` (default: this package), or None."""
+    root = Path(root) if root is not None else Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None
+
+
+def plan_runs(
+    suite: Suite,
+    methods: Sequence[Method],
+    *,
+    renderer: str = "mujoco",
+    plots: bool = True,
+    revision: str | None = None,
+) -> list[RunSpec]:
+    """Every run of the suite: sequences x methods x seeds, in that nesting order."""
+    return [
+        RunSpec(suite.name, ref, method, seed, suite.frames, suite.alignment, renderer, plots, revision)
+        for ref in suite.sequences
+        for method in methods
+        for seed in suite.seeds
+    ]
+
+
+def run_suite(
+    suite: Suite,
+    methods: Mapping[str, Method],
+    out_root: str | Path,
+    *,
+    executor: Executor | None = None,
+    renderer: str = "mujoco",
+    plots: bool = True,
+    progress: bool = True,
+    check: bool = True,
+    revision: str | None = None,
+    on_result: Callable[[RunOutcome], None] | None = None,
+) -> SuiteRun:
+    """Run every unfinished run of ``suite`` (its methods looked up in ``methods``) and gather the records.
+
+    Methods that cannot run here (:func:`eval.methods.check_methods`; ``check=False`` only checks the import)
+    are skipped and reported, not failed. Finished runs (same fingerprint) are not run again. ``executor``:
+    default :class:`~eval.executors.SerialExecutor`. ``revision``: recorded in every run (default: the git revision).
+    """
+    unknown = [m for m in suite.methods if m not in methods]
+    if unknown:
+        raise RunnerError(f"suite {suite.name!r}: unknown method(s) {unknown}; valid methods: {', '.join(methods)}")
+    if suite.kind != "runs":
+        raise RunnerError(f"suite {suite.name!r} runs no agents (kind {suite.kind!r})")
+    out_root = Path(out_root)
+    executor = executor or SerialExecutor()
+    revision = revision if revision is not None else git_revision()
+    checked = check_methods([methods[m] for m in suite.methods], build=check)
+    specs = plan_runs(suite, checked.available, renderer=renderer, plots=plots, revision=revision)
+    remove_stale_temporaries([run_folder(out_root, s).parent for s in specs])
+    outcomes: dict[str, RunOutcome] = {}
+    todo = []
+    for spec in specs:
+        if is_finished(out_root, spec):
+            outcomes[spec.key] = RunOutcome(spec.key, "cached", run_folder(out_root, spec))
+        else:
+            todo.append(spec)
+    serial = isinstance(executor, SerialExecutor)
+    fn = partial(execute_run, progress=progress and serial)
+    with tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar:
+        for spec, result in executor.map(fn, todo):
+            if isinstance(result, BaseException):
+                result = RunResult(spec, "failed", error=f"{type(result).__name__}: {result}")
+            folder = store_result(out_root, result)
+            outcome = RunOutcome(spec.key, result.status, folder, result.error, result.wall_s)
+            outcomes[spec.key] = outcome
+            if on_result is not None:
+                on_result(outcome)
+            bar.update(1)
+            failed = sum(o.status == "failed" for o in outcomes.values())
+            if failed:
+                bar.set_postfix(failed=failed)
+    records, timings = [], {}
+    for spec in specs:
+        outcome = outcomes[spec.key]
+        if outcome.status == "failed":
+            continue
+        record = load_run(outcome.folder / DONE_FILE)
+        record["run"] = spec.key
+        records.append(record)
+        timing_path = outcome.folder / "timing.json"
+        timings[spec.key] = json.loads(timing_path.read_text()) if timing_path.is_file() else {}
+    ordered = {s.key: outcomes[s.key] for s in specs}
+    return SuiteRun(suite, out_root, tuple(specs), ordered, checked.skipped, records, timings, checked.available)
+
+
+def suite_records_json(records: Sequence[Mapping[str, Any]]) -> str:
+    """The run records as one JSON list, in run order (the run file of ``cnnslam regress``)."""
+    buffer = io.StringIO()
+    json.dump(json_ready(list(records)), buffer, indent=1, allow_nan=False)
+    return buffer.getvalue() + "\n"

@@ -1,0 +1,374 @@
+"""The benchmark suites: which sequences, which methods, how many frames, and how each sequence's environment is made.
+
+A suite names its environments the way a user would: a registered sequence by its Gymnasium id
+(``sim_envs/<name>-v0``), anything else (a rotation stress sequence at another speed, a variant of the sweep) as a
+:class:`~sim_envs.simsource.SimulatedSequence` replayed by ``sim_envs/Replay-v0``. Methods are names of the method
+table (:mod:`eval.methods`).
+
+Suites (:data:`SUITES`):
+
+- ``table1``: the nine Table-1 analogue sequences x the paper's methods and the oracle (CNN-SLAM Table 1);
+- ``rotation``: pure-rotation stress sequences (yaw, pitch, roll, all three) at 15, 30 and 60 deg/s: tracked share,
+  rotation error, percentage of correct depth (the paper's Sec. 4.2, made quantitative);
+- ``ablation``: raw CNN depth vs focal-adjusted vs adjusted and refined (the paper's Fig. 3);
+- ``sweep``: one difficulty axis at a time on one hand-held sequence: texture density, share of rotation in the
+  motion, focal-length mismatch between the network's training camera and the test camera;
+- ``perf``: throughput figures (:mod:`eval.perf`), no agent runs;
+- ``quick``: a few short sequences x all methods, the CI regression baseline.
+
+Sweep variants (:func:`sweep_sequences`), built with :func:`dataclasses.replace` on the base sequence's spec where
+the spec has the parameter, and by :class:`VariantSequence` where it has not:
+
+- texture density: ``SequenceSpec.texture_density`` (the room generator's share of textured surfaces);
+- rotation share: the base trajectory with an extra pan (rotation about the camera's y axis) sweeping +-20 deg at a
+  set angular speed; the x value is the measured share of the image motion due to rotation
+  (:func:`rotation_share`);
+- focal mismatch: the test camera's focal lengths set to ``ratio x`` the training camera's
+  (:data:`sim_envs.sequences.TRAIN_CAMERA`, NYU) at the same resolution, principal point kept
+  (:meth:`sim_envs.camera.Intrinsics.with_focal`); the field of view changes, the images are rendered with it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any, Literal
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from eval.errors import EvalError
+from sim_envs.camera import preset
+from sim_envs.sequences import (
+    TABLE1_SEQUENCES,
+    TRAIN_CAMERA,
+    SequenceSpec,
+    get_sequence,
+    gym_id,
+    list_sequences,
+    rotation_stress_spec,
+)
+from sim_envs.simsource import SimulatedSequence
+from sim_envs.trajectories import Trajectory, parse_axes, sweep_angles
+
+REPLAY_ENV_ID = "sim_envs/Replay-v0"
+NOMINAL_DEPTH_M = 2.0  # scene depth that weighs translation against rotation in rotation_share (ours: indoor rooms)
+ADDED_PAN_AMPLITUDE_DEG = 20.0  # amplitude of the sweep's extra pan (ours: keeps the view on the room's content)
+_ROTATION_NAME = re.compile(r"^rot_(?P<axes>[a-z]+(-[a-z]+)*)_(?P<speed>\d+(\.\d+)?)$")
+
+
+class SuiteError(EvalError):
+    """An unknown suite, sequence or method selection."""
+
+
+# ------------------------------------------------------------------------------------------------ the sequences
+class VariantSequence(SimulatedSequence):
+    """A simulated sequence with what :class:`~sim_envs.sequences.SequenceSpec` cannot express: other focal lengths
+    (``focal_ratio`` x the training camera's, at the spec's resolution) and an extra pan sweeping
+    +-:data:`ADDED_PAN_AMPLITUDE_DEG` at ``added_pan_deg_s`` deg/s about the camera's y axis (down in the image).
+
+    Rendering, ground truth and determinism are :class:`SimulatedSequence`'s: the renderer is built from
+    ``self.intrinsics`` and ``self.poses``, both set here before the first frame.
+    """
+
+    def __init__(
+        self,
+        spec: SequenceSpec,
+        renderer: str = "mujoco",
+        *,
+        name: str | None = None,
+        focal_ratio: float | None = None,
+        added_pan_deg_s: float = 0.0,
+    ) -> None:
+        super().__init__(spec, renderer)
+        self.name = name or spec.name
+        if focal_ratio is not None:
+            if not (math.isfinite(focal_ratio) and focal_ratio > 0):
+                raise SuiteError(f"focal_ratio must be a positive number, got {focal_ratio!r}")
+            train = preset(TRAIN_CAMERA, spec.width, spec.height)
+            self.intrinsics = self.intrinsics.with_focal(focal_ratio * train.fx, focal_ratio * train.fy)
+        if not (math.isfinite(added_pan_deg_s) and added_pan_deg_s >= 0):
+            raise SuiteError(f"added_pan_deg_s must be a number >= 0, got {added_pan_deg_s!r}")
+        self.added_pan_deg_s = float(added_pan_deg_s)
+        self._panned: Trajectory | None = None
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """The spec's trajectory, with the extra pan when one is set (computed once)."""
+        base = super().trajectory
+        if self.added_pan_deg_s == 0.0:
+            return base
+        if self._panned is None:
+            angles = sweep_angles(
+                base.timestamps, np.radians(ADDED_PAN_AMPLITUDE_DEG), np.radians(self.added_pan_deg_s)
+            )
+            pan = np.tile(np.eye(4), (len(base), 1, 1))
+            pan[:, :3, :3] = Rotation.from_euler("y", angles[:, None]).as_matrix()
+            self._panned = Trajectory(base.timestamps, base.T_world_cam @ pan, kind=f"{base.kind}+pan")
+        return self._panned
+
+
+@dataclass(frozen=True)
+class SequenceRef:
+    """A sequence of a suite: a registered one, a rotation stress sequence, or a variant of either.
+
+    name: shown in results (and the run folder's name); base: a registered sequence name; rotation: ``(axes,
+    speed_deg_s)`` of :func:`sim_envs.sequences.rotation_stress_spec` (instead of ``base``); overrides:
+    :class:`SequenceSpec` fields to replace, as sorted ``(field, value)`` pairs (a mapping is accepted);
+    focal_ratio / added_pan_deg_s: see :class:`VariantSequence`; axis / axis_value: the sweep axis and its nominal
+    value, for plots.
+    """
+
+    name: str
+    base: str | None = None
+    rotation: tuple[str, float] | None = None
+    overrides: tuple[tuple[str, Any], ...] = ()
+    focal_ratio: float | None = None
+    added_pan_deg_s: float = 0.0
+    axis: str | None = None
+    axis_value: float | None = None
+
+    def __post_init__(self) -> None:
+        items = self.overrides.items() if isinstance(self.overrides, Mapping) else self.overrides
+        object.__setattr__(self, "overrides", tuple(sorted((str(k), v) for k, v in items)))
+        if (self.base is None) == (self.rotation is None):
+            raise SuiteError(f"sequence {self.name!r}: give exactly one of base (a registered name) or rotation")
+        bad = sorted(set(dict(self.overrides)) - set(SequenceSpec.__dataclass_fields__))
+        if bad:
+            raise SuiteError(f"sequence {self.name!r}: {bad} are not SequenceSpec fields")
+        if not self.name or "/" in self.name or self.name.startswith("."):
+            raise SuiteError(f"a sequence name must be non-empty, without '/', not starting with '.': {self.name!r}")
+
+    @property
+    def registered(self) -> bool:
+        """True when this is a registered sequence as it is (made by its own Gymnasium id)."""
+        return (
+            self.base is not None
+            and self.name == self.base
+            and not self.overrides
+            and self.focal_ratio is None
+            and self.added_pan_deg_s == 0.0
+        )
+
+    @property
+    def env_id(self) -> str:
+        """The Gymnasium id the environment is made with."""
+        return gym_id(self.name) if self.registered else REPLAY_ENV_ID
+
+    def spec(self) -> SequenceSpec:
+        """The sequence's spec (a registered one, or built, with the overrides applied; named ``name``)."""
+        if self.base is not None:
+            spec = get_sequence(self.base)
+        else:
+            axes, speed = self.rotation  # type: ignore[misc]
+            spec = rotation_stress_spec(axes, float(speed))
+        return replace(spec, name=self.name, **dict(self.overrides)) if not self.registered else spec
+
+    def make_source(self, renderer: str = "mujoco") -> SimulatedSequence:
+        """The frame source (lazy: nothing is rendered or generated until used)."""
+        if self.focal_ratio is None and self.added_pan_deg_s == 0.0:
+            return SimulatedSequence(self.spec(), renderer=renderer)
+        return VariantSequence(
+            self.spec(), renderer, name=self.name, focal_ratio=self.focal_ratio, added_pan_deg_s=self.added_pan_deg_s
+        )
+
+    def make_env(self, max_frames: int | None = None, renderer: str = "mujoco") -> Any:
+        """The Gymnasium environment: ``sim_envs/<name>-v0`` when registered as is, else ``sim_envs/Replay-v0``
+        replaying :meth:`make_source`."""
+        import gymnasium
+
+        import sim_envs  # noqa: F401 - registers the environments
+
+        if self.registered:
+            return gymnasium.make(self.env_id, renderer=renderer, max_frames=max_frames)
+        return gymnasium.make(REPLAY_ENV_ID, source=self.make_source(renderer), max_frames=max_frames)
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready definition (run metadata; part of a run's fingerprint)."""
+        return {
+            "name": self.name,
+            "env_id": self.env_id,
+            "base": self.base,
+            "rotation": list(self.rotation) if self.rotation else None,
+            "overrides": {k: v for k, v in self.overrides},
+            "focal_ratio": self.focal_ratio,
+            "added_pan_deg_s": self.added_pan_deg_s,
+            "axis": self.axis,
+            "axis_value": self.axis_value,
+        }
+
+
+def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
+    """The rotation stress sequence ``rot_<axes>_<speed>`` (registered ones are used as registered)."""
+    names = parse_axes(axes)
+    label = "rpy" if names == ("yaw", "pitch", "roll") else "-".join(names)
+    name = f"rot_{label}_{float(speed_deg_s):g}"
+    if name in list_sequences():
+        return SequenceRef(name, base=name)
+    return SequenceRef(name, rotation=("+".join(names), float(speed_deg_s)))
+
+
+def resolve_sequence(name: str) -> SequenceRef:
+    """A sequence by name: a registered sequence, or ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by
+    ``-``, or ``rpy``; speed in deg/s) for any rotation stress sequence."""
+    if name in list_sequences():
+        return SequenceRef(name, base=name)
+    match = _ROTATION_NAME.match(name)
+    if match:
+        axes = match["axes"]
+        return rotation_ref(axes if axes == "rpy" else axes.replace("-", "+"), float(match["speed"]))
+    raise SuiteError(
+        f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
+        "(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90)"
+    )
+
+
+def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
+    """Share (0..1) of the image motion along a trajectory that is due to rotation.
+
+    Per frame step, a rotation by angle a moves the image by about f * a pixels and a translation t by about
+    f * |t| / d for a scene at depth d; the share is sum(a) / (sum(a) + sum(|t|) / d) over the steps.
+    T_world_cam: (N, 4, 4); depth_m: the scene depth d in metres. NaN for a trajectory that does not move.
+    """
+    T = np.asarray(T_world_cam, dtype=np.float64)
+    if T.shape[0] < 2:
+        return math.nan
+    rel = np.einsum("nji,njk->nik", T[:-1, :3, :3], T[1:, :3, :3])
+    angles = Rotation.from_matrix(rel).magnitude()
+    shifts = np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1) / float(depth_m)
+    total = float(angles.sum() + shifts.sum())
+    return float(angles.sum() / total) if total > 0 else math.nan
+
+
+# --------------------------------------------------------------------------------------------------- the suites
+SuiteKind = Literal["runs", "perf"]
+
+TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
+ABLATION_METHODS: tuple[str, ...] = ("raw-CNN", "focal-adjusted", "adjusted+refined")
+QUICK_METHODS: tuple[str, ...] = (*TABLE1_METHODS, "constant-pose")
+ROTATION_AXES: tuple[str, ...] = ("yaw", "pitch", "roll", "rpy")
+ROTATION_SPEEDS: tuple[float, ...] = (15.0, 30.0, 60.0)
+SWEEP_BASE = "office1"
+BENCH_FRAMES = 200  # table1 and ablation: the first 200 frames (6.7 s) of each sequence keep `make bench` within
+# 20 minutes on 2 cores with every method (ORB, REMODE and Laina run at a few frames per second there)
+TEXTURE_DENSITIES: tuple[float, ...] = (1.0, 0.6, 0.3, 0.1)
+ADDED_PAN_SPEEDS: tuple[float, ...] = (0.0, 15.0, 30.0, 60.0)
+FOCAL_RATIOS: tuple[float, ...] = (0.7, 0.85, 1.0, 1.2, 1.4)
+SWEEP_AXES: dict[str, str] = {
+    "texture": "texture density",
+    "rotation": "share of rotation in the motion",
+    "focal": "focal length, test / training camera",
+}
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds``, each run on the first
+    ``frames`` frames (None: whole sequences); ``alignment`` of the ATE (``eval.alignment``); ``kind`` "perf" for
+    the throughput suite, which runs no agents."""
+
+    name: str
+    description: str
+    sequences: tuple[SequenceRef, ...] = ()
+    methods: tuple[str, ...] = ()
+    frames: int | None = None
+    seeds: tuple[int, ...] = (0,)
+    alignment: str = "se3"
+    kind: SuiteKind = "runs"
+
+    def select(
+        self,
+        sequences: Sequence[str] | None = None,
+        methods: Sequence[str] | None = None,
+        frames: int | None = None,
+        seeds: Sequence[int] | None = None,
+    ) -> Suite:
+        """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
+        name), ``methods`` (any method names), ``frames``, ``seeds``."""
+        refs = self.sequences
+        if sequences:
+            own = {s.name: s for s in self.sequences}
+            refs = tuple(own[name] if name in own else resolve_sequence(name) for name in sequences)
+        if frames is not None and int(frames) < 2:
+            raise SuiteError(f"--frames must be >= 2, got {frames}")
+        return replace(
+            self,
+            sequences=refs,
+            methods=tuple(methods) if methods else self.methods,
+            frames=int(frames) if frames is not None else self.frames,
+            seeds=tuple(int(s) for s in seeds) if seeds else self.seeds,
+        )
+
+
+def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
+    """The sweep's variants of ``base``, one axis at a time (see the module docstring)."""
+    refs = [
+        SequenceRef(f"{base}@texture{d:g}", base=base, overrides={"texture_density": d}, axis="texture", axis_value=d)
+        for d in TEXTURE_DENSITIES
+    ]
+    refs += [
+        SequenceRef(f"{base}@pan{s:g}", base=base, added_pan_deg_s=s, axis="rotation", axis_value=s)
+        for s in ADDED_PAN_SPEEDS
+    ]
+    refs += [
+        SequenceRef(f"{base}@focal{r:g}", base=base, focal_ratio=r, axis="focal", axis_value=r) for r in FOCAL_RATIOS
+    ]
+    return tuple(refs)
+
+
+def _suites() -> dict[str, Suite]:
+    table1 = tuple(SequenceRef(name, base=name) for name in TABLE1_SEQUENCES)
+    return {
+        "table1": Suite(
+            "table1",
+            "the nine Table-1 analogue sequences x the paper's methods and the oracle (CNN-SLAM Table 1)",
+            table1,
+            TABLE1_METHODS,
+            frames=BENCH_FRAMES,
+        ),
+        "rotation": Suite(
+            "rotation",
+            "pure-rotation stress sequences (yaw, pitch, roll, all three at 15, 30, 60 deg/s): tracked share, "
+            "rotation error, correct depth (the paper's Sec. 4.2)",
+            tuple(rotation_ref(a, s) for a in ROTATION_AXES for s in ROTATION_SPEEDS),
+            TABLE1_METHODS,
+            frames=150,
+        ),
+        "ablation": Suite(
+            "ablation",
+            "raw CNN depth vs focal-adjusted vs adjusted + refined, ATE and correct depth (the paper's Fig. 3)",
+            table1,
+            ABLATION_METHODS,
+            frames=BENCH_FRAMES,
+        ),
+        "sweep": Suite(
+            "sweep",
+            f"one difficulty axis at a time on {SWEEP_BASE}: texture density, share of rotation, focal mismatch",
+            sweep_sequences(),
+            tuple(m for m in TABLE1_METHODS if m != "oracle"),
+            frames=150,
+        ),
+        "perf": Suite(
+            "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time", kind="perf"
+        ),
+        "quick": Suite(
+            "quick",
+            "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
+            tuple(SequenceRef(name, base=name) for name in ("office0", "tum_nostructure_near", "rot_yaw_30")),
+            QUICK_METHODS,
+            frames=60,
+        ),
+    }
+
+
+SUITES: dict[str, Suite] = _suites()
+
+
+def get_suite(name: str) -> Suite:
+    """A suite by name; :class:`SuiteError` listing the valid names otherwise."""
+    try:
+        return SUITES[name]
+    except KeyError:
+        raise SuiteError(f"unknown suite {name!r}; valid suites: {', '.join(SUITES)}") from None

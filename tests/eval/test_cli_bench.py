@@ -1,0 +1,88 @@
+"""``cnnslam bench``: help, listing, a small Table-1 run with a user method file, the quick suite's gate and
+baseline update, resume, bad arguments."""
+
+import json
+import textwrap
+
+import pytest
+
+from cnnslam.cli import main
+
+SMALL = ["--frames", "6", "--executor", "serial", "--no-plots", "--no-progress"]
+
+
+def bench(tmp_path, *args):
+    return main(["bench", *args, "--out", str(tmp_path / "runs"), "--results", str(tmp_path / "results")])
+
+
+def test_help_and_list(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["bench", "--help"])
+    assert exit_info.value.code == 0
+    text = capsys.readouterr().out
+    assert "--executor {local,serial,ray}" in text and "--update-baseline" in text and "trajectory.txt" in text
+    assert main(["bench", "--list"]) == 0
+    listing = capsys.readouterr().out
+    assert "table1" in listing and "cnnslam.agent:CnnSlamAgent" in listing and "REMODE" in listing
+
+
+def test_bad_arguments_exit_2(tmp_path, capsys):
+    assert bench(tmp_path, "table1", "--sequences", "office9") == 2
+    assert "unknown sequence 'office9'" in capsys.readouterr().err
+    assert bench(tmp_path, "table1", "--external", "nonsense") == 2
+    assert bench(tmp_path, "table1", "--executor", "local", "--address", "auto") == 2
+
+
+def test_a_small_table1_with_a_user_method_file(tmp_path, capsys):
+    methods = tmp_path / "methods.toml"
+    methods.write_text(
+        textwrap.dedent(
+            """
+            [methods."CNN-SLAM"]  # the oracle standing in for CNN-SLAM, to see the paper's numbers quoted
+            entry_point = "sim_envs.agents:OracleAgent"
+            kwargs = { keyframe_every = 4 }
+            metrics = ["trajectory", "depth"]
+            """
+        )
+    )
+    code = bench(tmp_path, "table1", "--sequences", "office0", "--methods", "CNN-SLAM", "constant-pose",
+                 "--method-file", str(methods), *SMALL)  # fmt: skip
+    assert code == 0, capsys.readouterr()
+    md = (tmp_path / "results" / "table1.md").read_text()
+    assert "| office0 (ICL/office0) | 0.000 (0.266) |" in md
+    assert "| office0 (ICL/office0) | 100.000 (19.410) | - |" in md  # constant-pose has no depth
+    assert "--method-file" in md and "2 runs: 2 run now" in md
+    runs = tmp_path / "runs" / "table1" / "office0"
+    assert (runs / "CNN-SLAM" / "seed0-frames6" / "metrics.json").is_file()
+    assert (runs / "constant-pose" / "seed0-frames6" / "keyframes.npz").is_file()
+
+
+def test_quick_gate_update_pass_and_fail(tmp_path, capsys):
+    baseline = tmp_path / "quick.json"
+    args = ["quick", "--sequences", "office0", "--methods", "oracle", "constant-pose", "--baseline", str(baseline)]
+    assert bench(tmp_path, *args, *SMALL, "--update-baseline") == 0
+    stored = json.loads(baseline.read_text())
+    assert stored["metrics"]["office0/oracle/ate_rmse"] == 0.0 and "office0/constant-pose/ate_rmse" in stored["metrics"]
+    assert "quick" in stored["description"] and stored["tolerances"]
+    capsys.readouterr()
+    assert bench(tmp_path, *args, *SMALL) == 0  # the same runs (reused) pass the gate
+    out = capsys.readouterr().out
+    assert "PASS" in out and "2 reused" in out
+    stored["metrics"]["office0/constant-pose/ate_rmse"] /= 2  # the baseline was better: the run regressed
+    baseline.write_text(json.dumps(stored))
+    assert bench(tmp_path, *args, *SMALL) == 1
+    out = capsys.readouterr().out
+    assert "office0/constant-pose/ate_rmse" in out and "regressed" in out and "FAIL" in out
+    runs = json.loads((tmp_path / "results" / "quick_runs.json").read_text())
+    assert [r["method"] for r in runs] == ["oracle", "constant-pose"]
+
+
+def test_a_failed_run_makes_the_exit_status_1(tmp_path, capsys):
+    methods = tmp_path / "methods.toml"
+    methods.write_text('[methods.broken]\nentry_point = "sim_envs.agents:OracleAgent"\nkwargs = {keyframe_every = 0}\n')
+    code = bench(tmp_path, "table1", "--sequences", "office0", "--methods", "broken", "oracle", "--no-check",
+                 "--method-file", str(methods), *SMALL)  # fmt: skip
+    assert code == 1
+    out = capsys.readouterr().out
+    assert "FAILED table1/office0/broken/seed0-frames6: SimEnvError: keyframe_every must be >= 1" in out
+    assert "2 runs (1 run now, 0 reused, 1 failed)" in out

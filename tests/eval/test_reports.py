@@ -1,0 +1,123 @@
+"""What the suites leave under results/: Table 1 with the paper's numbers beside ours, rotation, sweep, long form."""
+
+import math
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from eval.reports import (
+    long_frame,
+    ours_beside_paper,
+    report_rotation,
+    report_sweep,
+    report_table1,
+    status_markdown,
+    sweep_points,
+)
+from eval.runner import RunOutcome, RunSpec, SuiteRun
+from eval.suites import get_suite
+from eval.tables import TABLE1_BLOCKS, table1
+
+METHOD_NAMES = ("CNN-SLAM", "LSD", "REMODE", "oracle")
+
+
+def fake_run(suite, values, skipped=None, failed=()):
+    """A SuiteRun with records made of ``values``: (sequence, method) -> metrics dict (plus metadata)."""
+    from eval.methods import load_methods
+
+    table = load_methods()
+    specs, outcomes, records, timings = [], {}, [], {}
+    for (sequence, method), metrics in values.items():
+        ref = next(s for s in suite.sequences if s.name == sequence)
+        spec = RunSpec(suite.name, ref, table[method], frames=suite.frames)
+        specs.append(spec)
+        status = "failed" if (sequence, method) in failed else "done"
+        outcomes[spec.key] = RunOutcome(spec.key, status, Path("/runs") / spec.key,
+                                        "Boom: it broke" if status == "failed" else None)  # fmt: skip
+        if status == "done":
+            meta = {"git_revision": "abc", "seed": 0, **metrics.pop("_meta", {})}
+            records.append({"sequence": sequence, "method": method, "metrics": metrics, "metadata": meta,
+                            "run": spec.key})  # fmt: skip
+            timings[spec.key] = {"wall_s": 1.5}
+    return SuiteRun(suite, Path("/runs"), tuple(specs), outcomes, skipped or {}, records, timings,
+                    tuple(table[m] for m in suite.methods))  # fmt: skip
+
+
+def table1_values():
+    suite = get_suite("table1").select(["office0", "living1"], list(METHOD_NAMES))
+    values = {}
+    for k, seq in enumerate(("office0", "living1")):
+        values[(seq, "CNN-SLAM")] = {"ate_rmse": 0.1 + k, "depth_percent_correct": 30.0 + k}
+        values[(seq, "LSD")] = {"ate_rmse": 0.5, "depth_percent_correct": 1.0}
+        values[(seq, "REMODE")] = {"depth_percent_correct": 5.0}
+        values[(seq, "oracle")] = {"ate_rmse": 0.0, "depth_percent_correct": 100.0}
+    return suite, values
+
+
+def test_table1_quotes_the_paper_beside_ours(tmp_path):
+    suite, values = table1_values()
+    run = fake_run(suite, values, skipped={"ORB": "cannot import it"}, failed={("living1", "LSD")})
+    paths = report_table1(run, tmp_path, "cnnslam bench table1")
+    assert {p.name for p in paths} == {"table1.md", "table1.csv", "table1.tex", "table1_long.csv"}
+    md = (tmp_path / "table1.md").read_text()
+    # CNN-SLAM's ATE on office0: ours 0.100, the paper's 0.266; Avg. of ours (0.600) beside the paper's 0.246
+    assert "| office0 (ICL/office0) | 0.100 (0.266) |" in md
+    assert "| Avg. | 0.600 (0.246) |" in md
+    assert "| living1 (ICL/living1) | 1.100 (0.059) | - (0.480) | - | 0.000 |" in md  # failed LSD run: "-"
+    assert "**ORB**: cannot import it" in md and "`table1/living1/LSD/seed0-frames200`: Boom: it broke" in md
+    assert "cnnslam bench table1" in md
+    csv = pd.read_csv(tmp_path / "table1.csv", header=[0, 1], index_col=0)
+    assert csv.loc["Avg.", ("Perc. Correct Depth [%]", "CNN-SLAM")] == pytest.approx(30.5)
+    assert math.isnan(csv.loc["office0", ("Abs. Trajectory Error [m]", "REMODE")])  # no ATE for REMODE
+    assert "\\toprule" in (tmp_path / "table1.tex").read_text()
+    long = pd.read_csv(tmp_path / "table1_long.csv")
+    assert list(long.columns[:4]) == ["sequence", "method", "metric", "value"]
+    assert {"seed", "git_revision", "wall_s", "run"} <= set(long.columns) and len(long) == 12  # 7 runs
+
+
+def test_ours_beside_paper_without_a_paper_column():
+    suite, values = table1_values()
+    frame = long_frame(fake_run(suite, values))
+    table = table1(frame, methods=list(METHOD_NAMES), sequences=["office0", "living1"])
+    text = ours_beside_paper(table, TABLE1_BLOCKS[1][0], "depth_percent_correct", 1)
+    assert "| office0 (ICL/office0) | 30.0 (19.4) | 1.0 (0.3) | 5.0 (4.5) | 100.0 |" in text
+
+
+def test_rotation_report(tmp_path):
+    suite = get_suite("rotation").select(["rot_yaw_15", "rot_yaw_60"], ["LSD", "oracle"])
+    values = {
+        ("rot_yaw_15", "LSD"): {"tracked_share": 0.9, "rot_deg_rmse": 2.0, "depth_percent_correct": 3.0},
+        ("rot_yaw_60", "LSD"): {"tracked_share": 0.2, "rot_deg_rmse": 20.0, "depth_percent_correct": 0.5},
+        ("rot_yaw_15", "oracle"): {"tracked_share": 1.0, "rot_deg_rmse": 0.0, "depth_percent_correct": 100.0},
+        ("rot_yaw_60", "oracle"): {"tracked_share": 1.0, "rot_deg_rmse": 0.0, "depth_percent_correct": 100.0},
+    }
+    report_rotation(fake_run(suite, values), tmp_path, "cnnslam bench rotation")
+    md = (tmp_path / "rotation.md").read_text()
+    assert "| rot_yaw_60 | 0.200 | 1.000 | 20.000 | 0.000 | 0.500 | 100.000 |" in md
+    assert "| Avg. | 0.550 | 1.000 | 11.000 |" in md
+    assert (tmp_path / "rotation_long.csv").is_file() and (tmp_path / "rotation.tex").is_file()
+
+
+def test_sweep_report_plots_each_axis(tmp_path):
+    suite = get_suite("sweep").select(methods=["LSD"])
+    values = {}
+    for k, ref in enumerate(suite.sequences):
+        meta = {"axis": ref.axis, "axis_value": ref.axis_value, "rotation_share": 0.4 + 0.01 * k}
+        values[(ref.name, "LSD")] = {"ate_rmse": 0.1 * k, "depth_percent_correct": 2.0 * k, "_meta": meta}
+    run = fake_run(suite, values)
+    points = sweep_points(run)
+    assert set(points["axis"]) == {"texture", "rotation", "focal"} and len(points) == len(suite.sequences)
+    pan = points[points["axis"] == "rotation"]
+    assert pan["x"].tolist() == pytest.approx([0.44, 0.45, 0.46, 0.47])  # measured share, not the pan speed
+    assert points[points["axis"] == "focal"]["x"].tolist() == [0.7, 0.85, 1.0, 1.2, 1.4]
+    paths = report_sweep(run, tmp_path, "cnnslam bench sweep")
+    assert (tmp_path / "sweep.png").read_bytes()[:4] == b"\x89PNG" and tmp_path / "sweep.png" in paths
+    md = (tmp_path / "sweep.md").read_text()
+    assert "### focal length, test / training camera" in md and "| 1.4 | 1.400 |" in md
+
+
+def test_status_lists_skips_and_failures():
+    suite, values = table1_values()
+    text = status_markdown(fake_run(suite, values, skipped={"Laina": "no weights\nat all"}))
+    assert "8 runs: 8 run now, 0 reused from earlier, 0 failed." in text and "**Laina**: no weights at all" in text

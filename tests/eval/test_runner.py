@@ -1,0 +1,180 @@
+"""One run -> a folder of artifacts (deterministic metrics, atomic writes, failures recorded), suite runs (resume,
+skip, failure isolation), and external systems' outputs scored like agents."""
+
+import json
+import os
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from eval.methods import Method, external_method, load_methods
+from eval.runner import (
+    DONE_FILE,
+    FAILED_FILE,
+    RunResult,
+    RunSpec,
+    execute_run,
+    is_finished,
+    remove_stale_temporaries,
+    run_folder,
+    run_suite,
+    store_result,
+)
+from eval.suites import SequenceRef, get_suite
+from sim_envs.datasets import export_tum_rgbd
+from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
+
+METHODS = load_methods()
+ORACLE, CONSTANT = METHODS["oracle"], METHODS["constant-pose"]
+OFFICE0 = SequenceRef("office0", base="office0")
+FRAMES = 8
+
+
+def spec_of(method, frames=FRAMES, **kwargs):
+    return RunSpec("test", kwargs.pop("sequence", OFFICE0), method, frames=frames, plots=False,
+                   git_revision="abc123", **kwargs)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def oracle_run():
+    return execute_run(spec_of(ORACLE))
+
+
+def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
+    assert oracle_run.status == "done", oracle_run.error
+    assert set(oracle_run.files) == {
+        "metrics.json", "timing.json", "agent_extras.json", "trajectory.tum", "groundtruth.tum", "keyframes.npz"
+    }  # fmt: skip
+    folder = store_result(tmp_path, oracle_run)
+    assert folder == tmp_path / "test" / "office0" / "oracle" / f"seed0-frames{FRAMES}"
+    record = json.loads((folder / "metrics.json").read_text())
+    m = record["metrics"]
+    assert record["sequence"] == "office0" and record["method"] == "oracle"
+    assert m["ate_rmse"] == 0.0 and m["depth_percent_correct"] == 100.0 and m["frames"] == FRAMES
+    assert m["depth_keyframes"] == 1.0  # key-frames every 10 frames: frame 0 only
+    assert "fps" not in m and "step_ms_mean" not in m  # wall-clock figures live in timing.json
+    meta = record["metadata"]
+    assert meta["entry_point"] == "sim_envs.agents:OracleAgent" and meta["env_id"] == "sim_envs/office0-v0"
+    assert meta["git_revision"] == "abc123" and meta["seed"] == 0 and meta["frames_requested"] == FRAMES
+    assert meta["fingerprint"] == spec_of(ORACLE).fingerprint() and 0.0 <= meta["rotation_share"] <= 1.0
+    timing = json.loads((folder / "timing.json").read_text())
+    assert timing["wall_s"] > 0 and timing["fps"] > 0
+    stamps, est = read_tum_trajectory(folder / "trajectory.tum")
+    _, gt = read_tum_trajectory(folder / "groundtruth.tum")
+    assert stamps.shape == (FRAMES,) and np.allclose(est, gt, atol=1e-8)
+    with np.load(folder / "keyframes.npz") as kf:
+        assert kf["depth"].shape == (1, 240, 320) and kf["T_world_cam"].shape == (1, 4, 4)
+        assert kf["timestamps"][0] == 0.0 and kf["depth"].dtype == np.float32
+    assert is_finished(tmp_path, spec_of(ORACLE))
+    assert not is_finished(tmp_path, spec_of(replace(ORACLE, kwargs={"keyframe_every": 5})))  # other fingerprint
+
+
+def test_same_run_same_bytes(oracle_run):
+    again = execute_run(spec_of(ORACLE))
+    assert again.files["metrics.json"] == oracle_run.files["metrics.json"]
+    assert again.files["trajectory.tum"] == oracle_run.files["trajectory.tum"]
+
+
+def test_metric_groups_and_a_run_with_no_depth():
+    constant = execute_run(spec_of(CONSTANT))
+    m = json.loads(constant.files["metrics.json"])["metrics"]
+    assert m["ate_rmse"] > 0 and m["depth_keyframes"] == 0.0 and m["depth_percent_correct"] is None
+    depth_only = execute_run(spec_of(replace(ORACLE, name="depth-only", metrics=("depth",))))
+    m = json.loads(depth_only.files["metrics.json"])["metrics"]
+    assert "ate_rmse" not in m and "tracked_share" not in m and m["depth_percent_correct"] == 100.0
+
+
+def test_a_failing_run_is_recorded_not_raised(tmp_path):
+    bad = replace(ORACLE, name="bad", kwargs={"keyframe_every": 0})
+    result = execute_run(spec_of(bad))
+    assert result.status == "failed" and "keyframe_every must be >= 1" in result.error
+    assert "Traceback" in result.traceback and not result.files
+    folder = store_result(tmp_path, result)
+    assert [p.name for p in folder.iterdir()] == [FAILED_FILE]
+    failure = json.loads((folder / FAILED_FILE).read_text())
+    assert failure["status"] == "failed" and "keyframe_every" in failure["error"]
+    assert not is_finished(tmp_path, spec_of(bad))
+
+
+def test_writes_are_atomic_and_stale_temporaries_are_cleaned(tmp_path, oracle_run, monkeypatch):
+    spec = oracle_run.spec
+    failed = RunResult(spec, "failed", error="boom")
+    store_result(tmp_path, failed)
+    real_rename = os.rename
+
+    def interrupted(src, dst):  # the process dies just before the final rename
+        if ".tmp-" in str(src):
+            raise KeyboardInterrupt
+        real_rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        store_result(tmp_path, oracle_run)
+    monkeypatch.setattr(os, "rename", real_rename)
+    folder = run_folder(tmp_path, spec)
+    assert [p.name for p in folder.iterdir()] == [FAILED_FILE]  # the old result is intact, nothing half-written
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]
+    store_result(tmp_path, oracle_run)  # a done run replaces the failed one
+    assert (folder / DONE_FILE).is_file() and not (folder / FAILED_FILE).exists()
+    dead = folder.parent / f".{folder.name}.tmp-999999999-deadbeef"
+    alive = folder.parent / f".{folder.name}.tmp-{os.getpid()}-cafecafe"
+    dead.mkdir()
+    alive.mkdir()
+    moved_aside = folder.parent / f".{folder.name}.old-999999999-deadbeef"  # killed between the two renames
+    os.rename(folder, moved_aside)
+    assert remove_stale_temporaries([folder.parent]) == 2
+    assert not dead.exists() and alive.exists() and (folder / DONE_FILE).is_file() and not moved_aside.exists()
+
+
+def test_a_suite_run_resumes_skips_and_isolates_failures(tmp_path):
+    table = dict(METHODS)
+    table["bad"] = replace(ORACLE, name="bad", kwargs={"keyframe_every": 0})
+    table["missing"] = Method("missing", entry_point="no_such_module:Agent")
+    suite = get_suite("quick").select(["office0"], ["oracle", "constant-pose", "bad", "missing"], frames=6)
+    seen = []
+    first = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r1",
+                      on_result=seen.append)  # fmt: skip
+    assert first.counts() == {"done": 2, "failed": 1}
+    assert list(first.skipped_methods) == ["missing"] and "no_such_module" in first.skipped_methods["missing"]
+    assert [r["method"] for r in first.records] == ["oracle", "constant-pose"]
+    assert len(seen) == 3 and "keyframe_every" in first.failed[0].error
+    second = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r2")
+    assert second.counts() == {"cached": 2, "failed": 1}  # finished runs are kept, the failed one is retried
+    assert second.records[0]["metadata"]["git_revision"] == "r1"
+    table["constant-pose"] = replace(CONSTANT, kwargs={"tracked": False})  # a changed method runs again
+    third = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False)
+    assert third.outcomes["quick/office0/constant-pose/seed0-frames6"].status == "done"
+    assert third.records[1]["metrics"]["tracked_share"] == 0.0
+
+
+def test_plots_are_written(tmp_path):
+    result = execute_run(replace(spec_of(ORACLE, frames=11), plots=True))
+    assert result.status == "done", result.error
+    assert result.files["trajectory.png"][:4] == b"\x89PNG" and result.files["depth.png"][:4] == b"\x89PNG"
+
+
+def test_an_external_systems_output_is_scored_like_an_agent(tmp_path):
+    ref = SequenceRef("rot_yaw_30", base="rot_yaw_30")
+    source = ref.make_source()
+    try:
+        export = export_tum_rgbd(source, tmp_path / "export", progress=False, max_frames=10)
+    finally:
+        source.close()
+    out = tmp_path / "myslam" / "rot_yaw_30"
+    (out / "depth").mkdir(parents=True)
+    stamps, T = read_tum_trajectory(export / "groundtruth.txt")
+    moved = np.eye(4)
+    moved[:3, 3] = [1.0, -2.0, 0.5]  # another world frame: the alignment takes it out
+    write_tum_trajectory(out / "trajectory.txt", stamps[::2], moved @ T[::2])  # every other frame only
+    depth_png = sorted((export / "depth").glob("*.png"))[4]
+    shutil.copy(depth_png, out / "depth" / depth_png.name)
+    method = external_method("MySLAM", tmp_path / "myslam")
+    result = execute_run(spec_of(method, frames=10, sequence=ref))
+    assert result.status == "done", result.error
+    m = json.loads(result.files["metrics.json"])["metrics"]
+    assert m["frames"] == 10 and m["ate_pairs"] == 5 and m["tracked_share"] == 0.5
+    assert m["ate_rmse"] < 1e-6 and m["depth_keyframes"] == 1 and m["depth_percent_correct"] > 99.9
+    missing = execute_run(spec_of(method, frames=10))  # no output for office0
+    assert missing.status == "failed" and "no trajectory for 'office0'" in missing.error

@@ -1,0 +1,122 @@
+"""Suite definitions, sequence references and their environments, the sweep's variants, the rotation share."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from eval.suites import (
+    ADDED_PAN_AMPLITUDE_DEG,
+    FOCAL_RATIOS,
+    REPLAY_ENV_ID,
+    SUITES,
+    SequenceRef,
+    SuiteError,
+    VariantSequence,
+    get_suite,
+    resolve_sequence,
+    rotation_share,
+    sweep_sequences,
+)
+from sim_envs.camera import preset
+from sim_envs.sequences import TABLE1_SEQUENCES, get_sequence
+
+
+def test_the_suites_of_the_issue():
+    assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "perf", "quick"}
+    table1 = get_suite("table1")
+    assert tuple(s.name for s in table1.sequences) == TABLE1_SEQUENCES
+    assert table1.methods == ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
+    assert all(s.registered and s.env_id == f"sim_envs/{s.name}-v0" for s in table1.sequences)
+    rotation = get_suite("rotation")
+    assert [s.name for s in rotation.sequences][:3] == ["rot_yaw_15", "rot_yaw_30", "rot_yaw_60"]
+    assert {s.name for s in rotation.sequences} >= {"rot_pitch_60", "rot_roll_15", "rot_rpy_30"}
+    assert get_suite("ablation").methods == ("raw-CNN", "focal-adjusted", "adjusted+refined")
+    assert get_suite("perf").kind == "perf" and not get_suite("perf").sequences
+    quick = get_suite("quick")
+    assert "constant-pose" in quick.methods and set(table1.methods) <= set(quick.methods)
+    assert quick.frames is not None and quick.frames <= 100
+    with pytest.raises(SuiteError, match="valid suites: table1"):
+        get_suite("tabel1")
+
+
+def test_selecting_and_resolving_sequences():
+    suite = get_suite("table1").select(["office1", "rot_yaw_45"], ["oracle"], frames=12, seeds=[1, 2])
+    assert [s.name for s in suite.sequences] == ["office1", "rot_yaw_45"]
+    assert suite.methods == ("oracle",) and suite.frames == 12 and suite.seeds == (1, 2)
+    rot = resolve_sequence("rot_yaw_45")
+    assert rot.rotation == ("yaw", 45.0) and not rot.registered and rot.env_id == REPLAY_ENV_ID
+    spec = rot.spec()
+    assert spec.name == "rot_yaw_45" and spec.params == {"axes": "yaw", "speed_deg_s": 45.0}
+    assert resolve_sequence("rot_yaw-pitch_20").spec().params["axes"] == "yaw+pitch"
+    assert resolve_sequence("rot_rpy_30").registered  # the registered one, by its Gymnasium id
+    with pytest.raises(SuiteError, match="valid: office0"):
+        resolve_sequence("office9")
+    with pytest.raises(SuiteError, match="frames must be >= 2"):
+        get_suite("quick").select(frames=1)
+    with pytest.raises(SuiteError, match="exactly one of base"):
+        SequenceRef("x")
+    with pytest.raises(SuiteError, match="not SequenceSpec fields"):
+        SequenceRef("x", base="office0", overrides={"colour": 1})
+
+
+def test_sweep_variants_change_one_thing_each():
+    refs = sweep_sequences("office1")
+    axes = {r.axis for r in refs}
+    assert axes == {"texture", "rotation", "focal"}
+    base = get_sequence("office1")
+    for ref in refs:
+        spec = ref.spec()
+        assert spec.name == ref.name and ref.env_id == REPLAY_ENV_ID
+        changed = {k for k in base.__dataclass_fields__ if getattr(spec, k) != getattr(base, k)} - {"name"}
+        assert changed <= {"texture_density"}
+        if ref.axis == "texture":
+            assert spec.texture_density == ref.axis_value and ref.focal_ratio is None
+    assert [r.axis_value for r in refs if r.axis == "focal"] == list(FOCAL_RATIOS)
+
+
+def test_rotation_share_known_answers():
+    n = 5
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, 0, 3] = 0.1 * np.arange(n)  # translation only
+    assert rotation_share(T) == 0.0
+    R = np.tile(np.eye(4), (n, 1, 1))
+    R[:, :3, :3] = Rotation.from_euler("y", 0.05 * np.arange(n)[:, None]).as_matrix()  # rotation only
+    assert rotation_share(R) == pytest.approx(1.0)
+    both = R.copy()
+    both[:, 0, 3] = 0.1 * np.arange(n)  # 0.05 rad and 0.1 m per step, scene 2 m away: 0.05 / (0.05 + 0.05)
+    assert rotation_share(both, depth_m=2.0) == pytest.approx(0.5)
+    assert math.isnan(rotation_share(np.tile(np.eye(4), (3, 1, 1))))
+
+
+def test_variant_sequence_focal_and_pan():
+    spec = get_sequence("office1").with_frames(90)
+    plain = VariantSequence(spec)
+    assert plain.trajectory is plain.trajectory and plain.intrinsics == spec.intrinsics()
+    focal = VariantSequence(spec, name="f", focal_ratio=1.2)
+    nyu = preset("nyu", spec.width, spec.height)
+    assert focal.name == "f" and focal.intrinsics.fx == pytest.approx(1.2 * nyu.fx)
+    assert focal.intrinsics.cx == spec.intrinsics().cx
+    panned = VariantSequence(spec, added_pan_deg_s=30.0)
+    base_T, pan_T = plain.poses, panned.poses
+    np.testing.assert_allclose(pan_T[:, :3, 3], base_T[:, :3, 3])  # the optical centre keeps its path
+    rel = Rotation.from_matrix(np.einsum("nji,njk->nik", base_T[:, :3, :3], pan_T[:, :3, :3]))
+    angles = np.degrees(rel.as_rotvec())
+    assert np.abs(angles[:, [0, 2]]).max() < 1e-6  # about the camera's y axis only
+    assert np.abs(angles[:, 1]).max() == pytest.approx(ADDED_PAN_AMPLITUDE_DEG, abs=0.5)
+    assert rotation_share(pan_T) > rotation_share(base_T)
+    with pytest.raises(SuiteError, match="focal_ratio"):
+        VariantSequence(spec, focal_ratio=0.0)
+
+
+def test_a_variant_environment_renders_with_its_camera():
+    ref = SequenceRef("office1@focal1.4", base="office1", focal_ratio=1.4)
+    env = ref.make_env(max_frames=2)
+    try:
+        obs, _ = env.reset()
+        nyu = preset("nyu", 320, 240)
+        assert obs["intrinsics"][0] == pytest.approx(1.4 * nyu.fx) and obs["rgb"].shape == (240, 320, 3)
+        assert env.unwrapped.source.name == "office1@focal1.4"
+    finally:
+        env.close()
