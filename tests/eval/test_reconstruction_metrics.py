@@ -1,0 +1,120 @@
+import math
+
+import numpy as np
+import pytest
+
+from eval.reconstruction_metrics import (
+    ReconstructionMetricsError,
+    distance_to_surface,
+    image_label_accuracy,
+    label_fusion_metrics,
+    nearest_labels,
+    reconstruction_metrics,
+    visible_in_views,
+)
+
+SPACING = 0.02
+
+
+def _plane_samples(size: float = 1.0, spacing: float = SPACING, z: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Cell centres on the square [0, size]^2 at height z, normals +z."""
+    c = (np.arange(round(size / spacing)) + 0.5) * spacing
+    X, Y = np.meshgrid(c, c, indexing="ij")
+    pts = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], axis=1)
+    return pts, np.tile([0.0, 0.0, 1.0], (pts.shape[0], 1))
+
+
+def test_known_shift_gives_known_accuracy_and_completeness():
+    gt, normals = _plane_samples()
+    rng = np.random.default_rng(0)
+    # model points anywhere over the plane (not on the sample grid), 3 cm above it
+    model = np.column_stack([rng.uniform(0.1, 0.9, (5000, 2)), np.full(5000, 0.03)])
+    m = reconstruction_metrics(model, gt, normals, SPACING, threshold=0.05)
+    assert m.accuracy_mean == pytest.approx(0.03, abs=1e-12)  # the point-to-plane refinement is exact here
+    assert m.accuracy_median == pytest.approx(0.03, abs=1e-12) and m.accuracy_within == 1.0
+    # completeness: ground truth under the model (0.1..0.9) is within ~3 cm; the 10 cm margins are not
+    comp_inner = reconstruction_metrics(model, gt[(gt[:, :2] > 0.12).all(1) & (gt[:, :2] < 0.88).all(1)])
+    assert comp_inner.completeness_within == 1.0
+    assert 0.03 <= comp_inner.completeness_mean < 0.035
+    # ground truth within 5 cm of a point 3 cm up: within 4 cm sideways of the model's square: (0.8 + 0.08)^2
+    assert m.completeness_within == pytest.approx(0.88**2, abs=0.02)
+    far = reconstruction_metrics(model + [0, 0, 0.04], gt, normals, SPACING, threshold=0.05)
+    assert far.accuracy_mean == pytest.approx(0.07) and far.accuracy_within == 0.0
+    assert m.n_model == 5000 and m.n_gt == gt.shape[0]
+
+
+def test_plain_nearest_sample_distance_has_the_sampling_bias_the_refinement_removes():
+    gt, normals = _plane_samples()
+    model = np.array([[0.5, 0.5, 0.0], [0.51, 0.51, 0.0]])  # on the surface: between 4 samples, on a sample
+    plain, _ = distance_to_surface(model, gt)
+    refined, _ = distance_to_surface(model, gt, normals, SPACING)
+    assert plain[0] == pytest.approx(SPACING / math.sqrt(2)) and plain[1] == pytest.approx(0.0, abs=1e-12)
+    assert np.allclose(refined, 0.0, atol=1e-12)
+    beyond, _ = distance_to_surface(np.array([[1.1, 0.5, 0.0]]), gt, normals, SPACING)  # 10 cm past the edge
+    assert 0.1 - SPACING / math.sqrt(2) <= beyond[0] <= 0.1
+
+
+def test_empty_model_is_complete_nowhere_and_bad_input_raises():
+    gt, _ = _plane_samples(0.2)
+    m = reconstruction_metrics(np.zeros((0, 3)), gt)
+    assert math.isnan(m.accuracy_mean) and m.completeness_within == 0.0 and math.isinf(m.completeness_mean)
+    with pytest.raises(ReconstructionMetricsError, match=r"\(N, 3\)"):
+        reconstruction_metrics(np.zeros((4, 2)), gt)
+    with pytest.raises(ReconstructionMetricsError, match="empty"):
+        reconstruction_metrics(gt, np.zeros((0, 3)))
+
+
+def test_visibility_keeps_points_seen_and_not_occluded():
+    K = np.array([100.0, 100.0, 49.5, 49.5])
+    T = np.eye(4)  # camera at the origin looking down +z
+    depth = np.full((100, 100), 2.0, np.float32)  # a wall at z = 2 ...
+    depth[:, :50] = 1.0  # ... and its left half hidden behind a board at z = 1
+    pts = np.array([[0.5, 0.0, 2.0],  # right half of the wall: seen
+                    [-0.5, 0.0, 2.0],  # left half, behind the board: occluded
+                    [-0.5, 0.0, 1.0],  # the board: seen
+                    [5.0, 0.0, 2.0],  # outside the image
+                    [0.0, 0.0, -2.0]])  # behind the camera
+    seen = visible_in_views(pts, T[None], [depth], K)
+    assert seen.tolist() == [True, False, True, False, False]
+    T2 = np.eye(4)
+    T2[0, 3] = -1.0  # a second view, 1 m to the left, whose depth map shows the wall without the board
+    depth2 = np.full((100, 100), 2.0, np.float32)
+    seen2 = visible_in_views(pts, np.stack([T, T2]), [depth, depth2], K)
+    assert seen2.tolist() == [True, True, True, False, False]
+    with pytest.raises(ReconstructionMetricsError, match="depth maps"):
+        visible_in_views(pts, np.stack([T, T2]), [depth], K)
+
+
+def test_label_fusion_metrics_count_the_same_points_for_both():
+    gt, _ = _plane_samples(1.0)
+    gt_labels = np.where(gt[:, 0] < 0.5, 0, 1).astype(np.uint8)  # floor left, wall right
+    # frame-wise points on the plane, labelled with 30 % errors; the model labels them right except near x = 0.5
+    rng = np.random.default_rng(1)
+    frame_pts = np.column_stack([rng.uniform(0.02, 0.98, (2000, 2)), np.zeros(2000)])
+    truth = np.where(frame_pts[:, 0] < 0.5, 0, 1)
+    wrong = rng.random(2000) < 0.3
+    frame_labels = np.where(wrong, 1 - truth, truth).astype(np.uint8)
+    model_pts, _ = _plane_samples(1.0, 0.01)
+    model_labels = np.where(model_pts[:, 0] < 0.5, 0, 1).astype(np.uint8)
+    model_labels[np.abs(model_pts[:, 0] - 0.5) < 0.05] = 3  # a wrong strip 10 cm wide
+    model_labels[:10] = 255  # no label evidence: not scored
+    m = label_fusion_metrics(model_pts, model_labels, frame_pts, frame_labels, gt, gt_labels, max_distance=0.1)
+    strip = np.abs(frame_pts[:, 0] - 0.5) < 0.05
+    assert m.n_points == 2000 and m.coverage == 1.0
+    assert m.framewise_accuracy == pytest.approx(1 - wrong.mean())
+    assert m.fused_accuracy == pytest.approx(1 - strip.mean(), abs=0.01)
+    assert m.gain_points == pytest.approx((m.fused_accuracy - m.framewise_accuracy) * 100)
+    assert m.model_accuracy == pytest.approx(0.9, abs=0.01)
+    # points 20 cm off the surface get no ground-truth label and are not scored
+    labels, d = nearest_labels(np.array([[0.5, 0.5, 0.2], [0.2, 0.5, 0.0]]), gt, gt_labels, 0.1)
+    assert labels.tolist() == [255, 0] and d[0] == pytest.approx(0.2, abs=0.01)
+
+
+def test_image_label_accuracy_scores_pixels_the_model_covers():
+    gt = np.array([[0, 0, 1], [1, 255, 2]], np.uint8)
+    fused = np.array([[0, 1, 1], [255, 1, 2]], np.uint8)
+    frame = np.array([[0, 0, 0], [1, 1, 1]], np.uint8)
+    fused_acc, frame_acc, n = image_label_accuracy([fused], [frame], [gt])
+    assert n == 4 and fused_acc == pytest.approx(3 / 4) and frame_acc == pytest.approx(2 / 4)
+    with pytest.raises(ReconstructionMetricsError, match="as many"):
+        image_label_accuracy([fused], [], [gt])
