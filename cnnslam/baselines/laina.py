@@ -1,0 +1,351 @@
+"""The "Laina [16]" column of the paper's Table 1: CNN depth used as if it came from an RGB-D sensor, fed to a
+depth-based SLAM (point-based fusion [11] with projective ICP tracking), without any refinement.
+
+As the paper ran it (Sec. 4.1: "the CNN-predicted depth maps as input for a state-of-the-art depth-based SLAM method
+(point-based fusion [11, 27])"):
+
+- every frame (``cnn_every = 1``, the default) gets a CNN depth map with the focal-length adjustment of eq. 5
+  (:func:`cnnslam.depth_prediction.predict_keyframe_depth`) and nothing else: no uncertainty, no refinement, no
+  key-frame fusion;
+- tracking is frame-to-model, projective point-to-plane ICP coarse to fine (:mod:`cnnslam.icp`), against the global
+  model rendered at the previous pose (KinectFusion / Keller et al.), from a constant-velocity guess;
+- each tracked frame is fused into the global model (:class:`cnnslam.global_model.GlobalModel`, the same code as
+  CNN-SLAM's global model), with the CNN's class probabilities (label fusion comes free); unconfirmed surfels are
+  pruned (Keller's unstable points);
+- the baseline has no pose graph and no loop closure.
+
+Key-frames (what the paper scored for this column): a tracked frame with a CNN prediction becomes a key-frame
+every ``keyframe_every`` frames, or earlier when the camera moved ``keyframe_translation`` metres or
+``keyframe_rotation_deg`` degrees from the last key-frame; it reports the CNN depth of that frame (eq. 5 applied),
+its tracked pose and the CNN's class probabilities.
+
+Option ``cnn_every = k > 1`` (ours, to save CPU): the CNN runs on every k-th frame only. Frames in between have no
+depth, so ICP cannot track them; they are tracked photometrically (:func:`cnnslam.tracking.track_frame`, LSD-SLAM's
+direct alignment) against the last predicted frame: its image with its CNN depth ("the last prediction's model"),
+and they are not fused.
+
+``"cnnslam.baselines.laina:LainaAgent"`` uses the trained network and sees only observations.
+``"cnnslam.baselines.laina:GroundTruthAidedLainaAgent"`` is a DEVELOPMENT tool (``uses_ground_truth = True``): its
+default predictor is :class:`cnnslam.depth_prediction.DegradedGroundTruthPredictor`, which imitates the CNN from the
+frame's ground-truth depth and labels; ground truth reaches nothing else (never the poses).
+
+Keyword arguments (both classes; all optional)::
+
+    LainaAgent(config={"cnn_every": 1, "icp.max_distance": 0.1, "model.voxel_size": 0.02, ...} | LainaConfig,
+               predictor="network" | "degraded_ground_truth" | <an object with predict_raw / train_focal>,
+               predictor_options={...})
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from cnnslam.config import TrackingConfig
+from cnnslam.depth_prediction import GroundTruthHint, make_predictor, predict_keyframe_depth
+from cnnslam.errors import CnnSlamError
+from cnnslam.geometry import orthonormalize, rotation_angle_deg, se3_inverse
+from cnnslam.global_model import GlobalModel, GlobalModelConfig
+from cnnslam.icp import IcpConfig, SurfaceMaps, icp_point_to_plane, surface_maps_from_depth
+from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
+
+
+@dataclass(frozen=True)
+class LainaConfig:
+    """The Laina baseline's settings; nested sections ``icp``, ``model`` and ``tracking`` keep their own sources."""
+
+    # Paper [16]: the CNN on every frame. Ours: k > 1 runs it every k-th frame (module docstring).
+    cnn_every: int = 1
+    # Eq. 5: the CNN depth rescaled by f_cur / f_tr (the paper's Laina column uses the adjusted CNN depth).
+    focal_adjustment: bool = True
+    # Ours: key-frames about as often as CNN-SLAM makes them on the simulated sequences (one per second at 30 Hz) ...
+    keyframe_every: int = 30
+    # ... or earlier after this much motion since the last key-frame (metres, degrees).
+    keyframe_translation: float = 0.25
+    keyframe_rotation_deg: float = 15.0
+    # Projective point-to-plane ICP. KinectFusion's gates (10 cm, 20 deg) are for a Kinect's ~1 cm noise; ours for
+    # CNN depth, which flickers by several per cent between frames: 20 cm, 30 deg, no pre-smoothing (it shifts the
+    # blurred CNN edges), and "lost" only below 5 % inliers or above 15 cm RMS residual.
+    icp: IcpConfig = field(default_factory=lambda: IcpConfig(max_distance=0.2, max_normal_angle_deg=30.0,
+                                                             min_inlier_share=0.05, max_rmse=0.15,
+                                                             smoothing_px=0.0))
+    # The global model; ours: every 2nd pixel at frame rate (CPU), CNN depth sigma 10 % of depth, association up to
+    # 30 cm (the CNN's frame-to-frame flicker at 3 m), so that the model averages the flicker instead of layering it;
+    # at frame rate a surface is seen 30 times a second, so a surfel in view that is not confirmed (also when the
+    # measurement is up to 15 cm in front of it, a duplicate layer) is removed after 2 misses.
+    model: GlobalModelConfig = field(default_factory=lambda: GlobalModelConfig(
+        pixel_stride=2, default_relative_sigma=0.1, max_association_distance=0.3, miss_margin=-0.15))
+    # Keller: unstable points (confidence below this after prune_min_age frames) are removed, every prune_every
+    # frames (ours: c_stable of about 3 frames seen near the image centre, after 1 s).
+    prune_every: int = 30
+    prune_min_confidence: float = 2.0
+    prune_min_age: int = 30
+    # Keller: only stable surfels (confidence at least this; 0 = all) are rendered for ICP, so that unconfirmed
+    # surfels (the CNN's flicker) in front of the surface do not hide it ...
+    render_min_confidence: float = 3.0
+    # ... once they cover this share of the image (ours; all surfels before: the image centre becomes stable first,
+    # and a centre-only reference may leave a direction unconstrained; with the development predictor the stable
+    # part covers 75-90 % of the image after 10 frames).
+    stable_min_coverage: float = 0.7
+    # LSD-SLAM's direct tracking, for the frames between CNN predictions when cnn_every > 1 ...
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    # ... with the CNN depth's variance taken as (r d)^2 (ours, FCRN's rel error 0.127 rounded down).
+    photometric_relative_sigma: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("cnn_every", "keyframe_every", "prune_every"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise CnnSlamError(f"laina.{name} must be an integer >= 1, got {value!r}")
+        for name in ("keyframe_translation", "keyframe_rotation_deg", "photometric_relative_sigma"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise CnnSlamError(f"laina.{name} must be positive, got {value!r}")
+        if not 0 <= self.stable_min_coverage <= 1:
+            raise CnnSlamError(f"laina.stable_min_coverage must be in [0, 1], got {self.stable_min_coverage}")
+        if self.prune_min_confidence < 0 or self.prune_min_age < 0 or self.render_min_confidence < 0:
+            raise CnnSlamError("laina.prune_min_confidence, prune_min_age and render_min_confidence must be >= 0")
+
+    def with_overrides(self, overrides: dict[str, Any]) -> LainaConfig:
+        """A copy with ``{"field": value}`` or ``{"section.field": value}`` (sections icp, model, tracking) replaced."""
+        top: dict[str, Any] = {}
+        nested: dict[str, dict[str, Any]] = {}
+        names = [f.name for f in fields(self)]
+        for key, value in overrides.items():
+            section, sep, name = key.partition(".")
+            if isinstance(value, list):
+                value = tuple(value)
+            if not sep:
+                if key not in names or key in ("icp", "model", "tracking"):
+                    raise CnnSlamError(f"unknown Laina setting {key!r}; valid: {', '.join(names)} (sections as "
+                                       "'icp.<field>', 'model.<field>', 'tracking.<field>')")
+                top[key] = value
+                continue
+            if section not in ("icp", "model", "tracking"):
+                raise CnnSlamError(f"unknown Laina section {section!r} in {key!r}; valid: icp, model, tracking")
+            valid = [f.name for f in fields(getattr(self, section))]
+            if name not in valid:
+                raise CnnSlamError(f"unknown field {key!r}; fields of {section}: {', '.join(valid)}")
+            nested.setdefault(section, {})[name] = value
+        for section, values in nested.items():
+            top[section] = replace(getattr(self, section), **values)
+        return replace(self, **top)
+
+
+@dataclass
+class _PhotometricReference:
+    """The last predicted frame, for direct tracking of the frames in between (cnn_every > 1)."""
+
+    reference: Any
+    T_world_ref: np.ndarray
+
+
+class LainaAgent:
+    """Laina et al. [16] + point-based fusion [11] as a ``sim_envs`` agent (see the module docstring)."""
+
+    uses_ground_truth = False
+    default_predictor = "network"
+
+    def __init__(self, config: LainaConfig | dict[str, Any] | None = None, predictor: str | Any | None = None,
+                 predictor_options: dict[str, Any] | None = None) -> None:
+        self.config = config if isinstance(config, LainaConfig) else LainaConfig().with_overrides(dict(config or {}))
+        self._predictor_spec = self.default_predictor if predictor is None else predictor
+        if (isinstance(self._predictor_spec, str) and self._predictor_spec == "degraded_ground_truth"
+                and not self.uses_ground_truth):
+            raise CnnSlamError("the 'degraded_ground_truth' predictor needs ground truth: use "
+                               "cnnslam.baselines.laina:GroundTruthAidedLainaAgent")
+        self._predictor_options = dict(predictor_options or {})
+        self._predictor: Any = None
+        self.name = "laina"
+        self._model: GlobalModel | None = None
+        self._intrinsics = np.zeros(4)
+        self._size = (0, 0)
+
+    @property
+    def predictor(self) -> Any:
+        """The depth predictor, built on first use (the network's weights are loaded lazily)."""
+        if self._predictor is None:
+            spec = self._predictor_spec
+            self._predictor = make_predictor(spec, **self._predictor_options) if isinstance(spec, str) else spec
+        return self._predictor
+
+    @property
+    def global_model(self) -> GlobalModel:
+        """The model fused from every tracked predicted frame of the current episode."""
+        if self._model is None:
+            raise CnnSlamError("no episode yet: call reset() first")
+        return self._model
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """Start a new episode: ``intrinsics`` [fx, fy, cx, cy] pixels, ``image_size`` (H, W)."""
+        k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
+        if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
+            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
+        self._intrinsics = k
+        self._size = (int(image_size[0]), int(image_size[1]))
+        self._model = GlobalModel(self.config.model)
+        self._frame = 0
+        self._T_world_prev: np.ndarray | None = None
+        self._velocity = np.eye(4)  # T_prev_cur of the last tracked motion
+        self._keyframes: list[Any] = []
+        self._last_kf: tuple[int, np.ndarray] | None = None  # (frame, T_world_kf)
+        self._photometric: _PhotometricReference | None = None
+        self._tracked: list[bool] = []
+        self._model_sizes: list[tuple[int, int, int]] = []  # (frame, surfels, bytes) every 100 frames
+        self._counters = {"lost": 0, "predicted": 0, "fused": 0, "pruned": 0, "photometric": 0}
+        self._seconds = {"prediction": 0.0, "icp": 0.0, "render": 0.0, "fusion": 0.0, "photometric": 0.0}
+
+    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
+        """Process one observation (``rgb``, ``timestamp``); answer ``{"T_world_cam": (4, 4), "tracked": 0|1}``."""
+        return self._step(observation, None)
+
+    def _step(self, observation: dict[str, np.ndarray], hint: GroundTruthHint | None) -> dict[str, Any]:
+        if self._model is None:
+            raise CnnSlamError("call reset(intrinsics, image_size) before step()")
+        cfg = self.config
+        rgb = np.asarray(observation["rgb"])
+        if rgb.shape[:2] != self._size:
+            raise CnnSlamError(f"frame of size {rgb.shape[:2]} but the agent was reset for {self._size}")
+        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
+        frame = self._frame
+        self._frame += 1
+        predicted = frame % cfg.cnn_every == 0
+        pred = None
+        if predicted:
+            t0 = time.perf_counter()
+            pred = predict_keyframe_depth(self.predictor, rgb, self._intrinsics, cfg.focal_adjustment, hint)
+            self._seconds["prediction"] += time.perf_counter() - t0
+            self._counters["predicted"] += 1
+
+        if self._T_world_prev is None:  # the first frame (with a prediction) is the world origin
+            T_world_cur, tracked = np.eye(4), pred is not None
+        else:
+            T_world_pred = orthonormalize(self._T_world_prev @ self._velocity)
+            if pred is not None:
+                T_world_cur, tracked = self._track_icp(pred.depth, T_world_pred)
+            else:
+                T_world_cur, tracked = self._track_photometric(rgb, T_world_pred)
+        if tracked:
+            if self._T_world_prev is not None:
+                self._velocity = orthonormalize(se3_inverse(self._T_world_prev) @ T_world_cur)
+            self._T_world_prev = T_world_cur
+        else:  # lost: report the prediction, but try the next frame from the last tracked pose, at rest
+            self._counters["lost"] += 1
+            self._velocity = np.eye(4)
+        self._tracked.append(bool(tracked))
+
+        if pred is not None and tracked:
+            t0 = time.perf_counter()
+            self._model.integrate(pred.depth, T_world_cur, self._intrinsics, rgb, pred.label_probs)
+            self._counters["fused"] += 1
+            if self._model.integrations % cfg.prune_every == 0:
+                self._counters["pruned"] += self._model.prune(cfg.prune_min_confidence, cfg.prune_min_age)
+            self._seconds["fusion"] += time.perf_counter() - t0
+            if cfg.cnn_every > 1:
+                pyramid = build_image_pyramid(to_gray(rgb), self._intrinsics, cfg.tracking.pyramid_levels)
+                variance = (cfg.photometric_relative_sigma * pred.depth) ** 2
+                self._photometric = _PhotometricReference(
+                    build_tracking_reference(pyramid, pred.depth, variance, cfg.tracking), T_world_cur.copy())
+            if self._is_keyframe(frame, T_world_cur):
+                from sim_envs.agent import KeyframeDepth
+
+                self._keyframes.append(KeyframeDepth(timestamp=stamp, depth=pred.depth.copy(),
+                                                     T_world_cam=T_world_cur.copy(), uncertainty=None,
+                                                     labels=pred.label_probs))
+                self._last_kf = (frame, T_world_cur.copy())
+        if frame % 100 == 0:
+            self._model_sizes.append((frame, len(self._model), self._model.nbytes))
+        return {"T_world_cam": T_world_cur, "tracked": int(tracked)}
+
+    def _track_icp(self, depth: np.ndarray, T_world_pred: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Frame-to-model ICP of the CNN depth against the model rendered at the previous pose."""
+        cfg = self.config
+        assert self._T_world_prev is not None and self._model is not None
+        t0 = time.perf_counter()
+        view = self._model.render(self._T_world_prev, self._intrinsics, self._size, cfg.render_min_confidence)
+        valid = (view.index >= 0) & (np.abs(view.normals).sum(axis=2) > 0)
+        if cfg.render_min_confidence > 0 and valid.mean() < cfg.stable_min_coverage:  # too few stable ones yet
+            view = self._model.render(self._T_world_prev, self._intrinsics, self._size)
+            valid = (view.index >= 0) & (np.abs(view.normals).sum(axis=2) > 0)
+        reference = SurfaceMaps(view.vertices, view.normals, valid, self._intrinsics.copy())
+        current = surface_maps_from_depth(depth, self._intrinsics, cfg.icp.max_relative_depth_jump,
+                                          cfg.icp.smoothing_px, cfg.icp.smoothing_relative)
+        t1 = time.perf_counter()
+        self._seconds["render"] += t1 - t0
+        res = icp_point_to_plane(reference, current, se3_inverse(self._T_world_prev) @ T_world_pred, cfg.icp)
+        self._seconds["icp"] += time.perf_counter() - t1
+        if not res.tracked:
+            return T_world_pred, False
+        return orthonormalize(self._T_world_prev @ res.T_ref_cur), True
+
+    def _track_photometric(self, rgb: np.ndarray, T_world_pred: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Direct tracking of a frame without CNN depth against the last predicted frame (cnn_every > 1)."""
+        ref = self._photometric
+        if ref is None:
+            return T_world_pred, False
+        t0 = time.perf_counter()
+        cfg = self.config.tracking
+        pyramid = build_image_pyramid(to_gray(rgb), self._intrinsics, cfg.pyramid_levels)
+        res = track_frame(ref.reference, pyramid, se3_inverse(ref.T_world_ref) @ T_world_pred, cfg)
+        self._seconds["photometric"] += time.perf_counter() - t0
+        self._counters["photometric"] += 1
+        if not res.tracked:
+            return T_world_pred, False
+        return orthonormalize(ref.T_world_ref @ res.T_kf_cur), True
+
+    def _is_keyframe(self, frame: int, T_world_cur: np.ndarray) -> bool:
+        cfg = self.config
+        if self._last_kf is None:
+            return True
+        last_frame, T_world_kf = self._last_kf
+        if frame - last_frame >= cfg.keyframe_every:
+            return True
+        T_kf_cur = se3_inverse(T_world_kf) @ T_world_cur
+        return bool(np.linalg.norm(T_kf_cur[:3, 3]) >= cfg.keyframe_translation
+                    or rotation_angle_deg(T_kf_cur) >= cfg.keyframe_rotation_deg)
+
+    def finish(self) -> Any:
+        """End the episode: an ``AgentOutput`` with the key-frames (CNN depth) and JSON-serialisable extras."""
+        from sim_envs.agent import AgentOutput
+
+        if self._model is None:
+            raise CnnSlamError("finish() before reset()")
+        n = len(self._tracked)
+        extras: dict[str, Any] = {
+            "frames": n,
+            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            "keyframes": len(self._keyframes),
+            **self._counters,
+            "model_surfels": len(self._model),
+            "model_bytes": self._model.nbytes,
+            "model_size_history": [list(x) for x in self._model_sizes],
+            "seconds": dict(self._seconds),
+            "predictor": (self._predictor_spec if isinstance(self._predictor_spec, str)
+                          else type(self._predictor_spec).__name__),
+            "config": {"cnn_every": self.config.cnn_every, "keyframe_every": self.config.keyframe_every,
+                       "keyframe_translation": self.config.keyframe_translation,
+                       "keyframe_rotation_deg": self.config.keyframe_rotation_deg,
+                       "voxel_size": self.config.model.voxel_size, "pixel_stride": self.config.model.pixel_stride},
+        }
+        return AgentOutput(keyframes=list(self._keyframes), extras=extras)
+
+
+class GroundTruthAidedLainaAgent(LainaAgent):
+    """The Laina baseline with the development predictor (``uses_ground_truth = True``; a development tool).
+
+    Ground truth (``info["gt_depth"]``, ``info["gt_labels"]``) reaches only the predictor that imitates the CNN.
+    """
+
+    uses_ground_truth = True
+    default_predictor = "degraded_ground_truth"
+
+    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Like :meth:`LainaAgent.step`; ``info`` feeds the development predictor only."""
+        hint = None
+        if info is not None and "gt_depth" in info:
+            hint = GroundTruthHint(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        return self._step(observation, hint)
