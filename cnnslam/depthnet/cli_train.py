@@ -1,0 +1,214 @@
+"""``cnnslam train``: generate the training data, train the depth network, validate it, ship it.
+
+    cnnslam train generate-data [--root data/depthnet] [--scenes 300] [--views 40] [--val-scenes 12] [--workers 2]
+    cnnslam train fit [--data data/depthnet] [--out data/depthnet/run] [--steps 30000] [--batch 8] ... [--export]
+    cnnslam train validate [--weights W] [--frames 40] [--results results] [--update-manifest]
+    cnnslam train export [--run data/depthnet/run]
+
+``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
+copies the run's weights and manifest to ``cnnslam/depthnet/weights/default.{pt,json}``, the shipped default.
+``validate`` writes ``results/depthnet.md``, ``results/depthnet.json`` and ``results/depthnet_samples.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+from cnnslam.depthnet.data import AugmentConfig, GenerationConfig, generate_dataset
+from cnnslam.depthnet.model import ModelConfig
+from cnnslam.depthnet.train import TrainConfig, train
+from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Subcommands generate-data / fit / validate / export."""
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    g = sub.add_parser("generate-data", help="render the training and validation shards (resumable)")
+    g.add_argument("--root", type=Path, default=Path("data/depthnet"))
+    g.add_argument("--scenes", type=int, default=GenerationConfig.n_scenes, help="training rooms")
+    g.add_argument("--views", type=int, default=GenerationConfig.views_per_scene, help="views per room")
+    g.add_argument("--val-scenes", type=int, default=12, help="held-out rooms of the training styles")
+    g.add_argument("--seed", type=int, default=0, help="data seed")
+    g.add_argument("--workers", type=int, default=2, help="render processes (0: in this process)")
+
+    f = sub.add_parser("fit", help="train (or resume) and write weights + manifest")
+    d = TrainConfig()
+    f.add_argument("--data", type=Path, default=Path(d.data_root))
+    f.add_argument("--out", type=Path, default=Path(d.out_dir))
+    f.add_argument("--steps", type=int, default=d.steps)
+    f.add_argument("--batch", type=int, default=d.batch_size)
+    f.add_argument("--crop", type=int, nargs=2, default=list(d.augment.crop), metavar=("H", "W"),
+                   help="random crop, pixels at the network's resolution")
+    f.add_argument("--downsample", type=int, default=d.downsample, choices=(1, 2, 4),
+                   help="the network works at 1/downsample of the rendered images")
+    f.add_argument("--lr", type=float, default=d.lr)
+    f.add_argument("--semantic-weight", type=float, default=d.semantic_weight)
+    f.add_argument("--trunk-depth", type=int, default=d.model.trunk_depth, choices=(18, 34, 50))
+    f.add_argument("--base-width", type=int, default=d.model.base_width)
+    f.add_argument("--dropout", type=float, default=d.model.dropout)
+    f.add_argument("--skips", action=argparse.BooleanOptionalAction, default=d.model.skips,
+                   help="trunk-to-decoder skip connections (ours, not FCRN)")
+    f.add_argument("--depth-activation", choices=("softplus", "exp"), default=d.model.depth_activation)
+    f.add_argument("--depth-space", choices=("linear", "log"), default=d.depth_space,
+                   help="berHu on depth (FCRN) or on log depth")
+    f.add_argument("--warmup", type=int, default=d.warmup_steps)
+    f.add_argument("--seed", type=int, default=d.seed)
+    f.add_argument("--threads", type=int, default=d.num_threads)
+    f.add_argument("--val-every", type=int, default=d.val_every)
+    f.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every)
+    f.add_argument("--restart", action="store_true", help="ignore an existing checkpoint and start over")
+    f.add_argument("--no-progress", action="store_true", help="no progress bar")
+    f.add_argument("--export", action="store_true", help="copy the result to the shipped default weights")
+
+    v = sub.add_parser("validate", help="score weights on the test sequences; write results/depthnet.*")
+    v.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
+    v.add_argument("--frames", type=int, default=40, help="frames per test sequence")
+    v.add_argument("--results", type=Path, default=Path("results"))
+    v.add_argument("--threads", type=int, default=2)
+    v.add_argument("--update-manifest", action="store_true",
+                   help="store the figures in the manifest beside the weights (<weights>.json or manifest.json)")
+
+    e = sub.add_parser("export", help="copy a run's weights + manifest to the shipped default")
+    e.add_argument("--run", type=Path, default=Path(d.out_dir))
+
+
+def _progress(desc: str) -> Any:
+    from tqdm import tqdm
+
+    return lambda it, total: tqdm(it, total=total, desc=desc, dynamic_ncols=True)
+
+
+def _generate(args: argparse.Namespace) -> int:
+    cfg = GenerationConfig(n_scenes=args.scenes, views_per_scene=args.views, data_seed=args.seed)
+    args.root.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    train_dirs = generate_dataset(args.root, "train", cfg, args.workers, _progress("train shards"))
+    val_cfg = replace(cfg, n_scenes=args.val_scenes)
+    val_dirs = generate_dataset(args.root, "val", val_cfg, args.workers, _progress("val shards"))
+    wall = time.perf_counter() - t0
+    gen_path = args.root / "generation.json"
+    previous = json.loads(gen_path.read_text()) if gen_path.is_file() else {}
+    record = {
+        "config": asdict(cfg),
+        "val_scenes": args.val_scenes,
+        "train_frames": len(train_dirs) * cfg.views_per_scene,
+        "val_frames": len(val_dirs) * cfg.views_per_scene,
+        # total over resumed invocations of the same configuration
+        "wall_time_s": round(wall + (previous.get("wall_time_s", 0.0) if previous.get("config") == asdict(cfg)
+                                     else 0.0), 1),
+        "workers": args.workers,
+    }
+    gen_path.write_text(json.dumps(record, indent=2) + "\n")
+    print(f"{len(train_dirs)} training and {len(val_dirs)} validation shards under {args.root} "
+          f"({record['train_frames']} + {record['val_frames']} frames); this run {wall:.0f} s")
+    return 0
+
+
+def _export(run: Path) -> None:
+    for src, dst in ((run / "weights.pt", DEFAULT_WEIGHTS), (run / "manifest.json", DEFAULT_MANIFEST)):
+        if not src.is_file():
+            raise SystemExit(f"{src} does not exist: finish 'cnnslam train fit --out {run}' first")
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, dst)
+    print(f"exported {run / 'weights.pt'} -> {DEFAULT_WEIGHTS} ({DEFAULT_WEIGHTS.stat().st_size / 1e6:.1f} MB)")
+
+
+def _fit(args: argparse.Namespace) -> int:
+    d = TrainConfig()
+    cfg = replace(
+        d,
+        data_root=str(args.data),
+        out_dir=str(args.out),
+        steps=args.steps,
+        batch_size=args.batch,
+        lr=args.lr,
+        semantic_weight=args.semantic_weight,
+        seed=args.seed,
+        num_threads=args.threads,
+        val_every=args.val_every,
+        checkpoint_every=args.checkpoint_every,
+        downsample=args.downsample,
+        depth_space=args.depth_space,
+        warmup_steps=args.warmup,
+        model=ModelConfig(trunk_depth=args.trunk_depth, base_width=args.base_width, dropout=args.dropout,
+                          skips=args.skips, depth_activation=args.depth_activation),
+        augment=replace(AugmentConfig(), crop=(args.crop[0], args.crop[1])),
+    )
+    result = train(cfg, resume=not args.restart, progress=not args.no_progress)
+    v = result.validation
+    print(f"trained {result.steps} steps in {result.wall_time_s / 3600:.2f} h; held-out val: AbsRel "
+          f"{v['abs_rel']:.3f}, within 10 % {100 * v['within_10pct']:.1f} %, pixel acc. {100 * v['pixel_accuracy']:.1f}"
+          f" %; weights {result.weights}")
+    if args.export:
+        _export(Path(args.out))
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cnnslam.depthnet.bench import benchmark
+    from cnnslam.depthnet.plots import plot_sample_row
+    from cnnslam.depthnet.predict import load_predictor
+    from cnnslam.depthnet.report import report_document, report_markdown
+    from cnnslam.depthnet.validate import validate_sequences
+
+    predictor = load_predictor(args.weights, num_threads=args.threads)
+    manifest_path = DEFAULT_MANIFEST if args.weights == DEFAULT_WEIGHTS else args.weights.parent / "manifest.json"
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else None
+    report = validate_sequences(predictor, frames_per_sequence=args.frames, sample_every=2,
+                                progress=_progress("validate"))
+    bench = asdict(benchmark(predictor, weights_label=str(args.weights)))
+    try:
+        weights_label = str(args.weights.resolve().relative_to(Path.cwd()))
+    except ValueError:
+        weights_label = str(args.weights)
+    args.results.mkdir(parents=True, exist_ok=True)
+    doc = report_document(report, manifest, bench, weights_label)
+    (args.results / "depthnet.json").write_text(json.dumps(doc, indent=2) + "\n")
+    (args.results / "depthnet.md").write_text(report_markdown(report, manifest, bench, weights_label))
+    n = len(report.samples)
+    if n:
+        fig, axes = plt.subplots(n, 6, figsize=(16, 2.3 * n + 0.4), squeeze=False)
+        for k, sample in enumerate(report.samples):
+            plot_sample_row(axes[k], sample, titles=(k == 0))
+        fig.tight_layout()
+        fig.savefig(args.results / "depthnet_samples.png", dpi=80)
+        plt.close(fig)
+    if args.update_manifest and manifest is not None:
+        manifest["validation_test_sequences"] = {
+            "overall": doc["validation"]["overall"],
+            "groups": doc["validation"]["groups"],
+            "frames_per_sequence": args.frames,
+            "targets_met": doc["validation"]["targets_met"],
+        }
+        manifest["benchmark"] = bench
+        manifest_path.write_text(json.dumps(manifest, indent=2) + "\n")
+    o = report.overall
+    print(f"test sequences, {o.frames} frames: AbsRel raw {o.raw.abs_rel:.3f} / eq. 5 {o.adjusted.abs_rel:.3f}; "
+          f"within 10 % raw {100 * o.raw.within_10pct:.1f} % / eq. 5 {100 * o.adjusted.within_10pct:.1f} %; "
+          f"pixel acc. {100 * o.semantic.pixel_accuracy:.1f} %, mIoU {100 * o.semantic.mean_iou:.1f} %; "
+          f"inference {bench['median_ms']:.1f} ms/frame; targets met: {report.targets_met()}")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Dispatch the action."""
+    if args.action == "generate-data":
+        return _generate(args)
+    if args.action == "fit":
+        return _fit(args)
+    if args.action == "validate":
+        return _validate(args)
+    _export(args.run)
+    return 0

@@ -1,0 +1,487 @@
+"""Training data for the depth network: rendered once to disk from the simulator's TRAINING split, then read back
+with augmentation.
+
+Generation (:func:`generate_dataset`): rooms of ``sim_envs.scenegen.TRAIN_STYLES`` only (never the test styles
+office / living), scene seeds >= ``sim_envs.sequences.TRAIN_SEED_BASE`` (test sequences use seeds below 1000), NYU
+Kinect intrinsics at 320x240 (the paper's network was trained on NYU Depth v2), texture density varied per room. Per
+room, camera views are sampled like a hand-held Kinect (:func:`sample_view`). One shard per room: a folder
+``scene_<seed>/`` with ``rgb.npy`` (N, H, W, 3) uint8, ``depth.npy`` (N, H, W) uint16 millimetres (0 = no surface),
+``labels.npy`` (N, H, W) uint8 (255 = none), ``poses.npy`` (N, 4, 4) float64 ``T_world_cam`` and ``meta.json``.
+A shard is written to a temporary folder and renamed when complete, so an interrupted run resumes by skipping the
+finished shards; every shard is a function of (data seed, scene seed) only, so the same seed gives the same bytes.
+
+Reading (:class:`RenderedDataset`): memory-mapped shards, optionally at half resolution (the shipped network works at
+160x120: images area-averaged exactly as the predictor does, ground truth by 2x2 blocks). Augmentation
+(:func:`augment`): random crops that keep the pixel scale (images are never randomly rescaled: that would change the
+focal length the network learns, which eq. 5 relies on), horizontal flips, brightness / contrast / saturation /
+per-channel gain / gamma jitter, occasional channel permutation and blur, Gaussian noise.
+
+These are training tools of the network: they use the simulator's ground truth, which the SLAM stages never see.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import shutil
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from cnnslam.errors import CnnSlamError
+from sim_envs.camera import Intrinsics, preset
+from sim_envs.frames import NO_LABEL
+
+DATA_FORMAT = "cnnslam-depthnet-data-v1"
+TRAIN_CAMERA = "nyu"  # NYU Depth v2's Kinect, what FCRN (and so the paper's network) was trained on
+TRAIN_WIDTH, TRAIN_HEIGHT = 320, 240
+SPLIT_SEED_OFFSETS: dict[str, int] = {"train": 0, "val": 500_000}  # scene seed = TRAIN_SEED_BASE + offset + i (ours)
+DEPTH_SCALE = 1000.0  # stored depth units per metre (uint16 millimetres, up to 65.5 m)
+EDGE_RATIO = 1.05  # a 2x2 block whose depths differ by more than 5 % straddles an edge: no ground truth there (ours)
+
+
+# ------------------------------------------------------------------------------------------------- view sampling
+
+
+@dataclass(frozen=True)
+class ViewConfig:
+    """How camera views are drawn in a room (ours, after a hand-held Kinect as in NYU Depth v2 / ICL-NUIM / TUM).
+
+    Modes, drawn with probabilities ``p_interest`` / ``p_look_down`` / rest: look at an interest point (furniture
+    tops, objects); look down at the floor or a table from close by; free look (random heading, pitch in
+    ``free_pitch_deg``) at whatever is there, mostly walls.
+    """
+
+    height_m: tuple[float, float] = (0.8, 1.8)  # optical centre above the floor, hand-held
+    low_height_m: tuple[float, float] = (0.5, 1.0)  # for the look-down mode (like TUM fr3 "near" sequences)
+    margin_m: float = 0.3  # free-space margin around the optical centre
+    p_interest: float = 0.55
+    p_look_down: float = 0.12
+    free_pitch_deg: tuple[float, float] = (-40.0, 10.0)  # negative = looking down
+    look_down_pitch_deg: tuple[float, float] = (-85.0, -45.0)
+    max_pitch_down_deg: float = 70.0  # interest-point views steeper than this are redrawn
+    roll_std_deg: float = 4.0
+    max_roll_deg: float = 12.0
+    min_valid_fraction: float = 0.97  # share of pixels with a surface (a view out of a gap is redrawn)
+    min_median_depth_m: float = 0.5
+    max_attempts: int = 200
+
+
+def camera_rotation(forward: np.ndarray, roll_rad: float) -> np.ndarray:
+    """(3, 3) camera-to-world rotation (OpenCV axes, world z up) looking along ``forward`` with a roll.
+
+    forward: (3,) world direction of the optical axis (not vertical). Image x is horizontal before the roll; the roll
+    turns the camera about its optical axis.
+    """
+    z = np.asarray(forward, dtype=np.float64)
+    z = z / np.linalg.norm(z)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    n = np.linalg.norm(x)
+    if n < 1e-6:
+        raise CnnSlamError("camera_rotation: the viewing direction is vertical")
+    x /= n
+    y = np.cross(z, x)
+    c, s = np.cos(roll_rad), np.sin(roll_rad)
+    x_r, y_r = c * x + s * y, -s * x + c * y
+    return np.stack([x_r, y_r, z], axis=1)
+
+
+def _direction(yaw: float, pitch: float) -> np.ndarray:
+    return np.array([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)])
+
+
+def sample_view_pose(scene: Any, rng: np.random.Generator, cfg: ViewConfig) -> tuple[np.ndarray, str]:
+    """One candidate ``T_world_cam`` (4, 4) float64 in ``scene``'s free space and the mode that drew it.
+
+    The caller checks the rendered view (:func:`view_is_usable`) and draws again if it is unusable.
+    """
+    room = np.asarray(scene.room_size, dtype=np.float64)
+    points = scene.interest_points()
+    for _ in range(cfg.max_attempts):
+        u = rng.random()
+        mode = "interest" if u < cfg.p_interest else ("look_down" if u < cfg.p_interest + cfg.p_look_down else "free")
+        heights = cfg.low_height_m if mode == "look_down" else cfg.height_m
+        eye = np.array([rng.uniform(0, room[0]), rng.uniform(0, room[1]), rng.uniform(*heights)])
+        if not scene.free_space(eye[None], margin=cfg.margin_m)[0]:
+            continue
+        if mode == "interest" and len(points):
+            target = points[rng.integers(len(points))] + rng.normal(0.0, 0.15, 3)
+            d = target - eye
+            dist = np.linalg.norm(d)
+            if dist < 0.6:
+                continue
+            pitch = np.arcsin(np.clip(d[2] / dist, -1.0, 1.0))
+            if np.degrees(-pitch) > cfg.max_pitch_down_deg:
+                continue
+            yaw = np.arctan2(d[1], d[0])
+        else:
+            yaw = rng.uniform(-np.pi, np.pi)
+            pitch_range = cfg.look_down_pitch_deg if mode == "look_down" else cfg.free_pitch_deg
+            pitch = np.radians(rng.uniform(*pitch_range))
+            mode = "free" if mode == "interest" else mode
+        roll = np.radians(np.clip(rng.normal(0.0, cfg.roll_std_deg), -cfg.max_roll_deg, cfg.max_roll_deg))
+        T = np.eye(4)
+        T[:3, :3] = camera_rotation(_direction(yaw, pitch), roll)
+        T[:3, 3] = eye
+        return T, mode
+    raise CnnSlamError(f"no free camera position found in {cfg.max_attempts} draws in room {scene.style}/{scene.seed}")
+
+
+def view_is_usable(depth: np.ndarray, cfg: ViewConfig) -> bool:
+    """A rendered view is kept when almost every pixel sees a surface and it is not pressed against one.
+
+    depth: (H, W) float32 metres, 0 = no surface.
+    """
+    valid = depth > 0
+    if valid.mean() < cfg.min_valid_fraction:
+        return False
+    return float(np.median(depth[valid])) >= cfg.min_median_depth_m
+
+
+# ------------------------------------------------------------------------------------------------- generation
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    """What :func:`generate_dataset` renders (ours; sized for a 2-core machine, see results/depthnet.md)."""
+
+    n_scenes: int = 300  # rooms of the split
+    views_per_scene: int = 40  # camera views per room
+    data_seed: int = 0  # seeds view sampling and texture densities: default_rng((data_seed, scene_seed))
+    texture_density: tuple[float, float] = (0.3, 1.0)  # uniform range passed to the room generator
+    camera: str = TRAIN_CAMERA
+    width: int = TRAIN_WIDTH
+    height: int = TRAIN_HEIGHT
+    backend: str = "mujoco"
+    view: ViewConfig = field(default_factory=ViewConfig)
+
+    def intrinsics(self) -> Intrinsics:
+        """The training camera at ``width`` x ``height``."""
+        return preset(self.camera, self.width, self.height)
+
+
+@dataclass(frozen=True)
+class ShardJob:
+    """One room to render: its seed, style, texture density and the folder to write."""
+
+    scene_seed: int
+    style: str
+    out_dir: str
+
+
+def scene_seeds(split: str, n_scenes: int) -> list[int]:
+    """Scene seeds of a split ("train" or "val"): ``TRAIN_SEED_BASE + offset + i``, all >= TRAIN_SEED_BASE."""
+    from sim_envs.sequences import TRAIN_SEED_BASE
+
+    if split not in SPLIT_SEED_OFFSETS:
+        raise CnnSlamError(f"split must be one of {sorted(SPLIT_SEED_OFFSETS)}, got {split!r}")
+    return [TRAIN_SEED_BASE + SPLIT_SEED_OFFSETS[split] + i for i in range(int(n_scenes))]
+
+
+def shard_jobs(root: str | Path, split: str, cfg: GenerationConfig) -> list[ShardJob]:
+    """Every shard of a split, styles cycling through ``TRAIN_STYLES`` so each appears equally often."""
+    from sim_envs.scenegen import TRAIN_STYLES
+
+    out = Path(root) / split
+    return [
+        ShardJob(seed, str(TRAIN_STYLES[i % len(TRAIN_STYLES)]), str(out / f"scene_{seed:06d}"))
+        for i, seed in enumerate(scene_seeds(split, cfg.n_scenes))
+    ]
+
+
+def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
+    """Render one room's views and write its shard folder atomically; returns its meta (also in meta.json).
+
+    Deterministic: texture density and views are drawn from ``default_rng((cfg.data_seed, job.scene_seed))``.
+    """
+    from sim_envs.render import make_renderer
+    from sim_envs.scenegen import generate_scene
+
+    rng = np.random.default_rng((cfg.data_seed, job.scene_seed))
+    density = float(rng.uniform(*cfg.texture_density))
+    scene = generate_scene(job.style, job.scene_seed, texture_density=density)
+    intr = cfg.intrinsics()
+    n, h, w = cfg.views_per_scene, cfg.height, cfg.width
+    rgb = np.zeros((n, h, w, 3), np.uint8)
+    depth = np.zeros((n, h, w), np.uint16)
+    labels = np.full((n, h, w), NO_LABEL, np.uint8)
+    poses = np.zeros((n, 4, 4))
+    modes: list[str] = []
+    rejected = 0
+    with make_renderer(scene, intr, backend=cfg.backend) as renderer:
+        i = 0
+        while i < n:
+            T, mode = sample_view_pose(scene, rng, cfg.view)
+            out = renderer.render(T, outputs=("rgb", "depth", "labels"))
+            if not view_is_usable(out.depth, cfg.view):
+                rejected += 1
+                if rejected > 20 * n:
+                    raise CnnSlamError(f"room {job.style}/{job.scene_seed}: too many unusable views ({rejected})")
+                continue
+            rgb[i], labels[i], poses[i] = out.rgb, out.labels, T
+            depth[i] = np.clip(np.round(out.depth * DEPTH_SCALE), 0, np.iinfo(np.uint16).max).astype(np.uint16)
+            modes.append(mode)
+            i += 1
+    meta = {
+        "format": DATA_FORMAT,
+        "scene_seed": job.scene_seed,
+        "style": job.style,
+        "texture_density": density,
+        "n_views": n,
+        "rejected_views": rejected,
+        "modes": modes,
+        "camera": cfg.camera,
+        "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy],
+        "width": w,
+        "height": h,
+        "depth_scale": DEPTH_SCALE,
+        "data_seed": cfg.data_seed,
+    }
+    final = Path(job.out_dir)
+    tmp = final.with_name(final.name + ".tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir(parents=True)
+    for name, arr in (("rgb", rgb), ("depth", depth), ("labels", labels), ("poses", poses)):
+        np.save(tmp / f"{name}.npy", arr)
+    (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
+    os.replace(tmp, final)
+    return meta
+
+
+def _render_shard_worker(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
+    return render_shard(job, cfg)
+
+
+def generate_dataset(
+    root: str | Path,
+    split: str,
+    cfg: GenerationConfig,
+    workers: int = 2,
+    progress: Callable[[Iterator[Any], int], Iterator[Any]] | None = None,
+) -> list[Path]:
+    """Render every missing shard of ``split`` under ``root/split`` (resumable: finished shards are skipped).
+
+    workers: processes (spawned: a process holding an OpenGL context must not fork); 0 renders in this process.
+    progress: wraps the iterator of finished shards with its total (e.g. a tqdm bar). Returns all shard folders.
+    """
+    jobs = shard_jobs(root, split, cfg)
+    todo = [j for j in jobs if not (Path(j.out_dir) / "meta.json").is_file()]
+    wrap = progress or (lambda it, total: it)
+    if workers <= 0:
+        for _ in wrap(iter(render_shard(j, cfg) for j in todo), len(todo)):
+            pass
+    elif todo:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            futures = [pool.submit(_render_shard_worker, j, cfg) for j in todo]
+            for fut in wrap(as_completed(futures), len(futures)):
+                fut.result()
+    return [Path(j.out_dir) for j in jobs]
+
+
+# ------------------------------------------------------------------------------------------------- reading
+
+
+def downsample_rgb(rgb: np.ndarray, factor: int) -> np.ndarray:
+    """(H, W, 3) uint8 -> (H / factor, W / factor, 3) uint8 by area averaging (``cv2.INTER_AREA``), exactly what
+    :meth:`DepthNetPredictor.predict_raw` does to an image larger than the network's training size."""
+    if factor == 1:
+        return rgb
+    import cv2
+
+    h, w = rgb.shape[:2]
+    return cv2.resize(rgb, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
+
+
+def downsample_ground_truth(depth: np.ndarray, labels: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """Ground truth at 1 / factor resolution by factor x factor blocks (pixel centres stay consistent with area
+    averaging of the image).
+
+    depth (H, W) float32 metres -> block mean where every depth of the block is valid and max / min <= EDGE_RATIO,
+    else 0 (no ground truth across depth edges). labels (H, W) uint8 -> the block's label where the block agrees,
+    else 255. H and W must be multiples of ``factor``.
+    """
+    if factor == 1:
+        return depth, labels
+    h, w = depth.shape
+    if h % factor or w % factor:
+        raise CnnSlamError(f"image {w}x{h} is not a multiple of the downsampling factor {factor}")
+    blocks = depth.reshape(h // factor, factor, w // factor, factor)
+    lo, hi = blocks.min(axis=(1, 3)), blocks.max(axis=(1, 3))
+    ok = (lo > 0) & (hi <= EDGE_RATIO * lo)
+    d = np.where(ok, blocks.mean(axis=(1, 3)), 0.0).astype(np.float32)
+    lab = labels.reshape(h // factor, factor, w // factor, factor)
+    first = lab[:, 0, :, 0]
+    same = (lab == first[:, None, :, None]).all(axis=(1, 3))
+    return d, np.where(same, first, NO_LABEL).astype(np.uint8)
+
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One training frame: rgb (H, W, 3) uint8; depth (H, W) float32 metres (0 = none); labels (H, W) uint8."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    labels: np.ndarray
+
+
+class RenderedDataset(Dataset):
+    """The shards of ``root/split`` (every finished ``scene_*`` folder), memory-mapped, as a torch Dataset.
+
+    ``dataset[i]`` is a :class:`Sample` at 1 / ``downsample`` of the stored resolution (:func:`downsample_rgb`,
+    :func:`downsample_ground_truth`). ``intrinsics``: the (common) camera of every shard at that resolution;
+    ``train_focal`` its ``(fx + fy) / 2`` in pixels at that resolution.
+    """
+
+    def __init__(self, root: str | Path, split: str, max_shards: int | None = None, downsample: int = 1) -> None:
+        if downsample not in (1, 2, 4):
+            raise CnnSlamError(f"downsample must be 1, 2 or 4, got {downsample!r}")
+        self.downsample = int(downsample)
+        folder = Path(root) / split
+        shards = sorted(p for p in folder.glob("scene_*") if (p / "meta.json").is_file() and p.suffix != ".tmp")
+        if max_shards is not None:
+            shards = shards[:max_shards]
+        if not shards:
+            raise CnnSlamError(f"no finished shards under {folder}; generate them with 'cnnslam train generate-data'")
+        self.shards = shards
+        self.metas = [json.loads((p / "meta.json").read_text()) for p in shards]
+        cams = {(tuple(m["intrinsics"]), m["width"], m["height"]) for m in self.metas}
+        if len(cams) != 1:
+            raise CnnSlamError(f"shards under {folder} mix cameras: {sorted(cams)}")
+        (fx, fy, cx, cy), w, h = cams.pop()
+        self.stored_intrinsics = Intrinsics(fx, fy, cx, cy, int(w), int(h))
+        self.intrinsics = self.stored_intrinsics.scaled(int(w) // self.downsample, int(h) // self.downsample)
+        self._arrays = [
+            {name: np.load(p / f"{name}.npy", mmap_mode="r") for name in ("rgb", "depth", "labels")} for p in shards
+        ]
+        counts = np.array([len(a["rgb"]) for a in self._arrays])
+        self._offsets = np.concatenate([[0], np.cumsum(counts)])
+        self.depth_scale = float(self.metas[0]["depth_scale"])
+
+    @property
+    def train_focal(self) -> float:
+        """f_tr = (fx + fy) / 2 of the training camera, pixels at its resolution."""
+        return (self.intrinsics.fx + self.intrinsics.fy) / 2.0
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(W, H) of the stored images."""
+        return self.intrinsics.width, self.intrinsics.height
+
+    def __len__(self) -> int:
+        return int(self._offsets[-1])
+
+    def __getitem__(self, index: int) -> Sample:
+        if not 0 <= index < len(self):
+            raise IndexError(f"index {index} out of range for {len(self)} frames")
+        s = int(np.searchsorted(self._offsets, index, side="right") - 1)
+        j = index - int(self._offsets[s])
+        arr = self._arrays[s]
+        depth = np.asarray(arr["depth"][j], dtype=np.float32) / np.float32(self.depth_scale)
+        rgb, labels = np.array(arr["rgb"][j]), np.array(arr["labels"][j])
+        if self.downsample > 1:
+            rgb = downsample_rgb(rgb, self.downsample)
+            depth, labels = downsample_ground_truth(depth, labels, self.downsample)
+        return Sample(rgb, depth, labels)
+
+    def summary(self) -> dict[str, Any]:
+        """Counts for the manifest: shards, frames, styles, texture densities, seeds."""
+        styles: dict[str, int] = {}
+        for m in self.metas:
+            styles[m["style"]] = styles.get(m["style"], 0) + m["n_views"]
+        seeds = [m["scene_seed"] for m in self.metas]
+        dens = [m["texture_density"] for m in self.metas]
+        return {
+            "shards": len(self.shards),
+            "frames": len(self),
+            "frames_per_style": styles,
+            "scene_seeds": [min(seeds), max(seeds)],
+            "texture_density": [min(dens), max(dens)],
+            "data_seed": self.metas[0]["data_seed"],
+            "camera": self.metas[0]["camera"],
+            "stored_intrinsics": list(self.metas[0]["intrinsics"]),
+            "stored_size": [self.stored_intrinsics.width, self.stored_intrinsics.height],
+            "downsample": self.downsample,
+            "image_size": list(self.image_size),
+        }
+
+
+# ------------------------------------------------------------------------------------------------- augmentation
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Training-time augmentation (ours). Crops keep the pixel scale; nothing is ever resized."""
+
+    crop: tuple[int, int] = (96, 128)  # (h, w) of the random crop (of 120 x 160 images at downsample 2)
+    p_flip: float = 0.5  # horizontal flip
+    brightness: tuple[float, float] = (0.6, 1.4)  # multiplicative gain
+    contrast: tuple[float, float] = (0.6, 1.4)  # scaling about the image mean
+    saturation: tuple[float, float] = (0.5, 1.5)  # blend with the grey image
+    channel_gain: tuple[float, float] = (0.85, 1.15)  # per-channel gain (white balance)
+    gamma: tuple[float, float] = (0.7, 1.45)
+    p_channel_shuffle: float = 0.15
+    noise_std: tuple[float, float] = (0.0, 6.0)  # Gaussian noise std, 8-bit intensity levels
+    p_blur: float = 0.15  # a 3x3 box blur (defocus / motion)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serialisable form for the manifest."""
+        return asdict(self)
+
+
+def augment(sample: Sample, rng: np.random.Generator, cfg: AugmentConfig) -> Sample:
+    """A random crop (pixel scale kept), flip and photometric jitter of ``sample``; geometry of depth and labels
+    follows the crop and flip exactly. Returns a new :class:`Sample` of size ``cfg.crop``."""
+    h, w = sample.depth.shape
+    ch, cw = min(cfg.crop[0], h), min(cfg.crop[1], w)
+    y0, x0 = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
+    rgb = sample.rgb[y0 : y0 + ch, x0 : x0 + cw].astype(np.float32) / 255.0
+    depth = sample.depth[y0 : y0 + ch, x0 : x0 + cw]
+    labels = sample.labels[y0 : y0 + ch, x0 : x0 + cw]
+    if rng.random() < cfg.p_flip:
+        rgb, depth, labels = rgb[:, ::-1], depth[:, ::-1], labels[:, ::-1]
+    rgb = rgb * np.float32(rng.uniform(*cfg.brightness))
+    mean = rgb.mean()
+    rgb = (rgb - mean) * np.float32(rng.uniform(*cfg.contrast)) + mean
+    grey = rgb @ np.array([0.299, 0.587, 0.114], np.float32)
+    s = np.float32(rng.uniform(*cfg.saturation))
+    rgb = grey[..., None] + (rgb - grey[..., None]) * s
+    rgb = rgb * rng.uniform(*cfg.channel_gain, size=3).astype(np.float32)
+    rgb = np.clip(rgb, 0.0, 1.0) ** np.float32(rng.uniform(*cfg.gamma))
+    if rng.random() < cfg.p_channel_shuffle:
+        rgb = rgb[..., rng.permutation(3)]
+    if rng.random() < cfg.p_blur:
+        import cv2
+
+        rgb = cv2.blur(np.ascontiguousarray(rgb), (3, 3))
+    sigma = rng.uniform(*cfg.noise_std) / 255.0
+    if sigma > 0:
+        rgb = rgb + rng.normal(0.0, sigma, rgb.shape).astype(np.float32)
+    out = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
+    return Sample(np.ascontiguousarray(out), np.ascontiguousarray(depth), np.ascontiguousarray(labels))
+
+
+def collate(samples: Sequence[Sample]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Stack samples of one size into tensors: rgb (B, 3, H, W) uint8, depth (B, 1, H, W) float32 metres,
+    labels (B, H, W) int64 (255 = none)."""
+    rgb = torch.from_numpy(np.stack([s.rgb for s in samples])).permute(0, 3, 1, 2).contiguous()
+    depth = torch.from_numpy(np.stack([s.depth for s in samples]))[:, None]
+    labels = torch.from_numpy(np.stack([s.labels for s in samples]).astype(np.int64))
+    return rgb, depth, labels
+
+
+def training_batch(
+    dataset: Dataset, rng: np.random.Generator, batch_size: int, cfg: AugmentConfig
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``batch_size`` frames drawn uniformly with replacement from ``dataset`` and augmented (see :func:`collate`)."""
+    idx = rng.integers(0, len(dataset), size=batch_size)
+    return collate([augment(dataset[int(i)], rng, cfg) for i in idx])

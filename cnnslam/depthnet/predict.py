@@ -1,0 +1,122 @@
+"""Inference with the depth + semantic network: one RGB image in, metric depth and class probabilities out.
+
+The network's pixel scale is that of its training images (``train_size``, focal length ``train_focal``). An image of
+another size is resized to ``train_size`` before the network (area averaging when shrinking, as the training images
+were made) and the outputs are resized back bilinearly, so the network always sees the pixel scale it was trained at;
+the focal-length adjustment (CNN-SLAM eq. 5) then compares f_cur, brought to ``train_size``, with f_tr. The shipped
+network has ``train_size`` (160, 120): a 320x240 frame is halved on the way in and its outputs doubled on the way out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from cnnslam.depth_prediction import focal_length_adjustment
+from cnnslam.depthnet.model import DepthSemanticNet, normalize_rgb
+from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
+from cnnslam.errors import CnnSlamError
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """One image's prediction.
+
+    depth: (H, W) float32 metres, > 0 everywhere; label_probs: (H, W, C) float32 softmax over the classes of
+    :class:`sim_envs.frames.SemanticClass` (C = 4), summing to 1 per pixel.
+    """
+
+    depth: np.ndarray
+    label_probs: np.ndarray
+
+    @property
+    def labels(self) -> np.ndarray:
+        """(H, W) uint8 most probable class per pixel."""
+        return np.argmax(self.label_probs, axis=-1).astype(np.uint8)
+
+
+def _check_rgb(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.asarray(rgb)
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3 or min(rgb.shape[:2]) < 1:
+        raise CnnSlamError(f"rgb must be an (H, W, 3) uint8 image, got shape {rgb.shape} dtype {rgb.dtype}")
+    return rgb
+
+
+class DepthNetPredictor:
+    """A trained :class:`DepthSemanticNet` with its training camera.
+
+    train_focal: f_tr, pixels at ``train_size``; train_size: (W, H) of the training images. ``num_threads`` (if given)
+    sets torch's intra-op thread count for the process.
+    """
+
+    def __init__(
+        self,
+        model: DepthSemanticNet,
+        train_focal: float,
+        train_size: tuple[int, int],
+        num_threads: int | None = None,
+    ) -> None:
+        if num_threads is not None:
+            if num_threads < 1:
+                raise CnnSlamError(f"num_threads must be >= 1, got {num_threads}")
+            torch.set_num_threads(int(num_threads))
+        self.model = model.eval()
+        self.train_focal = float(train_focal)
+        self.train_size = (int(train_size[0]), int(train_size[1]))
+
+    @torch.inference_mode()
+    def _forward(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = normalize_rgb(torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None])
+        depth, logits = self.model(x)
+        probs = torch.softmax(logits, dim=1)
+        return depth[0, 0].numpy().astype(np.float32), probs[0].permute(1, 2, 0).numpy().astype(np.float32)
+
+    def predict_raw(self, rgb: np.ndarray) -> Prediction:
+        """The network's output for ``rgb`` ((H, W, 3) uint8, any size), at (H, W), WITHOUT focal adjustment.
+
+        depth: metres as the network regresses them, i.e. for a camera with the training focal length.
+        """
+        rgb = _check_rgb(rgb)
+        h, w = rgb.shape[:2]
+        tw, th = self.train_size
+        if (w, h) == (tw, th):
+            depth, probs = self._forward(rgb)
+            return Prediction(depth, probs)
+        shrink = w * h > tw * th
+        small = cv2.resize(rgb, (tw, th), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        depth, probs = self._forward(small)
+        depth = cv2.resize(depth, (w, h), interpolation=cv2.INTER_LINEAR)
+        probs = cv2.resize(probs, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
+        probs = probs / probs.sum(axis=-1, keepdims=True)
+        return Prediction(depth.astype(np.float32), probs.astype(np.float32))
+
+    def current_focal(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
+        """f_cur of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy] (pixels), brought to the
+        network's resolution ``train_size``: ``(fx * W_tr / W + fy * H_tr / H) / 2``."""
+        k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
+        if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
+            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
+        h, w = image_size
+        tw, th = self.train_size
+        return float((k[0] * tw / w + k[1] * th / h) / 2.0)
+
+    def predict(self, rgb: np.ndarray, intrinsics: np.ndarray) -> Prediction:
+        """Depth for THIS camera: the raw output scaled by f_cur / f_tr (CNN-SLAM eq. 5), labels unchanged.
+
+        rgb: (H, W, 3) uint8; intrinsics: (4,) [fx, fy, cx, cy] of this image in pixels (OpenCV convention).
+        f = (fx + fy) / 2, both focal lengths at ``train_size``.
+        """
+        rgb = _check_rgb(rgb)
+        f_cur = self.current_focal(intrinsics, rgb.shape[:2])
+        raw = self.predict_raw(rgb)
+        return Prediction(focal_length_adjustment(raw.depth, f_cur, self.train_focal), raw.label_probs)
+
+
+def load_predictor(weights: str | Path | None = None, num_threads: int | None = None) -> DepthNetPredictor:
+    """The predictor of a weights file (``None``: the shipped ``cnnslam/depthnet/weights/default.pt``)."""
+    loaded = load_weights(DEFAULT_WEIGHTS if weights is None else weights)
+    return DepthNetPredictor(loaded.model, loaded.train_focal, loaded.train_size, num_threads=num_threads)

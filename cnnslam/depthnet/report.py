@@ -1,0 +1,120 @@
+"""The validation report's text: a Markdown table and the JSON document (pure string/dict building, no I/O)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from cnnslam.depthnet.validate import TARGETS, SequenceResult, ValidationReport
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.1f}"
+
+
+def _row(r: SequenceResult) -> str:
+    return (
+        f"| {r.name} | {r.camera} | {r.frames} | {r.f_cur / r.f_tr:.3f}"
+        f" | {r.raw.abs_rel:.3f} | {r.adjusted.abs_rel:.3f}"
+        f" | {r.raw.rmse:.3f} | {r.adjusted.rmse:.3f} | {_pct(r.raw.delta_1_25)} | {_pct(r.adjusted.delta_1_25)}"
+        f" | {_pct(r.raw.within_10pct)} | {_pct(r.adjusted.within_10pct)} | {_pct(r.semantic.pixel_accuracy)}"
+        f" | {_pct(r.semantic.mean_iou)} |"
+    )
+
+
+def report_document(report: ValidationReport, manifest: dict[str, Any] | None, bench: dict[str, Any] | None,
+                    weights: str) -> dict[str, Any]:
+    """The JSON document of results/depthnet.json: validation figures, benchmark, and training facts."""
+    doc: dict[str, Any] = {"weights": weights, "validation": report.to_dict(), "benchmark": bench}
+    if manifest is not None:
+        doc["training"] = {
+            k: manifest.get(k)
+            for k in ("architecture", "parameters", "train_focal", "train_size", "data_seed", "steps", "wall_time_s",
+                      "validation_heldout_train_split")
+        }
+        data = manifest.get("data") or {}
+        doc["training"]["data"] = {k: data.get(k) for k in ("train", "val", "generation")}
+    return doc
+
+
+def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, bench: dict[str, Any] | None,
+                    weights: str, figure: str = "depthnet_samples.png") -> str:
+    """results/depthnet.md: how it was measured, the table (raw vs eq. 5 adjusted), targets, speed, training."""
+    o = report.overall
+    met = report.targets_met()
+    lines = [
+        "# Depth + semantic network: validation on the test sequences",
+        "",
+        f"Weights: `{weights}`. Frames: {report.frames_per_sequence} evenly spaced frames per test sequence "
+        "(office / living rooms with ICL-NUIM intrinsics, office rooms with TUM fr3 intrinsics: room styles, scenes "
+        "and cameras the network never saw; it was trained on other room styles with NYU intrinsics). Depth metrics "
+        "pooled over every pixel with ground truth; \"raw\" = the network's output, \"eq. 5\" = after the "
+        "focal-length adjustment D = (f_cur / f_tr) D~ (CNN-SLAM eq. 5, the paper's Fig. 3 (a) vs (b)), with f = "
+        "(fx + fy) / 2 at 320x240. Within 10 % = CNN-SLAM's \"correct depth\" over all valid pixels of the dense map.",
+        "",
+        "| sequence | camera | frames | f_cur/f_tr | AbsRel raw | AbsRel eq. 5 | RMSE raw [m] | RMSE eq. 5 [m] "
+        "| δ<1.25 raw [%] | δ<1.25 eq. 5 [%] | within 10 % raw [%] | within 10 % eq. 5 [%] | pixel acc. [%] "
+        "| mean IoU [%] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    lines += [_row(r) for r in report.sequences]
+    lines += [_row(r).replace(f"| {r.name} |", f"| **{r.name} (all)** |") for r in report.groups.values()]
+    lines += [_row(o).replace("| all |", "| **all** |")]
+    lines += ["", "## Targets (overall, after eq. 5)", "", "| metric | target | measured | met |", "|---|---|---|---|"]
+    measured = {"abs_rel": f"{o.adjusted.abs_rel:.3f}", "within_10pct": f"{_pct(o.adjusted.within_10pct)} %",
+                "pixel_accuracy": f"{_pct(o.semantic.pixel_accuracy)} %"}
+    for key, (op, bound) in TARGETS.items():
+        shown = f"{bound:.2f}" if key == "abs_rel" else f"{100 * bound:.0f} %"
+        lines.append(f"| {key} | {op} {shown} | {measured[key]} | {'yes' if met[key] else 'NO'} |")
+    iou = ", ".join(f"{name} {_pct(v)}" for name, v in zip(
+        ("floor", "vertical", "large", "small"), o.semantic.iou, strict=False))
+    lines += ["", f"Per-class IoU [%] (all frames): {iou}.", ""]
+    if bench is not None:
+        lines += [
+            "## Inference speed",
+            "",
+            f"`python -m cnnslam.depthnet.bench`: {bench['median_ms']:.1f} ms per {bench['width']}x{bench['height']} "
+            f"frame (median of {bench['repeats']} warm runs; mean {bench['mean_ms']:.1f}, min {bench['min_ms']:.1f}) "
+            f"on {bench['threads']} CPU threads, {bench['parameters'] / 1e6:.2f} M parameters. Target: <= 50 ms.",
+            "",
+        ]
+    if manifest is not None:
+        arch = manifest.get("architecture", {})
+        train = manifest.get("training", {})
+        data = (manifest.get("data") or {}).get("train") or {}
+        gen = (manifest.get("data") or {}).get("generation") or {}
+        held = manifest.get("validation_heldout_train_split") or {}
+        lines += [
+            "## Training",
+            "",
+            f"- Network: FCRN-style, ResNet-{arch.get('trunk_depth')} trunk of base width {arch.get('base_width')}, "
+            f"4 up-projection blocks (fast up-convolution), dropout {arch.get('dropout')}, a shared decoder with a "
+            f"depth head (softplus) and a 4-class semantic head; {manifest.get('parameters', 0) / 1e6:.2f} M "
+            "parameters, trained from scratch.",
+            f"- Data: {data.get('frames')} frames of {data.get('shards')} rooms of the training styles "
+            f"({', '.join(sorted((data.get('frames_per_style') or {}).keys()))}), scene seeds "
+            f"{data.get('scene_seeds')}, rendered with NYU intrinsics at {data.get('stored_size')}, fed to the network "
+            f"at {data.get('image_size')} (area-averaged, as the predictor does); data seed "
+            f"{manifest.get('data_seed')}; generated in {gen.get('wall_time_s', 'n/a')} s on {gen.get('workers')} "
+            "processes.",
+            f"- Optimisation: {manifest.get('steps')} steps of batch {train.get('batch_size')} random "
+            f"{tuple((train.get('augment') or {}).get('crop', ()))} crops, AdamW lr {train.get('lr')} (warm-up, "
+            f"cosine decay), berHu + {train.get('semantic_weight')} x cross-entropy; "
+            f"{manifest.get('wall_time_s', 0) / 3600:.2f} h on {((manifest.get('environment') or {}).get('threads'))}"
+            " CPU threads.",
+            f"- Training focal length f_tr = {manifest.get('train_focal', 0):.3f} px at {manifest.get('train_size')}.",
+            f"- Held-out training-split rooms: AbsRel {held.get('abs_rel', float('nan')):.3f}, within 10 % "
+            f"{_pct(held.get('within_10pct', float('nan')))} %, pixel accuracy "
+            f"{_pct(held.get('pixel_accuracy', float('nan')))} %.",
+            "",
+        ]
+    lines += [
+        "## Samples",
+        "",
+        f"![samples]({figure})",
+        "",
+        "Columns: input, predicted depth after eq. 5, ground truth, relative error (blue 0 to red >= 50 %, black = no "
+        "ground truth), predicted labels, ground-truth labels (brown floor, light blue vertical structure, orange "
+        "furniture, pink objects).",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,182 @@
+"""Tests of the training data: view sampling, shard rendering (deterministic, training split only), augmentation."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cnnslam.depthnet.data import (
+    AugmentConfig,
+    GenerationConfig,
+    RenderedDataset,
+    Sample,
+    ViewConfig,
+    augment,
+    camera_rotation,
+    downsample_ground_truth,
+    downsample_rgb,
+    generate_dataset,
+    sample_view_pose,
+    scene_seeds,
+    shard_jobs,
+    training_batch,
+    view_is_usable,
+)
+from cnnslam.errors import CnnSlamError
+
+
+def test_camera_rotation_axes() -> None:
+    R = camera_rotation(np.array([1.0, 0.0, 0.0]), 0.0)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    np.testing.assert_allclose(R[:, 2], [1, 0, 0], atol=1e-12)  # optical axis forward
+    np.testing.assert_allclose(R[:, 0], [0, -1, 0], atol=1e-12)  # image x to the right of +x, z up: -y
+    np.testing.assert_allclose(R[:, 1], [0, 0, -1], atol=1e-12)  # image y down
+    R_roll = camera_rotation(np.array([1.0, 0.0, 0.0]), np.radians(90))
+    np.testing.assert_allclose(R_roll[:, 2], [1, 0, 0], atol=1e-12)
+    with pytest.raises(CnnSlamError):
+        camera_rotation(np.array([0.0, 0.0, -1.0]), 0.0)
+
+
+def test_split_seeds_are_training_seeds_and_disjoint() -> None:
+    train, val = scene_seeds("train", 50), scene_seeds("val", 50)
+    assert min(train + val) >= 10_000
+    assert not set(train) & set(val)
+    with pytest.raises(CnnSlamError):
+        scene_seeds("test", 1)
+
+
+def test_jobs_use_training_styles_only(tmp_path: Path) -> None:
+    from sim_envs.scenegen import TEST_STYLES, TRAIN_STYLES
+
+    jobs = shard_jobs(tmp_path, "train", GenerationConfig(n_scenes=8))
+    assert {j.style for j in jobs} == set(TRAIN_STYLES)
+    assert not {j.style for j in jobs} & set(TEST_STYLES)
+
+
+def test_sampled_views_are_in_free_space_and_hand_held() -> None:
+    from sim_envs.scenegen import generate_scene
+
+    scene = generate_scene("study", 10_007, texture_density=0.5)
+    cfg = ViewConfig()
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        T, mode = sample_view_pose(scene, rng, cfg)
+        assert mode in ("interest", "free", "look_down")
+        assert scene.free_space(T[None, :3, 3], margin=cfg.margin_m)[0]
+        assert cfg.low_height_m[0] <= T[2, 3] <= cfg.height_m[1]
+        R = T[:3, :3]
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-9)
+        pitch = np.degrees(np.arcsin(R[2, 2]))
+        bounds = {
+            "free": cfg.free_pitch_deg,
+            "look_down": cfg.look_down_pitch_deg,
+            "interest": (-cfg.max_pitch_down_deg, 90.0),  # aimed at a target, which may sit above the camera
+        }[mode]
+        assert bounds[0] - 1e-9 <= pitch <= bounds[1] + 1e-9
+        # roll: image x stays within max_roll of horizontal
+        assert abs(np.degrees(np.arcsin(np.clip(R[2, 0], -1, 1)))) <= cfg.max_roll_deg + 1e-6
+
+
+def test_view_usability() -> None:
+    cfg = ViewConfig()
+    assert view_is_usable(np.full((10, 10), 2.0, np.float32), cfg)
+    assert not view_is_usable(np.full((10, 10), 0.3, np.float32), cfg)  # pressed against a surface
+    d = np.full((10, 10), 2.0, np.float32)
+    d[:2] = 0
+    assert not view_is_usable(d, cfg)  # 20 % without a surface
+
+
+def test_generation_is_deterministic_resumable_and_readable(tmp_path: Path) -> None:
+    cfg = GenerationConfig(n_scenes=1, views_per_scene=2, width=64, height=48, data_seed=3)
+    a, b = tmp_path / "a", tmp_path / "b"
+    (shard_a,) = generate_dataset(a, "train", cfg, workers=0)
+    (shard_b,) = generate_dataset(b, "train", cfg, workers=0)
+    for name in ("rgb", "depth", "labels", "poses"):
+        assert (shard_a / f"{name}.npy").read_bytes() == (shard_b / f"{name}.npy").read_bytes(), name
+    meta = json.loads((shard_a / "meta.json").read_text())
+    assert meta["scene_seed"] >= 10_000 and meta["camera"] == "nyu" and meta["data_seed"] == 3
+    mtime = (shard_a / "rgb.npy").stat().st_mtime_ns
+    generate_dataset(a, "train", cfg, workers=0)  # resume: nothing left to do
+    assert (shard_a / "rgb.npy").stat().st_mtime_ns == mtime
+    ds = RenderedDataset(a, "train")
+    assert len(ds) == 2
+    s = ds[1]
+    assert s.rgb.shape == (48, 64, 3) and s.depth.shape == (48, 64) and s.labels.shape == (48, 64)
+    assert (s.depth > 0).mean() > 0.9 and s.labels.max() <= 3
+    assert ds.train_focal == pytest.approx((518.8579 + 519.4696) / 2 / 10)  # NYU at 64x48
+
+
+def _sample(h: int = 24, w: int = 32) -> Sample:
+    yy, xx = np.mgrid[0:h, 0:w]
+    rgb = np.stack([xx * 7 % 256, yy * 9 % 256, (xx + yy) % 256], -1).astype(np.uint8)
+    depth = (1.0 + 0.1 * xx + 0.001 * yy).astype(np.float32)
+    labels = (xx % 4).astype(np.uint8)
+    return Sample(rgb, depth, labels)
+
+
+def test_augment_crops_keep_pixel_scale_and_geometry() -> None:
+    s = _sample()
+    cfg = AugmentConfig(crop=(16, 20))
+    rng = np.random.default_rng(0)
+    flips = 0
+    for _ in range(20):
+        out = augment(s, rng, cfg)
+        assert out.rgb.shape == (16, 20, 3) and out.depth.shape == (16, 20) and out.labels.shape == (16, 20)
+        # depth values are unchanged, only windowed (and possibly mirrored): neighbours differ by exactly 0.1 m
+        step = np.diff(out.depth, axis=1)
+        flipped = bool(step[0, 0] < 0)
+        flips += flipped
+        np.testing.assert_allclose(np.abs(step), 0.1, atol=1e-5)
+        np.testing.assert_allclose(np.diff(out.depth, axis=0), 0.001, atol=1e-5)
+        # labels follow the same window as depth: depth = 1 + 0.1 x + 0.001 y and label = x % 4
+        x = np.floor((out.depth - 1.0) / 0.1 + 1e-3).astype(int)
+        np.testing.assert_array_equal(out.labels, x % 4)
+    assert 0 < flips < 20
+
+
+def test_augment_without_photometric_jitter_is_an_exact_crop() -> None:
+    s = _sample()
+    cfg = AugmentConfig(crop=(24, 32), p_flip=0.0, brightness=(1, 1), contrast=(1, 1), saturation=(1, 1),
+                        channel_gain=(1, 1), gamma=(1, 1), p_channel_shuffle=0.0, noise_std=(0, 0), p_blur=0.0)
+    out = augment(s, np.random.default_rng(1), cfg)
+    np.testing.assert_array_equal(out.rgb, s.rgb)
+    np.testing.assert_array_equal(out.depth, s.depth)
+
+
+def test_training_batch_shapes(tmp_path: Path) -> None:
+    class Two:
+        def __len__(self) -> int:
+            return 2
+
+        def __getitem__(self, i: int) -> Sample:
+            return _sample()
+
+    rgb, depth, labels = training_batch(Two(), np.random.default_rng(0), 3, AugmentConfig(crop=(16, 16)))
+    assert tuple(rgb.shape) == (3, 3, 16, 16) and str(rgb.dtype) == "torch.uint8"
+    assert tuple(depth.shape) == (3, 1, 16, 16) and tuple(labels.shape) == (3, 16, 16)
+
+
+def test_downsampled_ground_truth_known_values() -> None:
+    depth = np.array(
+        [[1.0, 1.0, 2.0, 0.0],
+         [1.0, 1.02, 2.0, 2.0],
+         [3.0, 3.0, 1.0, 1.0],
+         [3.0, 3.0, 1.0, 1.5]], np.float32)
+    labels = np.array([[0, 0, 1, 255], [0, 0, 1, 1], [2, 2, 3, 3], [2, 2, 3, 1]], np.uint8)
+    d, lab = downsample_ground_truth(depth, labels, 2)
+    np.testing.assert_allclose(d, [[1.005, 0.0], [3.0, 0.0]], rtol=1e-6)  # a hole and an edge give no gt
+    np.testing.assert_array_equal(lab, [[0, 255], [2, 255]])
+    with pytest.raises(CnnSlamError):
+        downsample_ground_truth(depth[:3], labels[:3], 2)
+
+
+def test_downsampled_rgb_is_the_block_mean() -> None:
+    rgb = np.zeros((4, 6, 3), np.uint8)
+    rgb[0::2, 0::2] = 200
+    out = downsample_rgb(rgb, 2)
+    assert out.shape == (2, 3, 3)
+    np.testing.assert_array_equal(out, 50)

@@ -1,0 +1,119 @@
+"""Tests of inference: shapes, eq. 5 applied with both focal lengths at the network's resolution, shipped weights."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig
+from cnnslam.depthnet.predict import DepthNetPredictor, Prediction, load_predictor
+from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS, load_weights, save_weights
+from cnnslam.errors import CnnSlamError
+
+TINY = ModelConfig(trunk_depth=18, base_width=8, decoder_min_channels=8, dropout=0.0)
+F_TR = 259.58
+
+
+@pytest.fixture(scope="module")
+def predictor(tmp_path_factory: pytest.TempPathFactory) -> DepthNetPredictor:
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("w") / "tiny.pt"
+    save_weights(path, DepthSemanticNet(TINY), F_TR, (320, 240), {"steps": 0})
+    return load_predictor(path)
+
+
+def _image(h: int, w: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 255, (h, w, 3), dtype=np.uint8)
+
+
+@pytest.mark.parametrize("size", [(240, 320), (480, 640), (228, 304), (37, 51)])
+def test_predict_raw_shapes(predictor: DepthNetPredictor, size: tuple[int, int]) -> None:
+    pred = predictor.predict_raw(_image(*size))
+    assert isinstance(pred, Prediction)
+    assert pred.depth.shape == size and pred.depth.dtype == np.float32
+    assert pred.label_probs.shape == (*size, 4) and pred.label_probs.dtype == np.float32
+    assert bool((pred.depth > 0).all())
+    np.testing.assert_allclose(pred.label_probs.sum(-1), 1.0, atol=1e-5)
+    assert pred.labels.shape == size and pred.labels.max() < 4
+
+
+def test_predict_applies_eq5_at_training_resolution(predictor: DepthNetPredictor) -> None:
+    img = _image(240, 320, 1)
+    raw = predictor.predict_raw(img)
+    icl = np.array([240.6, 240.0, 159.75, 119.75])  # ICL at 320x240
+    adj = predictor.predict(img, icl)
+    np.testing.assert_allclose(adj.depth, raw.depth * ((240.6 + 240.0) / 2 / F_TR), rtol=1e-6)
+    np.testing.assert_array_equal(adj.label_probs, raw.label_probs)
+
+
+def test_predict_brings_focal_lengths_to_the_same_resolution(predictor: DepthNetPredictor) -> None:
+    img = _image(480, 640, 2)
+    icl_640 = np.array([481.2, 480.0, 319.5, 239.5])
+    raw = predictor.predict_raw(img)
+    adj = predictor.predict(img, icl_640)
+    # f_cur at 320x240 is half the 640x480 value
+    np.testing.assert_allclose(adj.depth, raw.depth * ((481.2 + 480.0) / 4 / F_TR), rtol=1e-6)
+    assert predictor.current_focal(icl_640, (480, 640)) == pytest.approx(240.3)
+
+
+def test_same_camera_as_training_changes_nothing(predictor: DepthNetPredictor) -> None:
+    img = _image(240, 320, 3)
+    np.testing.assert_allclose(predictor.predict(img, np.array([F_TR, F_TR, 160, 120])).depth,
+                               predictor.predict_raw(img).depth, rtol=1e-6)
+
+
+@pytest.mark.parametrize("bad", [np.zeros((10, 10), np.uint8), np.zeros((10, 10, 3), np.float32),
+                                 np.zeros((10, 10, 4), np.uint8)])
+def test_bad_images_rejected(predictor: DepthNetPredictor, bad: np.ndarray) -> None:
+    with pytest.raises(CnnSlamError):
+        predictor.predict_raw(bad)
+
+
+def test_bad_intrinsics_rejected(predictor: DepthNetPredictor) -> None:
+    with pytest.raises(CnnSlamError):
+        predictor.predict(_image(24, 32), np.array([0.0, 1.0, 2.0, 3.0]))
+    with pytest.raises(CnnSlamError):
+        predictor.predict(_image(24, 32), np.array([1.0, 1.0]))
+
+
+def test_weights_round_trip_fp16(tmp_path: Path) -> None:
+    torch.manual_seed(4)
+    net = DepthSemanticNet(TINY).eval()
+    path = save_weights(tmp_path / "w.pt", net, 100.0, (64, 48), {"k": 1})
+    loaded = load_weights(path)
+    assert loaded.train_focal == 100.0 and loaded.train_size == (64, 48) and loaded.meta == {"k": 1}
+    for k, v in net.state_dict().items():
+        torch.testing.assert_close(loaded.model.state_dict()[k].to(v.dtype), v, rtol=2e-3, atol=1e-4)
+
+
+def test_missing_or_foreign_weights(tmp_path: Path) -> None:
+    with pytest.raises(CnnSlamError, match="no depth-network weights"):
+        load_predictor(tmp_path / "none.pt")
+    torch.save({"a": 1}, tmp_path / "x.pt")
+    with pytest.raises(CnnSlamError, match="not a depth-network weights file"):
+        load_predictor(tmp_path / "x.pt")
+
+
+@pytest.mark.skipif(not DEFAULT_WEIGHTS.is_file(), reason="the shipped weights are not trained yet")
+def test_shipped_weights_load_and_predict() -> None:
+    assert DEFAULT_WEIGHTS.stat().st_size <= 20 * 1024 * 1024
+    pred = load_predictor()
+    assert pred.train_size == (320, 240)
+    assert pred.train_focal == pytest.approx((518.8579 + 519.4696) / 4, rel=1e-3)  # NYU at 320x240
+    out = pred.predict(_image(240, 320), np.array([240.6, 240.0, 159.75, 119.75]))
+    assert out.depth.shape == (240, 320) and out.label_probs.shape == (240, 320, 4)
+    assert bool((out.depth > 0).all())
+
+
+@pytest.mark.skipif(not DEFAULT_MANIFEST.is_file(), reason="the shipped weights are not trained yet")
+def test_shipped_manifest_fields() -> None:
+    manifest = json.loads(DEFAULT_MANIFEST.read_text())
+    for key in ("data_seed", "steps", "wall_time_s", "validation_heldout_train_split", "validation_test_sequences",
+                "train_focal", "train_size", "architecture", "training", "data"):
+        assert key in manifest, key
+    assert manifest["train_size"] == [320, 240]
+    assert ModelConfig.from_dict(manifest["architecture"]) == load_weights(DEFAULT_WEIGHTS).config
