@@ -87,8 +87,10 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
             "## Training",
             "",
             f"- Network: FCRN-style, ResNet-{arch.get('trunk_depth')} trunk of base width {arch.get('base_width')}, "
-            f"4 up-projection blocks (fast up-convolution), dropout {arch.get('dropout')}, a shared decoder with a "
-            f"depth head (softplus) and a 4-class semantic head; {manifest.get('parameters', 0) / 1e6:.2f} M "
+            f"4 up-projection blocks (fast up-convolution){' with trunk skip connections' if arch.get('skips') else ''}"
+            f", dropout {arch.get('dropout')}, a shared decoder with a depth head "
+            f"({'exp: log depth' if arch.get('depth_activation') == 'exp' else 'softplus'}) and a 4-class semantic "
+            f"head; {manifest.get('parameters', 0) / 1e6:.2f} M "
             "parameters, trained from scratch.",
             f"- Data: {data.get('frames')} frames of {data.get('shards')} rooms of the training styles "
             f"({', '.join(sorted((data.get('frames_per_style') or {}).keys()))}), scene seeds "
@@ -98,7 +100,9 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
             "processes.",
             f"- Optimisation: {manifest.get('steps')} steps of batch {train.get('batch_size')} random "
             f"{tuple((train.get('augment') or {}).get('crop', ()))} crops, AdamW lr {train.get('lr')} (warm-up, "
-            f"cosine decay), berHu + {train.get('semantic_weight')} x cross-entropy; "
+            f"cosine decay), berHu (c = 0.2 max |error| per batch) on "
+            f"{'log depth' if train.get('depth_space') == 'log' else 'depth'} + {train.get('semantic_weight')} x "
+            "cross-entropy; "
             f"{manifest.get('wall_time_s', 0) / 3600:.2f} h on {((manifest.get('environment') or {}).get('threads'))}"
             " CPU threads.",
             f"- Training focal length f_tr = {manifest.get('train_focal', 0):.3f} px at {manifest.get('train_size')}.",

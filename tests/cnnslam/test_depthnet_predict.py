@@ -98,22 +98,45 @@ def test_missing_or_foreign_weights(tmp_path: Path) -> None:
         load_predictor(tmp_path / "x.pt")
 
 
-@pytest.mark.skipif(not DEFAULT_WEIGHTS.is_file(), reason="the shipped weights are not trained yet")
 def test_shipped_weights_load_and_predict() -> None:
     assert DEFAULT_WEIGHTS.stat().st_size <= 20 * 1024 * 1024
     pred = load_predictor()
-    assert pred.train_size == (320, 240)
-    assert pred.train_focal == pytest.approx((518.8579 + 519.4696) / 4, rel=1e-3)  # NYU at 320x240
+    assert pred.train_size == (160, 120)  # the network works at half the SLAM resolution (model.py)
+    assert pred.train_focal == pytest.approx((518.8579 + 519.4696) / 8, rel=1e-3)  # NYU at 160x120
     out = pred.predict(_image(240, 320), np.array([240.6, 240.0, 159.75, 119.75]))
     assert out.depth.shape == (240, 320) and out.label_probs.shape == (240, 320, 4)
     assert bool((out.depth > 0).all())
 
 
-@pytest.mark.skipif(not DEFAULT_MANIFEST.is_file(), reason="the shipped weights are not trained yet")
 def test_shipped_manifest_fields() -> None:
     manifest = json.loads(DEFAULT_MANIFEST.read_text())
+    assert manifest["steps"] >= 10_000 and manifest["wall_time_s"] > 0
     for key in ("data_seed", "steps", "wall_time_s", "validation_heldout_train_split", "validation_test_sequences",
                 "train_focal", "train_size", "architecture", "training", "data"):
         assert key in manifest, key
-    assert manifest["train_size"] == [320, 240]
+    assert manifest["train_size"] == [160, 120]
     assert ModelConfig.from_dict(manifest["architecture"]) == load_weights(DEFAULT_WEIGHTS).config
+
+
+def test_shipped_weights_predict_depth_and_labels_of_an_unseen_test_room() -> None:
+    """The shipped network on frames of office0 (a room style, scene and camera it never saw): loose bounds well
+    inside what results/depthnet.md reports over 360 frames, far outside what untrained or broken weights give."""
+    pytest.importorskip("mujoco")
+    from sim_envs.sequences import get_sequence
+    from sim_envs.simsource import SimulatedSequence
+
+    source = SimulatedSequence(get_sequence("office0"))
+    pred = load_predictor()
+    rel, correct, labels = [], [], []
+    for index in (0, 500, 1000):
+        frame = source.frame(index)
+        out = pred.predict(frame.rgb, source.intrinsics.as_array())
+        valid = frame.depth > 0
+        err = np.abs(out.depth[valid] - frame.depth[valid]) / frame.depth[valid]
+        rel.append(err.mean())
+        correct.append((err < 0.1).mean())
+        has_label = frame.labels < 4
+        labels.append((out.label_probs.argmax(-1)[has_label] == frame.labels[has_label]).mean())
+    assert float(np.mean(rel)) < 0.4, rel
+    assert float(np.mean(correct)) > 0.15, correct
+    assert float(np.mean(labels)) > 0.6, labels
