@@ -256,6 +256,9 @@ class RefinementConfig:
     max_inverse_depth_variance: float = 0.25
     # The photometric noise sigma_I^2 of the observation variance (LSD cameraPixelNoise2, as in tracking).
     photometric_variance: float = 16.0
+    # LSD DIFF_FAC_OBSERVE: an observation is an outlier, and not fused, when factor * (D_t - D_ki)^2 exceeds
+    # U_t + U_ki (a chi-square gate; LSD-SLAM's updateKeyframe). 0 fuses every observation.
+    outlier_factor: float = 1.0
 
     def validate(self) -> None:
         _choice("refinement", "density", self.density, REFINEMENT_DENSITIES)
@@ -264,7 +267,7 @@ class RefinementConfig:
                      "max_inverse_depth_variance", "photometric_variance"):
             _positive("refinement", name, getattr(self, name))
         for name in ("min_gradient_create", "min_epl_length_squared", "min_epl_grad_squared",
-                     "min_epl_angle_squared", "border"):
+                     "min_epl_angle_squared", "border", "outlier_factor"):
             _positive("refinement", name, getattr(self, name), allow_zero=True)
         if self.min_epl_length > self.max_epl_length:
             raise CnnSlamError(

@@ -346,6 +346,16 @@ def fuse_observation_depth(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, dep
     return (u_obs * depth_kf + u_kf * depth_obs) / (u_kf + u_obs)
 
 
+def observation_outliers(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
+                         uncertainty_obs: np.ndarray, factor: float) -> np.ndarray:
+    """LSD-SLAM's consistency gate before eq. 10-11 (updateKeyframe, DIFF_FAC_OBSERVE), in depth: True where
+    factor * (D_t - D_ki)^2 > U_t + U_ki, i.e. the observation and the key-frame disagree by more than their
+    combined standard deviation allows (a wrong stereo match, or another surface). factor = 0 flags nothing.
+    """
+    diff = np.asarray(depth_obs, dtype=np.float64) - np.asarray(depth_kf, dtype=np.float64)
+    return factor * diff * diff > np.asarray(uncertainty_kf, np.float64) + np.asarray(uncertainty_obs, np.float64)
+
+
 def fuse_observation_uncertainty(uncertainty_kf: np.ndarray, uncertainty_obs: np.ndarray) -> np.ndarray:
     """CNN-SLAM eq. 11: U_ki = U_t U_ki / (U_ki + U_t), element-wise (m^2)."""
     u_kf = np.asarray(uncertainty_kf, dtype=np.float64)
@@ -421,6 +431,7 @@ class RefinementStats:
     created: int
     dropped: int
     status_counts: dict[str, int]
+    rejected: int = 0  # observations failing the outlier gate (not fused)
 
 
 def refine_keyframe(
@@ -441,6 +452,13 @@ def refine_keyframe(
     prior = d > 0
     fuse = obs & prior
     create = obs & ~prior
+    rejected = 0
+    if config.outlier_factor > 0 and fuse.any():
+        idx = np.nonzero(fuse)
+        bad = observation_outliers(d[idx], u[idx], observation.depth[idx], observation.variance[idx],
+                                   config.outlier_factor)
+        fuse[idx[0][bad], idx[1][bad]] = False
+        rejected = int(bad.sum())
     new_d = d.copy()
     new_u = u.copy()
     u_prior = u[fuse].astype(np.float64) * config.prior_variance_inflation
@@ -457,5 +475,6 @@ def refine_keyframe(
         dropped = int(drop.sum())
         new_d[drop] = 0.0
         new_u[drop] = np.inf
-    stats = RefinementStats(int(obs.sum()), int(fuse.sum()), int(create.sum()), dropped, observation.counts())
+    stats = RefinementStats(int(obs.sum()), int(fuse.sum()), int(create.sum()), dropped, observation.counts(),
+                            rejected)
     return new_d, new_u, stats

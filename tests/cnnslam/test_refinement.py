@@ -110,3 +110,32 @@ def test_density_selects_the_attempted_pixels(room, density: str) -> None:
         assert np.all(skipped[grad < cfg.min_gradient_create])
     else:
         assert not skipped[5:-5, 5:-5].any()
+
+
+def test_observation_outliers_is_lsd_chi_square_gate() -> None:
+    from cnnslam.refinement import observation_outliers
+
+    d_kf = np.array([2.0, 2.0, 2.0])
+    u_kf = np.array([0.01, 0.01, 0.01])  # sigma 0.1 m
+    d_obs = np.array([2.05, 2.2, 1.5])
+    u_obs = np.array([0.01, 0.01, 0.01])  # combined variance 0.02: |diff| up to 0.1414 m passes at factor 1
+    assert observation_outliers(d_kf, u_kf, d_obs, u_obs, 1.0).tolist() == [False, True, True]
+    assert observation_outliers(d_kf, u_kf, d_obs, u_obs, 0.25).tolist() == [False, False, True]  # 0.25*0.25 > 0.02
+    assert not observation_outliers(d_kf, u_kf, d_obs, u_obs, 0.0).any()
+
+
+def test_refine_keyframe_does_not_fuse_an_inconsistent_observation() -> None:
+    from cnnslam.config import RefinementConfig
+    from cnnslam.refinement import StereoObservation, refine_keyframe
+
+    depth = np.full((2, 2), 2.0, np.float32)
+    variance = np.full((2, 2), 0.01, np.float32)
+    obs_depth = np.array([[2.05, 3.0], [2.0, 0.0]], np.float32)
+    obs_var = np.array([[0.01, 0.01], [np.inf, np.inf]], np.float32)
+    obs = StereoObservation(obs_depth, obs_var, np.zeros((2, 2), np.int8))
+    d, u, stats = refine_keyframe(depth, variance, obs, RefinementConfig())
+    assert stats.fused == 1 and stats.rejected == 1
+    assert d[0, 0] == pytest.approx((2.0 + 2.05) / 2, abs=1e-3)  # eq. 10 with equal variances
+    assert d[0, 1] == 2.0 and u[0, 1] == pytest.approx(0.01)  # the outlier left the key-frame unchanged
+    d0, _, stats0 = refine_keyframe(depth, variance, obs, RefinementConfig(outlier_factor=0.0))
+    assert stats0.fused == 2 and d0[0, 1] > 2.4
