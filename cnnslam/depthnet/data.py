@@ -152,8 +152,8 @@ def view_is_usable(depth: np.ndarray, cfg: ViewConfig) -> bool:
 class GenerationConfig:
     """What :func:`generate_dataset` renders (ours; sized for a 2-core machine, see results/depthnet.md)."""
 
-    n_scenes: int = 300  # rooms of the split
-    views_per_scene: int = 40  # camera views per room
+    n_scenes: int = 1200  # rooms of the split (the shipped weights' data)
+    views_per_scene: int = 20  # camera views per room
     data_seed: int = 0  # seeds view sampling and texture densities: default_rng((data_seed, scene_seed))
     texture_density: tuple[float, float] = (0.3, 1.0)  # uniform range passed to the room generator
     camera: str = TRAIN_CAMERA

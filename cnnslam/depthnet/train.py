@@ -46,7 +46,7 @@ class TrainConfig:
     model: ModelConfig = field(default_factory=ModelConfig)
     augment: AugmentConfig = field(default_factory=AugmentConfig)
     batch_size: int = 16
-    steps: int = 14_000
+    steps: int = 16_000
     lr: float = 1e-3  # AdamW peak learning rate
     min_lr: float = 1e-5  # end of the cosine decay
     warmup_steps: int = 500  # linear warm-up from lr / 100
