@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -219,17 +220,22 @@ def save_sweep_figure(
         for row, (metric, label) in enumerate((("ate_rmse", "ATE RMSE [m]"),
                                                ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
             ax = grid[row, col]
-            for method in methods:
+            for k, method in enumerate(methods):  # one colour per method in every panel
                 line = sub[sub["method"] == method].groupby("x")[metric].mean().sort_index()
                 if line.notna().any():
-                    ax.plot(line.index, line.to_numpy(), marker="o", label=method)
+                    ax.plot(line.index, line.to_numpy(), marker="o", label=method, color=f"C{k % 10}")
             ax.set_xlabel(axes_titles[axis])
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
             if axis == "focal":
                 ax.axvline(1.0, color="0.5", linestyle=":", linewidth=1)
         grid[0, col].set_title(axes_titles[axis])
-    handles, labels = grid[0, 0].get_legend_handles_labels()
+    legend: dict[str, Any] = {}  # every method drawn in any panel (some have no ATE, e.g. REMODE)
+    for ax in grid.ravel():
+        for handle, name in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(name, handle)
+    labels = [m for m in methods if m in legend]
+    handles = [legend[m] for m in labels]
     if handles:
         fig.legend(handles, labels, loc="outside lower center", ncols=min(len(labels), 6), fontsize="small")
     return _save(fig, path, dpi)
