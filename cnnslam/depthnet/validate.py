@@ -27,20 +27,11 @@ from cnnslam.depthnet.metrics import (
     semantic_metrics,
 )
 from cnnslam.depthnet.predict import DepthNetPredictor
+from sim_envs.sequences import TABLE1_SEQUENCES
 
 # The test sequences of CNN-SLAM's Table 1 (ICL-NUIM office 0-2 / living 0-2 analogues, ICL intrinsics; TUM fr3
 # analogues, fr3 intrinsics), as registered in sim_envs.sequences.
-VALIDATION_SEQUENCES: tuple[str, ...] = (
-    "office0",
-    "office1",
-    "office2",
-    "living0",
-    "living1",
-    "living2",
-    "tum_long_office",
-    "tum_nostructure_near",
-    "tum_structure_far",
-)
+VALIDATION_SEQUENCES: tuple[str, ...] = TABLE1_SEQUENCES
 # Targets of the issue ("Done means"), checked on the focal-adjusted depth and the labels over all frames.
 TARGETS: dict[str, tuple[str, float]] = {
     "abs_rel": ("<=", 0.20),

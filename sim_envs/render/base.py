@@ -8,6 +8,7 @@ import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -96,6 +97,12 @@ class Renderer(ABC):
         classes = scene.instance_classes()
         # instance id + 1 -> semantic class (index 0: no surface)
         self._class_of_instance = np.concatenate([[NO_LABEL], classes]).astype(np.uint8)
+        self._gl: dict[str, Any] | None = None  # the backend's OpenGL objects, made on first render
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_gl"] = None  # OpenGL objects stay in the process that made them
+        return state
 
     @abstractmethod
     def render(self, T_world_cam: np.ndarray, outputs: Iterable[str] = OUTPUTS) -> RenderOutput:

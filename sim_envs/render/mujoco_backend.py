@@ -26,7 +26,6 @@ from sim_envs.camera import Intrinsics
 from sim_envs.frames import NO_DEPTH
 from sim_envs.render.base import (
     CV_TO_GL,
-    DEFAULT_ZNEAR,
     OUTPUTS,
     Renderer,
     RenderOutput,
@@ -145,15 +144,6 @@ class MujocoRenderer(Renderer):
     """Renders a :class:`Scene` with MuJoCo (see the module docstring). ``znear`` in metres."""
 
     backend = "mujoco"
-
-    def __init__(self, scene: Scene, intrinsics: Intrinsics, znear: float = DEFAULT_ZNEAR) -> None:
-        super().__init__(scene, intrinsics, znear)
-        self._gl: dict[str, Any] | None = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        state["_gl"] = None  # OpenGL objects stay in the process that made them
-        return state
 
     def _ensure_context(self) -> dict[str, Any]:
         """Create the model, the OpenGL context and MuJoCo's render context on first use."""

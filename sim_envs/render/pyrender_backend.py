@@ -25,7 +25,6 @@ import numpy as np
 from sim_envs.camera import Intrinsics
 from sim_envs.render.base import (
     CV_TO_GL,
-    DEFAULT_ZNEAR,
     OUTPUTS,
     Renderer,
     RenderOutput,
@@ -234,15 +233,6 @@ class PyrenderRenderer(Renderer):
     """Renders a :class:`Scene` with pyrender (see the module docstring). ``znear`` in metres."""
 
     backend = "pyrender"
-
-    def __init__(self, scene: Scene, intrinsics: Intrinsics, znear: float = DEFAULT_ZNEAR) -> None:
-        super().__init__(scene, intrinsics, znear)
-        self._gl: dict[str, Any] | None = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        state = self.__dict__.copy()
-        state["_gl"] = None  # OpenGL objects stay in the process that made them
-        return state
 
     def _ensure_context(self) -> dict[str, Any]:
         """Create the pyrender scene and the offscreen OpenGL context on first use."""
