@@ -165,7 +165,5 @@ class GroundTruthAidedAgent(CnnSlamAgent):
 
     def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
         """Like :meth:`CnnSlamAgent.step`; ``info["gt_depth"]`` (and ``gt_labels``) are used as described above."""
-        hint = None
-        if info is not None and "gt_depth" in info:
-            hint = GroundTruthHint(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        hint = GroundTruthHint.from_info(info)
         return self._step(observation, hint)

@@ -73,6 +73,13 @@ class GroundTruthHint:
     depth: np.ndarray
     labels: np.ndarray | None = None
 
+    @classmethod
+    def from_info(cls, info: dict[str, Any] | None) -> GroundTruthHint | None:
+        """The hint in an environment step's ``info`` (``gt_depth``, optional ``gt_labels``), or None without one."""
+        if info is None or "gt_depth" not in info:
+            return None
+        return cls(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+
 
 @dataclass(frozen=True)
 class KeyframePrediction:

@@ -257,42 +257,13 @@ class ModelView:
 
 
 @njit(cache=True, nogil=True)
-def splat_index_map(u, v, z, radius_px, h, w):  # pragma: no cover - compiled
-    """Front-most point per pixel: (index (h, w) int32, -1 = none; zbuf (h, w) float32, inf = none).
+def _splat(u, v, z, radius_px, observed, closest):  # pragma: no cover - compiled
+    """Per pixel the point of least cost among those whose disc covers it: cost z (front-most) or, with
+    ``closest``, |z - observed[y, x]| and no point where observed <= 0. Returns (index (h, w) int32, -1 = none;
+    cost (h, w) float32, inf = none); ``observed`` (h, w) also gives the image size.
 
     u, v: (N,) float pixel positions of the points; z: (N,) camera depth; radius_px: (N,) disc radius in pixels. A
     point covers the pixel centres within its radius of (u, v), and always the pixel it falls in.
-    """
-    index = np.full((h, w), -1, np.int32)
-    zbuf = np.full((h, w), np.inf, np.float32)
-    for i in range(u.shape[0]):
-        r = radius_px[i]
-        uc = int(math.floor(u[i] + 0.5))
-        vc = int(math.floor(v[i] + 0.5))
-        ri = int(math.ceil(r))
-        r2 = r * r
-        for dv in range(-ri, ri + 1):
-            y = vc + dv
-            if y < 0 or y >= h:
-                continue
-            for du in range(-ri, ri + 1):
-                x = uc + du
-                if x < 0 or x >= w:
-                    continue
-                if (du != 0 or dv != 0) and (x - u[i]) ** 2 + (y - v[i]) ** 2 > r2:
-                    continue
-                if z[i] < zbuf[y, x]:
-                    zbuf[y, x] = z[i]
-                    index[y, x] = i
-    return index, zbuf
-
-
-@njit(cache=True, nogil=True)
-def closest_depth_index_map(u, v, z, radius_px, observed):  # pragma: no cover - compiled
-    """Per pixel, the point whose depth is closest to the observed depth there: index (h, w) int32, -1 = none.
-
-    Like :func:`splat_index_map`, but the z-test is replaced by |z - observed[y, x]|, so that a measurement can find
-    its surface behind unconfirmed clutter in front of it; pixels with observed <= 0 get none.
     """
     h, w = observed.shape
     index = np.full((h, w), -1, np.int32)
@@ -309,15 +280,35 @@ def closest_depth_index_map(u, v, z, radius_px, observed):  # pragma: no cover -
                 continue
             for du in range(-ri, ri + 1):
                 x = uc + du
-                if x < 0 or x >= w or observed[y, x] <= 0:
+                if x < 0 or x >= w or (closest and observed[y, x] <= 0):
                     continue
                 if (du != 0 or dv != 0) and (x - u[i]) ** 2 + (y - v[i]) ** 2 > r2:
                     continue
-                gap = abs(z[i] - observed[y, x])
-                if gap < best[y, x]:
-                    best[y, x] = gap
+                cost = abs(z[i] - observed[y, x]) if closest else z[i]
+                if cost < best[y, x]:
+                    best[y, x] = cost
                     index[y, x] = i
-    return index
+    return index, best
+
+
+def splat_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.ndarray, h: int,
+                    w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Front-most point per pixel: (index (h, w) int32, -1 = none; zbuf (h, w) float32, inf = none).
+
+    u, v: (N,) float pixel positions of the points; z: (N,) camera depth; radius_px: (N,) disc radius in pixels. A
+    point covers the pixel centres within its radius of (u, v), and always the pixel it falls in.
+    """
+    return _splat(u, v, z, radius_px, np.zeros((h, w), np.float32), False)
+
+
+def closest_depth_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.ndarray,
+                            observed: np.ndarray) -> np.ndarray:
+    """Per pixel, the point whose depth is closest to the observed depth there: index (h, w) int32, -1 = none.
+
+    Like :func:`splat_index_map`, but the z-test is replaced by |z - observed[y, x]|, so that a measurement can find
+    its surface behind unconfirmed clutter in front of it; pixels with observed <= 0 get none.
+    """
+    return _splat(u, v, z, radius_px, observed, True)[0]
 
 
 def voxel_keys(positions: np.ndarray, normals: np.ndarray, voxel_size: float) -> np.ndarray:

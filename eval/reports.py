@@ -162,11 +162,8 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         ours_beside_paper(table, depth_title, depth_metric, 3),
         "## Ours alone (as in table1.csv / table1.tex)\n",
         table_to_markdown(table),
-        status_markdown(run),
     ]
-    md = results_dir / "table1.md"
-    md.write_text("\n".join(text))
-    return [md, *paths, write_long_csv(run, results_dir)]
+    return _write_report(run, results_dir, "table1", text, paths)
 
 
 # --------------------------------------------------------------------------------------------------- rotation
@@ -182,11 +179,8 @@ def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after "
         "alignment (rotation-only, since the positions do not move). Correct depth as in Table 1.\n",
         table_to_markdown(table),
-        status_markdown(run),
     ]
-    md = results_dir / "rotation.md"
-    md.write_text("\n".join(text))
-    return [md, *paths, write_long_csv(run, results_dir)]
+    return _write_report(run, results_dir, "rotation", text, paths)
 
 
 # --------------------------------------------------------------------------------------------------- ablation
@@ -204,11 +198,16 @@ def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         "the adjusted depth refined by small-baseline stereo (eq. 10-11).\n",
         table_to_markdown(table),
         f"![one key-frame's depth error per variant]({figure.name})\n" if figure else "",
-        status_markdown(run),
     ]
-    md = results_dir / "ablation.md"
-    md.write_text("\n".join(text))
-    return [md, *paths, *([figure] if figure else []), write_long_csv(run, results_dir)]
+    return _write_report(run, results_dir, "ablation", text, [*paths, *([figure] if figure else [])])
+
+
+def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], artifacts: list[Path]) -> list[Path]:
+    """Write ``<name>.md`` (``text`` and the runs' status) and ``<suite>_long.csv``; return every file the report
+    made: the Markdown, ``artifacts`` (tables, figures), the long CSV."""
+    md = results_dir / f"{name}.md"
+    md.write_text("\n".join([*text, status_markdown(run)]))
+    return [md, *artifacts, write_long_csv(run, results_dir)]
 
 
 def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray] | None:
@@ -303,10 +302,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
             continue
         wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"])
         text.append(f"### {title}\n\n" + _pivot_markdown(wide))
-    text.append(status_markdown(run))
-    md = results_dir / "sweep.md"
-    md.write_text("\n".join(text))
-    return [md, csv, figure, write_long_csv(run, results_dir)]
+    return _write_report(run, results_dir, "sweep", text, [csv, figure])
 
 
 def _pivot_markdown(wide: pd.DataFrame) -> str:
@@ -331,11 +327,8 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         "Compared metric by metric with `results/baselines/quick.json` by `cnnslam bench quick` and by "
         "`tests/eval/test_quick_regression.py`; after an intended change: `cnnslam bench quick --update-baseline`.\n",
         table_to_markdown(table),
-        status_markdown(run),
     ]
-    md = results_dir / "quick.md"
-    md.write_text("\n".join(text))
-    return [md, runs_json, write_long_csv(run, results_dir)]
+    return _write_report(run, results_dir, "quick", text, [runs_json])
 
 
 def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
@@ -343,10 +336,8 @@ def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list
     results_dir = Path(results_dir)
     table = _suite_table(run, QUICK_BLOCKS)
     paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}")
-    md = results_dir / f"{run.suite.name}.md"
-    md.write_text("\n".join([header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table),
-                             status_markdown(run)]))  # fmt: skip
-    return [md, *paths, write_long_csv(run, results_dir)]
+    text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table)]
+    return _write_report(run, results_dir, run.suite.name, text, paths)
 
 
 REPORTS = {

@@ -345,7 +345,5 @@ class GroundTruthAidedLainaAgent(LainaAgent):
 
     def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
         """Like :meth:`LainaAgent.step`; ``info`` feeds the development predictor only."""
-        hint = None
-        if info is not None and "gt_depth" in info:
-            hint = GroundTruthHint(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        hint = GroundTruthHint.from_info(info)
         return self._step(observation, hint)

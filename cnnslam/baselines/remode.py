@@ -625,9 +625,7 @@ class RemodeAgent:
 
         if self._system is None:
             raise CnnSlamError("call reset(intrinsics, image_size) before step()")
-        hint = None
-        if info is not None and "gt_depth" in info:
-            hint = GroundTruthHint(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        hint = GroundTruthHint.from_info(info)
         stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
         out = self._system.process(observation["rgb"], stamp, hint)
         gray = _gray(observation["rgb"])
