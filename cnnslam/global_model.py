@@ -355,6 +355,22 @@ _FIELDS: dict[str, tuple[type, tuple[int, ...]]] = {
 
 
 @dataclass(frozen=True)
+class _PixelMeasurements:
+    """The measuring pixels of one depth map (step 1): clean depth (H, W); pixel rows, columns (M,); camera points and
+    normals (M, 3); depth z, variance sigma_d^2, disc radius (m) and Keller's radial weight alpha (M,)."""
+
+    depth: np.ndarray
+    vs: np.ndarray
+    us: np.ndarray
+    x_cam: np.ndarray
+    n_cam: np.ndarray
+    z: np.ndarray
+    sigma2: np.ndarray
+    radius: np.ndarray
+    alpha: np.ndarray
+
+
+@dataclass(frozen=True)
 class _Measurements:
     """Grouped measurements of one frame: one row per target (surfel or new voxel). World frame."""
 
@@ -537,32 +553,9 @@ class GlobalModel:
         self._frames += 1
 
         # 1. measurements
-        rays, alpha_map = self._camera_tables((h, w), intr)
-        d = np.where(np.isfinite(depth) & (depth >= cfg.min_depth) & (depth <= cfg.max_depth), depth, 0.0)
-        if cfg.normal_smoothing_px > 0:
-            smoothed = smooth_depth(d, cfg.normal_smoothing_px, cfg.normal_smoothing_relative)
-            N = adaptive_normal_map(rays * d[..., None], rays * smoothed[..., None], cfg.max_relative_depth_jump,
-                                    cfg.normal_step_px)
-        else:
-            N = normal_map(rays * d[..., None], cfg.max_relative_depth_jump, 1)
-        s = cfg.pixel_stride
-        vs, us = np.nonzero((N[::s, ::s] != 0).any(axis=2) & (d[::s, ::s] > 0))
-        vs, us = vs * s, us * s
-        x_cam = rays[vs, us].astype(np.float64) * d[vs, us, None].astype(np.float64)
-        n_cam = N[vs, us].astype(np.float64)
-        z = x_cam[:, 2]
-        cos_inc = np.abs(np.einsum("ij,ij->i", n_cam, x_cam)) / np.linalg.norm(x_cam, axis=1)
-        if variance is None:
-            sigma2 = (cfg.default_relative_sigma * z) ** 2
-        else:
-            var = np.asarray(variance, dtype=np.float64)[vs, us]
-            sigma2 = np.where(np.isfinite(var) & (var > 0), var, (cfg.default_relative_sigma * z) ** 2)
-        sigma2 = np.maximum(sigma2, cfg.min_depth_sigma**2)
-        ok = (cos_inc >= math.cos(math.radians(cfg.max_incidence_deg))) & (sigma2 <= (cfg.max_relative_sigma * z) ** 2)
-        vs, us, x_cam, n_cam, z, cos_inc, sigma2 = (a[ok] for a in (vs, us, x_cam, n_cam, z, cos_inc, sigma2))
-        f = 0.5 * (intr[0] + intr[1])
-        radius = s * z / (math.sqrt(2.0) * f * cos_inc)
-        alpha = alpha_map[vs, us].astype(np.float64)
+        px = self._measure(depth, intr, variance)
+        vs, us, x_cam, n_cam, sigma2, radius, alpha = (px.vs, px.us, px.x_cam, px.n_cam, px.sigma2, px.radius,
+                                                       px.alpha)
         weight = alpha / sigma2
         R, t = T[:3, :3], T[:3, 3]
         x_world = x_cam @ R.T + t
@@ -574,35 +567,7 @@ class GlobalModel:
         m = vs.size
 
         # 2. projective data association
-        target = np.full(m, -1, np.int64)
-        in_view = np.zeros(0, np.int64)
-        if self._size and m:
-            ids, u_p, v_p, z_p, q, r_px = self._project(T, intr, (h, w), 0.0, None)
-            if cfg.max_misses > 0:  # surfels this frame should see: not hidden behind a nearer measured surface
-                ui, vi = np.rint(u_p).astype(np.int64), np.rint(v_p).astype(np.int64)
-                inside = (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
-                d_at = np.zeros(ids.size)
-                d_at[inside] = d[vi[inside], ui[inside]]
-                in_view = ids[(d_at > 0) & (d_at > z_p + cfg.miss_margin)]
-            observed = np.zeros((h, w), np.float32)
-            observed[vs, us] = z
-            local = closest_depth_index_map(u_p, v_p, z_p, r_px, observed)[vs, us]
-            hit = np.flatnonzero(local >= 0)
-            if hit.size:
-                sid = ids[local[hit]]
-                n_s = self._col("normal")[sid].astype(np.float64) @ R  # surfel normals in camera coordinates
-                p_s = q[local[hit]]
-                ray = x_cam[hit] / z[hit, None]
-                denom = np.einsum("ij,ij->i", n_s, ray)
-                plane_z = np.where(np.abs(denom) > 0.2 * np.linalg.norm(ray, axis=1),
-                                   np.einsum("ij,ij->i", n_s, p_s) / np.where(denom == 0, 1.0, denom), p_s[:, 2])
-                conf, wsum = self._col("confidence")[sid], self._col("weight")[sid]
-                sigma2_s = conf / np.maximum(wsum, 1e-12)
-                tol = np.clip(cfg.association_sigmas * np.sqrt(sigma2[hit] + sigma2_s), cfg.min_association_distance,
-                              cfg.max_association_distance)
-                agree = (np.abs(z[hit] - plane_z) <= tol) & (
-                    np.einsum("ij,ij->i", n_s, n_cam[hit]) >= math.cos(math.radians(cfg.max_normal_angle_deg)))
-                target[hit[agree]] = sid[agree]
+        target, in_view = self._associate(px, T, intr, cfg.max_misses > 0)
         assoc = np.flatnonzero(target >= 0)
         associated = int(assoc.size)
         seen = np.zeros(0, np.int64)
@@ -648,6 +613,110 @@ class GlobalModel:
                 self._compact(np.flatnonzero(~drop))
                 self._rebuild_index(merge=False)
         return IntegrationStats(frame, m, associated, voxel_merged, created, removed, self._size)
+
+    def _measure(self, depth: np.ndarray, intr: np.ndarray, variance: np.ndarray | None) -> _PixelMeasurements:
+        """Step 1: the pixels of ``depth`` that make measurements, with their camera points, normals and sigmas."""
+        cfg = self.config
+        h, w = depth.shape
+        rays, alpha_map = self._camera_tables((h, w), intr)
+        d = np.where(np.isfinite(depth) & (depth >= cfg.min_depth) & (depth <= cfg.max_depth), depth, 0.0)
+        if cfg.normal_smoothing_px > 0:
+            smoothed = smooth_depth(d, cfg.normal_smoothing_px, cfg.normal_smoothing_relative)
+            N = adaptive_normal_map(rays * d[..., None], rays * smoothed[..., None], cfg.max_relative_depth_jump,
+                                    cfg.normal_step_px)
+        else:
+            N = normal_map(rays * d[..., None], cfg.max_relative_depth_jump, 1)
+        s = cfg.pixel_stride
+        vs, us = np.nonzero((N[::s, ::s] != 0).any(axis=2) & (d[::s, ::s] > 0))
+        vs, us = vs * s, us * s
+        x_cam = rays[vs, us].astype(np.float64) * d[vs, us, None].astype(np.float64)
+        n_cam = N[vs, us].astype(np.float64)
+        z = x_cam[:, 2]
+        cos_inc = np.abs(np.einsum("ij,ij->i", n_cam, x_cam)) / np.linalg.norm(x_cam, axis=1)
+        if variance is None:
+            sigma2 = (cfg.default_relative_sigma * z) ** 2
+        else:
+            var = np.asarray(variance, dtype=np.float64)[vs, us]
+            sigma2 = np.where(np.isfinite(var) & (var > 0), var, (cfg.default_relative_sigma * z) ** 2)
+        sigma2 = np.maximum(sigma2, cfg.min_depth_sigma**2)
+        ok = (cos_inc >= math.cos(math.radians(cfg.max_incidence_deg))) & (sigma2 <= (cfg.max_relative_sigma * z) ** 2)
+        vs, us, x_cam, n_cam, z, cos_inc, sigma2 = (a[ok] for a in (vs, us, x_cam, n_cam, z, cos_inc, sigma2))
+        f = 0.5 * (intr[0] + intr[1])
+        radius = s * z / (math.sqrt(2.0) * f * cos_inc)
+        alpha = alpha_map[vs, us].astype(np.float64)
+        return _PixelMeasurements(d, vs, us, x_cam, n_cam, z, sigma2, radius, alpha)
+
+    def _associate(self, px: _PixelMeasurements, T: np.ndarray, intr: np.ndarray,
+                   find_misses: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Step 2, Keller's projective data association: (target surfel id per measurement, -1 = none; ids of the
+        surfels the frame should see, not hidden behind a nearer measured surface, when ``find_misses``)."""
+        cfg = self.config
+        h, w = px.depth.shape
+        m = px.vs.size
+        target = np.full(m, -1, np.int64)
+        in_view = np.zeros(0, np.int64)
+        if not (self._size and m):
+            return target, in_view
+        R = T[:3, :3]
+        ids, u_p, v_p, z_p, q, r_px = self._project(T, intr, (h, w), 0.0, None)
+        if find_misses:
+            ui, vi = np.rint(u_p).astype(np.int64), np.rint(v_p).astype(np.int64)
+            inside = (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
+            d_at = np.zeros(ids.size)
+            d_at[inside] = px.depth[vi[inside], ui[inside]]
+            in_view = ids[(d_at > 0) & (d_at > z_p + cfg.miss_margin)]
+        observed = np.zeros((h, w), np.float32)
+        observed[px.vs, px.us] = px.z
+        local = closest_depth_index_map(u_p, v_p, z_p, r_px, observed)[px.vs, px.us]
+        hit = np.flatnonzero(local >= 0)
+        if hit.size:
+            sid = ids[local[hit]]
+            n_s = self._col("normal")[sid].astype(np.float64) @ R  # surfel normals in camera coordinates
+            p_s = q[local[hit]]
+            ray = px.x_cam[hit] / px.z[hit, None]
+            denom = np.einsum("ij,ij->i", n_s, ray)
+            plane_z = np.where(np.abs(denom) > 0.2 * np.linalg.norm(ray, axis=1),
+                               np.einsum("ij,ij->i", n_s, p_s) / np.where(denom == 0, 1.0, denom), p_s[:, 2])
+            conf, wsum = self._col("confidence")[sid], self._col("weight")[sid]
+            sigma2_s = conf / np.maximum(wsum, 1e-12)
+            tol = np.clip(cfg.association_sigmas * np.sqrt(px.sigma2[hit] + sigma2_s), cfg.min_association_distance,
+                          cfg.max_association_distance)
+            agree = (np.abs(px.z[hit] - plane_z) <= tol) & (
+                np.einsum("ij,ij->i", n_s, px.n_cam[hit]) >= math.cos(math.radians(cfg.max_normal_angle_deg)))
+            target[hit[agree]] = sid[agree]
+        return target, in_view
+
+    def associate(self, depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,
+                  variance: np.ndarray | None = None) -> np.ndarray:
+        """(H, W) int64 map of the surfel each pixel of ``depth`` would be fused into now, -1 for none: the data
+        association of :meth:`integrate` (steps 1-3: projective association, then the voxel key) without changing
+        the model. Same arguments and conventions as :meth:`integrate`.
+
+        Used to read the model back at a key-frame's pixels, e.g. the fused label of the surface a pixel measured.
+        """
+        depth = np.asarray(depth, dtype=np.float32)
+        if depth.ndim != 2:
+            raise CnnSlamError(f"depth must be (H, W) metres, got shape {depth.shape}")
+        T = np.asarray(T_world_cam, dtype=np.float64)
+        if T.shape != (4, 4) or not np.isfinite(T).all():
+            raise CnnSlamError(f"T_world_cam must be a finite (4, 4) transform, got shape {T.shape}")
+        intr = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
+        if intr.shape != (4,) or not np.isfinite(intr).all() or intr[0] <= 0 or intr[1] <= 0:
+            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
+        if variance is not None and np.shape(variance) != depth.shape:
+            raise CnnSlamError(f"variance must be (H, W) = {depth.shape}, got {np.shape(variance)}")
+        px = self._measure(depth, intr, variance)
+        target, _ = self._associate(px, T, intr, False)
+        rest = np.flatnonzero(target < 0)
+        if rest.size and self._sorted_keys.size:
+            x_world = px.x_cam[rest] @ T[:3, :3].T + T[:3, 3]
+            keys = voxel_keys(x_world, px.n_cam[rest] @ T[:3, :3].T, self.config.voxel_size)
+            pos = np.minimum(np.searchsorted(self._sorted_keys, keys), self._sorted_keys.size - 1)
+            found = self._sorted_keys[pos] == keys
+            target[rest[found]] = self._sorted_ids[pos[found]]
+        out = np.full(depth.shape, -1, np.int64)
+        out[px.vs, px.us] = target
+        return out
 
     def _camera_tables(self, size: tuple[int, int], intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pixel rays K^-1 u (H, W, 3) float32 and Keller's radial confidence (H, W) float32 of a camera (cached)."""

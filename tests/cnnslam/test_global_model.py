@@ -96,6 +96,29 @@ def test_label_fusion_of_noisy_label_maps_beats_a_single_frame():
     assert accuracy[n_views] > accuracy[1] + 0.15
 
 
+def test_associate_finds_the_surfel_each_pixel_was_fused_into_without_changing_the_model():
+    T_a, T_b = pose(), pose((0.05, 0.0, 0.0))
+    model = GlobalModel()
+    model.integrate(plane_depth(T_a), T_a, K, label_probs=np.full(SIZE, 2, np.uint8))
+    before = model.snapshot()
+    index = model.associate(plane_depth(T_b), T_b, K)
+    assert index.shape == SIZE and index.dtype == np.int64
+    found = index >= 0
+    assert found.mean() > 0.8  # the second view sees the same plane, shifted by 5 cm
+    # each found pixel's surfel lies on the pixel's ray, within the surfel spacing
+    rays = pixel_rays(SIZE, K)
+    world = (rays * plane_depth(T_b)[..., None]) @ T_b[:3, :3].T + T_b[:3, 3]
+    gap = np.linalg.norm(before.positions[index[found]] - world[found], axis=1)
+    assert np.median(gap) < 0.02
+    assert np.array_equal(model.labels()[index[found]], np.full(int(found.sum()), 2, np.uint8))
+    after = model.snapshot()
+    assert len(after) == len(before) and np.array_equal(after.positions, before.positions)
+    # a plane 1 m behind the model is another surface: nothing to associate
+    assert (model.associate(plane_depth(T_b, PLANE_Z + 1.0), T_b, K) < 0).all()
+    with pytest.raises(CnnSlamError, match="variance must be"):
+        model.associate(plane_depth(T_b), T_b, K, variance=np.ones((3, 3)))
+
+
 def test_replacing_a_keyframe_moves_its_surfels_with_it():
     exact = np.full(SIZE, 0.005**2, np.float32)  # 5 mm sigma: a 10 cm misplacement does not associate
     T0, T1 = pose(), pose((0.4, 0.0, 0.0), (0.0, 8.0, 0.0))
