@@ -97,19 +97,38 @@ def fuse_keyframe_uncertainty(uncertainty_new: np.ndarray, uncertainty_propagate
     return u_prop * u_new / (u_prop + u_new)
 
 
+def scale_anchor(cnn_depth: np.ndarray, neighbour_depth_in_new: np.ndarray, valid: np.ndarray, gain: float,
+                 min_pixels: int = 100) -> float:
+    """Ours (not in the paper): the factor k = exp(gain * r) by which the map carried over from the nearest key-frame
+    is rescaled before eq. 6-9, r = median over ``valid`` pixels of log(D_cnn / D_kj), the CNN's scale relative to
+    the map. k = 1 with gain 0 or fewer than ``min_pixels`` valid pixels.
+
+    cnn_depth: the new key-frame's CNN depth D_cnn (H, W) metres; neighbour_depth_in_new: the neighbour's depth seen
+    from the new key-frame (:func:`cnnslam.geometry.depth_of_neighbour_in`), (H, W) metres; valid: (H, W) bool.
+    """
+    d_new = np.asarray(cnn_depth, dtype=np.float64)
+    d_old = np.asarray(neighbour_depth_in_new, dtype=np.float64)
+    ok = np.asarray(valid, dtype=bool) & (d_new > 0) & (d_old > 0)
+    if gain <= 0 or int(ok.sum()) < min_pixels:
+        return 1.0
+    return float(np.exp(gain * np.median(np.log(d_new[ok] / d_old[ok]))))
+
+
 @dataclass(frozen=True)
 class KeyframeInit:
     """Depth and uncertainty of a new key-frame, with how they came about.
 
     depth: (H, W) float32 metres (0 = none); variance: (H, W) float32 m^2 (inf where no depth); matched_share:
     share of pixels that eq. 6-9 could evaluate against the neighbour (0 for the first key-frame);
-    mean_abs_change: mean |fused - initial| depth over those pixels (m), a diagnostic of eq. 8.
+    mean_abs_change: mean |fused - initial| depth over those pixels (m), a diagnostic of eq. 8; anchor_scale: the
+    factor the neighbour's map was rescaled by (:func:`scale_anchor`, 1 without anchoring).
     """
 
     depth: np.ndarray
     variance: np.ndarray
     matched_share: float
     mean_abs_change: float
+    anchor_scale: float = 1.0
 
 
 def relative_prior(depth: np.ndarray, relative_sigma: float) -> np.ndarray:
@@ -145,6 +164,9 @@ def init_cnn_keyframe(
     uv, _ = warp_keyframe_pixels(d_new, intrinsics, T_neighbour_new)
     u_j_at_v, _ = sample_nearest(np.asarray(neighbour_variance, dtype=np.float64), uv)
     matched &= np.isfinite(u_j_at_v) & (d_new > 0)
+    k = scale_anchor(d_new, d_j_in_i, matched, config.scale_anchoring)
+    if k != 1.0:  # the whole carried-over map scaled by k: depths by k, variances by k^2
+        d_j_in_i, d_j_at_v, u_j_at_v = d_j_in_i * k, d_j_at_v * k, u_j_at_v * (k * k)
     u_new = np.maximum(initial_uncertainty(d_new, d_j_in_i), floor)  # eq. 6 (floored)
     u_prop = propagated_uncertainty(d_j_at_v, np.where(d_new > 0, d_new, 1.0), np.where(matched, u_j_at_v, 0.0),
                                     config.propagation_noise_variance)  # eq. 7
@@ -163,7 +185,7 @@ def init_cnn_keyframe(
     var = np.where(matched, np.maximum(fused_u, 1e-12), prior)
     share = float(matched.mean())
     change = float(np.abs(depth - d_new)[matched].mean()) if matched.any() else 0.0
-    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change)
+    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k)
 
 
 # ------------------------------------------------------------------------------------ without a CNN (LSD baselines)

@@ -18,6 +18,7 @@ from cnnslam.keyframes import (
     needs_new_keyframe,
     propagate_keyframe,
     propagated_uncertainty,
+    scale_anchor,
 )
 
 K = np.array([240.6, 240.0, 159.5, 119.5])
@@ -91,6 +92,31 @@ def test_cnn_keyframe_fusion_with_a_neighbour() -> None:
     np.testing.assert_allclose(holed.variance[100:140, :100], (cfg.unmatched_relative_sigma * 2.97) ** 2, rtol=1e-5)
     np.testing.assert_allclose(holed.depth[100:140, 220:], expected_d, rtol=1e-4)
     assert 0.3 < holed.matched_share < 0.7
+
+
+def test_scale_anchoring_rescales_the_carried_over_map_towards_the_cnn() -> None:
+    """The same wall as above: the CNN says 2.97 m where the map (neighbour seen from i) says 2.7 m."""
+    T_j_i = relative_pose(np.eye(4), se3_exp(np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])))
+    d_j = np.full((240, 320), 3.0, np.float32)
+    u_j = np.full((240, 320), 0.01, np.float32)
+    d_cnn = np.full((240, 320), 2.97, np.float32)
+    valid = np.ones(d_cnn.shape, bool)
+    assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), valid, 1.0) == pytest.approx(1.1)
+    assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), valid, 0.5) == pytest.approx(1.1**0.5)
+    assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), valid, 0.0) == 1.0
+    assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), np.zeros_like(valid), 1.0) == 1.0  # nothing seen by both
+    centre = (slice(100, 140), slice(140, 180))
+    paper = init_cnn_keyframe(d_cnn, K, DepthConfig(), d_j, u_j, T_j_i)
+    assert paper.anchor_scale == 1.0
+    full = init_cnn_keyframe(d_cnn, K, DepthConfig(scale_anchoring=1.0), d_j, u_j, T_j_i)
+    assert full.anchor_scale == pytest.approx(1.1, rel=1e-4)
+    # the map scaled by 1.1 agrees with the CNN: eq. 8 returns the common depth, eq. 9 a smaller variance
+    np.testing.assert_allclose(full.depth[centre], 2.97, rtol=1e-4)
+    assert np.all(full.variance[centre] < paper.variance[centre])
+    half = init_cnn_keyframe(d_cnn, K, DepthConfig(scale_anchoring=0.5), d_j, u_j, T_j_i)
+    assert np.all((paper.depth[centre] < half.depth[centre]) & (half.depth[centre] < 2.97))
+    with pytest.raises(CnnSlamError, match="scale_anchoring"):
+        DepthConfig(scale_anchoring=1.5).validate()
 
 
 def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:
