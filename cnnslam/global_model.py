@@ -527,20 +527,10 @@ class GlobalModel:
         anchored to (for :meth:`update_poses`), None for none (frame-rate fusion without a pose graph).
         """
         cfg = self.config
-        depth = np.asarray(depth, dtype=np.float32)
-        if depth.ndim != 2:
-            raise CnnSlamError(f"depth must be (H, W) metres, got shape {depth.shape}")
+        depth, T, intr = _checked_view(depth, T_world_cam, intrinsics, variance)
         h, w = depth.shape
-        T = np.asarray(T_world_cam, dtype=np.float64)
-        if T.shape != (4, 4) or not np.isfinite(T).all():
-            raise CnnSlamError(f"T_world_cam must be a finite (4, 4) transform, got shape {T.shape}")
-        intr = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
-        if intr.shape != (4,) or not np.isfinite(intr).all() or intr[0] <= 0 or intr[1] <= 0:
-            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
         if rgb is not None and np.shape(rgb) != (h, w, 3):
             raise CnnSlamError(f"rgb must be (H, W, 3) = {(h, w, 3)}, got {np.shape(rgb)}")
-        if variance is not None and np.shape(variance) != (h, w):
-            raise CnnSlamError(f"variance must be (H, W) = {(h, w)}, got {np.shape(variance)}")
         probs_map = self._probability_map(label_probs, (h, w))
         if anchor is not None:
             anchor = int(anchor)
@@ -694,17 +684,7 @@ class GlobalModel:
 
         Used to read the model back at a key-frame's pixels, e.g. the fused label of the surface a pixel measured.
         """
-        depth = np.asarray(depth, dtype=np.float32)
-        if depth.ndim != 2:
-            raise CnnSlamError(f"depth must be (H, W) metres, got shape {depth.shape}")
-        T = np.asarray(T_world_cam, dtype=np.float64)
-        if T.shape != (4, 4) or not np.isfinite(T).all():
-            raise CnnSlamError(f"T_world_cam must be a finite (4, 4) transform, got shape {T.shape}")
-        intr = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
-        if intr.shape != (4,) or not np.isfinite(intr).all() or intr[0] <= 0 or intr[1] <= 0:
-            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
-        if variance is not None and np.shape(variance) != depth.shape:
-            raise CnnSlamError(f"variance must be (H, W) = {depth.shape}, got {np.shape(variance)}")
+        depth, T, intr = _checked_view(depth, T_world_cam, intrinsics, variance)
         px = self._measure(depth, intr, variance)
         target, _ = self._associate(px, T, intr, False)
         rest = np.flatnonzero(target < 0)
@@ -944,6 +924,23 @@ class GlobalModel:
         D["anchor"][:k], D["anchor_weight"][:k], D["key"][:k] = anchor, anchor_w, key
         self._labels[:k] = labels
         self._size = k
+
+
+def _checked_view(depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,
+                  variance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(depth float32 (H, W), T float64 (4, 4), intrinsics float64 (4,)) of one view, or one clear error."""
+    depth = np.asarray(depth, dtype=np.float32)
+    if depth.ndim != 2:
+        raise CnnSlamError(f"depth must be (H, W) metres, got shape {depth.shape}")
+    T = np.asarray(T_world_cam, dtype=np.float64)
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise CnnSlamError(f"T_world_cam must be a finite (4, 4) transform, got shape {T.shape}")
+    intr = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
+    if intr.shape != (4,) or not np.isfinite(intr).all() or intr[0] <= 0 or intr[1] <= 0:
+        raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
+    if variance is not None and np.shape(variance) != depth.shape:
+        raise CnnSlamError(f"variance must be (H, W) = {depth.shape}, got {np.shape(variance)}")
+    return depth, T, intr
 
 
 def _take(meas: _Measurements, mask: np.ndarray) -> _Measurements:
