@@ -576,13 +576,10 @@ class GlobalModel:
             ukeys, inverse = np.unique(keys, return_inverse=True)
             meas = self._group(inverse, ukeys.size, rest, x_world, n_world, colour, radius, weight, alpha, probs,
                                label_weight)
-            found = np.zeros(ukeys.size, bool)
-            pos_c = np.zeros(ukeys.size, np.intp)
-            if self._sorted_keys.size:
-                pos_c = np.minimum(np.searchsorted(self._sorted_keys, ukeys), self._sorted_keys.size - 1)
-                found = self._sorted_keys[pos_c] == ukeys
+            key_ids = self._surfels_of_keys(ukeys)
+            found = key_ids >= 0
             if found.any():
-                merged_ids = self._sorted_ids[pos_c[found]]
+                merged_ids = key_ids[found]
                 self._merge_into(merged_ids, _take(meas, found), frame, anchor)
                 voxel_merged = int(found.sum())
                 seen = np.union1d(seen, merged_ids)
@@ -688,14 +685,21 @@ class GlobalModel:
         px = self._measure(depth, intr, variance)
         target, _ = self._associate(px, T, intr, False)
         rest = np.flatnonzero(target < 0)
-        if rest.size and self._sorted_keys.size:
+        if rest.size:
             x_world = px.x_cam[rest] @ T[:3, :3].T + T[:3, 3]
-            keys = voxel_keys(x_world, px.n_cam[rest] @ T[:3, :3].T, self.config.voxel_size)
-            pos = np.minimum(np.searchsorted(self._sorted_keys, keys), self._sorted_keys.size - 1)
-            found = self._sorted_keys[pos] == keys
-            target[rest[found]] = self._sorted_ids[pos[found]]
+            target[rest] = self._surfels_of_keys(voxel_keys(x_world, px.n_cam[rest] @ T[:3, :3].T,
+                                                            self.config.voxel_size))
         out = np.full(depth.shape, -1, np.int64)
         out[px.vs, px.us] = target
+        return out
+
+    def _surfels_of_keys(self, keys: np.ndarray) -> np.ndarray:
+        """(K,) int64 id of the surfel holding each voxel key, -1 where none does (step 3's hash lookup)."""
+        out = np.full(keys.shape, -1, np.int64)
+        if self._sorted_keys.size:
+            pos = np.minimum(np.searchsorted(self._sorted_keys, keys), self._sorted_keys.size - 1)
+            found = self._sorted_keys[pos] == keys
+            out[found] = self._sorted_ids[pos[found]]
         return out
 
     def _camera_tables(self, size: tuple[int, int], intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

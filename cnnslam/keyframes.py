@@ -106,10 +106,12 @@ def scale_anchor(cnn_depth: np.ndarray, neighbour_depth_in_new: np.ndarray, vali
     cnn_depth: the new key-frame's CNN depth D_cnn (H, W) metres; neighbour_depth_in_new: the neighbour's depth seen
     from the new key-frame (:func:`cnnslam.geometry.depth_of_neighbour_in`), (H, W) metres; valid: (H, W) bool.
     """
+    if gain <= 0:  # the paper's setting: nothing to compute on the key-frame thread
+        return 1.0
     d_new = np.asarray(cnn_depth, dtype=np.float64)
     d_old = np.asarray(neighbour_depth_in_new, dtype=np.float64)
     ok = np.asarray(valid, dtype=bool) & (d_new > 0) & (d_old > 0)
-    if gain <= 0 or int(ok.sum()) < min_pixels:
+    if int(ok.sum()) < min_pixels:
         return 1.0
     return float(np.exp(gain * np.median(np.log(d_new[ok] / d_old[ok]))))
 
