@@ -12,21 +12,27 @@ What it does, in order:
    then the key-frames are re-placed at their final pose-graph poses (:meth:`GlobalModel.update_poses`); ``--fuse
    final`` fuses directly at the final poses;
 3. writes ``model.ply``, ``map.png`` (and a copy at ``--figure``), and ``metrics.json`` with the model's size, the
-   re-placement, the fusion's memory (tracemalloc peak during fusion) and the process's peak RSS, and (unless
-   ``--no-metrics``) the judge's reconstruction and semantic metrics (:mod:`eval.reconstruction_metrics`) against
-   the scene's ground-truth surfaces (:mod:`sim_envs.surface_sampling`), after aligning the key-frame poses onto the
-   ground truth (``--alignment``, SE(3) by default: absolute scale is part of what is measured).
+   re-placement, the fusion's memory (tracemalloc peak during fusion) and the process's peak RSS (scoring included),
+   and (unless ``--no-metrics``) the judge's reconstruction and semantic metrics (:mod:`eval.reconstruction_metrics`)
+   against the scene's ground-truth surfaces (:mod:`sim_envs.surface_sampling`), after aligning the key-frame poses
+   onto the ground truth (``--alignment``, SE(3) by default: absolute scale is part of what is measured).
 
-Semantic accuracy is reported three ways, fused model vs the frame-wise CNN labels each time:
+Semantic accuracy is reported four ways, fused model vs the frame-wise CNN labels each time:
 
 - ``semantic``: in 3D, on back-projected key-frame pixels, each scored against the nearest ground-truth surface
   sample (:func:`eval.reconstruction_metrics.label_fusion_metrics`); a pixel whose estimated depth is off by more
   than the surface spacing is scored against whatever surface lies there, for both labels alike;
 - ``semantic_image``: the model rendered into each key-frame (front-most surfel per pixel) against the rendered
   ground-truth labels of that key-frame (the paper's Fig. 6 view);
-- ``semantic_keyframe_pixels``: each key-frame pixel against its rendered ground-truth label, the fused label being
-  that of the surfel the pixel's own measurement is associated with (:meth:`GlobalModel.associate`), so both
-  labels describe the same surface point by construction and depth errors do not enter.
+- ``semantic_measurements``: on the fused measurements themselves (the issue's "same surfaces", exactly): the fusion
+  is replayed with each key-frame pixel's ground-truth label and whether its CNN label was right in place of the
+  class probabilities (same depth, poses and association, so the same surfels), and every fused measurement is
+  scored against its own ground-truth label with its frame-wise label and with its surfel's fused label
+  (:func:`eval.reconstruction_metrics.measurement_label_metrics`; weights: Keller's radial confidence alpha). It
+  separates what the label averaging does (``pure_*``: surfels whose measurements share one ground-truth label) from
+  what the data association costs (``mixed_*``; ``purity`` is the ceiling of any one label per surfel);
+- ``semantic_measurements_exact_geometry``: the same, fusing the same CNN labels with the ground-truth depth and
+  poses of the key-frames (no depth variance): what the label fusion gains when geometry is not in the way.
 
 Ground truth is read only here, at the edge, for scoring and for the image of each key-frame; the agent never sees
 it unless its class declares ``uses_ground_truth``.
@@ -35,6 +41,7 @@ it unless its class declares ``uses_ground_truth``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -106,11 +113,13 @@ def corrected_trajectory(T_online: np.ndarray, kf_steps: np.ndarray, T_kf_online
 
 
 def fuse_keyframes(keyframes: list[Any], images: list[np.ndarray], intrinsics: np.ndarray,
-                   online_poses: np.ndarray | None, config: Any) -> tuple[Any, dict[str, Any]]:
+                   online_poses: np.ndarray | None, config: Any,
+                   label_maps: list[np.ndarray] | None = None) -> tuple[Any, dict[str, Any]]:
     """Fuse key-frames (``sim_envs.agent.KeyframeDepth``) with their images into a new global model.
 
     online_poses: (K, 4, 4) poses to fuse at, then re-place at each key-frame's final ``T_world_cam``; None to fuse
-    at the final poses. Returns (model, report with sizes per key-frame, re-placement, seconds, tracemalloc peak).
+    at the final poses. label_maps: per key-frame (H, W, C) maps fused in place of the key-frames' labels (None: their
+    own). Returns (model, report with sizes per key-frame, re-placement, seconds, tracemalloc peak).
     """
     from cnnslam.global_model import GlobalModel
 
@@ -123,7 +132,8 @@ def fuse_keyframes(keyframes: list[Any], images: list[np.ndarray], intrinsics: n
     try:
         for i, (kf, rgb) in enumerate(zip(keyframes, images, strict=True)):
             T = np.asarray(kf.T_world_cam if online_poses is None else online_poses[i], dtype=np.float64)
-            stats = model.integrate(kf.depth, T, intrinsics, rgb, kf.labels, kf.uncertainty, anchor=i)
+            labels = kf.labels if label_maps is None else label_maps[i]
+            stats = model.integrate(kf.depth, T, intrinsics, rgb, labels, kf.uncertainty, anchor=i)
             sizes.append(stats.surfels)
         replacement = None
         if online_poses is not None:
@@ -140,6 +150,43 @@ def fuse_keyframes(keyframes: list[Any], images: list[np.ndarray], intrinsics: n
     return model, report
 
 
+def evidence_maps(keyframes: list[Any], gt_frames: list[Any], num_classes: int) -> list[np.ndarray]:
+    """Per key-frame (H, W, C + 2) float32 maps to replay the fusion with: the pixel's ground-truth label one-hot
+    (channels 0..C-1), then 1 in channel C where the key-frame's CNN label equals it, 1 in channel C + 1 where it does
+    not (all 0 without a ground-truth label)."""
+    from sim_envs.frames import NO_LABEL
+
+    maps = []
+    for kf, gt_frame in zip(keyframes, gt_frames, strict=True):
+        labels = np.asarray(kf.labels)
+        framewise = np.argmax(labels, axis=2) if labels.ndim == 3 else labels.astype(np.int64)
+        gt = np.asarray(gt_frame.labels)
+        known = gt != NO_LABEL
+        out = np.zeros((*gt.shape, num_classes + 2), np.float32)
+        out[known, gt[known].astype(np.int64)] = 1.0
+        right = known & (framewise == gt)
+        out[right, num_classes] = 1.0
+        out[known & ~right, num_classes + 1] = 1.0
+        maps.append(out)
+    return maps
+
+
+def measurement_scores(keyframes: list[Any], images: list[np.ndarray], intrinsics: np.ndarray,
+                       online_poses: np.ndarray | None, config: Any, model: Any,
+                       evidence: list[np.ndarray]) -> dict[str, Any]:
+    """``semantic_measurements`` of ``model`` (see the module docstring): replays its fusion with ``evidence`` maps
+    and scores each fused measurement with its frame-wise and its surfel's fused label."""
+    from eval.reconstruction_metrics import measurement_label_metrics
+
+    C = config.num_classes
+    replay_config = dataclasses.replace(config, num_classes=C + 2, label_weighting="confidence")
+    replay, _ = fuse_keyframes(keyframes, images, intrinsics, online_poses, replay_config, label_maps=evidence)
+    if len(replay) != len(model) or not np.array_equal(replay.snapshot().positions, model.snapshot().positions):
+        raise CnnSlamError("the replayed fusion built a different model; labels must not change the geometry")
+    E = replay.label_evidence()
+    return measurement_label_metrics(model.labels(), E[:, :C], E[:, C]).to_dict()
+
+
 def _finite(value: Any) -> Any:
     """JSON-safe: NaN / inf become None, numpy scalars plain numbers."""
     if isinstance(value, dict):
@@ -153,9 +200,12 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.Namespace) -> dict[str, Any]:
-    """The judge's reconstruction and semantic metrics of a fused model (see the module docstring)."""
+def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.Namespace,
+                online_poses: np.ndarray | None = None, config: Any = None) -> dict[str, Any]:
+    """The judge's reconstruction and semantic metrics of a fused model (see the module docstring); ``online_poses``
+    and ``config`` are those the model was fused with (:func:`fuse_keyframes`)."""
     from cnnslam.geometry import transform_points, vertex_map
+    from cnnslam.global_model import GlobalModelConfig
     from eval.alignment import align
     from eval.reconstruction_metrics import (
         image_label_accuracy,
@@ -185,7 +235,7 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
                            "gt_spacing_m": gt.spacing, "reconstruction": recon.to_dict()}
     if all(k.labels is not None for k in result.keyframes) and (cloud.labels != NO_LABEL).any():
         frame_points, frame_labels = [], []
-        fused_maps, frame_maps, gt_maps, pixel_maps = [], [], [], []
+        fused_maps, frame_maps, gt_maps = [], [], []
         s = FRAMEWISE_STRIDE
         surfel_labels = model.labels()
         for kf, gt_frame in zip(result.keyframes, result.keyframe_gt, strict=True):
@@ -205,11 +255,6 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
                 fused_maps.append(np.where(has, fused, NO_LABEL).astype(np.uint8))
                 frame_maps.append(label_map)
                 gt_maps.append(gt_frame.labels)
-                # the surfel each pixel's measurement is fused into: the same surface by construction
-                assoc = model.associate(depth, kf.T_world_cam, intr, kf.uncertainty)
-                through = np.full(size, NO_LABEL, np.uint8)
-                through[assoc >= 0] = surfel_labels[assoc[assoc >= 0]]
-                pixel_maps.append(through)
         sem = label_fusion_metrics(model_points, cloud.labels, np.concatenate(frame_points),
                                    np.concatenate(frame_labels), gt.points, gt.labels, args.label_distance)
         out["semantic"] = sem.to_dict()
@@ -218,11 +263,18 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
             out["semantic_image"] = {"fused_accuracy": fused_acc, "framewise_accuracy": frame_acc,
                                      "gain_points": (fused_acc - frame_acc) * 100.0 if n else math.nan,
                                      "n_pixels": n}
-            fused_acc, frame_acc, n = image_label_accuracy(pixel_maps, frame_maps, gt_maps)
-            out["semantic_keyframe_pixels"] = {"fused_accuracy": fused_acc, "framewise_accuracy": frame_acc,
-                                               "gain_points": (fused_acc - frame_acc) * 100.0 if n else math.nan,
-                                               "n_pixels": n, "coverage": n / max(1, sum(
-                                                   int(np.count_nonzero(g != NO_LABEL)) for g in gt_maps))}
+        if len(gt_maps) == len(result.keyframes):
+            config = config or GlobalModelConfig()
+            images = [f.rgb for f in result.keyframe_gt]
+            evidence = evidence_maps(result.keyframes, result.keyframe_gt, config.num_classes)
+            out["semantic_measurements"] = measurement_scores(result.keyframes, images, intr, online_poses, config,
+                                                              model, evidence)
+            exact = [dataclasses.replace(kf, depth=np.asarray(f.depth, np.float32), T_world_cam=f.T_world_cam,
+                                         uncertainty=None) for kf, f in zip(result.keyframes, result.keyframe_gt,
+                                                                            strict=True)]
+            exact_model, _ = fuse_keyframes(exact, images, intr, None, config)
+            out["semantic_measurements_exact_geometry"] = measurement_scores(exact, images, intr, None, config,
+                                                                             exact_model, evidence)
     return out
 
 
@@ -294,7 +346,7 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_metrics:
             if scene is None:
                 raise CnnSlamError(f"the source of {args.sequence!r} has no scene geometry; use --no-metrics")
-            record["metrics"] = score_model(cloud, model, result, scene, args)
+            record["metrics"] = score_model(cloud, model, result, scene, args, online, config)
         record["peak_rss_mb"] = peak_rss_mb()
         out.mkdir(parents=True, exist_ok=True)
         tmp = out / "metrics.json.part"
@@ -316,9 +368,12 @@ def run(args: argparse.Namespace) -> int:
         s = m["semantic"]
         summary.append(f"semantic accuracy fused {100 * s['fused_accuracy']:.1f} % vs frame-wise "
                        f"{100 * s['framewise_accuracy']:.1f} % ({s['gain_points']:+.1f} points)")
-    if "semantic_keyframe_pixels" in m:
-        s = m["semantic_keyframe_pixels"]
-        summary.append(f"key-frame pixels through their surfels: fused {100 * s['fused_accuracy']:.1f} % vs "
-                       f"frame-wise {100 * s['framewise_accuracy']:.1f} % ({s['gain_points']:+.1f} points)")
+    for key, what in (("semantic_measurements", "fused measurements"),
+                      ("semantic_measurements_exact_geometry", "same, exact depth and poses")):
+        if key in m:
+            s = m[key]
+            summary.append(f"{what}: fused {100 * s['fused_accuracy']:.1f} % vs frame-wise "
+                           f"{100 * s['framewise_accuracy']:.1f} % ({s['gain_points']:+.1f} points; purity "
+                           f"{100 * s['purity']:.1f} %)")
     print("\n".join(summary))
     return 0

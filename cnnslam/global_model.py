@@ -427,6 +427,11 @@ class GlobalModel:
     def _col(self, name: str) -> np.ndarray:
         return self._data[name][: self._size]
 
+    def label_evidence(self) -> np.ndarray:
+        """(N, C) float32 copy of the accumulated label evidence L = sum alpha P (not normalised): the weight of the
+        measurements fused into each surfel per class."""
+        return self._labels[: self._size].copy()
+
     def label_probabilities(self) -> np.ndarray:
         """(N, C) float32 label distributions L / sum(L) (rows of zeros without label evidence)."""
         L = self._labels[: self._size]

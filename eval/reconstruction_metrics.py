@@ -23,6 +23,15 @@ surface and is not scored). Frame-wise CNN labels are scored at the 3D points of
 (back-projected with the key-frame's estimated depth and pose); the fused model is scored at exactly the same points
 with the label of the nearest model point (within ``max_distance``), so both are measured on the same surfaces with
 the same ground truth. The accuracy of the model's own elements (one vote per element) is reported beside.
+
+On the fused measurements themselves (:func:`measurement_label_metrics`, ours): the fusion is replayed with, in
+place of the CNN's class probabilities, each measurement's ground-truth label (one-hot) and whether its frame-wise
+label was right, so that every model element holds the weight of the measurements fused into it per ground-truth
+class. Each measurement is then scored twice against its own ground-truth label: with its frame-wise label, and
+with the fused label of the element it went into. No nearest-neighbour search and no depth error enters: these are
+exactly the same surfaces. The share a single best label per element could reach (``purity``) bounds the fused
+accuracy; elements whose measurements disagree in ground truth (``mixed``: data association joined different
+surfaces) are reported apart from ``pure`` ones, where the label fusion alone is at work.
 Accuracies are shares 0..1; ``gain_points`` is (fused - frame-wise) x 100, in percentage points.
 """
 
@@ -92,6 +101,33 @@ class LabelFusionMetrics:
     n_model: int
     coverage: float
     max_distance: float
+
+    def to_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class MeasurementLabelMetrics:
+    """Fused vs frame-wise label accuracy over the measurements fused into a model (module docstring).
+
+    Shares 0..1 of the measurement weight with a ground-truth label (``mass``, in the fusion's weight units):
+    fused_accuracy, framewise_accuracy, gain_points = (fused - frame-wise) x 100; purity: what the best single
+    label per element would score (the ceiling of any per-element label); pure_share: the weight in elements whose
+    measurements all share one ground-truth label, with the fused and frame-wise accuracy there and in the rest
+    (``mixed_*``, NaN when empty); n_elements: elements holding labelled measurements.
+    """
+
+    fused_accuracy: float
+    framewise_accuracy: float
+    gain_points: float
+    purity: float
+    pure_share: float
+    pure_fused_accuracy: float
+    pure_framewise_accuracy: float
+    mixed_fused_accuracy: float
+    mixed_framewise_accuracy: float
+    n_elements: int
+    mass: float
 
     def to_dict(self) -> dict[str, float | int]:
         return asdict(self)
@@ -307,3 +343,46 @@ def image_label_accuracy(fused_maps: list[np.ndarray], framewise_maps: list[np.n
     if total == 0:
         return math.nan, math.nan, 0
     return right_fused / total, right_frame / total, total
+
+
+def measurement_label_metrics(fused_labels: np.ndarray, gt_evidence: np.ndarray,
+                              framewise_right: np.ndarray) -> MeasurementLabelMetrics:
+    """Fused vs frame-wise accuracy on the fused measurements themselves (module docstring).
+
+    fused_labels (N,): each element's fused label (``NO_LABEL`` = none, scored wrong); gt_evidence (N, C) >= 0: the
+    weight of the measurements fused into each element, per ground-truth class; framewise_right (N,) >= 0: the part
+    of that weight whose frame-wise label equalled its ground truth (at most the row sum of ``gt_evidence``).
+    """
+    labels = np.asarray(fused_labels).reshape(-1).astype(np.int64)
+    E = np.asarray(gt_evidence, dtype=np.float64)
+    right = np.asarray(framewise_right, dtype=np.float64).reshape(-1)
+    if E.ndim != 2 or not labels.shape[0] == E.shape[0] == right.shape[0]:
+        raise ReconstructionMetricsError(
+            f"need one fused label, one evidence row (N, C) and one frame-wise weight per element, got "
+            f"{labels.shape}, {E.shape}, {right.shape}")
+    if not (np.isfinite(E).all() and np.isfinite(right).all()) or (E < 0).any() or (right < 0).any():
+        raise ReconstructionMetricsError("label evidence and frame-wise weights must be finite and >= 0")
+    row = E.sum(axis=1)
+    if (right > row * (1 + 1e-5) + 1e-9).any():
+        raise ReconstructionMetricsError("framewise_right exceeds an element's labelled weight (row of gt_evidence)")
+    total = float(row.sum())
+    if total <= 0:
+        nan = math.nan
+        return MeasurementLabelMetrics(nan, nan, nan, nan, nan, nan, nan, nan, nan, 0, 0.0)
+    has = (labels >= 0) & (labels < E.shape[1])
+    fused_right = np.zeros_like(row)
+    fused_right[has] = E[np.flatnonzero(has), labels[has]]
+    pure = E.max(axis=1) >= row * (1 - 1e-6)
+
+    def share(num: np.ndarray, sel: np.ndarray) -> float:
+        den = float(row[sel].sum())
+        return float(num[sel].sum()) / den if den > 0 else math.nan
+
+    every = np.ones(row.shape, bool)
+    fused, frame = share(fused_right, every), share(right, every)
+    return MeasurementLabelMetrics(
+        fused_accuracy=fused, framewise_accuracy=frame, gain_points=(fused - frame) * 100.0,
+        purity=float(E.max(axis=1).sum()) / total, pure_share=float(row[pure].sum()) / total,
+        pure_fused_accuracy=share(fused_right, pure), pure_framewise_accuracy=share(right, pure),
+        mixed_fused_accuracy=share(fused_right, ~pure), mixed_framewise_accuracy=share(right, ~pure),
+        n_elements=int(np.count_nonzero(row > 0)), mass=total)

@@ -88,6 +88,8 @@ def test_label_fusion_of_noisy_label_maps_beats_a_single_frame():
         truth = true_class(cloud.positions[inner, 0], cloud.positions[inner, 1])
         accuracy[n] = float(np.mean(cloud.labels[inner] == truth))
         assert np.allclose(cloud.label_probs.sum(axis=1), 1.0, atol=1e-5)
+        evidence = model.label_evidence()  # one-hot maps: the summed alpha of the pixels per class
+        assert np.allclose(evidence / evidence.sum(axis=1, keepdims=True), cloud.label_probs, atol=1e-6)
     frame_wise = frame_right / frame_total
     assert frame_wise == pytest.approx(p_correct, abs=0.02)
     assert accuracy[1] < 0.65  # one frame: about as noisy as its label map

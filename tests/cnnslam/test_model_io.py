@@ -116,6 +116,9 @@ def test_map_command_end_to_end(tmp_path):
     recon = record["metrics"]["reconstruction"]
     assert 0 < recon["accuracy_mean"] < 0.5 and 0 < recon["completeness_within"] <= 1
     assert record["metrics"]["semantic"]["n_points"] > 0
+    for key in ("semantic_measurements", "semantic_measurements_exact_geometry"):
+        scores = record["metrics"][key]  # every fused measurement scored; one label per surfel cannot beat purity
+        assert scores["n_elements"] > 1000 and 0 < scores["fused_accuracy"] <= scores["purity"] <= 1
     props, _ = read_ply(out / "model.ply")
     assert len(props["x"]) == record["model"]["surfels"]
     assert (tmp_path / "fig.png").exists() and (out / "map.png").exists()

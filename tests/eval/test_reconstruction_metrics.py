@@ -8,10 +8,12 @@ from eval.reconstruction_metrics import (
     distance_to_surface,
     image_label_accuracy,
     label_fusion_metrics,
+    measurement_label_metrics,
     nearest_labels,
     reconstruction_metrics,
     visible_in_views,
 )
+from sim_envs.frames import NO_LABEL
 
 SPACING = 0.02
 
@@ -118,3 +120,25 @@ def test_image_label_accuracy_scores_pixels_the_model_covers():
     assert n == 4 and fused_acc == pytest.approx(3 / 4) and frame_acc == pytest.approx(2 / 4)
     with pytest.raises(ReconstructionMetricsError, match="as many"):
         image_label_accuracy([fused], [], [gt])
+
+
+def test_measurement_label_metrics_score_each_fused_measurement_with_its_elements_label():
+    """Four elements with hand-counted measurement weights per ground-truth class (see the sums below)."""
+    evidence = np.array([[2, 0, 0, 0],   # pure, fused right; frame-wise right on 1.5 of 2
+                         [1, 3, 0, 0],   # mixed: the fused label 1 is right for 3 of 4
+                         [0, 0, 1, 0],   # pure, no fused label: wrong; frame-wise right
+                         [0, 0, 0, 0]],  # nothing labelled fused into it
+                        dtype=np.float64)
+    fused = np.array([0, 1, NO_LABEL, 2], np.uint8)
+    right = np.array([1.5, 2.0, 1.0, 0.0])
+    m = measurement_label_metrics(fused, evidence, right)
+    assert m.mass == 7 and m.n_elements == 3
+    assert np.isclose(m.fused_accuracy, 5 / 7) and np.isclose(m.framewise_accuracy, 4.5 / 7)
+    assert np.isclose(m.gain_points, 50 / 7) and np.isclose(m.purity, 6 / 7) and np.isclose(m.pure_share, 3 / 7)
+    assert np.isclose(m.pure_fused_accuracy, 2 / 3) and np.isclose(m.pure_framewise_accuracy, 2.5 / 3)
+    assert np.isclose(m.mixed_fused_accuracy, 3 / 4) and np.isclose(m.mixed_framewise_accuracy, 2 / 4)
+    with pytest.raises(ReconstructionMetricsError, match="exceeds"):
+        measurement_label_metrics(fused, evidence, right + 1)
+    with pytest.raises(ReconstructionMetricsError, match="one fused label"):
+        measurement_label_metrics(fused[:2], evidence, right)
+    assert math.isnan(measurement_label_metrics(fused, np.zeros((4, 4)), np.zeros(4)).fused_accuracy)
