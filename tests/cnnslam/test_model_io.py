@@ -123,3 +123,17 @@ def test_map_command_end_to_end(tmp_path):
     assert len(props["x"]) == record["model"]["surfels"]
     assert (tmp_path / "fig.png").exists() and (out / "map.png").exists()
     assert main(["map", "office0", "--agent-options", "[1]", "--out", str(out)]) == 1
+
+
+def test_evidence_maps_hold_the_ground_truth_one_hot_and_whether_the_cnn_was_right():
+    from types import SimpleNamespace
+
+    from cnnslam.cli_map import evidence_maps
+
+    probs = np.zeros((2, 2, 4), np.float32)
+    probs[..., 1] = 1.0  # the CNN says class 1 everywhere
+    gt = np.array([[1, 2], [255, 1]], np.uint8)  # 255: no ground-truth label
+    (maps,) = evidence_maps([SimpleNamespace(labels=probs)], [SimpleNamespace(labels=gt)], 4)
+    assert maps.shape == (2, 2, 6)
+    assert maps[0, 0].tolist() == [0, 1, 0, 0, 1, 0] and maps[0, 1].tolist() == [0, 0, 1, 0, 0, 1]
+    assert maps[1, 0].tolist() == [0] * 6 and maps[1, 1].tolist() == [0, 1, 0, 0, 1, 0]
