@@ -54,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     f.add_argument("--downsample", type=int, default=d.downsample, choices=(1, 2, 4),
                    help="the network works at 1/downsample of the rendered images")
     f.add_argument("--lr", type=float, default=d.lr)
+    f.add_argument("--min-lr", type=float, default=d.min_lr, help="end of the cosine decay (= --lr: constant)")
+    f.add_argument("--init-weights", type=Path, default=None,
+                   help="start from these weights (same architecture) instead of a random init: a fine-tune")
     f.add_argument("--semantic-weight", type=float, default=d.semantic_weight)
     f.add_argument("--trunk-depth", type=int, default=d.model.trunk_depth, choices=(18, 34, 50))
     f.add_argument("--base-width", type=int, default=d.model.base_width)
@@ -134,6 +137,8 @@ def _fit(args: argparse.Namespace) -> int:
         steps=args.steps,
         batch_size=args.batch,
         lr=args.lr,
+        min_lr=args.min_lr,
+        init_weights=None if args.init_weights is None else str(args.init_weights),
         semantic_weight=args.semantic_weight,
         seed=args.seed,
         num_threads=args.threads,

@@ -31,7 +31,7 @@ from cnnslam.depthnet.data import AugmentConfig, RenderedDataset, collate, train
 from cnnslam.depthnet.loss import total_loss
 from cnnslam.depthnet.metrics import DepthSums, confusion_matrix, depth_sums, semantic_metrics
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, count_parameters, normalize_rgb
-from cnnslam.depthnet.weights_io import save_weights
+from cnnslam.depthnet.weights_io import load_weights, save_weights
 from cnnslam.errors import CnnSlamError
 
 CHECKPOINT_FORMAT = "cnnslam-depthnet-checkpoint-v1"
@@ -62,6 +62,9 @@ class TrainConfig:
     num_threads: int = 2  # torch intra-op threads (the machine's 2 cores)
     max_shards: int | None = None  # use only the first shards (smoke tests)
     downsample: int = 2  # the network works at 1 / downsample of the rendered 320x240 (160x120; see model.py)
+    # Ours: start from these weights (a file of save_weights, same architecture) instead of a random init, e.g. to
+    # fine-tune the shipped network on full images (crop = the image size); None = train from scratch.
+    init_weights: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("batch_size", "steps", "checkpoint_every", "val_every", "log_every", "num_threads"):
@@ -187,8 +190,15 @@ def train(
         opt.load_state_dict(ckpt["optimizer"])
         torch.set_rng_state(ckpt["torch_rng"])
         step, elapsed, history = int(ckpt["step"]), float(ckpt["elapsed_s"]), list(ckpt["val_history"])
-    elif log_path.exists():
-        log_path.unlink()
+    else:
+        if log_path.exists():
+            log_path.unlink()
+        if cfg.init_weights is not None:
+            start = load_weights(cfg.init_weights)
+            if start.config != cfg.model:
+                raise CnnSlamError(f"{cfg.init_weights} holds a {start.config} network, not the configured "
+                                   f"{cfg.model}; pass the matching architecture")
+            model.load_state_dict(start.model.state_dict())
     model.train()
 
     def checkpoint() -> None:

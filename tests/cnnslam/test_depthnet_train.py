@@ -151,3 +151,26 @@ def test_dataset_reads_shards(fake_data: Path) -> None:
     half = RenderedDataset(fake_data, "train", downsample=2)
     assert half.image_size == (32, 24) and half[0].rgb.shape == (24, 32, 3)
     assert half.train_focal == pytest.approx(ds.train_focal / 2)
+
+
+def test_init_weights_starts_a_fine_tune_from_a_trained_network(fake_data: Path, tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from cnnslam.errors import CnnSlamError
+
+    base = train(_cfg(fake_data, tmp_path / "base", 3), progress=False)
+    still = dict(lr=1e-9, min_lr=1e-9, warmup_steps=0, steps=1)  # one step that cannot move the weights
+    tuned = train(replace(_cfg(fake_data, tmp_path / "tuned", 1), init_weights=str(base.weights), **still),
+                  progress=False)
+    scratch = train(replace(_cfg(fake_data, tmp_path / "scratch", 1), **still), progress=False)
+    w0 = dict(load_weights(base.weights).model.named_parameters())
+    w1 = dict(load_weights(tuned.weights).model.named_parameters())
+    w2 = dict(load_weights(scratch.weights).model.named_parameters())
+    for k in w0:
+        torch.testing.assert_close(w1[k], w0[k], atol=1e-6, rtol=0, msg=k)
+    assert any(not torch.allclose(w2[k], w0[k]) for k in w0)
+    assert json.loads(tuned.manifest.read_text())["training"]["init_weights"] == str(base.weights)
+    other = replace(TINY, base_width=16)
+    with pytest.raises(CnnSlamError, match="holds a"):
+        train(replace(_cfg(fake_data, tmp_path / "bad", 1), model=other, init_weights=str(base.weights)),
+              progress=False)
