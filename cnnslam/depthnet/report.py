@@ -79,7 +79,6 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
         ]
     if manifest is not None:
         arch = manifest.get("architecture", {})
-        train = manifest.get("training", {})
         data = (manifest.get("data") or {}).get("train") or {}
         gen = (manifest.get("data") or {}).get("generation") or {}
         held = manifest.get("validation_heldout_train_split") or {}
@@ -91,20 +90,14 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
             f", dropout {arch.get('dropout')}, a shared decoder with a depth head "
             f"({'exp: log depth' if arch.get('depth_activation') == 'exp' else 'softplus'}) and a 4-class semantic "
             f"head; {manifest.get('parameters', 0) / 1e6:.2f} M "
-            "parameters, trained from scratch.",
+            f"parameters, trained from scratch{' then fine-tuned' if manifest.get('initialised_from') else ''}.",
             f"- Data: {data.get('frames')} frames of {data.get('shards')} rooms of the training styles "
             f"({', '.join(sorted((data.get('frames_per_style') or {}).keys()))}), scene seeds "
             f"{data.get('scene_seeds')}, rendered with NYU intrinsics at {data.get('stored_size')}, fed to the network "
             f"at {data.get('image_size')} (area-averaged, as the predictor does); data seed "
             f"{manifest.get('data_seed')}; generated in {gen.get('wall_time_s', 'n/a')} s on {gen.get('workers')} "
             "processes.",
-            f"- Optimisation: {manifest.get('steps')} steps of batch {train.get('batch_size')} random "
-            f"{tuple((train.get('augment') or {}).get('crop', ()))} crops, AdamW lr {train.get('lr')} (warm-up, "
-            f"cosine decay), berHu (c = 0.2 max |error| per batch) on "
-            f"{'log depth' if train.get('depth_space') == 'log' else 'depth'} + {train.get('semantic_weight')} x "
-            "cross-entropy; "
-            f"{manifest.get('wall_time_s', 0) / 3600:.2f} h on {((manifest.get('environment') or {}).get('threads'))}"
-            " CPU threads.",
+            *_optimisation_lines(manifest),
             f"- Training focal length f_tr = {manifest.get('train_focal', 0):.3f} px at {manifest.get('train_size')}.",
             f"- Held-out training-split rooms: AbsRel {held.get('abs_rel', float('nan')):.3f}, within 10 % "
             f"{_pct(held.get('within_10pct', float('nan')))} %, pixel accuracy "
@@ -122,3 +115,23 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
         "",
     ]
     return "\n".join(lines)
+
+
+def _optimisation_lines(manifest: dict[str, Any]) -> list[str]:
+    """One line per training stage: the run that started from scratch first, then any fine-tune on top of it."""
+    start = (manifest.get("initialised_from") or {}).get("manifest")
+    lines = _optimisation_lines(start) if start else []
+    train = manifest.get("training") or {}
+    crop = tuple((train.get("augment") or {}).get("crop", ()))
+    size = tuple(reversed(manifest.get("train_size") or ()))
+    what = "full images" if crop == size else f"random {crop} crops"
+    schedule = ("constant" if train.get("lr") == train.get("min_lr") and not train.get("warmup_steps")
+                else "warm-up, cosine decay")
+    stage = f"Fine-tune from {manifest['initialised_from']['weights']}" if start else "Optimisation"
+    lines.append(
+        f"- {stage}: {manifest.get('steps')} steps of batch {train.get('batch_size')} {what}, AdamW lr "
+        f"{train.get('lr')} ({schedule}), berHu (c = 0.2 max |error| per batch) on "
+        f"{'log depth' if train.get('depth_space') == 'log' else 'depth'} + {train.get('semantic_weight')} x "
+        f"cross-entropy; {manifest.get('wall_time_s', 0) / 3600:.2f} h on "
+        f"{(manifest.get('environment') or {}).get('threads')} CPU threads.")
+    return lines

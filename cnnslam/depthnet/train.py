@@ -290,6 +290,18 @@ def train(
     return TrainResult(weights, manifest_path, step, elapsed, final_val)
 
 
+def start_manifest(init_weights: str | None) -> dict[str, Any] | None:
+    """Provenance of a fine-tune's start: the weights path and the manifest found beside it (``<weights>.json``, as
+    shipped, or ``manifest.json`` in a run folder; None when there is none), or None for a run from scratch."""
+    if init_weights is None:
+        return None
+    path = Path(init_weights)
+    for candidate in (path.with_suffix(".json"), path.with_name("manifest.json")):
+        if candidate.is_file():
+            return {"weights": str(init_weights), "manifest": json.loads(candidate.read_text())}
+    return {"weights": str(init_weights), "manifest": None}
+
+
 def build_manifest(
     cfg: TrainConfig,
     model: DepthSemanticNet,
@@ -321,6 +333,7 @@ def build_manifest(
         "steps": steps,
         "wall_time_s": round(wall_time_s, 1),
         "training": cfg.to_dict(),
+        "initialised_from": start_manifest(cfg.init_weights),
         "validation_heldout_train_split": validation,
         "validation_test_sequences": None,
         "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": cfg.num_threads},

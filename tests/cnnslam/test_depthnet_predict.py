@@ -110,7 +110,12 @@ def test_shipped_weights_load_and_predict() -> None:
 
 def test_shipped_manifest_fields() -> None:
     manifest = json.loads(DEFAULT_MANIFEST.read_text())
-    assert manifest["steps"] >= 10_000 and manifest["wall_time_s"] > 0
+    total_steps, stage = 0, manifest
+    while stage is not None:  # a fine-tune records the manifest of the run it started from
+        assert stage["steps"] > 0 and stage["wall_time_s"] > 0
+        total_steps += stage["steps"]
+        stage = (stage.get("initialised_from") or {}).get("manifest")
+    assert total_steps >= 10_000
     for key in ("data_seed", "steps", "wall_time_s", "validation_heldout_train_split", "validation_test_sequences",
                 "train_focal", "train_size", "architecture", "training", "data"):
         assert key in manifest, key

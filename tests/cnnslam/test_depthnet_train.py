@@ -169,7 +169,10 @@ def test_init_weights_starts_a_fine_tune_from_a_trained_network(fake_data: Path,
     for k in w0:
         torch.testing.assert_close(w1[k], w0[k], atol=1e-6, rtol=0, msg=k)
     assert any(not torch.allclose(w2[k], w0[k]) for k in w0)
-    assert json.loads(tuned.manifest.read_text())["training"]["init_weights"] == str(base.weights)
+    manifest = json.loads(tuned.manifest.read_text())
+    assert manifest["training"]["init_weights"] == str(base.weights)
+    assert manifest["initialised_from"]["manifest"]["steps"] == 3  # the start's own manifest, for provenance
+    assert json.loads(base.manifest.read_text())["initialised_from"] is None
     other = replace(TINY, base_width=16)
     with pytest.raises(CnnSlamError, match="holds a"):
         train(replace(_cfg(fake_data, tmp_path / "bad", 1), model=other, init_weights=str(base.weights)),
