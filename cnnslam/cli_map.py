@@ -150,6 +150,12 @@ def fuse_keyframes(keyframes: list[Any], images: list[np.ndarray], intrinsics: n
     return model, report
 
 
+def framewise_labels(keyframe: Any) -> np.ndarray:
+    """(H, W) uint8 frame-wise CNN labels of a key-frame: the argmax of its class probabilities, or its label map."""
+    labels = np.asarray(keyframe.labels)
+    return (np.argmax(labels, axis=2) if labels.ndim == 3 else labels).astype(np.uint8)
+
+
 def evidence_maps(keyframes: list[Any], gt_frames: list[Any], num_classes: int) -> list[np.ndarray]:
     """Per key-frame (H, W, C + 2) float32 maps to replay the fusion with: the pixel's ground-truth label one-hot
     (channels 0..C-1), then 1 in channel C where the key-frame's CNN label equals it, 1 in channel C + 1 where it does
@@ -158,8 +164,7 @@ def evidence_maps(keyframes: list[Any], gt_frames: list[Any], num_classes: int) 
 
     maps = []
     for kf, gt_frame in zip(keyframes, gt_frames, strict=True):
-        labels = np.asarray(kf.labels)
-        framewise = np.argmax(labels, axis=2) if labels.ndim == 3 else labels.astype(np.int64)
+        framewise = framewise_labels(kf)
         gt = np.asarray(gt_frame.labels)
         known = gt != NO_LABEL
         out = np.zeros((*gt.shape, num_classes + 2), np.float32)
@@ -239,8 +244,7 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
         s = FRAMEWISE_STRIDE
         surfel_labels = model.labels()
         for kf, gt_frame in zip(result.keyframes, result.keyframe_gt, strict=True):
-            labels = np.asarray(kf.labels)
-            label_map = np.argmax(labels, axis=2).astype(np.uint8) if labels.ndim == 3 else labels.astype(np.uint8)
+            label_map = framewise_labels(kf)
             depth = np.asarray(kf.depth, dtype=np.float32)
             has = np.isfinite(depth) & (depth > 0)
             V = vertex_map(np.where(has, depth, 0.0), intr)
