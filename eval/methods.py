@@ -20,7 +20,9 @@ poses) gets no ATE column, as in the paper's Table 1.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import importlib.util
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -66,7 +68,10 @@ class Method:
     name: shown in results; kind: "agent" or "external"; entry_point: ``"module:Class"`` (agents); kwargs: the
     agent's keyword arguments as sorted ``(name, value)`` pairs (a mapping is accepted); seed: where a run's seed
     goes (see :meth:`agent_kwargs`), None when the agent takes none; metrics: metric groups reported; paper: the
-    method's column in the paper's Table 1, if any; description: one line; folder: the output folder (external).
+    method's column in the paper's Table 1, if any; description: one line; folder: the output folder (external);
+    inputs: files the agent reads whose contents determine its results (network weights, vocabularies): their
+    SHA-256 enters a run's fingerprint (:meth:`input_hashes`), so a finished run is not reused after they change.
+    An input is ``"package:path/inside/it"`` (found without importing the package) or a file path.
     """
 
     name: str
@@ -78,12 +83,14 @@ class Method:
     paper: str | None = None
     description: str = ""
     folder: str | None = None
+    inputs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         kwargs = self.kwargs
         items = kwargs.items() if isinstance(kwargs, Mapping) else kwargs
         object.__setattr__(self, "kwargs", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
         object.__setattr__(self, "metrics", tuple(self.metrics))
+        object.__setattr__(self, "inputs", tuple(str(i) for i in self.inputs))
         if not self.name or _FILE_SAFE.sub("", self.name) == "":
             raise MethodError(f"a method needs a name with at least one letter or digit, got {self.name!r}")
         if self.kind not in METHOD_KINDS:
@@ -126,6 +133,10 @@ class Method:
         kwargs[keyword] = {**inner, key: int(seed)}
         return kwargs
 
+    def input_hashes(self) -> dict[str, str]:
+        """``{input: sha256 hex}`` of :attr:`inputs` (see :func:`resolve_input`)."""
+        return {name: _file_sha256(resolve_input(name, self.name)) for name in self.inputs}
+
     def keeps(self, metric: str) -> bool:
         """Whether the metric (a flat name of :mod:`eval.results`) belongs to one of the method's groups."""
         if metric in ALWAYS_KEPT:
@@ -147,7 +158,39 @@ class Method:
             "metrics": list(self.metrics),
             "paper": self.paper,
             "folder": self.folder,
+            "inputs": list(self.inputs),
         }
+
+
+def resolve_input(name: str, method: str = "?") -> Path:
+    """The file of a method input: ``"package:relative/path"`` inside a top-level package's folder (located with
+    :func:`importlib.util.find_spec`, which does not import it), else ``name`` as a path. Raises
+    :class:`MethodError` when it is not a readable file."""
+    package, sep, rel = name.partition(":")
+    path = Path(name)
+    if sep and package.isidentifier() and rel:
+        spec = importlib.util.find_spec(package)
+        roots = list(spec.submodule_search_locations or []) if spec else []
+        if not roots:
+            raise MethodError(f"method {method!r}: input {name!r} names package {package!r}, which is not installed")
+        path = Path(roots[0]) / rel
+    if not path.is_file():
+        raise MethodError(
+            f"method {method!r}: input {name!r} is not a file ({path}); inputs are 'package:path' or a file path"
+        )
+    return path
+
+
+_HASHES: dict[tuple[str, int, int], str] = {}
+
+
+def _file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes, remembered per (path, size, mtime) so a suite hashes its weights once."""
+    st = path.stat()
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _HASHES:
+        _HASHES[key] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return _HASHES[key]
 
 
 def _freeze(value: Any) -> Any:
@@ -168,7 +211,7 @@ def _thaw(value: Any) -> Any:
 
 
 # ------------------------------------------------------------------------------------------------------ the table
-_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder"}
+_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs"}
 
 
 def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[str, Method]:

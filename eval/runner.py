@@ -21,7 +21,8 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 A failed run's folder holds only ``failed.json`` (error, traceback, wall time). Writes are atomic: files go to a
 hidden temporary folder that is renamed into place, so an interrupted run leaves no half-written result. Resuming:
 a run whose folder holds a ``metrics.json`` with the same fingerprint (method, sequence definition, seed, frames,
-alignment, renderer) is skipped; failed runs are retried.
+alignment, renderer, and the SHA-256 of the method's ``inputs`` files, e.g. network weights) is skipped; failed runs
+are retried.
 """
 
 from __future__ import annotations
@@ -101,10 +102,12 @@ class RunSpec:
 
     def fingerprint(self) -> str:
         """Hash of what determines the run's result (method, sequence definition, seed, frames, alignment,
-        renderer); not the git revision, so a new commit does not invalidate finished runs."""
+        renderer, the contents of the method's input files such as network weights); not the git revision, so a new
+        commit does not invalidate finished runs, but new weights do."""
         data = {
             "sequence": self.sequence.describe(),
             "method": self.method.describe(),
+            "inputs": self.method.input_hashes(),
             "seed": self.seed,
             "frames": self.frames,
             "alignment": self.alignment,

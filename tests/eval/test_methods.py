@@ -144,3 +144,27 @@ def test_external_methods(tmp_path):
     with pytest.raises(MethodError, match="NAME=FOLDER"):
         parse_external("no-equals-sign")
     assert method.describe()["folder"] == str(tmp_path.resolve()) and method.describe()["entry_point"] is None
+
+
+def test_inputs_hash_files_and_name_bad_ones(tmp_path):
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"first")
+    method = Method("m", entry_point="a.b:C", inputs=[str(weights)])
+    first = method.input_hashes()[str(weights)]
+    assert first == "a7937b64b8caa58f03721bb6bacf5c78cb235febe0e70b1b84cd99541461a08e"  # sha256(b"first")
+    weights.write_bytes(b"second")
+    assert method.input_hashes()[str(weights)] != first
+    # "package:path" is looked up inside the package's folder
+    table = Method("t", entry_point="a.b:C", inputs=["eval:methods.toml"]).input_hashes()
+    assert len(table["eval:methods.toml"]) == 64
+    with pytest.raises(MethodError, match="is not a file"):
+        Method("m", entry_point="a.b:C", inputs=[str(tmp_path / "missing.pt")]).input_hashes()
+    with pytest.raises(MethodError, match="not installed"):
+        Method("m", entry_point="a.b:C", inputs=["no_such_package_xyz:w.pt"]).input_hashes()
+
+
+def test_network_methods_name_the_shipped_weights():
+    methods = load_methods()
+    for name in ("CNN-SLAM", "Laina", "raw-CNN", "focal-adjusted", "adjusted+refined"):
+        assert methods[name].inputs == ("cnnslam:depthnet/weights/default.pt",)
+        assert len(methods[name].input_hashes()) == 1

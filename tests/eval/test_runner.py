@@ -71,6 +71,16 @@ def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
     assert not is_finished(tmp_path, spec_of(replace(ORACLE, kwargs={"keyframe_every": 5})))  # other fingerprint
 
 
+def test_fingerprint_follows_input_files(tmp_path):
+    weights = tmp_path / "weights.pt"
+    weights.write_bytes(b"one")
+    method = replace(ORACLE, inputs=(str(weights),))
+    before = spec_of(method).fingerprint()
+    assert spec_of(method).fingerprint() == before  # same bytes, same fingerprint
+    weights.write_bytes(b"two")
+    assert spec_of(method).fingerprint() != before  # new weights: finished runs are not reused
+
+
 def test_same_run_same_bytes(oracle_run):
     again = execute_run(spec_of(ORACLE))
     assert again.files["metrics.json"] == oracle_run.files["metrics.json"]
