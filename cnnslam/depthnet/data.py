@@ -7,8 +7,10 @@ Kinect intrinsics at 320x240 (the paper's network was trained on NYU Depth v2), 
 room, camera views are sampled like a hand-held Kinect (:func:`sample_view`). One shard per room: a folder
 ``scene_<seed>/`` with ``rgb.npy`` (N, H, W, 3) uint8, ``depth.npy`` (N, H, W) uint16 millimetres (0 = no surface),
 ``labels.npy`` (N, H, W) uint8 (255 = none), ``poses.npy`` (N, 4, 4) float64 ``T_world_cam`` and ``meta.json``.
-A shard is written to a temporary folder and renamed when complete, so an interrupted run resumes by skipping the
-finished shards; every shard is a function of (data seed, scene seed) only, so the same seed gives the same bytes.
+With ``GenerationConfig.focal_scale`` a room is rendered at another focal length (the shipped network's last
+fine-tune: NYU's times 0.8..1.25) and read back with depth / s, the nominal camera's target for that image. A shard
+is written to a temporary folder and renamed when complete, so an interrupted run resumes by skipping the finished
+shards; every shard is a function of (data seed, scene seed) only, so the same seed gives the same bytes.
 
 Reading (:class:`RenderedDataset`): memory-mapped shards, optionally at half resolution (the shipped network works at
 160x120: images area-averaged exactly as the predictor does, ground truth by 2x2 blocks). Augmentation
@@ -27,7 +29,7 @@ import os
 import shutil
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -161,10 +163,27 @@ class GenerationConfig:
     height: int = TRAIN_HEIGHT
     backend: str = "mujoco"
     view: ViewConfig = field(default_factory=ViewConfig)
+    # Ours: each room is rendered with the focal length of ``camera`` times a factor drawn log-uniformly from this
+    # range (principal point and size kept). The reader divides such a room's depth by the factor: the target is the
+    # depth the nominal camera would report for the same image, which is eq. 5's premise (an image seen at a focal
+    # length s f_tr must predict D / s). (1, 1): every room with the nominal camera (the first stage's data).
+    focal_scale: tuple[float, float] = (1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        lo, hi = (float(v) for v in self.focal_scale)
+        if not (0 < lo <= hi):
+            raise CnnSlamError(f"focal_scale must be a range 0 < lo <= hi, got {self.focal_scale!r}")
 
     def intrinsics(self) -> Intrinsics:
         """The training camera at ``width`` x ``height``."""
         return preset(self.camera, self.width, self.height)
+
+    def draw_focal_scale(self, rng: np.random.Generator) -> float:
+        """One room's focal-length factor (log-uniform in ``focal_scale``; 1 without a draw when the range is 1)."""
+        lo, hi = (float(v) for v in self.focal_scale)
+        if lo == hi == 1.0:
+            return 1.0
+        return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
 
 @dataclass(frozen=True)
@@ -206,8 +225,10 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
 
     rng = np.random.default_rng((cfg.data_seed, job.scene_seed))
     density = float(rng.uniform(*cfg.texture_density))
+    focal_scale = cfg.draw_focal_scale(rng)
     scene = generate_scene(job.style, job.scene_seed, texture_density=density)
-    intr = cfg.intrinsics()
+    nominal = cfg.intrinsics()
+    intr = replace(nominal, fx=nominal.fx * focal_scale, fy=nominal.fy * focal_scale)
     n, h, w = cfg.views_per_scene, cfg.height, cfg.width
     rgb = np.zeros((n, h, w, 3), np.uint8)
     depth = np.zeros((n, h, w), np.uint16)
@@ -238,7 +259,8 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
         "rejected_views": rejected,
         "modes": modes,
         "camera": cfg.camera,
-        "intrinsics": [intr.fx, intr.fy, intr.cx, intr.cy],
+        "intrinsics": [nominal.fx, nominal.fy, nominal.cx, nominal.cy],
+        "focal_scale": focal_scale,  # rendered with fx, fy = focal_scale x the above
         "width": w,
         "height": h,
         "depth_scale": DEPTH_SCALE,
@@ -338,8 +360,9 @@ class RenderedDataset(Dataset):
     """The shards of ``root/split`` (every finished ``scene_*`` folder), memory-mapped, as a torch Dataset.
 
     ``dataset[i]`` is a :class:`Sample` at 1 / ``downsample`` of the stored resolution (:func:`downsample_rgb`,
-    :func:`downsample_ground_truth`). ``intrinsics``: the (common) camera of every shard at that resolution;
-    ``train_focal`` its ``(fx + fy) / 2`` in pixels at that resolution.
+    :func:`downsample_ground_truth`). ``intrinsics``: the (common) nominal camera of every shard at that resolution;
+    ``train_focal`` its ``(fx + fy) / 2`` in pixels at that resolution. A shard rendered with ``focal_scale`` s != 1
+    (:class:`GenerationConfig`) gives depth / s: the network's target for the nominal camera (eq. 5's premise).
     """
 
     def __init__(self, root: str | Path, split: str, max_shards: int | None = None, downsample: int = 1) -> None:
@@ -363,6 +386,7 @@ class RenderedDataset(Dataset):
         self._arrays = [
             {name: np.load(p / f"{name}.npy", mmap_mode="r") for name in ("rgb", "depth", "labels")} for p in shards
         ]
+        self.focal_scales = np.array([float(m.get("focal_scale", 1.0)) for m in self.metas])
         counts = np.array([len(a["rgb"]) for a in self._arrays])
         self._offsets = np.concatenate([[0], np.cumsum(counts)])
         self.depth_scale = float(self.metas[0]["depth_scale"])
@@ -386,7 +410,7 @@ class RenderedDataset(Dataset):
         s = int(np.searchsorted(self._offsets, index, side="right") - 1)
         j = index - int(self._offsets[s])
         arr = self._arrays[s]
-        depth = np.asarray(arr["depth"][j], dtype=np.float32) / np.float32(self.depth_scale)
+        depth = np.asarray(arr["depth"][j], dtype=np.float32) / np.float32(self.depth_scale * self.focal_scales[s])
         rgb, labels = np.array(arr["rgb"][j]), np.array(arr["labels"][j])
         if self.downsample > 1:
             rgb = downsample_rgb(rgb, self.downsample)
@@ -406,6 +430,7 @@ class RenderedDataset(Dataset):
             "frames_per_style": styles,
             "scene_seeds": [min(seeds), max(seeds)],
             "texture_density": [min(dens), max(dens)],
+            "focal_scale": [float(self.focal_scales.min()), float(self.focal_scales.max())],
             "data_seed": self.metas[0]["data_seed"],
             "camera": self.metas[0]["camera"],
             "stored_intrinsics": list(self.metas[0]["intrinsics"]),

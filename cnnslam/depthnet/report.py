@@ -79,8 +79,9 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
         ]
     if manifest is not None:
         arch = manifest.get("architecture", {})
-        data = (manifest.get("data") or {}).get("train") or {}
-        gen = (manifest.get("data") or {}).get("generation") or {}
+        first = _first_stage(manifest)  # the data line describes the run from scratch; fine-tunes say theirs
+        data = (first.get("data") or {}).get("train") or {}
+        gen = (first.get("data") or {}).get("generation") or {}
         held = manifest.get("validation_heldout_train_split") or {}
         lines += [
             "## Training",
@@ -95,7 +96,7 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
             f"({', '.join(sorted((data.get('frames_per_style') or {}).keys()))}), scene seeds "
             f"{data.get('scene_seeds')}, rendered with NYU intrinsics at {data.get('stored_size')}, fed to the network "
             f"at {data.get('image_size')} (area-averaged, as the predictor does); data seed "
-            f"{manifest.get('data_seed')}; generated in {gen.get('wall_time_s', 'n/a')} s on {gen.get('workers')} "
+            f"{first.get('data_seed')}; generated in {gen.get('wall_time_s', 'n/a')} s on {gen.get('workers')} "
             "processes.",
             *_optimisation_lines(manifest),
             f"- Training focal length f_tr = {manifest.get('train_focal', 0):.3f} px at {manifest.get('train_size')}.",
@@ -117,6 +118,21 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
     return "\n".join(lines)
 
 
+def _first_stage(manifest: dict[str, Any]) -> dict[str, Any]:
+    """The manifest of the run from scratch at the root of a chain of fine-tunes (``initialised_from``)."""
+    start = (manifest.get("initialised_from") or {}).get("manifest")
+    return _first_stage(start) if start else manifest
+
+
+def _stage_data(manifest: dict[str, Any]) -> str:
+    """A fine-tune's training data in a few words: frames, rooms, data seed, focal-length range when varied."""
+    data = (manifest.get("data") or {}).get("train") or {}
+    lo, hi = data.get("focal_scale") or (1.0, 1.0)
+    focal = f", focal length x {lo:.2f}..{hi:.2f} per room (depth read as D / s)" if (lo, hi) != (1.0, 1.0) else ""
+    seed = manifest.get("data_seed")
+    return f" on {data.get('frames')} frames of {data.get('shards')} rooms (data seed {seed}{focal})"
+
+
 def _optimisation_lines(manifest: dict[str, Any]) -> list[str]:
     """One line per training stage: the run that started from scratch first, then any fine-tune on top of it."""
     start = (manifest.get("initialised_from") or {}).get("manifest")
@@ -129,7 +145,8 @@ def _optimisation_lines(manifest: dict[str, Any]) -> list[str]:
                 else "warm-up, cosine decay")
     stage = f"Fine-tune from {manifest['initialised_from']['weights']}" if start else "Optimisation"
     lines.append(
-        f"- {stage}: {manifest.get('steps')} steps of batch {train.get('batch_size')} {what}, AdamW lr "
+        f"- {stage}: {manifest.get('steps')} steps of batch {train.get('batch_size')} {what}"
+        f"{_stage_data(manifest) if start else ''}, AdamW lr "
         f"{train.get('lr')} ({schedule}), berHu (c = 0.2 max |error| per batch) on "
         f"{'log depth' if train.get('depth_space') == 'log' else 'depth'} + {train.get('semantic_weight')} x "
         f"cross-entropy; {manifest.get('wall_time_s', 0) / 3600:.2f} h on "

@@ -12,6 +12,7 @@ validation), and at the end ``weights.pt`` (:mod:`cnnslam.depthnet.weights_io`) 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -291,15 +292,17 @@ def train(
 
 
 def start_manifest(init_weights: str | None) -> dict[str, Any] | None:
-    """Provenance of a fine-tune's start: the weights path and the manifest found beside it (``<weights>.json``, as
-    shipped, or ``manifest.json`` in a run folder; None when there is none), or None for a run from scratch."""
+    """Provenance of a fine-tune's start: the weights path, their SHA-256 (the path may be overwritten later, e.g.
+    the shipped default) and the manifest found beside them (``<weights>.json``, as shipped, or ``manifest.json`` in
+    a run folder; None when there is none), or None for a run from scratch."""
     if init_weights is None:
         return None
     path = Path(init_weights)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
     for candidate in (path.with_suffix(".json"), path.with_name("manifest.json")):
         if candidate.is_file():
-            return {"weights": str(init_weights), "manifest": json.loads(candidate.read_text())}
-    return {"weights": str(init_weights), "manifest": None}
+            return {"weights": str(init_weights), "sha256": digest, "manifest": json.loads(candidate.read_text())}
+    return {"weights": str(init_weights), "sha256": digest, "manifest": None}
 
 
 def build_manifest(

@@ -110,6 +110,23 @@ def test_generation_is_deterministic_resumable_and_readable(tmp_path: Path) -> N
     assert ds.train_focal == pytest.approx((518.8579 + 519.4696) / 2 / 10)  # NYU at 64x48
 
 
+def test_focal_scaled_rooms_read_as_the_nominal_camera(tmp_path: Path) -> None:
+    cfg = GenerationConfig(n_scenes=1, views_per_scene=1, width=64, height=48, data_seed=3, focal_scale=(1.25, 1.25))
+    (shard,) = generate_dataset(tmp_path, "train", cfg, workers=0)
+    meta = json.loads((shard / "meta.json").read_text())
+    assert meta["focal_scale"] == pytest.approx(1.25)
+    ds = RenderedDataset(tmp_path, "train")
+    stored = np.load(shard / "depth.npy")[0].astype(np.float32) / 1000.0
+    # eq. 5's premise: an image seen at focal 1.25 f_tr must predict D / 1.25 for the nominal camera
+    np.testing.assert_allclose(ds[0].depth, stored / 1.25, rtol=1e-6)
+    assert ds.train_focal == pytest.approx((518.8579 + 519.4696) / 2 / 10)  # the nominal camera
+    assert ds.summary()["focal_scale"] == pytest.approx([1.25, 1.25])
+    # a room of the nominal camera draws nothing extra: the first stage's data stay byte for byte the same
+    assert GenerationConfig().draw_focal_scale(np.random.default_rng(0)) == 1.0
+    with pytest.raises(CnnSlamError, match="focal_scale"):
+        GenerationConfig(focal_scale=(1.2, 0.8))
+
+
 def _sample(h: int = 24, w: int = 32) -> Sample:
     yy, xx = np.mgrid[0:h, 0:w]
     rgb = np.stack([xx * 7 % 256, yy * 9 % 256, (xx + yy) % 256], -1).astype(np.uint8)
