@@ -279,8 +279,8 @@ def check_available(method: Method, build: bool = True) -> str | None:
 
     Agents: the entry point's module imports and has the attribute; with ``build``, the agent is also built with
     its keyword arguments, reset for a 320x240 camera and stepped once on a synthetic image (:func:`_smoke_test`:
-    this loads a network's weights, so a missing weights file is found before any run starts). External: the
-    folder exists.
+    this loads a network's weights, so a missing weights file is found before any run starts); its ``inputs`` are
+    readable files. External: the folder exists.
     """
     if method.kind == "external":
         folder = Path(method.folder or "")
@@ -293,6 +293,10 @@ def check_available(method: Method, build: bool = True) -> str | None:
     factory = getattr(module, attr, None)
     if factory is None:
         return f"module {module_name!r} has no attribute {attr!r}"
+    try:
+        method.input_hashes()  # a missing input file is a reason to skip, not a crash while planning the runs
+    except MethodError as exc:
+        return str(exc)
     if not build:
         return None
     try:

@@ -163,6 +163,12 @@ def test_inputs_hash_files_and_name_bad_ones(tmp_path):
         Method("m", entry_point="a.b:C", inputs=["no_such_package_xyz:w.pt"]).input_hashes()
 
 
+def test_a_method_with_a_missing_input_is_skipped_with_the_reason(tmp_path):
+    method = Method("m", entry_point="sim_envs.agents:OracleAgent", inputs=[str(tmp_path / "gone.pt")])
+    reason = check_available(method, build=False)
+    assert reason is not None and "gone.pt" in reason and "is not a file" in reason
+
+
 def test_network_methods_name_the_shipped_weights():
     methods = load_methods()
     for name in ("CNN-SLAM", "Laina", "raw-CNN", "focal-adjusted", "adjusted+refined"):
