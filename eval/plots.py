@@ -241,6 +241,26 @@ def save_sweep_figure(
     return _save(fig, path, dpi)
 
 
+def save_accuracy_scatter(
+    points: pd.DataFrame, path: str | Path, methods: Sequence[str], ate_target: float | None = None, dpi: int = 110
+) -> Path:
+    """ATE / path length (%) against key-frame correct depth (%), one point per run, one colour per method, and a
+    dashed line at ``ate_target``. ``points``: columns sequence, method, ate_percent_length, depth_percent_correct."""
+    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    ax = fig.subplots()
+    for k, method in enumerate(methods):
+        sub = points[points["method"] == method].dropna(subset=["ate_percent_length", "depth_percent_correct"])
+        if not sub.empty:
+            ax.scatter(sub["depth_percent_correct"], sub["ate_percent_length"], color=f"C{k % 10}", label=method)
+    if ate_target is not None:
+        ax.axhline(ate_target, color="0.4", linestyle="--", linewidth=1, label=f"target {ate_target:g} %")
+    ax.set_xlabel("key-frame correct depth [%]")
+    ax.set_ylabel("ATE / path length [%]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    return _save(fig, path, dpi)
+
+
 def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

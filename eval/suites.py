@@ -13,6 +13,10 @@ Suites (:data:`SUITES`):
 - ``ablation``: raw CNN depth vs focal-adjusted vs adjusted and refined (the paper's Fig. 3);
 - ``sweep``: one difficulty axis at a time on one hand-held sequence: texture density, share of rotation in the
   motion, focal-length mismatch between the network's training camera and the test camera;
+- ``depth_quality``: the six office and living sequences at full length: CNN-SLAM with the network against the raw
+  CNN (the issue's targets: ATE / path length, scale error, correct depth), and CNN-SLAM on development depth of
+  three known accuracies (ground truth degraded like a CNN's) in the network's place: how accurate key-frame depth
+  must be for those targets;
 - ``perf``: throughput figures (:mod:`eval.perf`), no agent runs;
 - ``quick``: a few short sequences x all methods, the CI regression baseline.
 
@@ -248,6 +252,8 @@ SuiteKind = Literal["runs", "perf"]
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
 ABLATION_METHODS: tuple[str, ...] = ("raw-CNN", "focal-adjusted", "adjusted+refined")
 QUICK_METHODS: tuple[str, ...] = (*TABLE1_METHODS, "constant-pose")
+DEPTH_QUALITY_METHODS: tuple[str, ...] = ("CNN-SLAM", "raw-CNN", "dev-depth-5", "dev-depth-10", "dev-depth-20")
+DEPTH_QUALITY_SEQUENCES: tuple[str, ...] = ("office0", "office1", "office2", "living0", "living1", "living2")
 ROTATION_AXES: tuple[str, ...] = ("yaw", "pitch", "roll", "rpy")
 ROTATION_SPEEDS: tuple[float, ...] = (15.0, 30.0, 60.0)
 SWEEP_BASE = "office1"
@@ -349,6 +355,14 @@ def _suites() -> dict[str, Suite]:
             sweep_sequences(),
             tuple(m for m in TABLE1_METHODS if m != "oracle"),
             frames=150,
+        ),
+        "depth_quality": Suite(
+            "depth_quality",
+            "full-length office and living sequences: CNN-SLAM against the raw CNN, and CNN-SLAM on development "
+            "depth of known accuracy (ATE / length, scale error, correct depth)",
+            tuple(SequenceRef(name, base=name) for name in DEPTH_QUALITY_SEQUENCES),
+            DEPTH_QUALITY_METHODS,
+            frames=None,
         ),
         "perf": Suite(
             "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time", kind="perf"

@@ -9,11 +9,13 @@ import pytest
 from eval.reports import (
     long_frame,
     ours_beside_paper,
+    report_depth_quality,
     report_rotation,
     report_sweep,
     report_table1,
     status_markdown,
     sweep_points,
+    with_relative_errors,
 )
 from eval.runner import RunOutcome, RunSpec, SuiteRun
 from eval.suites import get_suite
@@ -121,3 +123,44 @@ def test_status_lists_skips_and_failures():
     suite, values = table1_values()
     text = status_markdown(fake_run(suite, values, skipped={"Laina": "no weights\nat all"}))
     assert "8 runs: 8 run now, 0 reused from earlier, 0 failed." in text and "**Laina**: no weights at all" in text
+
+
+def test_relative_errors_are_per_run_percentages():
+    frame = pd.DataFrame({
+        "run": ["a", "a", "a", "b", "b"], "sequence": ["s", "s", "s", "t", "t"], "method": ["m"] * 5,
+        "metric": ["ate_rmse", "length_gt_m", "scale_error", "ate_rmse", "length_gt_m"],
+        "value": [0.2, 10.0, 0.05, 0.1, 0.0],
+    })  # fmt: skip
+    out = with_relative_errors(frame).set_index(["run", "metric"])["value"]
+    assert out[("a", "ate_percent_length")] == pytest.approx(2.0)  # 0.2 m over 10 m
+    assert out[("a", "scale_error_percent")] == pytest.approx(5.0)
+    assert ("b", "ate_percent_length") not in out.index  # zero-length path: no percentage
+    assert ("b", "scale_error_percent") not in out.index  # no scale error, no row
+    assert with_relative_errors(frame.iloc[:0]).empty
+
+
+def test_depth_quality_report_checks_the_targets(tmp_path):
+    suite = get_suite("depth_quality").select(["office0", "living0"], ["CNN-SLAM", "raw-CNN", "dev-depth-10"])
+    assert suite.frames is None  # whole sequences: the targets are per full sequence
+    values = {
+        ("office0", "CNN-SLAM"): {"ate_rmse": 0.19, "length_gt_m": 10.0, "scale_error": 0.04, "rot_deg_rmse": 5.0,
+                                  "depth_percent_correct": 50.0},
+        ("office0", "raw-CNN"): {"ate_rmse": 0.5, "length_gt_m": 10.0, "scale_error": 0.2, "rot_deg_rmse": 9.0,
+                                 "depth_percent_correct": 45.0},
+        ("living0", "CNN-SLAM"): {"ate_rmse": 0.5, "length_gt_m": 10.0, "scale_error": 0.4, "rot_deg_rmse": 9.0,
+                                  "depth_percent_correct": 30.0},
+        ("living0", "raw-CNN"): {"ate_rmse": 0.9, "length_gt_m": 10.0, "scale_error": 0.3, "rot_deg_rmse": 9.0,
+                                 "depth_percent_correct": 35.0},
+        ("living0", "dev-depth-10"): {"ate_rmse": 0.1, "length_gt_m": 10.0, "scale_error": 0.01,
+                                      "rot_deg_rmse": 2.0, "depth_percent_correct": 80.0},
+    }  # fmt: skip
+    paths = report_depth_quality(fake_run(suite, values), tmp_path, "cnnslam bench depth_quality")
+    assert {p.name for p in paths} >= {"depth_quality.md", "depth_quality.csv", "depth_quality.png"}
+    md = (tmp_path / "depth_quality.md").read_text()
+    assert "| office0 | yes | yes | yes |" in md and "| living0 | no | no | no |" in md
+    assert "Met on 1 / 1 / 1 of 2 sequences" in md
+    csv = pd.read_csv(tmp_path / "depth_quality.csv", header=[0, 1], index_col=0)
+    assert csv.loc["office0", ("ATE / length [%]", "CNN-SLAM")] == pytest.approx(1.9)
+    assert csv.loc["Avg.", ("Scale error [%]", "CNN-SLAM")] == pytest.approx(22.0)
+    assert math.isnan(csv.loc["office0", ("ATE / length [%]", "dev-depth-10")])  # not run there
+    assert (tmp_path / "depth_quality.png").read_bytes()[:4] == b"\x89PNG"
