@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from eval.methods import load_methods
 from eval.suites import (
     ADDED_PAN_AMPLITUDE_DEG,
     FOCAL_RATIOS,
@@ -24,7 +25,7 @@ from sim_envs.sequences import TABLE1_SEQUENCES, get_sequence
 
 
 def test_the_suites_of_the_issue():
-    assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "perf", "quick"}
+    assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "depth_quality", "perf", "quick"}
     table1 = get_suite("table1")
     assert tuple(s.name for s in table1.sequences) == TABLE1_SEQUENCES
     assert table1.methods == ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
@@ -34,6 +35,11 @@ def test_the_suites_of_the_issue():
     assert {s.name for s in rotation.sequences} >= {"rot_pitch_60", "rot_roll_15", "rot_rpy_30"}
     assert get_suite("ablation").methods == ("raw-CNN", "focal-adjusted", "adjusted+refined")
     assert get_suite("perf").kind == "perf" and not get_suite("perf").sequences
+    quality = get_suite("depth_quality")
+    assert [s.name for s in quality.sequences] == ["office0", "office1", "office2", "living0", "living1", "living2"]
+    assert quality.frames is None and quality.methods[:2] == ("CNN-SLAM", "raw-CNN")
+    methods = load_methods()
+    assert all(methods[m].entry_point == "cnnslam.agent:GroundTruthAidedAgent" for m in quality.methods[2:])
     quick = get_suite("quick")
     assert "constant-pose" in quick.methods and set(table1.methods) <= set(quick.methods)
     assert quick.frames is not None and quick.frames <= 100
