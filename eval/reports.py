@@ -372,7 +372,8 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -
     figure = save_accuracy_scatter(points, results_dir / "depth_quality.png", list(run.suite.methods),
                                    TARGET_ATE_PERCENT_LENGTH)  # fmt: skip
     checks = target_checks(table)
-    lines = ["| sequence | ATE / length <= 2 % | scale error <= 5 % | correct depth above raw-CNN's |",
+    lines = [f"| sequence | ATE / length <= {TARGET_ATE_PERCENT_LENGTH:g} % | scale error <= "
+             f"{TARGET_SCALE_ERROR_PERCENT:g} % | correct depth above raw-CNN's |",
              "|---|:---:|:---:|:---:|"]
     for seq, row in checks.iterrows():
         lines.append(f"| {seq} | " + " | ".join("yes" if ok else "no" for ok in row) + " |")
