@@ -127,8 +127,9 @@ def with_relative_errors(frame: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([frame, *extra], ignore_index=True) if extra else frame
 
 
-def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]]) -> pd.DataFrame:
-    frame = with_relative_errors(long_frame(run))
+def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]], frame: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The suite's table of ``blocks`` from ``frame`` (default: the run's long frame)."""
+    frame = long_frame(run) if frame is None else frame
     if frame.empty:
         frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
     return table1(frame, methods=list(run.suite.methods), sequences=[s.name for s in run.suite.sequences],
@@ -364,10 +365,10 @@ def target_checks(table: pd.DataFrame, method: str = "CNN-SLAM", reference: str 
 def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """``depth_quality.{md,csv,tex}``, ``depth_quality.png`` and ``depth_quality_long.csv``."""
     results_dir = Path(results_dir)
-    table = _suite_table(run, DEPTH_QUALITY_BLOCKS)
+    frame = with_relative_errors(long_frame(run))
+    table = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
     paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth")
-    points = with_relative_errors(long_frame(run))
-    points = (points[points["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
+    points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
               .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
     figure = save_accuracy_scatter(points, results_dir / "depth_quality.png", list(run.suite.methods),
                                    TARGET_ATE_PERCENT_LENGTH)  # fmt: skip
