@@ -32,6 +32,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
+from eval.alignment import AlignmentMethod
 from eval.errors import EvalError
 
 MethodKind = Literal["agent", "external"]
@@ -52,7 +53,10 @@ EXTERNAL_LAYOUT = """\
 FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps
 FOLDER/<sequence>.txt                (alternative to the above)
 FOLDER/<sequence>/depth/<t>.png      optional key-frame depth, 16-bit PNG, 5000 = 1 m (TUM), t = the timestamp
-FOLDER/<sequence>/depth/<t>.npy      optional key-frame depth, (H, W) float32 metres, 0 = no estimate"""
+FOLDER/<sequence>/depth/<t>.npy      optional key-frame depth, (H, W) float32 metres, 0 = no estimate
+FOLDER/<sequence>/run.toml           optional: wall_s = the system's own run time on the sequence (seconds)
+FOLDER/method.toml                   optional: sensor = "mono" | "rgbd" | "stereo"; uses_ground_truth = ["depth",
+                                     "scale", "poses"] (what it was fed); align = "se3" | "sim3" (its ATE)"""
 
 _FILE_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
@@ -67,23 +71,30 @@ class Method:
 
     name: shown in results; kind: "agent" or "external"; entry_point: ``"module:Class"`` (agents); kwargs: the
     agent's keyword arguments as sorted ``(name, value)`` pairs (a mapping is accepted); seed: where a run's seed
-    goes (see :meth:`agent_kwargs`), None when the agent takes none; metrics: metric groups reported; paper: the
+    goes (see :meth:`agent_kwargs`): one target or a tuple of targets (a list is accepted), None when the agent takes
+    none; metrics: metric groups reported; paper: the
     method's column in the paper's Table 1, if any; description: one line; folder: the output folder (external);
     inputs: files the agent reads whose contents determine its results (network weights, vocabularies): their
     SHA-256 enters a run's fingerprint (:meth:`input_hashes`), so a finished run is not reused after they change.
-    An input is ``"package:path/inside/it"`` (found without importing the package) or a file path.
+    An input is ``"package:path/inside/it"`` (found without importing the package) or a file path. align: the
+    trajectory alignment of the method's headline ATE (``se3``, ``sim3``, ...; None: the suite's); sensor: ``mono``,
+    ``rgbd`` or ``stereo``; uses_ground_truth: what ground truth an external system declares it used (``depth``,
+    ``scale``, ``poses``).
     """
 
     name: str
     kind: MethodKind = "agent"
     entry_point: str | None = None
     kwargs: tuple[tuple[str, Any], ...] = ()
-    seed: str | None = None
+    seed: str | tuple[str, ...] | None = None
     metrics: tuple[str, ...] = ("trajectory", "depth")
     paper: str | None = None
     description: str = ""
     folder: str | None = None
     inputs: tuple[str, ...] = ()
+    align: str | None = None
+    sensor: str = "mono"
+    uses_ground_truth: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         kwargs = self.kwargs
@@ -91,6 +102,16 @@ class Method:
         object.__setattr__(self, "kwargs", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
         object.__setattr__(self, "metrics", tuple(self.metrics))
         object.__setattr__(self, "inputs", tuple(str(i) for i in self.inputs))
+        if isinstance(self.seed, list | tuple):
+            object.__setattr__(self, "seed", tuple(str(t) for t in self.seed) or None)
+        object.__setattr__(self, "uses_ground_truth", tuple(str(g) for g in self.uses_ground_truth))
+        if self.sensor not in SENSORS:
+            raise MethodError(f"method {self.name!r}: sensor must be one of {SENSORS}, got {self.sensor!r}")
+        bad_gt = [g for g in self.uses_ground_truth if g not in GROUND_TRUTH_KINDS]
+        if bad_gt:
+            raise MethodError(f"method {self.name!r}: uses_ground_truth {bad_gt} not among {GROUND_TRUTH_KINDS}")
+        if self.align is not None and self.align not in ALIGNMENTS:
+            raise MethodError(f"method {self.name!r}: align must be one of {ALIGNMENTS}, got {self.align!r}")
         if not self.name or _FILE_SAFE.sub("", self.name) == "":
             raise MethodError(f"a method needs a name with at least one letter or digit, got {self.name!r}")
         if self.kind not in METHOD_KINDS:
@@ -109,8 +130,16 @@ class Method:
                 )
         elif not self.folder:
             raise MethodError(f"external method {self.name!r} needs the folder holding its output")
-        if self.seed is not None and not re.fullmatch(r"[A-Za-z_]\w*(\.[^.\s]+(\.[^.\s]+)*)?", self.seed):
-            raise MethodError(f"method {self.name!r}: seed must be 'keyword' or 'keyword.key', got {self.seed!r}")
+        for target in self.seed_targets:
+            if not re.fullmatch(r"[A-Za-z_]\w*(\.[^.\s]+(\.[^.\s]+)*)?", target):
+                raise MethodError(f"method {self.name!r}: a seed target is 'keyword' or 'keyword.key', got {target!r}")
+
+    @property
+    def seed_targets(self) -> tuple[str, ...]:
+        """Where a run's seed goes, as a tuple (empty: the agent takes none)."""
+        if self.seed is None:
+            return ()
+        return (self.seed,) if isinstance(self.seed, str) else tuple(self.seed)
 
     @property
     def slug(self) -> str:
@@ -118,24 +147,37 @@ class Method:
         return _FILE_SAFE.sub("_", self.name).strip("_")
 
     def agent_kwargs(self, seed: int | None = None) -> dict[str, Any]:
-        """The agent's keyword arguments, with ``seed`` put where :attr:`seed` says (``"config.system.seed"``:
-        ``kwargs["config"]["system.seed"] = seed``, merged into a config dict already given)."""
+        """The agent's keyword arguments, with ``seed`` put where each of :attr:`seed_targets` says
+        (``"config.system.seed"``: ``kwargs["config"]["system.seed"] = seed``, merged into a config dict already
+        given)."""
         kwargs = {k: _thaw(v) for k, v in self.kwargs}
-        if seed is None or self.seed is None:
+        if seed is None:
             return kwargs
-        keyword, _, key = self.seed.partition(".")
-        if not key:
-            kwargs[keyword] = int(seed)
-            return kwargs
-        inner = kwargs.get(keyword) or {}
-        if not isinstance(inner, dict):
-            raise MethodError(f"method {self.name!r}: seed goes into {keyword!r}, which is {inner!r}, not a dict")
-        kwargs[keyword] = {**inner, key: int(seed)}
+        for target in self.seed_targets:
+            keyword, _, key = target.partition(".")
+            if not key:
+                kwargs[keyword] = int(seed)
+                continue
+            inner = kwargs.get(keyword) or {}
+            if not isinstance(inner, dict):
+                raise MethodError(f"method {self.name!r}: seed goes into {keyword!r}, which is {inner!r}, not a dict")
+            kwargs[keyword] = {**inner, key: int(seed)}
         return kwargs
 
     def input_hashes(self) -> dict[str, str]:
         """``{input: sha256 hex}`` of :attr:`inputs` (see :func:`resolve_input`)."""
         return {name: _file_sha256(resolve_input(name, self.name)) for name in self.inputs}
+
+    def source_hashes(self) -> dict[str, str]:
+        """``{top-level module: sha256 hex}`` of the agent's own source: the ``.py`` files of the package its entry
+        point lives in (or the module's file when it is a single file), and likewise of every ``"module:Class"``
+        string among its keyword arguments (a wrapping agent names the agent it wraps). Editing an agent's code
+        thus redoes its runs. External methods: none (their output files are read afresh every run)."""
+        if self.kind != "agent":
+            return {}
+        modules = [self.entry_point or "", *(v for _, v in self.kwargs if isinstance(v, str) and _ENTRY.match(v))]
+        tops = dict.fromkeys(m.partition(":")[0].split(".")[0] for m in modules)
+        return {top: digest for top in tops if (digest := source_sha256(top)) is not None}
 
     def keeps(self, metric: str) -> bool:
         """Whether the metric (a flat name of :mod:`eval.results`) belongs to one of the method's groups."""
@@ -159,6 +201,9 @@ class Method:
             "paper": self.paper,
             "folder": self.folder,
             "inputs": list(self.inputs),
+            "align": self.align,
+            "sensor": self.sensor,
+            "uses_ground_truth": list(self.uses_ground_truth),
         }
 
 
@@ -182,6 +227,31 @@ def resolve_input(name: str, method: str = "?") -> Path:
 
 
 _HASHES: dict[tuple[str, int, int], str] = {}
+_ENTRY = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+
+
+def source_sha256(module: str) -> str | None:
+    """SHA-256 over the ``.py`` files of top-level ``module`` (a package: every file below its folder, by relative
+    path and content, in sorted order; a single-file module: its file), found with :func:`importlib.util.find_spec`
+    without importing it; None when it cannot be found."""
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        return None
+    if spec is None:
+        return None
+    roots = list(spec.submodule_search_locations or [])
+    digest = hashlib.sha256()
+    if roots:
+        root = Path(roots[0])
+        for path in sorted(root.rglob("*.py")):
+            digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+            digest.update(_file_sha256(path).encode())
+    elif spec.origin and Path(spec.origin).is_file():
+        digest.update(_file_sha256(Path(spec.origin)).encode())
+    else:
+        return None
+    return digest.hexdigest()
 
 
 def _file_sha256(path: Path) -> str:
@@ -211,7 +281,13 @@ def _thaw(value: Any) -> Any:
 
 
 # ------------------------------------------------------------------------------------------------------ the table
-_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs"}
+_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
+           "sensor", "uses_ground_truth"}
+SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
+GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
+ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)
+EXTERNAL_SIDE_FILE = "method.toml"  # FOLDER/method.toml: what an external system declares about itself
+RUN_SIDE_FILE = "run.toml"  # FOLDER/<sequence>/run.toml: wall_s = its own run time on that sequence
 
 
 def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[str, Method]:
@@ -245,6 +321,19 @@ def load_methods(path: str | Path | None = None) -> dict[str, Method]:
     return parse_methods(data, str(path))
 
 
+def merge_methods(base: Mapping[str, Method], extra: Mapping[str, Method], source: str = "<methods>",
+                  override: bool = False) -> dict[str, Method]:
+    """``base`` plus ``extra``; a name of ``extra`` already in ``base`` is an error unless ``override`` (a user's
+    method silently replacing a built-in one would sit beside the paper's numbers under the built-in's name)."""
+    clash = [name for name in extra if name in base]
+    if clash and not override:
+        raise MethodError(
+            f"{source} redefines the method(s) {', '.join(clash)} of the built-in table; give them other names, or "
+            "pass --override to replace the built-in definitions"
+        )
+    return {**base, **extra}
+
+
 def get_method(name: str, table: Mapping[str, Method] | None = None) -> Method:
     """A method by name; :class:`MethodError` listing the valid names otherwise."""
     table = load_methods() if table is None else table
@@ -255,13 +344,31 @@ def get_method(name: str, table: Mapping[str, Method] | None = None) -> Method:
 
 
 def external_method(name: str, folder: str | Path, metrics: Sequence[str] = ("trajectory", "depth")) -> Method:
-    """A third-party system's output in ``folder`` (layout: :data:`EXTERNAL_LAYOUT`) as a method named ``name``."""
+    """A third-party system's output in ``folder`` (layout: :data:`EXTERNAL_LAYOUT`) as a method named ``name``.
+
+    ``folder/method.toml`` (optional) declares what the system is: ``sensor`` (mono / rgbd / stereo),
+    ``uses_ground_truth`` (a list of depth / scale / poses), ``align`` (the ATE alignment its headline figure takes,
+    e.g. ``sim3`` for a monocular system without metric scale), ``description``."""
+    side: dict[str, Any] = {}
+    path = Path(folder) / EXTERNAL_SIDE_FILE
+    if path.is_file():
+        try:
+            side = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as exc:
+            raise MethodError(f"{path}: not valid TOML: {exc}") from exc
+        unknown = sorted(set(side) - {"sensor", "uses_ground_truth", "align", "description"})
+        if unknown:
+            raise MethodError(f"{path}: unknown field(s) {unknown}; valid: align, description, sensor, "
+                              "uses_ground_truth")
     return Method(
         name=name,
         kind="external",
         folder=str(Path(folder).resolve()),
         metrics=tuple(metrics),
-        description=f"external system, output read from {folder}",
+        description=str(side.get("description", f"external system, output read from {folder}")),
+        align=side.get("align"),
+        sensor=side.get("sensor", "mono"),
+        uses_ground_truth=tuple(side.get("uses_ground_truth", ())),
     )
 
 

@@ -261,6 +261,47 @@ def save_accuracy_scatter(
     return _save(fig, path, dpi)
 
 
+def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequence[str],
+                    sequences: Sequence[str]) -> Axes:
+    """Every run's ``metric`` as a dot, one column group per method and a colour per sequence, with each cell's
+    median as a short black bar: the spread over runs that a table's single number hides. ``frame``: the long frame
+    (``sequence, method, metric, value``)."""
+    sub = frame[frame["metric"] == metric]
+    cmap = colormaps["tab10"]
+    width = 0.8 / max(len(sequences), 1)
+    for i, method in enumerate(methods):
+        for j, seq in enumerate(sequences):
+            values = sub[(sub["method"] == method) & (sub["sequence"] == seq)]["value"].dropna().to_numpy()
+            if not values.size:
+                continue
+            x = i - 0.4 + (j + 0.5) * width
+            jitter = np.linspace(-0.25, 0.25, values.size) * width if values.size > 1 else np.zeros(1)
+            ax.scatter(x + jitter, values, s=10, color=cmap(j % 10), label=seq if i == 0 else None, zorder=3)
+            ax.hlines(np.median(values), x - 0.4 * width, x + 0.4 * width, color="k", linewidth=1.2, zorder=4)
+    ax.set_xticks(range(len(methods)), list(methods), rotation=30, ha="right")
+    ax.set_ylabel(metric)
+    ax.grid(axis="y", alpha=0.3)
+    return ax
+
+
+def save_runs_figure(frame: pd.DataFrame, path: str | Path, methods: Sequence[str], sequences: Sequence[str],
+                     metrics: Sequence[tuple[str, str]], title: str = "", dpi: int = 110) -> Path | None:
+    """One :func:`plot_runs_strip` panel per ``(metric, label)`` with a value; None when no panel has one."""
+    shown = [(m, label) for m, label in metrics if (frame["metric"] == m).any()]
+    if not shown:
+        return None
+    fig = Figure(figsize=(max(6.0, 0.9 * len(methods) + 2), 3.2 * len(shown)))
+    axes = fig.subplots(len(shown), 1, squeeze=False)[:, 0]
+    for ax, (metric, label) in zip(axes, shown, strict=True):
+        plot_runs_strip(ax, frame, metric, methods, sequences)
+        ax.set_ylabel(label)
+    axes[0].legend(fontsize=6, ncol=min(len(sequences), 5), loc="upper left", bbox_to_anchor=(0, 1.25))
+    if title:
+        fig.suptitle(title, fontsize=9, y=1.0)
+    fig.tight_layout()
+    return _save(fig, path, dpi)
+
+
 def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,8 +11,12 @@ keyword arguments, git revision, wall time).
   the issue's targets per sequence for CNN-SLAM, and ``depth_quality.png`` (ATE / length against correct depth);
 - ``quick``: ``quick.md`` and ``quick_runs.json`` (the run records the gate compares, ``cnnslam regress``).
 
-Every Markdown file starts with how it was made (command, frames, seeds, revision) and ends with the state of the
-runs: methods skipped (and why), runs that failed (and their errors).
+Every cell is the median of the cell's runs (seeds) with their range, ``median [min, max]`` (:mod:`eval.tables`);
+every suite also writes ``<suite>_stats.csv`` (per sequence, method and metric: runs, median, quartiles, min, max)
+and ``<suite>_runs.png`` (every run as a dot, per method and sequence). Every Markdown file starts with how it was
+made (command, frames, seeds, revision) and ends with the state of the runs: the failure rate per method (runs that
+crashed or timed out, and runs that lost track: tracked share below :data:`LOST_BELOW_TRACKED_SHARE`), methods
+skipped (and why), runs that failed (and their errors).
 """
 
 from __future__ import annotations
@@ -26,11 +30,20 @@ import numpy as np
 import pandas as pd
 
 from eval.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
-from eval.plots import save_accuracy_scatter, save_depth_error_row_figure, save_sweep_figure
+from eval.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
 from eval.results import runs_frame
 from eval.runner import SuiteRun, suite_records_json
 from eval.suites import SWEEP_AXES
-from eval.tables import AVG_LABEL, TABLE1_BLOCKS, table1, table_to_csv, table_to_latex, table_to_markdown
+from eval.tables import (
+    AVG_LABEL,
+    TABLE1_BLOCKS,
+    spread_of,
+    statistics_frame,
+    table1,
+    table_to_csv,
+    table_to_latex,
+    table_to_markdown,
+)
 
 ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Tracked share", "tracked_share"),
@@ -46,6 +59,13 @@ DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
 )
 # The SLAM issue's targets on the office and living sequences: absolute-scale ATE (SE(3) alignment) at most 2 % of
 # the path length, scale error at most 5 %, key-frame correct depth above the raw CNN's.
+# A run that reports fewer than 90 % of its frames tracked counts as lost in the failure rate (ours: "lost" in the
+# sense of ORB-SLAM's evaluations, where a sequence on which tracking is lost for a good part of it is a failure).
+LOST_BELOW_TRACKED_SHARE = 0.9
+RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = (
+    ("ate_rmse", "ATE RMSE, SE(3) [m]"),
+    ("depth_percent_correct", "correct depth [%]"),
+)
 TARGET_ATE_PERCENT_LENGTH = 2.0
 TARGET_SCALE_ERROR_PERCENT = 5.0
 PAPER_NAMES: dict[str, str] = dict(
@@ -81,10 +101,14 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
     frames = "whole sequences" if suite.frames is None else f"the first {suite.frames} frames of each sequence"
     return (
         f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
-        f"Made by `{command}`: {frames}, seed(s) {', '.join(map(str, suite.seeds))}, ATE after "
-        f"{suite.alignment.upper()} alignment, git revision {', '.join(revisions)}. Per-run artifacts (trajectories, "
-        f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every figure in long form in "
-        f"`{suite.name}_long.csv`.\n"
+        f"Made by `{command}`: {frames}, {len(suite.seeds)} run(s) per cell (seeds "
+        f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`), ATE after "
+        f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
+        "Each cell: the **median** of its runs and their range **[min, max]** where the runs differ. Per-run "
+        "artifacts (trajectories, "
+        f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every run's figures in long form "
+        f"in `{suite.name}_long.csv`, the statistics per cell in `{suite.name}_stats.csv`, every run as a dot in "
+        f"`{suite.name}_runs.png`.\n"
     )
 
 
@@ -96,6 +120,20 @@ def status_markdown(run: SuiteRun) -> str:
         f"{len(run.specs)} runs: {counts.get('done', 0)} run now, {counts.get('cached', 0)} reused from earlier, "
         f"{counts.get('failed', 0)} failed.",
     ]
+    failures = failure_frame(run)
+    if failures.empty:
+        lines.append("")
+    else:
+        per_method = failures.groupby("method", sort=False)[["runs", "crashed", "lost"]].sum()
+        lines += [
+            f"\nFailure rate per method (crashed or timed out, or lost: tracked share below "
+            f"{LOST_BELOW_TRACKED_SHARE:.0%}; lost runs still count in the medians):\n",
+            "| method | runs | crashed | lost | failure rate |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for method, row in per_method.iterrows():
+            rate = (row["crashed"] + row["lost"]) / row["runs"] if row["runs"] else 0.0
+            lines.append(f"| {method} | {row['runs']} | {row['crashed']} | {row['lost']} | {rate:.0%} |")
     if run.skipped_methods:
         lines.append("\nMethods skipped (they cannot run here):\n")
         lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.skipped_methods.items()]
@@ -103,6 +141,25 @@ def status_markdown(run: SuiteRun) -> str:
         lines.append("\nFailed runs (rerun the same command to retry them):\n")
         lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]
     return "\n".join(lines) + "\n"
+
+
+def failure_frame(run: SuiteRun) -> pd.DataFrame:
+    """Per (sequence, method) planned: ``runs``, ``crashed`` (failed or timed out: no record), ``lost`` (finished,
+    trajectory metrics, tracked share below :data:`LOST_BELOW_TRACKED_SHARE`), ``failure_rate``."""
+    tracked = {rec["run"]: rec["metrics"].get("tracked_share") for rec in run.records}
+    rows: dict[tuple[str, str], dict[str, int]] = {}
+    for spec in run.specs:
+        row = rows.setdefault((spec.sequence.name, spec.method.name), {"runs": 0, "crashed": 0, "lost": 0})
+        row["runs"] += 1
+        outcome = run.outcomes.get(spec.key)
+        if outcome is None or outcome.status == "failed":
+            row["crashed"] += 1
+        elif (share := tracked.get(spec.key)) is not None and share < LOST_BELOW_TRACKED_SHARE:
+            row["lost"] += 1
+    frame = pd.DataFrame([{"sequence": k[0], "method": k[1], **v} for k, v in rows.items()],
+                         columns=["sequence", "method", "runs", "crashed", "lost"])  # fmt: skip
+    frame["failure_rate"] = (frame["crashed"] + frame["lost"]) / frame["runs"].where(frame["runs"] > 0)
+    return frame
 
 
 def _one_line(text: str, limit: int = 300) -> str:
@@ -136,17 +193,30 @@ def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]], frame: pd.Dat
                   blocks=blocks)  # fmt: skip
 
 
-def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3) -> list[Path]:
+def _suite_spread(run: SuiteRun, blocks: Sequence[tuple[str, str]],
+                  frame: pd.DataFrame | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The min and max tables matching :func:`_suite_table` (the range of each cell's runs)."""
+    frame = long_frame(run) if frame is None else frame
+    if frame.empty:
+        frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
+    return spread_of(frame, methods=list(run.suite.methods), sequences=[s.name for s in run.suite.sequences],
+                     blocks=blocks)  # fmt: skip
+
+
+def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3,
+                  spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> list[Path]:
     stem.parent.mkdir(parents=True, exist_ok=True)
     csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
     csv.write_text(table_to_csv(table))
-    tex.write_text(table_to_latex(table, digits, caption))
+    tex.write_text(table_to_latex(table, digits, caption, spread=spread))
     return [csv, tex]
 
 
 # ----------------------------------------------------------------------------------------------------- table1
-def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int) -> str:
-    """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number."""
+def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int,
+                      spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> str:
+    """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number; with
+    ``spread`` (min and max tables), ours is ``median [min, max]``."""
     paper = paper_table1_frame()
     paper = paper[paper["metric"] == metric]
     paper_value = {(row.sequence, row.method): row.value for row in paper.itertuples()}
@@ -158,6 +228,10 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
         cells = []
         for method, value in row.items():
             text = "-" if pd.isna(value) else f"{value:.{digits}f}"
+            if spread is not None and not pd.isna(value):
+                lo, hi = (t.at[label, (metric_block, method)] for t in spread)
+                if not (pd.isna(lo) or pd.isna(hi) or lo == hi):
+                    text += f" [{lo:.{digits}f}, {hi:.{digits}f}]"
             if label == AVG_LABEL:
                 quoted = paper_avg.get(method, math.nan)
             else:
@@ -174,24 +248,26 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
     """``table1.{md,csv,tex}`` and ``table1_long.csv``."""
     results_dir = Path(results_dir)
     table = _suite_table(run, TABLE1_BLOCKS)
-    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)")
+    spread = _suite_spread(run, TABLE1_BLOCKS)
+    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)", spread=spread)
     ate_title, ate_metric = TABLE1_BLOCKS[0]
     depth_title, depth_metric = TABLE1_BLOCKS[1]
     text = [
         header_markdown(run, "Table 1 analogue: absolute trajectory error and percentage of correct depth", command),
-        "Each cell: **ours (the paper's Table 1)**. Our sequences are simulated analogues of the paper's "
+        "Each cell: **ours, median [min, max] of the runs (the paper's Table 1)**. Our sequences are simulated "
+        "analogues of the paper's "
         "(ICL-NUIM office/living room, TUM fr3 sequences), not the same images: compare shapes (which method is "
         "best, by how much), not values. `oracle` is the ground truth fed through the same pipeline (a sanity "
         "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a failed run). "
         "The Avg. row is shown only where a method has every sequence.\n",
         f"## {ate_title}\n",
-        ours_beside_paper(table, ate_title, ate_metric, 3),
+        ours_beside_paper(table, ate_title, ate_metric, 3, spread),
         f"## {depth_title}\n",
         "A pixel is correct when its depth is within 10 % of the ground truth; the share is over all pixels of the "
         "key-frames with valid ground truth (a sparse method is penalised for the pixels it has no depth for).\n",
-        ours_beside_paper(table, depth_title, depth_metric, 3),
+        ours_beside_paper(table, depth_title, depth_metric, 3, spread),
         "## Ours alone (as in table1.csv / table1.tex)\n",
-        table_to_markdown(table),
+        table_to_markdown(table, spread=spread),
     ]
     return _write_report(run, results_dir, "table1", text, paths)
 
@@ -201,14 +277,15 @@ def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
     """``rotation.{md,csv,tex}`` and ``rotation_long.csv``."""
     results_dir = Path(results_dir)
     table = _suite_table(run, ROTATION_BLOCKS)
-    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences")
+    spread = _suite_spread(run, ROTATION_BLOCKS)
+    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences", spread=spread)
     text = [
         header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
         "Sequences `rot_<axes>_<deg/s>`: the camera turns about a fixed optical centre (like TUM fr1/rpy), so a "
         "monocular method gets no parallax to triangulate from. Tracked share: frames the method reported as "
         "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after "
         "alignment (rotation-only, since the positions do not move). Correct depth as in Table 1.\n",
-        table_to_markdown(table),
+        table_to_markdown(table, spread=spread),
     ]
     return _write_report(run, results_dir, "rotation", text, paths)
 
@@ -218,7 +295,8 @@ def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
     """``ablation.{md,csv,tex}``, ``ablation.png`` (when there are key-frames) and ``ablation_long.csv``."""
     results_dir = Path(results_dir)
     table = _suite_table(run, TABLE1_BLOCKS)
-    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)")
+    spread = _suite_spread(run, TABLE1_BLOCKS)
+    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)", spread=spread)
     figure = save_ablation_figure(run, results_dir / "ablation.png")
     text = [
         header_markdown(run, "Ablation (the paper's Fig. 3): raw CNN depth, focal-length adjustment, refinement",
@@ -226,18 +304,28 @@ def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         "`raw-CNN`: the network's depth as predicted; `focal-adjusted`: with the focal-length adjustment of eq. 5 "
         "(the test camera's focal length differs from the training camera's); `adjusted+refined`: the full system, "
         "the adjusted depth refined by small-baseline stereo (eq. 10-11).\n",
-        table_to_markdown(table),
+        table_to_markdown(table, spread=spread),
         f"![one key-frame's depth error per variant]({figure.name})\n" if figure else "",
     ]
     return _write_report(run, results_dir, "ablation", text, [*paths, *([figure] if figure else [])])
 
 
 def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], artifacts: list[Path]) -> list[Path]:
-    """Write ``<name>.md`` (``text`` and the runs' status) and ``<suite>_long.csv``; return every file the report
-    made: the Markdown, ``artifacts`` (tables, figures), the long CSV."""
+    """Write ``<name>.md`` (``text``, the runs figure and the runs' status), ``<suite>_long.csv``,
+    ``<suite>_stats.csv`` and ``<suite>_runs.png``; return every file the report made: the Markdown, ``artifacts``
+    (tables, figures), the long and statistics CSVs, the runs figure."""
+    results_dir.mkdir(parents=True, exist_ok=True)
+    frame = with_relative_errors(long_frame(run))
+    stats = results_dir / f"{run.suite.name}_stats.csv"
+    statistics_frame(frame).to_csv(stats, index=False, float_format="%.6g")
+    methods = [m for m in run.suite.methods if (frame["method"] == m).any()] if not frame.empty else []
+    figure = None if frame.empty else save_runs_figure(
+        frame, results_dir / f"{run.suite.name}_runs.png", methods, [s.name for s in run.suite.sequences],
+        RUNS_FIGURE_METRICS, title=f"{run.suite.name}: every run (dots) and each cell's median (bars)")
+    shown = [f"![every run of the suite]({figure.name})\n"] if figure is not None else []
     md = results_dir / f"{name}.md"
-    md.write_text("\n".join([*text, status_markdown(run)]))
-    return [md, *artifacts, write_long_csv(run, results_dir)]
+    md.write_text("\n".join([*text, *shown, status_markdown(run)]))
+    return [md, *artifacts, write_long_csv(run, results_dir), stats, *([figure] if figure is not None else [])]
 
 
 def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray] | None:
@@ -330,7 +418,8 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         sub = points[points["axis"] == axis]
         if sub.empty:
             continue
-        wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"])
+        wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"],
+                               aggfunc="median")
         text.append(f"### {title}\n\n" + _pivot_markdown(wide))
     return _write_report(run, results_dir, "sweep", text, [csv, figure])
 
@@ -367,7 +456,9 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -
     results_dir = Path(results_dir)
     frame = with_relative_errors(long_frame(run))
     table = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
-    paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth")
+    spread = _suite_spread(run, DEPTH_QUALITY_BLOCKS, frame)
+    paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth",
+                          spread=spread)
     points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
               .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
     figure = save_accuracy_scatter(points, results_dir / "depth_quality.png", list(run.suite.methods),
@@ -381,13 +472,13 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -
     met = {name: int(checks[name].sum()) for name in checks.columns}
     text = [
         header_markdown(run, "CNN-SLAM and the accuracy of key-frame depth (full-length sequences)", command),
-        "Whole sequences, single-threaded (deterministic). ATE: RMSE after SE(3) alignment, no scale correction, "
+        "Whole sequences, single-threaded. ATE: RMSE after SE(3) alignment, no scale correction, "
         "over the ground-truth path length. Scale error: |1/s - 1| for the Sim(3) alignment's scale s. Correct depth "
         "as in Table 1. `CNN-SLAM` and `raw-CNN` run the shipped network; `dev-depth-N` run CNN-SLAM on ground-truth "
         "depth degraded like a CNN's (holes filled, small objects closed, 4 px edge blur, 2 % per-frame scale "
         "jitter, 1 % pixel noise) with N % low-frequency multiplicative error, in the network's place: they receive "
         "ground truth and are references for how accurate key-frame depth must be, not competitors.\n",
-        table_to_markdown(table),
+        table_to_markdown(table, spread=spread),
         f"## Targets, CNN-SLAM\n\nMet on {met['ate']} / {met['scale']} / {met['depth']} of {len(checks)} sequences "
         "(ATE / scale / depth).\n",
         "\n".join(lines) + "\n",
@@ -404,11 +495,12 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
     runs_json = results_dir / "quick_runs.json"
     runs_json.write_text(suite_records_json(run.records))
     table = _suite_table(run, QUICK_BLOCKS)
+    spread = _suite_spread(run, QUICK_BLOCKS)
     text = [
         header_markdown(run, "Quick suite (the CI regression baseline)", command),
         "Compared metric by metric with `results/baselines/quick.json` by `cnnslam bench quick` and by "
         "`tests/eval/test_quick_regression.py`; after an intended change: `cnnslam bench quick --update-baseline`.\n",
-        table_to_markdown(table),
+        table_to_markdown(table, spread=spread),
     ]
     return _write_report(run, results_dir, "quick", text, [runs_json])
 
@@ -417,8 +509,9 @@ def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list
     """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``."""
     results_dir = Path(results_dir)
     table = _suite_table(run, QUICK_BLOCKS)
-    paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}")
-    text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table)]
+    spread = _suite_spread(run, QUICK_BLOCKS)
+    paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}", spread=spread)
+    text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table, spread=spread)]
     return _write_report(run, results_dir, run.suite.name, text, paths)
 
 

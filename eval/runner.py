@@ -49,7 +49,7 @@ from tqdm import tqdm
 from eval.association import associate
 from eval.errors import EvalError
 from eval.executors import Executor, SerialExecutor
-from eval.methods import TIMING_METRICS, Method, check_methods
+from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
 from eval.results import evaluate_episode, json_ready, load_run
 from eval.suites import SequenceRef, Suite, rotation_share
 from eval.trajectory import PoseTrajectory
@@ -102,12 +102,14 @@ class RunSpec:
 
     def fingerprint(self) -> str:
         """Hash of what determines the run's result (method, sequence definition, seed, frames, alignment,
-        renderer, the contents of the method's input files such as network weights); not the git revision, so a new
-        commit does not invalidate finished runs, but new weights do."""
+        renderer, the contents of the method's input files such as network weights, and the agent's own source
+        files, :meth:`eval.methods.Method.source_hashes`); not the git revision, so a commit that leaves an agent's
+        package alone does not invalidate its finished runs, but new weights or an edited agent do."""
         data = {
             "sequence": self.sequence.describe(),
             "method": self.method.describe(),
             "inputs": self.method.input_hashes(),
+            "source": self.method.source_hashes(),
             "seed": self.seed,
             "frames": self.frames,
             "alignment": self.alignment,
@@ -193,9 +195,16 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
+        # the poses were matched by timestamp before scoring (TUM rule): record that, not the index pairing after it
+        record["association"] = episode.extras["association"]
+        record["uses_ground_truth"] = bool(method.uses_ground_truth)
+        record["ground_truth_used"] = list(method.uses_ground_truth)  # as its method.toml declares
+    record["sensor"] = method.sensor
     timing = {k: metrics[k] for k in TIMING_METRICS if k in metrics}
     record["metrics"] = method.select_metrics(metrics)
     timing["finish_seconds"] = episode.extras.get("finish_seconds")
+    if episode.extras.get("own_wall_s") is not None:
+        timing["method_wall_s"] = episode.extras["own_wall_s"]  # the system's own run time (its run.toml)
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
         folder = Path(tmp)
@@ -270,9 +279,25 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
         keyframes=keyframes,
         keyframe_gt=keyframe_gt,
         step_seconds=np.zeros(0),
-        extras={"trajectory_file": str(path), "depth_files": len(files)},
+        extras={"trajectory_file": str(path), "depth_files": len(files), "association": assoc.describe(),
+                "own_wall_s": _declared_wall_s(folder / ref.name / RUN_SIDE_FILE)},
     )
     return episode, n
+
+
+def _declared_wall_s(path: Path) -> float | None:
+    """``wall_s`` of an external system's ``<sequence>/run.toml`` (its own run time), None without the file."""
+    import tomllib
+
+    if not path.is_file():
+        return None
+    try:
+        value = tomllib.loads(path.read_text()).get("wall_s")
+    except tomllib.TOMLDecodeError as exc:
+        raise RunnerError(f"{path}: not valid TOML: {exc}") from exc
+    if not isinstance(value, int | float) or isinstance(value, bool) or not value >= 0:
+        raise RunnerError(f"{path}: wall_s must be a number of seconds >= 0, got {value!r}")
+    return float(value)
 
 
 def _read_depth(path: Path) -> np.ndarray:
@@ -512,9 +537,11 @@ def plan_runs(
     plots: bool = True,
     revision: str | None = None,
 ) -> list[RunSpec]:
-    """Every run of the suite: sequences x methods x seeds, in that nesting order."""
+    """Every run of the suite: sequences x methods x seeds, in that nesting order; a method's own ``align`` wins
+    over the suite's alignment."""
     return [
-        RunSpec(suite.name, ref, method, seed, suite.frames, suite.alignment, renderer, plots, revision)
+        RunSpec(suite.name, ref, method, seed, suite.frames, method.align or suite.alignment, renderer, plots,
+                revision)
         for ref in suite.sequences
         for method in methods
         for seed in suite.seeds
@@ -533,12 +560,15 @@ def run_suite(
     check: bool = True,
     revision: str | None = None,
     on_result: Callable[[RunOutcome], None] | None = None,
+    rerun: bool = False,
 ) -> SuiteRun:
     """Run every unfinished run of ``suite`` (its methods looked up in ``methods``) and gather the records.
 
     Methods that cannot run here (:func:`eval.methods.check_methods`; ``check=False`` only checks the import)
     are skipped and reported, not failed. Finished runs (same fingerprint) are not run again. ``executor``:
     default :class:`~eval.executors.SerialExecutor`. ``revision``: recorded in every run (default: the git revision).
+    ``rerun``: run every run again, finished or not. Ctrl-C (KeyboardInterrupt) stops the executor and propagates;
+    the runs finished before it are stored.
     """
     unknown = [m for m in suite.methods if m not in methods]
     if unknown:
@@ -554,7 +584,7 @@ def run_suite(
     outcomes: dict[str, RunOutcome] = {}
     todo = []
     for spec in specs:
-        if is_finished(out_root, spec):
+        if not rerun and is_finished(out_root, spec):
             outcomes[spec.key] = RunOutcome(spec.key, "cached", run_folder(out_root, spec))
         else:
             todo.append(spec)

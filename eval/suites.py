@@ -45,6 +45,7 @@ from scipy.spatial.transform import Rotation
 
 from eval.errors import EvalError
 from sim_envs.camera import preset
+from sim_envs.errors import SimEnvError
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
     TRAIN_CAMERA,
@@ -222,7 +223,10 @@ def resolve_sequence(name: str) -> SequenceRef:
     match = _ROTATION_NAME.match(name)
     if match:
         axes = match["axes"]
-        return rotation_ref(axes if axes == "rpy" else axes.replace("-", "+"), float(match["speed"]))
+        try:
+            return rotation_ref(axes if axes == "rpy" else axes.replace("-", "+"), float(match["speed"]))
+        except SimEnvError as exc:  # e.g. rot_yawn_30: a rotation name with a bad axis
+            raise SuiteError(f"sequence {name!r}: {exc}") from None
     raise SuiteError(
         f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
         "(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90)"
@@ -257,6 +261,7 @@ DEPTH_QUALITY_SEQUENCES: tuple[str, ...] = tuple(s for s in TABLE1_SEQUENCES if 
 ROTATION_AXES: tuple[str, ...] = ("yaw", "pitch", "roll", "rpy")
 ROTATION_SPEEDS: tuple[float, ...] = (15.0, 30.0, 60.0)
 SWEEP_BASE = "office1"
+DEFAULT_RUNS = 3  # runs per cell (seeds 0, 1, 2): a median and a spread, as the field reports (DPVO: median of 5)
 BENCH_FRAMES = 200  # table1 and ablation: the first 200 frames (6.7 s) of each sequence keep `make bench` within
 # 20 minutes on 2 cores with every method (ORB, REMODE and Laina run at a few frames per second there)
 TEXTURE_DENSITIES: tuple[float, ...] = (1.0, 0.6, 0.3, 0.1)
@@ -271,8 +276,9 @@ SWEEP_AXES: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Suite:
-    """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds``, each run on the first
-    ``frames`` frames (None: whole sequences); ``alignment`` of the ATE (``eval.alignment``); ``kind`` "perf" for
+    """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds`` (the runs of each cell, see
+    ``eval/methods.toml`` for what a seed changes per method), each run on the first ``frames`` frames (None: whole
+    sequences); ``alignment`` of the ATE (``eval.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
     the throughput suite, which runs no agents."""
 
     name: str
@@ -280,7 +286,7 @@ class Suite:
     sequences: tuple[SequenceRef, ...] = ()
     methods: tuple[str, ...] = ()
     frames: int | None = None
-    seeds: tuple[int, ...] = (0,)
+    seeds: tuple[int, ...] = tuple(range(DEFAULT_RUNS))
     alignment: str = "se3"
     kind: SuiteKind = "runs"
 
@@ -290,9 +296,19 @@ class Suite:
         methods: Sequence[str] | None = None,
         frames: int | None = None,
         seeds: Sequence[int] | None = None,
+        runs: int | None = None,
     ) -> Suite:
         """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
-        name), ``methods`` (any method names), ``frames``, ``seeds``."""
+        name), ``methods`` (any method names), ``frames``, ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with
+        ``seeds``)."""
+        if runs is not None:
+            if seeds:
+                raise SuiteError("give --runs or --seeds, not both")
+            if int(runs) < 1:
+                raise SuiteError(f"--runs must be >= 1, got {runs}")
+            seeds = range(int(runs))
+        if seeds is not None and len(set(seeds)) != len(list(seeds)):
+            raise SuiteError(f"seeds must be distinct, got {list(seeds)}")
         refs = self.sequences
         if sequences:
             own = {s.name: s for s in self.sequences}
@@ -306,6 +322,12 @@ class Suite:
             frames=int(frames) if frames is not None else self.frames,
             seeds=tuple(int(s) for s in seeds) if seeds else self.seeds,
         )
+
+    @property
+    def is_default(self) -> bool:
+        """True when this is the suite exactly as defined (not a subset or variant): only then does it write the
+        committed results under ``results/``."""
+        return SUITES.get(self.name) == self
 
 
 def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:

@@ -6,6 +6,7 @@ receives the env's ``info`` (``step(observation, info)``); results of such agent
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -81,3 +82,44 @@ class ConstantPoseAgent:
     def finish(self) -> AgentOutput:
         """No key-frames; the number of frames seen."""
         return AgentOutput(keyframes=[], extras={"frames": self._n})
+
+
+class BiasedPoseAgent:
+    """Another agent whose answered poses are turned by a fixed yaw in the camera frame: ``T_world_cam @ R_y(yaw)``
+    (y is the camera's down axis, so this is a heading error the camera itself makes; OpenCV camera frame).
+
+    A constant world-frame offset would vanish in the trajectory alignment; a camera-frame one does not: positions
+    stay, every orientation is off by ``yaw_deg``. For sensitivity studies, and to prove that a regression gate
+    catches a small systematic rotation error. ``agent``: the wrapped agent's ``"module:Class"``; the other keywords
+    are its own. It receives ground truth exactly when the wrapped agent does.
+    """
+
+    def __init__(self, agent: str, yaw_deg: float = 1.0, **kwargs: Any) -> None:
+        from scipy.spatial.transform import Rotation
+
+        from sim_envs.agent import load_agent
+
+        if not np.isfinite(yaw_deg):
+            raise SimEnvError(f"yaw_deg must be a finite number, got {yaw_deg!r}")
+        self.inner = load_agent(agent, **kwargs)
+        self.uses_ground_truth = bool(getattr(self.inner, "uses_ground_truth", False))
+        self.name = f"{getattr(self.inner, 'name', agent)}+yaw{yaw_deg:g}"
+        self._bias = np.eye(4)
+        self._bias[:3, :3] = Rotation.from_euler("y", float(yaw_deg), degrees=True).as_matrix()
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """The wrapped agent's reset."""
+        self.inner.reset(intrinsics, image_size)
+
+    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The wrapped agent's answer with the pose turned by the bias."""
+        out = dict(self.inner.step(observation, info) if self.uses_ground_truth else self.inner.step(observation))
+        out["T_world_cam"] = np.asarray(out["T_world_cam"], dtype=np.float64) @ self._bias
+        return out
+
+    def finish(self) -> AgentOutput:
+        """The wrapped agent's key-frames, their poses turned by the bias too."""
+        out = self.inner.finish()
+        keyframes = [replace(kf, T_world_cam=np.asarray(kf.T_world_cam, dtype=np.float64) @ self._bias)
+                     for kf in out.keyframes]
+        return replace(out, keyframes=keyframes)

@@ -5,10 +5,23 @@ another size is resized to ``train_size`` before the network (area averaging whe
 were made) and the outputs are resized back bilinearly, so the network always sees the pixel scale it was trained at;
 the focal-length adjustment (CNN-SLAM eq. 5) then compares f_cur, brought to ``train_size``, with f_tr. The shipped
 network has ``train_size`` (160, 120): a 320x240 frame is halved on the way in and its outputs doubled on the way out.
+
+Floating point across machines: the network's float32 outputs differ in their last bits between CPUs and math
+back-ends (measured on office0's first frame with oneDNN off against on: 74 % of the depth pixels differ, by a median
+of 0.9, a 99th percentile of 3.6 and at most 7.4 float32 ulps), and the SLAM system amplifies such differences.
+Two switches reproduce that here, so results can be checked against it (see ``docs/benchmarks.md``, "Determinism"):
+
+- ``jitter_seed``: multiply every output (depth and class probabilities) by ``1 + e``, e ~ N(0, (2 ulp)^2) per pixel,
+  drawn from a generator seeded with ``jitter_seed`` (new draws per frame, the same sequence for the same seed): what
+  another CPU does to the outputs. The benchmark's seeds 1, 2, ... set it; 0 or None leaves the outputs as computed,
+  unless the environment variable ``CNNSLAM_NET_JITTER=S`` gives a seed for every predictor of the process (to run
+  the whole test suite as if on another CPU);
+- the environment variable ``CNNSLAM_ONEDNN=0`` turns torch's oneDNN (MKL-DNN) kernels off in the process.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +33,16 @@ from cnnslam.depth_prediction import focal_length_adjustment
 from cnnslam.depthnet.model import DepthSemanticNet, normalize_rgb
 from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
 from cnnslam.errors import CnnSlamError
+
+JITTER_STD_ULPS = 2.0  # std of the output jitter in float32 ulps (oneDNN on/off: median 0.9, p99 3.6, max 7.4 ulps)
+JITTER_VARIABLE = "CNNSLAM_NET_JITTER"  # a jitter seed for predictors built without one
+ONEDNN_VARIABLE = "CNNSLAM_ONEDNN"  # "0": torch's oneDNN kernels off in this process (a second math back-end)
+
+
+def apply_backend_switches() -> None:
+    """Turn torch's oneDNN kernels off when the environment says ``CNNSLAM_ONEDNN=0`` (checked at predictor build)."""
+    if os.environ.get(ONEDNN_VARIABLE, "1").strip().lower() in ("0", "off", "false", "no"):
+        torch.backends.mkldnn.enabled = False
 
 
 @dataclass(frozen=True)
@@ -50,7 +73,9 @@ class DepthNetPredictor:
     """A trained :class:`DepthSemanticNet` with its training camera.
 
     train_focal: f_tr, pixels at ``train_size``; train_size: (W, H) of the training images. ``num_threads`` (if given)
-    sets torch's intra-op thread count for the process.
+    sets torch's intra-op thread count for the process. ``jitter_seed`` (if given): perturb the outputs in their last
+    bits as another CPU would (see the module docstring); ``output_scale``: multiply the depth by this factor (a
+    deliberate scale bias, for sensitivity studies and for proving that the regression gate catches one).
     """
 
     def __init__(
@@ -59,7 +84,12 @@ class DepthNetPredictor:
         train_focal: float,
         train_size: tuple[int, int],
         num_threads: int | None = None,
+        jitter_seed: int | None = None,
+        output_scale: float = 1.0,
     ) -> None:
+        if not (np.isfinite(output_scale) and output_scale > 0):
+            raise CnnSlamError(f"output_scale must be a positive number, got {output_scale!r}")
+        apply_backend_switches()
         if num_threads is not None:
             if num_threads < 1:
                 raise CnnSlamError(f"num_threads must be >= 1, got {num_threads}")
@@ -67,13 +97,29 @@ class DepthNetPredictor:
         self.model = model.eval()
         self.train_focal = float(train_focal)
         self.train_size = (int(train_size[0]), int(train_size[1]))
+        self.output_scale = float(output_scale)
+        if not jitter_seed:
+            jitter_seed = int(os.environ.get(JITTER_VARIABLE, "0") or 0)
+        self._jitter = np.random.default_rng(int(jitter_seed)) if jitter_seed else None
 
     @torch.inference_mode()
     def _forward(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = normalize_rgb(torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None])
         depth, logits = self.model(x)
         probs = torch.softmax(logits, dim=1)
-        return depth[0, 0].numpy().astype(np.float32), probs[0].permute(1, 2, 0).numpy().astype(np.float32)
+        depth_np = depth[0, 0].numpy().astype(np.float32)
+        probs_np = probs[0].permute(1, 2, 0).numpy().astype(np.float32)
+        if self._jitter is not None:
+            depth_np, probs_np = self._jittered(depth_np), self._jittered(probs_np)
+        if self.output_scale != 1.0:
+            depth_np = (depth_np * np.float32(self.output_scale)).astype(np.float32)
+        return depth_np, probs_np
+
+    def _jittered(self, values: np.ndarray) -> np.ndarray:
+        """``values`` x (1 + e), e ~ N(0, (JITTER_STD_ULPS ulp)^2) per element, float32."""
+        ulp = float(np.finfo(np.float32).eps)
+        noise = self._jitter.standard_normal(values.shape) * (JITTER_STD_ULPS * ulp)  # type: ignore[union-attr]
+        return (values * (1.0 + noise)).astype(np.float32)
 
     def predict_raw(self, rgb: np.ndarray) -> Prediction:
         """The network's output for ``rgb`` ((H, W, 3) uint8, any size), at (H, W), WITHOUT focal adjustment.
@@ -116,7 +162,10 @@ class DepthNetPredictor:
         return Prediction(focal_length_adjustment(raw.depth, f_cur, self.train_focal), raw.label_probs)
 
 
-def load_predictor(weights: str | Path | None = None, num_threads: int | None = None) -> DepthNetPredictor:
-    """The predictor of a weights file (``None``: the shipped ``cnnslam/depthnet/weights/default.pt``)."""
+def load_predictor(weights: str | Path | None = None, num_threads: int | None = None,
+                   jitter_seed: int | None = None, output_scale: float = 1.0) -> DepthNetPredictor:
+    """The predictor of a weights file (``None``: the shipped ``cnnslam/depthnet/weights/default.pt``); the other
+    keywords are :class:`DepthNetPredictor`'s."""
     loaded = load_weights(DEFAULT_WEIGHTS if weights is None else weights)
-    return DepthNetPredictor(loaded.model, loaded.train_focal, loaded.train_size, num_threads=num_threads)
+    return DepthNetPredictor(loaded.model, loaded.train_focal, loaded.train_size, num_threads=num_threads,
+                             jitter_seed=jitter_seed, output_scale=output_scale)

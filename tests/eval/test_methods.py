@@ -50,7 +50,10 @@ def test_the_default_table_has_every_method_the_suites_name():
 
 def test_seed_goes_where_the_table_says():
     table = load_methods()
-    assert table["CNN-SLAM"].agent_kwargs(7) == {"preset": "cnn_slam", "threads": False, "config": {"system.seed": 7}}
+    # the network's methods: the seed goes to the system and to the network's last-bit jitter
+    assert table["CNN-SLAM"].agent_kwargs(7) == {"preset": "cnn_slam", "threads": False, "config": {"system.seed": 7},
+                                                 "predictor_options": {"jitter_seed": 7}}
+    assert table["Laina"].agent_kwargs(2) == {"predictor_options": {"jitter_seed": 2}}
     assert table["ORB"].agent_kwargs(3) == {"seed": 3}
     assert table["oracle"].agent_kwargs(5) == {"keyframe_every": 10}  # takes no seed
     merged = Method("m", entry_point="a:B", kwargs={"config": {"x.y": 1}}, seed="config.system.seed")
@@ -174,3 +177,58 @@ def test_network_methods_name_the_shipped_weights():
     for name in ("CNN-SLAM", "Laina", "raw-CNN", "focal-adjusted", "adjusted+refined"):
         assert methods[name].inputs == ("cnnslam:depthnet/weights/default.pt",)
         assert len(methods[name].input_hashes()) == 1
+
+
+def test_a_seed_may_go_to_several_places():
+    m = Method("m", entry_point="a:B", kwargs={"opts": {"k": 1}}, seed=["seed", "opts.draw"])
+    assert m.seed_targets == ("seed", "opts.draw")
+    assert m.agent_kwargs(4) == {"opts": {"k": 1, "draw": 4}, "seed": 4}
+    with pytest.raises(MethodError, match="seed target"):
+        Method("m", entry_point="a:B", seed=["ok", "not ok"])
+
+
+def test_the_fingerprint_source_covers_the_agents_package_and_wrapped_agents(tmp_path, monkeypatch):
+    package = tmp_path / "myagents"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "slam.py").write_text("class Slam: pass\n")
+    (tmp_path / "single.py").write_text("class One: pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    m = Method("m", entry_point="myagents.slam:Slam")
+    wrapped = Method("w", entry_point="sim_envs.agents:BiasedPoseAgent", kwargs={"agent": "single:One"})
+    before, before_wrapped = m.source_hashes(), wrapped.source_hashes()
+    assert set(before) == {"myagents"} and set(before_wrapped) == {"sim_envs", "single"}
+    (package / "slam.py").write_text("class Slam:\n    x = 1\n")  # an edit anywhere in the package
+    (tmp_path / "single.py").write_text("class One:\n    y = 2\n")
+    import os
+
+    for path in (package / "slam.py", tmp_path / "single.py"):  # a new mtime even on a coarse clock
+        os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 10**9))
+    assert m.source_hashes()["myagents"] != before["myagents"]
+    assert wrapped.source_hashes()["single"] != before_wrapped["single"]
+    assert wrapped.source_hashes()["sim_envs"] == before_wrapped["sim_envs"]
+    assert external_method("X", tmp_path).source_hashes() == {}
+
+
+def test_a_method_file_may_not_silently_replace_a_built_in_method(tmp_path):
+    from eval.methods import merge_methods
+
+    base = load_methods()
+    mine = {"CNN-SLAM": Method("CNN-SLAM", entry_point="a:B"), "Mine": Method("Mine", entry_point="a:C")}
+    with pytest.raises(MethodError, match="redefines the method.*CNN-SLAM.*--override"):
+        merge_methods(base, mine, "mine.toml")
+    merged = merge_methods(base, mine, "mine.toml", override=True)
+    assert merged["CNN-SLAM"].entry_point == "a:B" and "Mine" in merged and "ORB" in merged
+
+
+def test_an_external_folder_declares_itself_in_method_toml(tmp_path):
+    (tmp_path / "method.toml").write_text('sensor = "rgbd"\nuses_ground_truth = ["depth"]\nalign = "sim3"\n')
+    m = external_method("RGBD-odo", tmp_path)
+    assert (m.sensor, m.uses_ground_truth, m.align) == ("rgbd", ("depth",), "sim3")
+    assert external_method("plain", tmp_path / "nothing-declared").sensor == "mono"
+    (tmp_path / "method.toml").write_text('sensor = "lidar"\n')
+    with pytest.raises(MethodError, match="sensor must be one of"):
+        external_method("bad", tmp_path)
+    (tmp_path / "method.toml").write_text('speed = "fast"\n')
+    with pytest.raises(MethodError, match="unknown field"):
+        external_method("bad", tmp_path)
