@@ -7,6 +7,7 @@ poses (OpenCV camera axes). Functions are batched over the leading axis and name
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -141,10 +142,19 @@ class PoseTrajectory:
 
     # ------------------------------------------------------------------------------------------------------ files
     @classmethod
-    def from_tum_file(cls, path: str | Path, *, duplicate_timestamps: DuplicatePolicy = "error") -> PoseTrajectory:
-        """Read a TUM trajectory file (see :func:`sim_envs.formats.read_tum_trajectory`)."""
+    def from_tum_file(
+        cls,
+        path: str | Path,
+        *,
+        duplicate_timestamps: DuplicatePolicy = "error",
+        on_duplicates: Callable[[str], None] | None = None,
+    ) -> PoseTrajectory:
+        """Read a TUM trajectory file (see :func:`sim_envs.formats.read_tum_trajectory`; ``on_duplicates`` gets one
+        message when poses of repeated timestamps were dropped)."""
         try:
-            stamps, T = read_tum_trajectory(path, duplicate_timestamps=duplicate_timestamps)
+            stamps, T = read_tum_trajectory(
+                path, duplicate_timestamps=duplicate_timestamps, on_duplicates=on_duplicates
+            )
         except FormatError as exc:
             raise TrajectoryError(str(exc)) from exc
         return cls(stamps, T)

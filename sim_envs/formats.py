@@ -23,7 +23,7 @@ Also here, because loading a TUM RGB-D folder needs it and the world must not im
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -76,8 +76,15 @@ def _parse_numbers(path: Path, number: int, fields: list[str], expected: int, la
     return values
 
 
-def _check_increasing(path: Path, numbers: list[int], stamps: np.ndarray, duplicates: DuplicatePolicy) -> np.ndarray:
-    """Indices of the rows to keep; raises on a decreasing timestamp, and on a repeated one unless told otherwise."""
+def _check_increasing(
+    path: Path,
+    numbers: list[int],
+    stamps: np.ndarray,
+    duplicates: DuplicatePolicy,
+    on_duplicates: Callable[[str], None] | None = None,
+) -> np.ndarray:
+    """Indices of the rows to keep; raises on a decreasing timestamp, and on a repeated one unless told otherwise.
+    ``on_duplicates`` gets one message (file, count, first line) when repeated timestamps were dropped."""
     if duplicates not in DUPLICATE_POLICIES:
         raise FormatError(f"duplicate_timestamps must be one of {DUPLICATE_POLICIES}, got {duplicates!r}")
     steps = np.diff(stamps)
@@ -98,6 +105,12 @@ def _check_increasing(path: Path, numbers: list[int], stamps: np.ndarray, duplic
     if duplicates == "error" or stamps.size == 0:
         return np.arange(stamps.size)
     repeated = steps == 0
+    if on_duplicates is not None and repeated.any():
+        k = int(np.flatnonzero(repeated)[0])
+        on_duplicates(
+            f"{path}: {int(repeated.sum())} repeated timestamp(s), the first {float(stamps[k])!r} on lines "
+            f"{numbers[k]} and {numbers[k + 1]}; kept the {duplicates} pose of each"
+        )
     if duplicates == "last":
         return np.flatnonzero(np.r_[~repeated, True])
     return np.flatnonzero(np.r_[True, ~repeated])
@@ -127,13 +140,15 @@ def read_tum_trajectory(
     *,
     quaternion_tol: float = QUATERNION_TOL,
     duplicate_timestamps: DuplicatePolicy = "error",
+    on_duplicates: Callable[[str], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM trajectory file.
 
     Returns ``timestamps`` (N,) float64 seconds, strictly increasing, and ``T_world_cam`` (N, 4, 4) float64.
     Raises :class:`FormatError` naming file and line on: a column count other than 8, a field that is not a finite
     number, a quaternion whose norm differs from 1 by more than ``quaternion_tol``, a timestamp that does not
-    increase (see ``duplicate_timestamps``), an empty file.
+    increase (see ``duplicate_timestamps``), an empty file. ``on_duplicates``: called once with a one-line message
+    when ``"first"``/``"last"`` dropped poses of repeated timestamps (for a warning).
     """
     path = Path(path)
     layout = "timestamp tx ty tz qx qy qz qw"
@@ -153,7 +168,7 @@ def read_tum_trajectory(
             f"{path}:{numbers[k]}: quaternion (qx qy qz qw) = {tuple(values[k, 4:8])} has norm {norms[k]:.6g}; "
             f"a rotation needs a unit quaternion (norm within {quaternion_tol:g} of 1)"
         )
-    keep = _check_increasing(path, numbers, values[:, 0], duplicate_timestamps)
+    keep = _check_increasing(path, numbers, values[:, 0], duplicate_timestamps, on_duplicates)
     values = values[keep]
     return values[:, 0].copy(), quaternions_to_matrices(values[:, 1:4], values[:, 4:8])
 

@@ -116,8 +116,15 @@ def test_real_tum_ground_truth_with_a_repeated_timestamp():
     with pytest.raises(FormatError) as err:
         read_tum_trajectory(path)
     assert f"{path}:10863:" in str(err.value) and "line 10862" in str(err.value)
-    stamps, T = read_tum_trajectory(path, duplicate_timestamps="last")
+    messages: list[str] = []
+    stamps, T = read_tum_trajectory(path, duplicate_timestamps="last", on_duplicates=messages.append)
     assert stamps.shape == (20956,) and T.shape == (20956, 4, 4)
+    assert messages == [
+        f"{path}: 1 repeated timestamp(s), the first 1311868229.576 on lines 10862 and 10863; kept the last pose of "
+        "each"
+    ]
+    read_tum_trajectory(TUM_DATA / "fr2_desk_ORB.txt", duplicate_timestamps="last", on_duplicates=messages.append)
+    assert len(messages) == 1  # nothing dropped, nothing said
 
 
 def test_format_tum_rejects_mismatched_lengths():
