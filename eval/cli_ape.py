@@ -1,8 +1,25 @@
 """``cnnslam eval GROUNDTRUTH ESTIMATE``: score an estimated trajectory against ground truth, like evo_ape.
 
-Prints the association and alignment used, the ATE statistics (metres), the rotation error (degrees), the RPE and
-the Sim(3) scale. ``--json`` prints exactly one JSON object instead (keys: rmse, mean, median, std, min, max, pairs,
-alignment, association, scale, scale_error, rotation_deg, rpe, length_gt_m, length_est_m, warnings, files).
+Prints the association and alignment used, the ATE statistics (metres) after the requested alignment, the metric
+(SE(3)) and scale-aligned (Sim(3)) ATE RMSE, the rotation error after that alignment and after orientation-only
+alignment (degrees), the RPE and the Sim(3) scale. Repeated timestamps in a TUM file (the official fr2/desk ground
+truth has one) keep the last pose, as the TUM tools and evo do, with one warning line on stderr
+(``--duplicates error|first`` for other policies).
+
+``--json`` prints exactly one JSON object instead, schema ``cnnslam-eval/1``::
+
+    {"schema": "cnnslam-eval/1", "files": {"groundtruth": str, "estimate": str},
+     "alignment": {...}, "association": {...}, "rpe": {"delta": float, "unit": str}, "warnings": [str, ...],
+     "metrics": {name: float, ...}}
+
+``alignment``, ``association``, ``rpe``, ``warnings`` and ``metrics`` have the names and meaning of the same keys
+of a run record (``metrics.json``, schema ``cnnslam-run/1``, :mod:`eval.results`); ``metrics`` holds its trajectory
+metrics (``ate_rmse``, ``ate_se3_rmse``, ``ate_sim3_rmse``, ``rot_deg_orient_rmse``, ``rpe_rot_deg_rmse``, ``scale``,
+... as defined in :mod:`eval.metrics`), without the run-only ones (``tracked_share``, ``frames``, depth, semantic,
+timing). NaN is written as null. Before this schema the ATE statistics sat at the top level (``rmse`` is now
+``metrics.ate_rmse``, ``rotation_deg.rmse`` is ``metrics.rot_deg_rmse``, ``rpe.translation.rmse`` is
+``metrics.rpe_trans_rmse``).
+
 Exit status: 0 on success, 1 when the files cannot be scored (the message says why), 2 on bad arguments.
 """
 
@@ -12,7 +29,7 @@ import argparse
 import json
 import sys
 
-from eval.alignment import AlignmentMethod
+from eval.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from eval.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.errors import EvalError
 from eval.metrics import ErrorStatistics, RpeUnit, TrajectoryMetrics, evaluate_trajectory
@@ -20,13 +37,7 @@ from eval.results import json_ready
 from eval.trajectory import PoseTrajectory
 from sim_envs.formats import DUPLICATE_POLICIES
 
-_ALIGN_TITLES = {
-    "se3": "SE(3) Umeyama alignment (no scale)",
-    "sim3": "Sim(3) Umeyama alignment (with scale)",
-    "origin": "origin alignment (first poses)",
-    "none": "no alignment",
-    "rotation_only": "rotation-only alignment (positions degenerate)",
-}
+EVAL_SCHEMA = "cnnslam-eval/1"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -56,8 +67,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--duplicates",
         choices=DUPLICATE_POLICIES,
-        default="error",
-        help="a repeated timestamp in a file: error (default), or keep the first / last pose (the TUM tools: last)",
+        default="last",
+        help="a repeated timestamp in a TUM file: keep the last pose (default; the TUM tools and evo), the first, "
+        "or error",
     )
     parser.add_argument("--rpe-delta", type=float, default=1.0, help="RPE pair distance (default: 1.0)")
     parser.add_argument(
@@ -98,22 +110,26 @@ def run(args: argparse.Namespace) -> int:
             title=f"{args.estimate}: ATE RMSE {metrics.ate.rmse:.4f} m ({metrics.alignment.used})",
         )
     if args.json:
-        out = metrics.to_dict()
-        out["files"] = {"groundtruth": args.groundtruth, "estimate": args.estimate}
+        out = {"schema": EVAL_SCHEMA, "files": {"groundtruth": args.groundtruth, "estimate": args.estimate}}
+        out.update(metrics.to_dict())
         print(json.dumps(json_ready(out), allow_nan=False))
     else:
         print(format_report(metrics, args.groundtruth, args.estimate))
         if args.plot:
             print(f"\nfigure: {args.plot}")
     for warning in metrics.warnings:
-        print(f"cnnslam eval: warning: {warning}", file=sys.stderr)
+        _warn(warning)
     return 0
 
 
 def _load(path: str, args: argparse.Namespace) -> PoseTrajectory:
     if args.format == "kitti":
         return PoseTrajectory.from_kitti_file(path)
-    return PoseTrajectory.from_tum_file(path, duplicate_timestamps=args.duplicates)
+    return PoseTrajectory.from_tum_file(path, duplicate_timestamps=args.duplicates, on_duplicates=_warn)
+
+
+def _warn(message: str) -> None:
+    print(f"cnnslam eval: warning: {message}", file=sys.stderr)
 
 
 def _stats_lines(stats: ErrorStatistics, digits: int = 6) -> list[str]:
@@ -123,22 +139,36 @@ def _stats_lines(stats: ErrorStatistics, digits: int = 6) -> list[str]:
 def format_report(m: TrajectoryMetrics, gt_path: str, est_path: str) -> str:
     """The text report printed by ``cnnslam eval`` (evo_ape-like)."""
     a = m.association
+    fit = m.alignment
+    flag = "fallback" if fit.fallback else "ill-conditioned" if fit.degenerate else ""
     lines = [
         f"ground truth: {gt_path}",
         f"estimate:     {est_path}",
         f"association:  {a.rule.value}, max. difference {a.max_difference} s, offset {a.offset} s, {len(a)} pairs",
-        f"alignment:    {_ALIGN_TITLES[m.alignment.used]}"
-        + (f", scale {m.alignment.scale:.4f}" if m.alignment.used == "sim3" else ""),
+        f"alignment:    {ALIGNMENT_TITLES[fit.used]}"
+        + (f", scale {fit.scale:.4f}" if fit.scale_fitted else "")
+        + (f" [{flag}: see the warning]" if flag else ""),
         "",
         "APE w.r.t. translation part (m)",
         *_stats_lines(m.ate),
         "",
-        "rotation error after alignment (deg)",
+        *(
+            f"{label:<58}{rmse:.6f} m" + (" (rotation-only fallback)" if f.fallback else "")
+            for label, rmse, f in (
+                ("ATE RMSE after SE(3) alignment (metric, = evo_ape -a):", m.ate_se3_rmse, m.se3_alignment),
+                ("ATE RMSE after Sim(3) alignment (scaled, = evo_ape -as):", m.ate_sim3_rmse, m.sim3_alignment),
+            )
+        ),
+        "",
+        "rotation error after orientation-only alignment (deg; independent of positions: read this for rotation)",
+        *_stats_lines(m.rotation_orient_deg, 4),
+        "",
+        f"rotation error after the {fit.used} alignment (deg)",
         *_stats_lines(m.rotation_deg, 4),
         "",
         f"RPE over {m.rpe_delta:g} {m.rpe_unit.value}: translation (m)",
         *_stats_lines(m.rpe_translation),
-        f"RPE over {m.rpe_delta:g} {m.rpe_unit.value}: rotation (deg)",
+        f"RPE over {m.rpe_delta:g} {m.rpe_unit.value}: rotation (deg, alignment-free)",
         *_stats_lines(m.rpe_rotation_deg, 4),
         "",
         f"Sim(3) scale {m.scale:.4f} (scale error |1/s - 1| = {m.scale_error:.4f})",

@@ -1,23 +1,38 @@
-"""Trajectory metrics: ATE, RPE, rotation error, scale error, tracked share, trajectory length.
+"""Trajectory metrics: ATE (SE(3) and Sim(3)), rotation error, RPE, scale error, tracked share, trajectory length.
 
-Definitions (all computed on associated pose pairs k = 0..M-1, ground truth Q_k, aligned estimate P_k):
+Poses are T_world_cam (4x4 camera-to-world, OpenCV camera axes). Definitions (all computed on associated pose pairs
+k = 0..M-1, ground truth Q_k, aligned estimate P_k); flat names as in :meth:`TrajectoryMetrics.flat_metrics`:
 
 - ATE (absolute trajectory error, Sturm et al. IROS 2012, as the TUM tools and evo_ape compute it): the translation
-  error |t(Q_k) - t(P_k)| in metres after :mod:`eval.alignment`; statistics rmse, mean, median, std (population),
-  min, max over the M pairs.
-- rotation error: the angle of R(Q_k)^T R(P_k) in degrees, after the same alignment.
+  error |t(Q_k) - t(P_k)| in metres after the run's alignment (:mod:`eval.alignment`, default SE(3));
+  ``ate_{rmse,mean,median,std,min,max,pairs}``. Whatever the run's alignment, ``ate_se3_rmse`` (metric ATE, SE(3)
+  Umeyama = ``evo_ape -a``) and ``ate_sim3_rmse`` (scale-aligned ATE, Sim(3) Umeyama = ``evo_ape -as``) are also
+  reported. ``ate_alignment_degenerate`` is 1 when the positions determine the SE(3)/Sim(3) fit badly or not at
+  all (:func:`eval.alignment.degeneracy`), ``ate_alignment_fallback`` 1 when Umeyama was not defined and the
+  rotation-only fallback was used (evo raises there), else 0.
+- rotation error ``rot_deg_*``: the angle of R(Q_k)^T R(P_k) in degrees after the run's alignment. Its rotation
+  comes from the POSITIONS: when ``ate_alignment_degenerate`` is 1 (nearly pure rotation, a short straight run) it
+  is arbitrary.
+- orientation error ``rot_deg_orient_*``: the angle of R(Q_k)^T R_o R(E_k) in degrees, E_k the unaligned estimate,
+  after the orientation-only alignment R_o = chordal L2 mean of R(Q_k) R(E_k)^T projected onto SO(3)
+  (:func:`eval.alignment.orientation_alignment`): uses orientations only, independent of positions and scale.
 - RPE (relative pose error, TUM ``evaluate_rpe.py``): E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) a fixed
-  delta apart; translational part |t(E)| in metres, rotational part angle(R(E)) in degrees. The delta is counted in
-  ``frames`` (associated pairs), ``s`` (seconds of ground-truth time) or ``m`` (metres travelled along the ground
-  truth; the TUM script measures along the estimate, which is meaningless for a scale-free monocular estimate).
-  j is the pair whose index value is closest to value_i + delta; pairs whose target lies past the end are dropped
-  (the TUM script also drops every pair ending on the last pose). All pairs are used (the TUM script samples 10000
-  at random). RPE sees the alignment's scale (sim3) but no rigid alignment can change it.
-- scale: the Umeyama Sim(3) scale s mapping the estimate onto the ground truth (always fitted, whatever the
-  alignment, when the positions allow it). The estimate's size relative to the truth is 1/s, so the scale error is
-  |1/s - 1| (0.1 = the estimate is 10 % too large or too small).
-- tracked share: frames the agent reported as tracked / all frames it returned.
-- length: path length of the (associated) ground truth and of the aligned estimate, metres.
+  delta apart; translational part |t(E)| in metres (``rpe_trans_*``), rotational part angle(R(E)) in degrees
+  (``rpe_rot_deg_*``). The delta is counted in ``frames`` (associated pairs), ``s`` (seconds of ground-truth time)
+  or ``m`` (metres travelled along the ground truth; the TUM script measures along the estimate, which is
+  meaningless for a scale-free monocular estimate). j is the pair whose index value is closest to value_i + delta;
+  pairs whose target lies past the end are dropped (the TUM script also drops every pair ending on the last pose).
+  All pairs are used (the TUM script samples 10000 at random). No world-frame alignment changes the RPE: the
+  rotational part is alignment-free, the translational part sees only the alignment's scale (sim3).
+- scale ``scale``: the Sim(3) scale s of the ``ate_sim3`` fit (Umeyama whenever defined, as evo's; along the line of
+  motion for a straight line; NaN when not observable), whatever the run's alignment. The estimate's size relative
+  to the truth is 1/s, so ``scale_error`` = |1/s - 1| (0.1 = the estimate is 10 % too large or too small).
+- ``tracked_share``: frames the agent reported as tracked / all frames it returned.
+- ``length_gt_m``, ``length_est_m``: path length of the (associated) ground truth and of the aligned estimate.
+
+Which figure to read for a verdict: position accuracy ``ate_rmse`` (metric, the paper's) and ``ate_sim3_rmse``
+(shape, up to scale); ROTATION accuracy ``rot_deg_orient_rmse`` (absolute orientation) and ``rpe_rot_deg_rmse``
+(drift), never ``rot_deg_rmse`` on rotation-dominant sequences or when ``ate_alignment_degenerate`` is 1.
 """
 
 from __future__ import annotations
@@ -29,7 +44,15 @@ from typing import Any
 
 import numpy as np
 
-from eval.alignment import Alignment, AlignmentError, AlignmentMethod, align, degeneracy, umeyama_alignment
+from eval.alignment import (
+    Alignment,
+    AlignmentError,
+    AlignmentMethod,
+    align,
+    degeneracy,
+    orientation_alignment,
+    umeyama_alignment,
+)
 from eval.association import DEFAULT_MAX_DIFFERENCE, Association, AssociationRule, associate, associated_pair
 from eval.errors import EvalError
 from eval.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
@@ -167,8 +190,11 @@ def sim3_scale(p_gt: np.ndarray, p_est: np.ndarray) -> float:
 # -------------------------------------------------------------------------------------------------- the evaluation
 @dataclass(frozen=True, eq=False)
 class TrajectoryMetrics:
-    """Everything measured on one estimated trajectory. Arrays are kept for plots.
+    """Everything measured on one estimated trajectory (see the module docstring). Arrays are kept for plots.
 
+    ``alignment``: the run's alignment (ATE, rotation error, RPE, length); ``se3_alignment``, ``sim3_alignment``:
+    the SE(3) and Sim(3) Umeyama fits behind ``ate_se3_rmse`` and ``ate_sim3_rmse`` (the same object as
+    ``alignment`` when that is one of them); ``orientation_rotation``: R_o (3, 3) of the orientation-only alignment.
     ``gt`` and ``est_aligned``: the associated ground truth and the aligned estimate (M poses each);
     ``ate_errors``: (M,) metres; ``rotation_errors``: (M,) degrees.
     """
@@ -181,7 +207,7 @@ class TrajectoryMetrics:
     rpe_rotation_deg: ErrorStatistics  # degrees
     rpe_delta: float
     rpe_unit: RpeUnit
-    scale: float  # Umeyama Sim(3) scale (NaN when degenerate)
+    scale: float  # Sim(3) scale of sim3_alignment (NaN when not observable)
     scale_error: float  # |1/scale - 1|
     length_gt: float  # metres
     length_est: float  # metres, aligned estimate
@@ -190,48 +216,77 @@ class TrajectoryMetrics:
     est_aligned: PoseTrajectory
     ate_errors: np.ndarray
     rotation_errors: np.ndarray
+    se3_alignment: Alignment
+    sim3_alignment: Alignment
+    ate_se3_rmse: float  # metres
+    ate_sim3_rmse: float  # metres
+    orientation_rotation: np.ndarray  # (3, 3)
+    rotation_orient_deg: ErrorStatistics  # degrees, after the orientation-only alignment
+
+    @property
+    def degenerate(self) -> bool:
+        """The positions determine the SE(3)/Sim(3) fit badly or not at all."""
+        return any(a.degenerate for a in (self.alignment, self.se3_alignment, self.sim3_alignment))
+
+    @property
+    def fallback(self) -> bool:
+        """Umeyama was not defined on these positions and a rotation-only fallback was used."""
+        return any(a.fallback for a in (self.alignment, self.se3_alignment, self.sim3_alignment))
 
     @property
     def warnings(self) -> list[str]:
-        return [self.alignment.warning] if self.alignment.warning else []
+        """The run's alignment's warning, else the SE(3) or Sim(3) fit's (one line: they share the positions)."""
+        for fit in (self.alignment, self.se3_alignment, self.sim3_alignment):
+            if fit.warning:
+                return [fit.warning]
+        return []
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready: ATE statistics at the top level (like evo_ape's), then the rest in named blocks."""
-        out: dict[str, Any] = dict(self.ate.to_dict())
-        out.update(
-            {
-                "alignment": self.alignment.describe(),
-                "association": self.association.describe(),
-                "scale": self.scale,
-                "scale_error": self.scale_error,
-                "rotation_deg": self.rotation_deg.to_dict(),
-                "rpe": {
-                    "delta": self.rpe_delta,
-                    "unit": self.rpe_unit.value,
-                    "translation": self.rpe_translation.to_dict(),
-                    "rotation_deg": self.rpe_rotation_deg.to_dict(),
-                },
-                "length_gt_m": self.length_gt,
-                "length_est_m": self.length_est,
-                "tracked_share": self.tracked_share,
-                "warnings": self.warnings,
-            }
-        )
+    def describe_alignment(self) -> dict[str, Any]:
+        """JSON-ready: the run's alignment (requested, used, title, scale, degenerate, fallback, warning), with the
+        SE(3) and Sim(3) fits behind ``ate_se3_rmse`` / ``ate_sim3_rmse`` under ``se3`` and ``sim3``, and the
+        orientation-only alignment behind ``rot_deg_orient_*`` under ``orientation``."""
+        out: dict[str, Any] = self.alignment.describe()
+        out["se3"] = self.se3_alignment.describe()
+        out["sim3"] = self.sim3_alignment.describe()
+        out["orientation"] = "chordal L2 mean of R_gt_k R_est_k^T projected onto SO(3) (orientations only)"
         return out
 
+    def describe_rpe(self) -> dict[str, Any]:
+        """JSON-ready: the RPE pair distance."""
+        return {"delta": self.rpe_delta, "unit": self.rpe_unit.value}
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready, in the run record's names (:mod:`eval.results`): ``alignment``, ``association``, ``rpe``,
+        ``warnings`` and ``metrics`` (:meth:`flat_metrics`)."""
+        return {
+            "alignment": self.describe_alignment(),
+            "association": self.association.describe(),
+            "rpe": self.describe_rpe(),
+            "warnings": self.warnings,
+            "metrics": self.flat_metrics(),
+        }
+
     def flat_metrics(self, prefix: str = "") -> dict[str, float]:
-        """Scalar metrics under flat names (``ate_rmse``, ``rpe_trans_rmse``, ...), for tables and the gate."""
+        """Scalar metrics under flat names (``ate_rmse``, ``rpe_trans_rmse``, ...), for tables and the gate; every
+        value a float (flags 0.0 / 1.0). Names and meanings: the module docstring."""
         m: dict[str, float] = {}
         for block, stats in (
             ("ate", self.ate),
             ("rot_deg", self.rotation_deg),
             ("rpe_trans", self.rpe_translation),
             ("rpe_rot_deg", self.rpe_rotation_deg),
+            ("rot_deg_orient", self.rotation_orient_deg),
         ):
             for key, value in stats.to_dict().items():
+                if block == "rot_deg_orient" and key == "pairs":  # = ate_pairs
+                    continue
                 m[f"{block}_{key}"] = float(value)
         m.update(
             {
+                "ate_se3_rmse": self.ate_se3_rmse,
+                "ate_sim3_rmse": self.ate_sim3_rmse,
+                "ate_alignment_degenerate": float(self.degenerate),
+                "ate_alignment_fallback": float(self.fallback),
                 "scale": self.scale,
                 "scale_error": self.scale_error,
                 "length_gt_m": self.length_gt,
@@ -273,13 +328,20 @@ def evaluate_trajectory(
         raise EvalError(f"tracked has {np.asarray(tracked).size} entries for an estimate of {len(est)} poses")
     assoc = associate(gt, est, association, max_difference, offset)
     gt_m, est_m = associated_pair(gt, est, assoc)
-    fit = align(gt_m.T_world_cam, est_m.T_world_cam, alignment)
-    est_aligned = PoseTrajectory(est_m.timestamps, fit.apply(est_m.T_world_cam))
-    ate_e = translation_errors(gt_m.T_world_cam, est_aligned.T_world_cam)
-    rot_e = rotation_errors_deg(gt_m.T_world_cam, est_aligned.T_world_cam)
+    T_gt, T_est = gt_m.T_world_cam, est_m.T_world_cam
+    fit = align(T_gt, T_est, alignment)
+    both = (AlignmentMethod.SE3, AlignmentMethod.SIM3)
+    fits = {m: fit if fit.requested == m else align(T_gt, T_est, m) for m in both}
+    est_aligned = PoseTrajectory(est_m.timestamps, fit.apply(T_est))
+    ate_e = translation_errors(T_gt, est_aligned.T_world_cam)
+    ate_rmse = {m: float(np.sqrt(np.mean(translation_errors(T_gt, f.apply(T_est)) ** 2))) for m, f in fits.items()}
+    rot_e = rotation_errors_deg(T_gt, est_aligned.T_world_cam)
+    R_o = orientation_alignment(T_gt[:, :3, :3], T_est[:, :3, :3])
+    orient_e = np.degrees(so3_angle(np.swapaxes(T_gt[:, :3, :3], 1, 2) @ R_o @ T_est[:, :3, :3]))
     i, j = rpe_pair_indices(rpe_index_values(gt_m, unit), rpe_delta)
-    rpe_t, rpe_r = relative_pose_errors(gt_m.T_world_cam, est_aligned.T_world_cam, i, j)
-    s = fit.scale if fit.used == AlignmentMethod.SIM3.value else sim3_scale(gt_m.positions, est_m.positions)
+    rpe_t, rpe_r = relative_pose_errors(T_gt, est_aligned.T_world_cam, i, j)
+    sim3 = fits[AlignmentMethod.SIM3]
+    s = sim3.scale if sim3.scale_fitted else math.nan
     return TrajectoryMetrics(
         association=assoc,
         alignment=fit,
@@ -298,4 +360,10 @@ def evaluate_trajectory(
         est_aligned=est_aligned,
         ate_errors=ate_e,
         rotation_errors=rot_e,
+        se3_alignment=fits[AlignmentMethod.SE3],
+        sim3_alignment=sim3,
+        ate_se3_rmse=ate_rmse[AlignmentMethod.SE3],
+        ate_sim3_rmse=ate_rmse[AlignmentMethod.SIM3],
+        orientation_rotation=R_o,
+        rotation_orient_deg=error_statistics(orient_e),
     )

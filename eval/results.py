@@ -3,13 +3,25 @@
 A run record (what :func:`evaluate_episode` returns and :func:`save_run` writes) is a dict::
 
     {"schema": "cnnslam-run/1", "sequence": str, "method": str, "agent": str, "uses_ground_truth": bool,
-     "alignment": {...}, "association": {...}, "warnings": [str, ...],
+     "alignment": {...}, "association": {...}, "rpe": {"delta": float, "unit": str}, "warnings": [str, ...],
      "metrics": {name: float, ...},           # flat scalar metrics (names below)
      "keyframes": [{"timestamp": s, "percent_correct": ..., ...}, ...],
      "metadata": {name: scalar, ...}}         # run settings (seed, config...), free-form scalars
 
-Metric names: ``ate_{rmse,mean,median,std,min,max,pairs}`` (m), ``rot_deg_*`` (deg), ``rpe_trans_*`` (m),
-``rpe_rot_deg_*`` (deg), ``scale``, ``scale_error``, ``length_gt_m``, ``length_est_m``, ``tracked_share`` (0..1),
+``alignment`` (:meth:`eval.metrics.TrajectoryMetrics.describe_alignment`): ``requested``, ``used`` (what was done:
+``se3``, ``sim3``, ``origin``, ``none`` or ``rotation_only``), ``title`` (the same in words), ``scale``,
+``degenerate``, ``fallback``, ``warning``, the fits behind ``ate_se3_rmse`` / ``ate_sim3_rmse`` under ``se3`` and
+``sim3``, and the orientation-only alignment's definition under ``orientation``. ``alignment``, ``association``,
+``rpe``, ``warnings`` and the trajectory part of ``metrics`` have the same names and meaning in
+``cnnslam eval --json`` (:mod:`eval.cli_ape`).
+
+Metric names (all values numbers; definitions in :mod:`eval.metrics`): ``ate_{rmse,mean,median,std,min,max,pairs}``
+(m, after the run's alignment, default SE(3)), ``ate_se3_rmse`` (m, metric ATE, SE(3) Umeyama = evo_ape -a),
+``ate_sim3_rmse`` (m, scale-aligned ATE, Sim(3) Umeyama = evo_ape -as), ``ate_alignment_degenerate`` and
+``ate_alignment_fallback`` (0/1: positions determine the fit badly / not at all), ``rot_deg_*`` (deg, after the
+run's alignment), ``rot_deg_orient_{rmse,mean,median,std,min,max}`` (deg, after orientation-only alignment: read
+this, and ``rpe_rot_deg_*``, for rotation verdicts), ``rpe_trans_*`` (m), ``rpe_rot_deg_*`` (deg, alignment-free),
+``scale``, ``scale_error``, ``length_gt_m``, ``length_est_m``, ``tracked_share`` (0..1),
 ``depth_percent_correct`` (pooled over key-frames; the Table-1 figure), ``depth_percent_correct_mean`` (mean over
 key-frames), ``depth_density``, ``depth_abs_rel``, ``depth_rmse``, ``depth_delta_1_25``, ``depth_keyframes``,
 ``semantic_pixel_accuracy``, ``semantic_mean_iou``, ``semantic_iou_<class>``, ``step_ms_{mean,median,max}``,
@@ -114,8 +126,9 @@ def evaluate_episode(
         "method": method or agent,
         "agent": agent,
         "uses_ground_truth": bool(getattr(result, "uses_ground_truth", False)),
-        "alignment": traj.alignment.describe(),
+        "alignment": traj.describe_alignment(),
         "association": traj.association.describe(),
+        "rpe": traj.describe_rpe(),
         "warnings": warnings,
         "metrics": metrics,
         "keyframes": kf_rows,

@@ -75,6 +75,26 @@ def test_evaluate_episode_known_answers():
     json.dumps(json_ready(rec), allow_nan=False)  # strict JSON
 
 
+def test_the_record_says_which_alignment_was_used_and_reports_both_ates():
+    rec = evaluate_episode(episode())
+    m, a = rec["metrics"], rec["alignment"]
+    assert a["used"] == "se3" and a["title"].startswith("SE(3) Umeyama") and a["degenerate"] is False
+    assert a["sim3"]["used"] == "sim3" and rec["rpe"] == {"delta": 1.0, "unit": "s"}
+    assert m["ate_se3_rmse"] == m["ate_rmse"] and m["ate_sim3_rmse"] <= m["ate_rmse"]
+    assert m["ate_alignment_degenerate"] == 0.0 and m["ate_alignment_fallback"] == 0.0
+    assert m["rot_deg_orient_rmse"] == pytest.approx(0.0, abs=1e-9)  # only positions are off
+    assert all(isinstance(v, float) for v in m.values())  # the flat metrics stay numbers only
+    # a pure rotation on the spot: the fallback (evo refuses), flagged in the record and the flat metrics
+    still = episode()
+    still.T_world_cam_gt = still.T_world_cam_gt.copy()
+    still.T_world_cam_gt[:, :3, 3] = [1.0, 2.0, 1.5]
+    still.T_world_cam_est = still.T_world_cam_gt.copy()
+    rec = evaluate_episode(still)
+    assert rec["alignment"]["used"] == "rotation_only" and rec["alignment"]["fallback"] is True
+    assert rec["metrics"]["ate_alignment_fallback"] == 1.0 and rec["metrics"]["ate_alignment_degenerate"] == 1.0
+    assert any("rotation-only" in w for w in rec["warnings"]) and math.isnan(rec["metrics"]["scale"])
+
+
 def test_save_load_and_long_form(tmp_path):
     rec = evaluate_episode(episode(), method="CNN-SLAM", metadata={"seed": 3})
     rec["metrics"]["semantic_iou_small_structure"] = math.nan
