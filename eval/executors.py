@@ -13,16 +13,36 @@ process that died, a Ray task error). Executors never raise for one bad item: th
   before (some agents' floating-point results do, slightly, through process-wide state), at the price of a
   process start and imports per run. When a worker dies (a crash in native code), the pool is rebuilt for the runs
   that had not finished; a run that was unfinished in :data:`MAX_POOL_BREAKS` broken pools is reported failed.
+  At most ``jobs`` runs are handed to the pool at a time, so a run's clock starts when it is handed over (its
+  worker's start included). Workers ignore SIGINT and die with the process that started them
+  (:func:`die_with_parent`), so a ``kill -9`` of the parent leaves no orphan holding memory. When the consumer stops
+  early (Ctrl-C, an exception while it handles a result, ``close()``), the workers are killed at once, unfinished
+  runs are dropped and the exception goes on to the caller: nothing waits for runs whose results nobody takes.
 - ``ray``: the same runs as Ray tasks, on the cluster at ``address`` (``"auto"``, ``"ray://host:10001"``,
   ``"local"`` for a new local one) or, without an address, on the Ray instance already initialised in this process,
   else on a new local one with ``jobs`` CPUs. Ray is an optional dependency (``pip install -e '.[ray]'``), imported
   only here and only when asked; its worker nodes need this package installed (the same ``pip install``).
+
+A time limit per run (``timeout_s``) stops a run still unfinished after that many seconds and yields it as
+:class:`RunTimedOut`. ``local`` kills its pool (a process pool cannot lose one worker without breaking) and restarts
+the pool's other unfinished runs in a new one, with fresh clocks and without counting it against them. ``ray``
+cancels the task with ``ray.cancel(force=True)``, which kills its worker, and then keeps at most as many tasks in
+flight as the cluster has CPU slots for, so that a task's clock starts about when the task does. ``serial`` cannot
+stop work in its own process and refuses a limit (use ``local`` with one job).
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import math
 import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -41,6 +61,9 @@ THREAD_VARIABLES: tuple[str, ...] = (
     "VECLIB_MAXIMUM_THREADS",
 )
 RAY_INSTALL_HINT = "pip install -c constraints.txt -e '.[ray]'"
+PARENT_POLL_S = 0.5  # how often a worker's watchdog thread checks that its parent still lives
+KILL_WAIT_S = 1.0  # how long stopping a pool waits for its manager thread and each killed worker
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -52,6 +75,17 @@ class ExecutorError(EvalError):
 
 class WorkerDied(ExecutorError, RuntimeError):
     """The process running an item died (or its pool broke too often) before returning a result."""
+
+
+class RunTimedOut(ExecutorError):
+    """A run was still unfinished after the executor's per-run time limit; it was stopped."""
+
+    def __init__(self, timeout_s: float) -> None:
+        super().__init__(f"run exceeded its time limit of {timeout_s:g} s")
+        self.timeout_s = timeout_s
+
+    def __reduce__(self) -> tuple[type, tuple[float]]:  # pickled with its limit, not its message
+        return type(self), (self.timeout_s,)
 
 
 class Executor(Protocol):
@@ -88,8 +122,73 @@ def limit_threads(threads: int) -> None:
         pass
 
 
+def die_with_parent(parent: int, kernel: bool = True, poll_s: float = PARENT_POLL_S) -> None:
+    """Make this process exit as soon as process ``parent`` (its parent, by pid) is gone, even by ``kill -9``.
+
+    ``kernel``: on Linux, ask the kernel to send SIGKILL when the parent goes (``PR_SET_PDEATHSIG``): at once, and
+    even while native code holds the GIL. The kernel ties that signal to the parent *thread* that started this
+    process: CPython 3.11's pool starts the first workers from the thread that calls ``submit`` but the replacement
+    of a worker that finished its runs (``max_tasks_per_child``) from its manager thread, which ends only after the
+    pool's workers have ended, so the signal never comes early. A daemon thread that polls ``os.getppid()`` every
+    ``poll_s`` seconds covers the rest: other systems, and a parent that died before the ``prctl`` call (``kernel``
+    off leaves only this thread, for tests).
+    """
+    if kernel and sys.platform == "linux":
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os._exit(1)  # reparented: the parent is gone and nobody will collect this process's result
+
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
+
+
+def init_worker(threads: int, parent: int) -> None:
+    """Set up a local pool worker: die with ``parent``, leave Ctrl-C to it, limit math threads to ``threads``.
+
+    Ignoring SIGINT keeps a terminal's Ctrl-C (sent to the whole process group) from printing one traceback per
+    worker; the parent kills its workers itself.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent)
+    limit_threads(threads)
+
+
+def kill_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop ``pool`` now: cancel its queued work and kill its workers (SIGKILL), where ``shutdown`` would wait for
+    their runs to end. The public API cannot stop a running call, so this uses the pool's process table and manager
+    thread (``_processes``, ``_executor_manager_thread``, the same in CPython 3.9-3.13)."""
+    processes = pool._processes or {}  # the live table, which the manager thread also adds to
+    for process in list(processes.values()):
+        process.kill()
+    if pool._executor_manager_thread is not None:
+        pool._executor_manager_thread.join(KILL_WAIT_S)  # it sees a worker gone, fails the pool's futures and ends
+    for process in list(processes.values()):  # a worker the manager started meanwhile (a replacement) as well
+        process.kill()
+        process.join(KILL_WAIT_S)
+    # Only now: a manager thread still running after shutdown() may replace a worker and fail on the dropped table
+    pool.shutdown(wait=False, cancel_futures=True)
+
+
+def check_timeout(timeout_s: float | None) -> float | None:
+    """``timeout_s`` as a float, if given; :class:`ExecutorError` unless it is positive."""
+    if timeout_s is None:
+        return None
+    if not float(timeout_s) > 0:
+        raise ExecutorError(f"the time limit of a run must be positive, got {timeout_s}")
+    return float(timeout_s)
+
+
+def _finished(future: Future) -> bool:
+    """Whether ``future`` holds the run's own outcome (not a cancellation, not a pool that broke under it)."""
+    return future.done() and not future.cancelled() and not isinstance(future.exception(), BrokenProcessPool)
+
+
 class SerialExecutor:
-    """Runs every item in this process, in order."""
+    """Runs every item in this process, in order. No time limit: nothing can stop a call in its own process."""
 
     name = "serial"
 
@@ -103,12 +202,17 @@ class SerialExecutor:
 
 class LocalExecutor:
     """A local process pool (``spawn``) of ``jobs`` workers with ``threads`` math threads each; ``fresh_workers``:
-    one worker process per item (see the module docstring)."""
+    one worker process per item; ``timeout_s``: the time limit of a run (see the module docstring)."""
 
     name = "local"
 
     def __init__(
-        self, jobs: int = 2, threads: int | None = None, start_method: str = "spawn", fresh_workers: bool = True
+        self,
+        jobs: int = 2,
+        threads: int | None = None,
+        start_method: str = "spawn",
+        fresh_workers: bool = True,
+        timeout_s: float | None = None,
     ) -> None:
         if int(jobs) < 1:
             raise ExecutorError(f"jobs must be >= 1, got {jobs}")
@@ -116,49 +220,101 @@ class LocalExecutor:
         self.threads = int(threads) if threads is not None else threads_per_job(self.jobs)
         self.start_method = start_method
         self.fresh_workers = bool(fresh_workers)
+        self.timeout_s = check_timeout(timeout_s)
 
     def _pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
             max_workers=self.jobs,
             mp_context=multiprocessing.get_context(self.start_method),
-            initializer=limit_threads,
-            initargs=(self.threads,),
+            initializer=init_worker,
+            initargs=(self.threads, os.getpid()),
             max_tasks_per_child=1 if self.fresh_workers else None,
         )
 
     def map(self, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[tuple[T, R | BaseException]]:
         todo = list(items)
         breaks = [0] * len(todo)
-        remaining = list(range(len(todo)))
-        while remaining:
+        waiting = deque(range(len(todo)))  # runs not handed to a pool yet, by index, in order
+        while waiting:
             pool = self._pool()
-            futures: dict[Future, int] = {}
+            complete = False
+            try:
+                yield from self._run_in(pool, fn, todo, waiting, breaks)
+                complete = True
+            finally:
+                if complete:
+                    pool.shutdown(wait=True)
+                else:  # Ctrl-C, an exception in the consumer, close(): nobody takes the unfinished runs' results
+                    kill_pool(pool)
+
+    def _run_in(
+        self, pool: ProcessPoolExecutor, fn: Callable[[T], R], todo: list[T], waiting: deque[int], breaks: list[int]
+    ) -> Iterator[tuple[T, R | BaseException]]:
+        """Hand the ``waiting`` runs to ``pool``, ``jobs`` at a time, and yield them as they finish. Returns when
+        none is left, or early, with the pool killed and its unfinished runs back at the front of ``waiting``, when
+        a worker died or a run went past its time limit."""
+        limit = self.timeout_s if self.timeout_s is not None else math.inf
+        running: dict[Future, tuple[int, float]] = {}  # -> (run index, deadline on the monotonic clock)
+        while waiting or running:
             broken = False
             try:
-                for k in remaining:
-                    futures[pool.submit(fn, todo[k])] = k
-                pending = set(futures)
-                while pending:
-                    done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for future in done:
-                        k = futures[future]
-                        exc = future.exception()
-                        if isinstance(exc, BrokenProcessPool):
-                            broken = True
-                            continue
-                        remaining.remove(k)
-                        yield todo[k], (exc if exc is not None else future.result())
-            finally:
-                pool.shutdown(wait=True, cancel_futures=True)
-            if broken:
-                for k in list(remaining):
-                    breaks[k] += 1
-                    if breaks[k] >= MAX_POOL_BREAKS:
-                        remaining.remove(k)
-                        yield todo[k], WorkerDied(
-                            f"the worker process died {breaks[k]} times while this run was unfinished (a crash in "
-                            "native code, or killed for memory?); rerun with --executor serial to see the crash"
-                        )
+                while waiting and len(running) < self.jobs:
+                    running[pool.submit(fn, todo[waiting[0]])] = (waiting[0], time.monotonic() + limit)
+                    waiting.popleft()
+            except BrokenProcessPool:  # a worker died since the last wait
+                broken = True
+            done: set[Future] = set()
+            if not broken:
+                deadline = min(d for _, d in running.values())
+                timeout = None if deadline == math.inf else max(0.0, deadline - time.monotonic())
+                done, _ = wait(running, timeout=timeout, return_when=FIRST_COMPLETED)
+            if broken or any(not _finished(f) for f in done):
+                # A worker died, and the pool with it (which worker is unknown): charge every unfinished run
+                kill_pool(pool)
+                yield from self._settle(running, set(), todo, waiting, breaks)
+                return
+            for future in done:
+                k, _ = running.pop(future)
+                exc = future.exception()
+                yield todo[k], (exc if exc is not None else future.result())
+            now = time.monotonic()
+            late = {f for f, (_, d) in running.items() if d <= now}
+            if late:
+                kill_pool(pool)  # the only way to stop a run; the others start again in the next pool
+                yield from self._settle(running, late, todo, waiting, breaks)
+                return
+
+    def _settle(
+        self,
+        running: dict[Future, tuple[int, float]],
+        late: set[Future],
+        todo: list[T],
+        waiting: deque[int],
+        breaks: list[int],
+    ) -> Iterator[tuple[T, R | BaseException]]:
+        """Sort out the runs of a killed pool: yield those that finished all the same and the ``late`` ones (timed
+        out); put the others back in front of ``waiting``, each charged a break unless the pool was killed for a
+        late run; yield a run that has had :data:`MAX_POOL_BREAKS` breaks as failed."""
+        wait(running, timeout=KILL_WAIT_S)  # a killed pool fails its futures from its manager thread
+        again = []
+        for future, (k, _) in sorted(running.items(), key=lambda entry: entry[1][0]):
+            if _finished(future):
+                exc = future.exception()
+                yield todo[k], (exc if exc is not None else future.result())
+            elif future in late:
+                yield todo[k], RunTimedOut(self.timeout_s or 0.0)
+            elif late:
+                again.append(k)
+            else:
+                breaks[k] += 1
+                if breaks[k] < MAX_POOL_BREAKS:
+                    again.append(k)
+                    continue
+                yield todo[k], WorkerDied(
+                    f"the worker process died {breaks[k]} times while this run was unfinished (a crash in "
+                    "native code, or killed for memory?); rerun with --executor serial to see the crash"
+                )
+        waiting.extendleft(reversed(again))
 
 
 def import_ray() -> Any:
@@ -178,11 +334,18 @@ def _call(fn: Callable[[T], R], item: T) -> R:
 
 
 class RayExecutor:
-    """Ray tasks of ``cpus_per_task`` CPUs each on the cluster at ``address`` (see the module docstring)."""
+    """Ray tasks of ``cpus_per_task`` CPUs each on the cluster at ``address``, ``timeout_s`` the time limit of each
+    (see the module docstring)."""
 
     name = "ray"
 
-    def __init__(self, address: str | None = None, jobs: int = 2, cpus_per_task: float = 1.0) -> None:
+    def __init__(
+        self,
+        address: str | None = None,
+        jobs: int = 2,
+        cpus_per_task: float = 1.0,
+        timeout_s: float | None = None,
+    ) -> None:
         if int(jobs) < 1:
             raise ExecutorError(f"jobs must be >= 1, got {jobs}")
         if not cpus_per_task > 0:
@@ -190,10 +353,11 @@ class RayExecutor:
         self.address = address
         self.jobs = int(jobs)
         self.cpus_per_task = float(cpus_per_task)
+        self.timeout_s = check_timeout(timeout_s)
 
     def map(self, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[tuple[T, R | BaseException]]:
         ray = import_ray()
-        todo = list(items)
+        waiting = deque(items)
         started = False
         if not ray.is_initialized():
             threads = str(max(1, int(self.cpus_per_task)))
@@ -212,32 +376,62 @@ class RayExecutor:
                 where = f"the Ray cluster at {self.address!r}" if self.address else "a local Ray instance"
                 raise ExecutorError(f"cannot start or reach {where}: {type(exc).__name__}: {exc}") from exc
             started = True
+        limit = self.timeout_s if self.timeout_s is not None else math.inf
+        slots = len(waiting)
+        if self.timeout_s is not None:  # only tasks that can start at once, so that a clock starts with its task
+            slots = max(1, int(ray.cluster_resources().get("CPU", self.jobs) // self.cpus_per_task))
+        pending: dict[Any, tuple[T, float]] = {}  # object ref -> (item, deadline on the monotonic clock)
         try:
             task = ray.remote(num_cpus=self.cpus_per_task, max_retries=0)(_call)
-            pending = {task.remote(fn, item): item for item in todo}
-            while pending:
-                done, _ = ray.wait(list(pending), num_returns=1)
+            while waiting or pending:
+                while waiting and len(pending) < slots:
+                    item = waiting.popleft()
+                    pending[task.remote(fn, item)] = (item, time.monotonic() + limit)
+                deadline = min(d for _, d in pending.values())
+                timeout = None if deadline == math.inf else max(0.0, deadline - time.monotonic())
+                done, _ = ray.wait(list(pending), num_returns=1, timeout=timeout)
                 for ref in done:
-                    item = pending.pop(ref)
+                    item, _ = pending.pop(ref)
                     try:
                         yield item, ray.get(ref)
                     except Exception as exc:  # noqa: BLE001 - a task error or a dead worker: this run failed
                         yield item, exc
+                now = time.monotonic()
+                for ref in [ref for ref, (_, d) in pending.items() if d <= now]:
+                    item, _ = pending.pop(ref)
+                    ray.cancel(ref, force=True)  # kills the worker process that runs it
+                    yield item, RunTimedOut(limit)
         finally:
+            for ref in pending:  # stopped early (Ctrl-C, an exception in the consumer): nobody takes these results
+                with contextlib.suppress(Exception):  # a Ray already gone must not hide the exception that stopped us
+                    ray.cancel(ref, force=True)
             if started:
                 ray.shutdown()
 
 
-def make_executor(name: str, jobs: int = 2, address: str | None = None, fresh_workers: bool = True) -> Executor:
+def make_executor(
+    name: str,
+    jobs: int = 2,
+    address: str | None = None,
+    fresh_workers: bool = True,
+    timeout_s: float | None = None,
+) -> Executor:
     """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers`` only
-    for ``local``."""
+    for ``local``; ``timeout_s``, the time limit of a run, for ``local`` and ``ray`` (``serial`` cannot stop a run
+    in its own process)."""
     if name not in EXECUTORS:
         raise ExecutorError(f"unknown executor {name!r}; valid executors: {', '.join(EXECUTORS)}")
     if address and name != "ray":
         raise ExecutorError(f"--address is for --executor ray, not {name!r}")
+    timeout_s = check_timeout(timeout_s)
     if name == "serial":
+        if timeout_s is not None:
+            raise ExecutorError(
+                "--executor serial cannot stop a run in its own process, so it has no time limit; "
+                "use --executor local --jobs 1"
+            )
         return SerialExecutor()
     if name == "local":
-        return LocalExecutor(jobs, fresh_workers=fresh_workers)
+        return LocalExecutor(jobs, fresh_workers=fresh_workers, timeout_s=timeout_s)
     import_ray()  # fail now, with the install hint, not after the suite is planned
-    return RayExecutor(address, jobs)
+    return RayExecutor(address, jobs, timeout_s=timeout_s)
