@@ -15,20 +15,28 @@ Examples::
     cnnslam bench quick --update-baseline           # after an intended change: rewrite the baseline
     cnnslam bench table1 --executor ray --address auto
 
-Exit status: 0 when every run finished (and the gate passed, where one runs), 1 when a run failed or the gate
-failed (the results are written all the same), 2 on bad arguments.
+Results: a suite run exactly as defined (any ``--runs``, ``--jobs``, executor) writes the committed tables under
+``results/``; a subset or variant (``--sequences``, ``--methods``, ``--frames``, ``--seeds``, ``--external``,
+``--method-file``) writes them under ``<out>/reports/<suite>-<digest of the selection>/`` instead, so it never
+overwrites the committed results; ``--results DIR`` puts them where you say.
+
+Exit status: 0 when every requested run finished (and the gate passed, where one runs); 1 when a run failed or
+timed out, a requested method or external folder was skipped (``--allow-skips``: only reported), or the gate
+failed (the results are written all the same); 2 on bad arguments (one line, the valid names); 130 on Ctrl-C (the
+runs finished before it are kept).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import shlex
 import sys
 from pathlib import Path
 
 from eval.errors import EvalError
 from eval.executors import EXECUTORS, make_executor
-from eval.methods import EXTERNAL_LAYOUT, load_methods, parse_external
+from eval.methods import EXTERNAL_LAYOUT, MethodError, load_methods, merge_methods, parse_external
 from eval.suites import SUITES, get_suite
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
@@ -49,7 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=None, help="first N frames of each sequence (suite default)")
     parser.add_argument("--sequences", nargs="+", metavar="NAME", help="only these sequences (or others by name)")
     parser.add_argument("--methods", nargs="+", metavar="NAME", help="only these methods of the method table")
-    parser.add_argument("--seeds", nargs="+", type=int, metavar="N", help="seeds (default: 0)")
+    parser.add_argument("--runs", type=int, default=None, metavar="N",
+                        help="runs per cell, seeds 0..N-1 (default: 3); eval/methods.toml says what a seed changes")
+    parser.add_argument("--seeds", nargs="+", type=int, metavar="N", help="these seeds instead of --runs")
     parser.add_argument("--jobs", type=int, default=2, help="runs in parallel (default: 2)")
     parser.add_argument("--executor", choices=EXECUTORS, default="local",
                         help="local process pool (spawn, default), serial (in this process) or ray")  # fmt: skip
@@ -58,7 +68,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="local executor: run several runs per worker process (faster start; a run's last digits "
                              "may then depend on what its worker ran before)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("runs"), help="per-run artifacts (default: runs/)")
-    parser.add_argument("--results", type=Path, default=Path("results"), help="tables and plots (default: results/)")
+    parser.add_argument("--results", type=Path, default=None,
+                        help="tables and plots (default: results/ for a suite as defined, else "
+                             "<out>/reports/<suite>-<selection>/)")  # fmt: skip
+    parser.add_argument("--timeout", type=float, default=None, metavar="S",
+                        help="stop a run after S seconds of wall time and record it as failed (timed out)")
+    parser.add_argument("--rerun", action="store_true", help="run every run again, even finished ones")
+    parser.add_argument("--allow-skips", action="store_true",
+                        help="exit 0 even when a requested method or external folder was skipped")
+    parser.add_argument("--override", action="store_true",
+                        help="let --method-file redefine a built-in method of the same name")
     parser.add_argument("--external", action="append", default=[], metavar="NAME=FOLDER",
                         help="score a third-party system's output in FOLDER as method NAME (repeatable)")  # fmt: skip
     parser.add_argument("--method-file", type=Path, default=None,
@@ -71,7 +90,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baseline", type=Path, default=None,
                         help="compare the suite's metrics with this baseline (default for quick: "
                              "results/baselines/quick.json)")  # fmt: skip
-    parser.add_argument("--update-baseline", action="store_true", help="write the suite's metrics as its baseline")
+    parser.add_argument("--update-baseline", action="store_true",
+                        help="write the suite's gated figures as its baseline (keeping its calibrated tolerances)")
+    parser.add_argument("--calibrate", action="store_true",
+                        help="run the suite under the perturbation matrix (eval/calibrate.py: thread counts, oneDNN "
+                             "off, the network's last bits perturbed) and write its baseline with tolerances from "
+                             "the measured spread")  # fmt: skip
     parser.add_argument("--no-gate", action="store_true", help="do not compare with the baseline")
     parser.add_argument("--list", action="store_true", help="list the suites and the method table, run nothing")
 
@@ -80,7 +104,7 @@ def _command(args: argparse.Namespace) -> str:
     """The command line that reproduces the run (the options that shape the results), for the reports."""
     words = ["cnnslam", "bench", args.suite]
     renderer = None if args.renderer == "mujoco" else args.renderer
-    for flag, value in (("--frames", args.frames), ("--renderer", renderer)):
+    for flag, value in (("--frames", args.frames), ("--runs", args.runs), ("--renderer", renderer)):
         if value is not None:
             words += [flag, str(value)]
     for flag, values in (("--sequences", _names(args.sequences)), ("--methods", _names(args.methods)),
@@ -109,15 +133,25 @@ def _list(methods: dict) -> str:
     return "\n".join(lines)
 
 
+def results_folder(args: argparse.Namespace, suite, command: str) -> Path:
+    """Where the suite's tables go: ``--results``; else ``results/`` for the suite as defined; else a folder named
+    after the selection under ``<out>/reports/`` (a subset never overwrites the committed results)."""
+    if args.results is not None:
+        return args.results
+    if suite.is_default and not args.external and args.method_file is None:
+        return Path("results")
+    digest = hashlib.sha256(command.encode()).hexdigest()[:8]
+    return args.out / "reports" / f"{suite.name}-{digest}"
+
+
 def run(args: argparse.Namespace) -> int:
     command = _command(args)
     try:
         methods = load_methods()
         if args.method_file is not None:
-            methods.update(load_methods(args.method_file))
+            methods = merge_methods(methods, load_methods(args.method_file), str(args.method_file), args.override)
         externals = [parse_external(text) for text in args.external]
-        for method in externals:
-            methods[method.name] = method
+        methods = merge_methods(methods, {m.name: m for m in externals}, "--external", args.override)
         if args.list:
             print(_list(methods))
             return 0
@@ -125,30 +159,46 @@ def run(args: argparse.Namespace) -> int:
         if suite.kind == "perf":
             from eval.perf import run_perf
 
-            report = run_perf(args.results, frames=args.frames, progress=not args.no_progress)
-            print(f"wrote {args.results / 'perf.md'} and {args.results / 'perf.json'}")
+            results = args.results or Path("results")
+            report = run_perf(results, frames=args.frames, progress=not args.no_progress)
+            print(f"wrote {results / 'perf.md'} and {results / 'perf.json'}")
             return 0 if report.ok else 1
         chosen = _names(args.methods) or list(suite.methods)
+        unknown = [name for name in chosen if name not in methods]
+        if unknown:
+            raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
-        suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds)
-        executor = make_executor(args.executor, args.jobs, args.address, fresh_workers=not args.reuse_workers)
+        suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs)
+        if args.timeout is not None and not args.timeout > 0:
+            raise MethodError(f"--timeout must be a number of seconds > 0, got {args.timeout}")
+        options = {"timeout_s": args.timeout} if args.timeout is not None else {}
+        executor = make_executor(args.executor, args.jobs, args.address, fresh_workers=not args.reuse_workers,
+                                 **options)  # fmt: skip
     except EvalError as exc:
         print(f"cnnslam bench: error: {exc}", file=sys.stderr)
         return 2
     from eval.reports import write_report
     from eval.runner import run_suite
 
-    result = run_suite(
-        suite,
-        methods,
-        args.out,
-        executor=executor,
-        renderer=args.renderer,
-        plots=not args.no_plots,
-        progress=not args.no_progress,
-        check=not args.no_check,
-    )
-    paths = write_report(result, args.results, command)
+    if args.calibrate:
+        return _calibrate(args, suite, methods)
+    try:
+        result = run_suite(
+            suite,
+            methods,
+            args.out,
+            executor=executor,
+            renderer=args.renderer,
+            plots=not args.no_plots,
+            progress=not args.no_progress,
+            check=not args.no_check,
+            rerun=args.rerun,
+        )
+    except KeyboardInterrupt:
+        print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/{suite.name}/ (rerun the same "
+              "command to resume)", file=sys.stderr)  # fmt: skip
+        return 130
+    paths = write_report(result, results_folder(args, suite, command), command)
     counts = result.counts()
     print(
         f"{suite.name}: {len(result.specs)} runs ({counts.get('done', 0)} run now, {counts.get('cached', 0)} reused, "
@@ -160,37 +210,67 @@ def run(args: argparse.Namespace) -> int:
         print(f"  FAILED {outcome.key}: {outcome.error}")
     print("wrote " + ", ".join(str(p) for p in paths))
     status = 1 if result.failed else 0
+    if result.skipped_methods and not args.allow_skips:
+        print(f"cnnslam bench: {len(result.skipped_methods)} requested method(s) skipped ("
+              f"{', '.join(result.skipped_methods)}): exit status 1 (--allow-skips to accept)", file=sys.stderr)
+        status = 1
     return max(status, _gate(args, result))
+
+
+def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
+    """``--calibrate``: the suite under every configuration of the matrix, then its baseline (see eval.calibrate)."""
+    from eval.calibrate import MATRIX, calibrated_baseline, measure
+    from eval.regress import save_baseline
+
+    failed: list[str] = []
+
+    def note(config, run) -> None:
+        print(f"{config.name}: {len(run.specs)} runs, {len(run.failed)} failed ({config.description})")
+        failed.extend(f"{config.name}: {o.key}: {o.error}" for o in run.failed)
+
+    try:
+        figures = measure(suite, methods, args.out, progress=not args.no_progress, on_config=note)
+    except KeyboardInterrupt:
+        print("cnnslam bench: calibration interrupted; finished runs are kept", file=sys.stderr)
+        return 130
+    if failed:
+        print("not writing a baseline: runs failed:\n  " + "\n  ".join(failed), file=sys.stderr)
+        return 1
+    path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
+    baseline = calibrated_baseline(suite, figures, _baseline_description(suite, methods), MATRIX)
+    save_baseline(baseline, path)
+    holdout = baseline.calibration["holdout"]
+    print(f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "
+          f"false alarms {holdout['alarms']} of {holdout['comparisons']} comparisons "
+          f"({holdout['runs_with_alarm']} of {holdout['held_out']} held-out configurations would fail)")
+    return 0
+
+
+def _baseline_description(suite, methods) -> str:
+    frames = "all" if suite.frames is None else suite.frames
+    return (f"cnnslam bench {suite.name}: {frames} frames, {len(suite.seeds)} runs per cell, sequences "
+            f"{', '.join(s.name for s in suite.sequences)}; methods {', '.join(suite.methods)}")  # fmt: skip
 
 
 def _gate(args: argparse.Namespace, result) -> int:
     """Update or compare with the suite's baseline; the exit status of the gate (0 pass, 1 fail)."""
-    from eval.regress import (
-        DEFAULT_TOLERANCES,
-        Baseline,
-        compare,
-        format_report,
-        load_baseline,
-        save_baseline,
-        suite_metrics,
-    )
+    from dataclasses import replace
+
+    from eval.regress import Baseline, compare, format_report, gate_metrics, load_baseline, save_baseline
 
     suite = result.suite
     path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
-    metrics = suite_metrics(result.records)
+    metrics = gate_metrics(result.records)
     if args.update_baseline:
-        if result.failed:
-            print(f"not updating {path}: {len(result.failed)} run(s) failed", file=sys.stderr)
+        if result.failed or result.skipped_methods:
+            print(f"not updating {path}: {len(result.failed)} run(s) failed, {len(result.skipped_methods)} method(s) "
+                  "skipped", file=sys.stderr)  # fmt: skip
             return 1
-        old = load_baseline(path) if path.exists() else None
-        frames = "all" if suite.frames is None else suite.frames
-        skipped = f"; skipped: {', '.join(result.skipped_methods)}" if result.skipped_methods else ""
-        description = (
-            f"cnnslam bench {suite.name}: {frames} frames, sequences {', '.join(s.name for s in suite.sequences)}; "
-            f"methods {', '.join(m.name for m in result.methods)}{skipped}"
-        )
-        save_baseline(Baseline(metrics, old.tolerances if old else DEFAULT_TOLERANCES, description), path)
-        print(f"updated {path}: {len(metrics)} metrics")
+        old = load_baseline(path) if path.exists() else Baseline({})
+        new = replace(old, metrics=metrics, description=_baseline_description(suite, result.methods))
+        save_baseline(new, path)
+        print(f"updated {path}: {len(metrics)} gated figures ({len(new.calibrated)} with calibrated tolerances; "
+              f"recalibrate with --calibrate after a change of the methods' spread)")
         return 0
     if args.no_gate or (args.baseline is None and suite.name not in GATED_SUITES):
         return 0

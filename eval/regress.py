@@ -1,19 +1,35 @@
-"""The regression gate: compare a run's metrics with a committed baseline, metric by metric, with tolerances.
+"""The regression gate: compare a suite's figures with a committed baseline, figure by figure, with tolerances
+measured from the figures' own spread.
 
-Baseline file (JSON, committed under ``results/``)::
+What is gated (:func:`gate_metrics`): the figures a researcher gates on, per sequence and method, as the **median
+over the cell's runs** (seeds): ATE RMSE, percentage of correct depth, tracked share, rotation error (RMSE) and the
+number of frames scored (a run that stops producing its metrics is ``missing``); plus each method's suite averages
+of the first four (``avg/<method>/<metric>``, over the sequences where the method has a value on all of them). Not
+the min / max / std statistics of single runs: they move by chance. Rotation error twice: after the SE(3) fit and
+after an orientation-only fit (:mod:`eval.metrics`).
 
-    {"schema": "cnnslam-baseline/1",
-     "metrics": {"office0/cnnslam/ate_rmse": 0.121, ...},
-     "tolerances": [{"pattern": "*ate_rmse", "direction": "lower", "abs": 0.005, "rel": 0.10}, ...]}
+Baseline file (JSON, committed under ``results/baselines/``)::
 
-``tolerances`` is optional (then :data:`DEFAULT_TOLERANCES` apply); the first rule whose ``pattern``
+    {"schema": "cnnslam-baseline/2",
+     "metrics": {"office0/CNN-SLAM/ate_rmse": 0.0056, ...},
+     "tolerances": [{"pattern": "*ate_rmse", "direction": "lower", "abs": 0.0005, "rel": 0.02}, ...],
+     "calibrated": {"office0/CNN-SLAM/ate_rmse": {"spread": 0.0003, "allowed": 0.0009}, ...},
+     "calibration": {"how": "...", "configurations": [...], "k": 3.0, "false_alarms": ..., ...}}
+
+A metric's allowed change is ``calibrated[metric]["allowed"]`` when the baseline has it, else its rule's
+``max(abs, rel * |baseline|)``. Calibration (:func:`calibrate`, ``cnnslam bench quick --calibrate``) runs the suite
+under a perturbation matrix (runs x thread counts x oneDNN on/off x the network's outputs perturbed in their last
+bits, what another CPU does) and sets ``allowed = max(k * spread, rule floor)``, where ``spread`` is the range of the
+metric's median over the matrix's configurations: a figure that moves more than k times what floating point moved it
+is a regression. Its false-alarm rate is measured by holding configurations out (:func:`holdout_false_alarms`).
+
+Rules: ``tolerances`` is optional (then :data:`DEFAULT_TOLERANCES` apply); the first rule whose ``pattern``
 (:func:`fnmatch.fnmatchcase`) matches a metric name is used, and a metric that no rule matches gets
 :data:`FALLBACK_TOLERANCE`. ``direction``: ``lower`` (lower is better), ``higher`` (higher is better) or ``match``
 (any change beyond the tolerance fails, for counts). The allowed change is max(abs, rel * |baseline|).
 
 Run file: a JSON object with a ``metrics`` object (a run record of :mod:`eval.results`, or anything shaped so), a
-flat object of numbers, or a JSON list of run records (flattened to ``sequence/method/metric`` names by
-:func:`suite_metrics`).
+flat object of numbers, or a JSON list of run records (reduced to the gated figures by :func:`gate_metrics`).
 
 Statuses: ``equal`` (within tolerance), ``improved``, ``regressed``, ``missing`` (in the baseline, not in the run,
 or NaN in the run where the baseline has a number), ``new`` (in the run only; reported, not a failure). The gate
@@ -29,7 +45,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any, Literal
@@ -39,7 +55,13 @@ import pandas as pd
 from eval.errors import EvalError
 from eval.results import json_ready
 
-BASELINE_SCHEMA = "cnnslam-baseline/1"
+BASELINE_SCHEMA = "cnnslam-baseline/2"
+# rotation twice: after the SE(3) fit (catches an error in the camera frame, which an orientation-only fit absorbs
+# on short runs) and after the orientation-only fit (which no ill-posed position fit can decide)
+GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", "rot_deg_rmse", "rot_deg_orient_rmse")
+GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics is "missing"), not averaged
+AVERAGE_PREFIX = "avg"
+CALIBRATION_K = 3.0  # allowed change = k x the spread measured over the perturbation matrix (ours: see calibrate)
 Direction = Literal["lower", "higher", "match"]
 DIRECTIONS: tuple[str, ...] = ("lower", "higher", "match")
 
@@ -71,9 +93,16 @@ class Tolerance:
         return max(self.abs, self.rel * abs(baseline)) if math.isfinite(baseline) else self.abs
 
 
+# Floors of the allowed change: a calibrated metric may never be held tighter than these (the figure's own rounding
+# and a margin for configurations the matrix did not try); uncalibrated metrics get them as their tolerance.
 DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
     Tolerance("*pairs", "match"),
     Tolerance("*frames", "match"),
+    Tolerance("*ate_rmse", "lower", abs=0.0005, rel=0.03),
+    Tolerance("*rot_deg_rmse", "lower", abs=0.02, rel=0.03),
+    Tolerance("*rot_deg_orient_rmse", "lower", abs=0.02, rel=0.03),
+    Tolerance("*depth_percent_correct", "higher", abs=0.3, rel=0.0),
+    Tolerance("*tracked_share", "higher", abs=0.005),
     Tolerance("*keyframes", "match", abs=2.0),
     Tolerance("*ate_*", "lower", abs=0.002, rel=0.10),
     Tolerance("*rpe_*", "lower", abs=0.002, rel=0.10),
@@ -96,17 +125,25 @@ FALLBACK_TOLERANCE = Tolerance("*", "lower", rel=0.05)
 
 @dataclass(frozen=True)
 class Baseline:
-    """Baseline metrics and the tolerance rules that apply to them."""
+    """Baseline metrics, the tolerance rules that apply to them, and the per-metric allowed changes measured by
+    calibration (``calibrated``: metric -> {"spread", "allowed"}) with how they were measured (``calibration``)."""
 
     metrics: dict[str, float]
     tolerances: tuple[Tolerance, ...] = DEFAULT_TOLERANCES
     description: str = ""
+    calibrated: dict[str, dict[str, float]] = field(default_factory=dict)
+    calibration: dict[str, Any] = field(default_factory=dict)
 
     def tolerance_for(self, metric: str) -> Tolerance:
         for rule in self.tolerances:
             if fnmatchcase(metric, rule.pattern):
                 return rule
         return FALLBACK_TOLERANCE
+
+    def allowed(self, metric: str) -> float | None:
+        """The calibrated allowed change of ``metric``, None when it was not calibrated."""
+        entry = self.calibrated.get(metric)
+        return None if entry is None else float(entry["allowed"])
 
 
 @dataclass(frozen=True)
@@ -141,9 +178,10 @@ class GateReport:
 
 
 # --------------------------------------------------------------------------------------------------- comparison
-def compare_metric(name: str, baseline: float, run: float | None, rule: Tolerance) -> GateRow:
-    """One metric's status (see the module docstring)."""
-    allowed = rule.allowed(baseline)
+def compare_metric(name: str, baseline: float, run: float | None, rule: Tolerance,
+                   allowed: float | None = None) -> GateRow:
+    """One metric's status (see the module docstring); ``allowed`` (calibrated) replaces the rule's allowance."""
+    allowed = rule.allowed(baseline) if allowed is None else allowed
     if run is None or (math.isnan(run) and not math.isnan(baseline)):
         return GateRow(name, baseline, math.nan if run is None else run, math.nan, allowed, rule.direction, "missing")
     if math.isnan(baseline):
@@ -162,7 +200,11 @@ def compare(baseline: Baseline, run_metrics: Mapping[str, float]) -> GateReport:
     """Compare every baseline metric with the run's; run-only metrics are listed as ``new``."""
     rows = [
         compare_metric(
-            name, value, _as_float(run_metrics[name]) if name in run_metrics else None, baseline.tolerance_for(name)
+            name,
+            value,
+            _as_float(run_metrics[name]) if name in run_metrics else None,
+            baseline.tolerance_for(name),
+            baseline.allowed(name),
         )
         for name, value in baseline.metrics.items()
     ]
@@ -191,13 +233,42 @@ def format_report(report: GateReport, only_changes: bool = False) -> str:
 
 # -------------------------------------------------------------------------------------------------------- files
 def suite_metrics(records: Iterable[Mapping[str, Any]]) -> dict[str, float]:
-    """Flatten run records to ``sequence/method/metric`` names (several runs of a pair: their mean)."""
-    sums: dict[str, list[float]] = {}
+    """Flatten run records to ``sequence/method/metric`` names, every metric (several runs of a pair: their median,
+    NaN runs left out)."""
+    values: dict[str, list[float]] = {}
     for rec in records:
         prefix = f"{rec['sequence']}/{rec.get('method') or rec.get('agent')}/"
         for name, value in rec["metrics"].items():
-            sums.setdefault(prefix + name, []).append(_as_float(value))
-    return {k: math.fsum(v) / len(v) for k, v in sums.items()}
+            values.setdefault(prefix + name, []).append(_as_float(value))
+    return {k: _median(v) for k, v in values.items()}
+
+
+def gate_metrics(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GATED) -> dict[str, float]:
+    """The gated figures of a suite's run records (see the module docstring): per ``sequence/method/metric`` the
+    median over the cell's runs of each metric in ``gated`` and of :data:`GATED_COUNTS`, and per method
+    ``avg/<method>/<metric>``: the mean of its per-sequence medians, where it has one on every sequence of the
+    records."""
+    every = suite_metrics(records)
+    wanted = set(gated) | set(GATED_COUNTS)
+    out = {k: v for k, v in every.items() if k.rsplit("/", 1)[-1] in wanted}
+    sequences = {k.split("/", 1)[0] for k in every}
+    cells: dict[tuple[str, str], list[float]] = {}
+    for key, value in out.items():
+        sequence, method, metric = key.rsplit("/", 2) if key.count("/") == 2 else (None, None, None)
+        if metric in gated and not math.isnan(value):
+            cells.setdefault((method, metric), []).append(value)
+    for (method, metric), values in cells.items():
+        if len(values) == len(sequences):
+            out[f"{AVERAGE_PREFIX}/{method}/{metric}"] = math.fsum(values) / len(values)
+    return out
+
+
+def _median(values: Sequence[float]) -> float:
+    finite = sorted(v for v in values if not math.isnan(v))
+    if not finite:
+        return math.nan
+    mid = len(finite) // 2
+    return finite[mid] if len(finite) % 2 else 0.5 * (finite[mid - 1] + finite[mid])
 
 
 def metrics_from_json(data: Any, source: str = "<data>") -> dict[str, float]:
@@ -205,7 +276,7 @@ def metrics_from_json(data: Any, source: str = "<data>") -> dict[str, float]:
     if isinstance(data, list):
         if not all(isinstance(r, dict) and isinstance(r.get("metrics"), dict) and "sequence" in r for r in data):
             raise GateError(f"{source}: a JSON list must hold run records (objects with 'sequence' and 'metrics')")
-        return suite_metrics(data)
+        return gate_metrics(data)
     if isinstance(data, dict):
         metrics = data["metrics"] if isinstance(data.get("metrics"), dict) else data
         out = {}
@@ -235,7 +306,13 @@ def load_baseline(path: str | Path) -> Baseline:
             tolerances = tuple(Tolerance(**rule) for rule in rules)
         except TypeError as exc:
             raise GateError(f"{path}: each tolerance is {{'pattern', 'direction', 'abs', 'rel'}}; {exc}") from exc
-    return Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")))
+    calibrated = data.get("calibrated") or {}
+    if not isinstance(calibrated, dict) or not all(
+        isinstance(v, dict) and isinstance(v.get("allowed"), int | float) for v in calibrated.values()
+    ):
+        raise GateError(f"{path}: 'calibrated' maps metric names to {{'spread', 'allowed'}} objects")
+    return Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")),
+                    {k: dict(v) for k, v in calibrated.items()}, dict(data.get("calibration") or {}))  # fmt: skip
 
 
 def baseline_to_json(baseline: Baseline) -> dict[str, Any]:
@@ -245,6 +322,8 @@ def baseline_to_json(baseline: Baseline) -> dict[str, Any]:
             "description": baseline.description,
             "metrics": dict(sorted(baseline.metrics.items())),
             "tolerances": [asdict(t) for t in baseline.tolerances],
+            "calibrated": dict(sorted(baseline.calibrated.items())),
+            "calibration": baseline.calibration,
         }
     )
 
@@ -266,9 +345,84 @@ def update_baseline(
     path = Path(path)
     old = load_baseline(path) if path.exists() else None
     rules = tuple(tolerances) if tolerances is not None else (old.tolerances if old else DEFAULT_TOLERANCES)
-    new = Baseline(dict(run_metrics), rules, old.description if old else "")
+    new = Baseline(dict(run_metrics), rules, old.description if old else "",
+                   old.calibrated if old else {}, old.calibration if old else {})  # fmt: skip
     save_baseline(new, path)
     return new
+
+
+# -------------------------------------------------------------------------------------------------- calibration
+def calibrate(
+    configurations: Mapping[str, Mapping[str, float]],
+    reference: str,
+    tolerances: Sequence[Tolerance] = DEFAULT_TOLERANCES,
+    k: float = CALIBRATION_K,
+    description: str = "",
+    how: str = "",
+) -> Baseline:
+    """A baseline from the gated figures of the same suite run under several configurations (name -> figures of
+    :func:`gate_metrics`): the metrics are ``reference``'s; each metric's ``spread`` is the range of its value over
+    the configurations and its allowed change ``max(k * spread, the rule's floor)``; count metrics (direction
+    ``match``) keep their rule. ``calibration`` records ``how``, ``k``, the configurations, the alarms each of them
+    raises against the result (0 by construction) and the held-out false-alarm rate (:func:`holdout_false_alarms`)."""
+    base = replace(_spread_baseline(configurations, reference, tolerances, k), description=description)
+    alarms = {name: _alarms(base, figures) for name, figures in configurations.items()}
+    calibration = {
+        "how": how,
+        "k": k,
+        "reference": reference,
+        "configurations": sorted(configurations),
+        "alarms_per_configuration": alarms,
+        "holdout": holdout_false_alarms(configurations, reference, tolerances, k),
+    }
+    return replace(base, calibration=calibration)
+
+
+def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], reference: str,
+                     tolerances: Sequence[Tolerance], k: float) -> Baseline:
+    """:func:`calibrate`'s metrics and allowed changes, without the record of how."""
+    if reference not in configurations:
+        raise GateError(f"the reference configuration {reference!r} is not among {sorted(configurations)}")
+    base = Baseline({n: _as_float(v) for n, v in configurations[reference].items()}, tuple(tolerances))
+    calibrated: dict[str, dict[str, float]] = {}
+    for name, value in base.metrics.items():
+        rule = base.tolerance_for(name)
+        if rule.direction == "match" or math.isnan(value):
+            continue
+        seen = [_as_float(c[name]) for c in configurations.values() if name in c]
+        seen = [v for v in seen if not math.isnan(v)]
+        spread = max(seen) - min(seen) if seen else 0.0
+        calibrated[name] = {"spread": spread, "allowed": max(k * spread, rule.allowed(value))}
+    return replace(base, calibrated=calibrated)
+
+
+def _alarms(baseline: Baseline, figures: Mapping[str, float]) -> int:
+    return sum(r.status in ("regressed", "missing") for r in compare(baseline, figures).rows)
+
+
+def holdout_false_alarms(
+    configurations: Mapping[str, Mapping[str, float]],
+    reference: str,
+    tolerances: Sequence[Tolerance] = DEFAULT_TOLERANCES,
+    k: float = CALIBRATION_K,
+) -> dict[str, float]:
+    """The false-alarm rate of calibration on data it has not seen: for each configuration other than
+    ``reference``, calibrate without it and compare it with that baseline. Returns ``alarms`` (metrics that
+    alarmed, summed), ``comparisons`` (metrics compared) and ``rate`` (their ratio), and ``runs_with_alarm`` (held-out
+    configurations that would have failed the gate) over ``held_out`` configurations."""
+    alarms = comparisons = failed = 0
+    others = [c for c in configurations if c != reference]
+    for held in others:
+        rest = {c: v for c, v in configurations.items() if c != held}
+        if len(rest) < 2:
+            continue
+        base = _spread_baseline(rest, reference, tolerances, k)
+        bad = _alarms(base, configurations[held])
+        alarms += bad
+        comparisons += len(base.metrics)
+        failed += bad > 0
+    return {"alarms": alarms, "comparisons": comparisons, "rate": alarms / comparisons if comparisons else math.nan,
+            "runs_with_alarm": failed, "held_out": len(others)}  # fmt: skip
 
 
 def _read_json(path: str | Path) -> Any:

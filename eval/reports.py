@@ -47,7 +47,8 @@ from eval.tables import (
 
 ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Tracked share", "tracked_share"),
-    ("Rotation error [deg]", "rot_deg_rmse"),
+    ("Rotation error, orientation-aligned [deg]", "rot_deg_orient_rmse"),
+    ("RPE rotation, 1 s [deg]", "rpe_rot_deg_rmse"),
     ("Perc. Correct Depth [%]", "depth_percent_correct"),
 )
 QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, ("Tracked share", "tracked_share"))
@@ -283,8 +284,10 @@ def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
         "Sequences `rot_<axes>_<deg/s>`: the camera turns about a fixed optical centre (like TUM fr1/rpy), so a "
         "monocular method gets no parallax to triangulate from. Tracked share: frames the method reported as "
-        "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after "
-        "alignment (rotation-only, since the positions do not move). Correct depth as in Table 1.\n",
+        "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after the "
+        "orientation-only alignment (the rotation that best aligns the orientations; positions play no part, so a "
+        "near-static position cloud cannot decide it). RPE rotation: RMSE of the relative rotation error over 1 s, "
+        "no alignment at all. Correct depth as in Table 1.\n",
         table_to_markdown(table, spread=spread),
     ]
     return _write_report(run, results_dir, "rotation", text, paths)

@@ -251,7 +251,8 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
     try:
         n = len(source) if spec.frames is None else min(len(source), int(spec.frames))
         gt = PoseTrajectory(np.asarray(source.timestamps)[:n], np.asarray(source.poses)[:n])
-        est = PoseTrajectory.from_tum_file(path)
+        dropped: list[str] = []  # repeated timestamps: the last pose kept, as the TUM tools and evo do
+        est = PoseTrajectory.from_tum_file(path, duplicate_timestamps="last", on_duplicates=dropped.append)
         assoc = associate(gt, est, "tum")
         T_est = est.T_world_cam[assoc.est_indices]
         stamps = gt.timestamps[assoc.gt_indices]
@@ -280,6 +281,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
         keyframe_gt=keyframe_gt,
         step_seconds=np.zeros(0),
         extras={"trajectory_file": str(path), "depth_files": len(files), "association": assoc.describe(),
+                "duplicate_timestamps": dropped,
                 "own_wall_s": _declared_wall_s(folder / ref.name / RUN_SIDE_FILE)},
     )
     return episode, n

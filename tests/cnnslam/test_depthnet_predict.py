@@ -145,3 +145,28 @@ def test_shipped_weights_predict_depth_and_labels_of_an_unseen_test_room() -> No
     assert float(np.mean(rel)) < 0.4, rel
     assert float(np.mean(correct)) > 0.15, correct
     assert float(np.mean(labels)) > 0.6, labels
+
+
+def test_jitter_perturbs_only_the_last_bits_and_repeats_per_seed(tmp_path: Path, monkeypatch) -> None:
+    torch.manual_seed(0)
+    path = tmp_path / "tiny.pt"
+    save_weights(path, DepthSemanticNet(TINY), F_TR, (320, 240), {"steps": 0})
+    monkeypatch.delenv("CNNSLAM_NET_JITTER", raising=False)
+    rgb = _image(240, 320)
+    plain = load_predictor(path).predict_raw(rgb).depth
+    assert np.array_equal(load_predictor(path, jitter_seed=0).predict_raw(rgb).depth, plain)  # 0: as computed
+    a, b = load_predictor(path, jitter_seed=3), load_predictor(path, jitter_seed=3)
+    first = a.predict_raw(rgb).depth
+    assert np.array_equal(first, b.predict_raw(rgb).depth)  # same seed, same bytes
+    assert not np.array_equal(a.predict_raw(rgb).depth, first)  # a new draw per frame
+    rel = np.abs(first.astype(np.float64) / plain - 1.0) / np.finfo(np.float32).eps
+    assert (first != plain).mean() > 0.5 and np.median(rel) < 3.0 and rel.max() < 20.0  # a few ulps, N(0, 2 ulp)
+    monkeypatch.setenv("CNNSLAM_NET_JITTER", "3")  # the whole process perturbed, seed from the environment
+    assert np.array_equal(load_predictor(path).predict_raw(rgb).depth, first)
+    scaled = load_predictor(path, output_scale=1.03).predict_raw(rgb)
+    with pytest.raises(CnnSlamError, match="output_scale"):
+        load_predictor(path, output_scale=0.0)
+    monkeypatch.delenv("CNNSLAM_NET_JITTER")
+    np.testing.assert_allclose(load_predictor(path, output_scale=1.03).predict_raw(rgb).depth, 1.03 * plain,
+                               rtol=1e-6)  # fmt: skip
+    assert scaled.depth.dtype == np.float32

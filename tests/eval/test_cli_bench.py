@@ -8,7 +8,7 @@ import pytest
 
 from cnnslam.cli import main
 
-SMALL = ["--frames", "6", "--executor", "serial", "--no-plots", "--no-progress"]
+SMALL = ["--frames", "6", "--runs", "1", "--executor", "serial", "--no-plots", "--no-progress"]
 
 
 def bench(tmp_path, *args):
@@ -45,8 +45,11 @@ def test_a_small_table1_with_a_user_method_file(tmp_path, capsys):
             """
         )
     )
-    code = bench(tmp_path, "table1", "--sequences", "office0", "--methods", "CNN-SLAM", "constant-pose",
-                 "--method-file", str(methods), *SMALL)  # fmt: skip
+    args = ["table1", "--sequences", "office0", "--methods", "CNN-SLAM", "constant-pose", "--method-file",
+            str(methods), *SMALL]  # fmt: skip
+    assert bench(tmp_path, *args) == 2  # a built-in name redefined: only with --override
+    assert "redefines the method(s) CNN-SLAM" in capsys.readouterr().err
+    code = bench(tmp_path, *args, "--override")
     assert code == 0, capsys.readouterr()
     md = (tmp_path / "results" / "table1.md").read_text()
     assert "| office0 (ICL/office0) | 0.000 (0.266) |" in md
@@ -62,7 +65,8 @@ def test_quick_gate_update_pass_and_fail(tmp_path, capsys):
     args = ["quick", "--sequences", "office0", "--methods", "oracle", "constant-pose", "--baseline", str(baseline)]
     assert bench(tmp_path, *args, *SMALL, "--update-baseline") == 0
     stored = json.loads(baseline.read_text())
-    assert stored["metrics"]["office0/oracle/ate_rmse"] == 0.0 and "office0/constant-pose/ate_rmse" in stored["metrics"]
+    assert stored["metrics"]["office0/oracle/ate_rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert "office0/constant-pose/ate_rmse" in stored["metrics"]
     assert "quick" in stored["description"] and stored["tolerances"]
     capsys.readouterr()
     assert bench(tmp_path, *args, *SMALL) == 0  # the same runs (reused) pass the gate
@@ -86,3 +90,38 @@ def test_a_failed_run_makes_the_exit_status_1(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "FAILED table1/office0/broken/seed0-frames6: SimEnvError: keyframe_every must be >= 1" in out
     assert "2 runs (1 run now, 0 reused, 1 failed)" in out
+
+
+def test_unknown_names_are_one_line_errors(tmp_path, capsys):
+    assert bench(tmp_path, "table1", "--methods", "NoSuch", *SMALL) == 2
+    err = capsys.readouterr().err
+    assert "unknown method(s) NoSuch; valid methods: CNN-SLAM" in err and "Traceback" not in err
+    assert bench(tmp_path, "rotation", "--sequences", "rot_yawn_30", *SMALL) == 2
+    err = capsys.readouterr().err
+    assert "sequence 'rot_yawn_30': bad rotation axes 'yawn'" in err and "Traceback" not in err
+    assert bench(tmp_path, "table1", "--runs", "2", "--seeds", "0", "1", *SMALL[:2]) == 2
+    assert "--runs or --seeds" in capsys.readouterr().err
+
+
+def test_a_skipped_method_or_folder_fails_the_command_unless_allowed(tmp_path, capsys):
+    args = ["table1", "--sequences", "office0", "--methods", "oracle", "--external", f"Mine={tmp_path / 'typo'}",
+            *SMALL]  # fmt: skip
+    assert bench(tmp_path, *args) == 1
+    captured = capsys.readouterr()
+    assert "skipped Mine: the output folder" in captured.out and "--allow-skips" in captured.err
+    assert bench(tmp_path, *args, "--allow-skips") == 0
+
+
+def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default results/ would be this folder's
+    args = ["bench", "table1", "--sequences", "office0", "--methods", "oracle", "--frames", "6", "--runs", "2",
+            "--executor", "serial", "--no-plots", "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "2 runs (2 run now, 0 reused, 0 failed)" in out
+    assert not (tmp_path / "results").exists()  # a subset never writes the committed results
+    reports = list((tmp_path / "runs" / "reports").glob("table1-*/table1.md"))
+    assert len(reports) == 1 and "2 run(s) per cell (seeds 0, 1" in reports[0].read_text()
+    assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed1-frames6" / "metrics.json").is_file()
+    assert main([*args, "--rerun"]) == 0
+    assert "2 runs (2 run now, 0 reused" in capsys.readouterr().out

@@ -114,3 +114,49 @@ def test_command_line_exit_codes(tmp_path, capsys):
     assert main(["regress", str(base), str(run), "--update"]) == 0
     assert load_baseline(base).metrics == {"s/A/fps": 31.0}
     assert main(["regress", str(base), str(run)]) == 0
+
+
+def _records(values):
+    """Run records from {(sequence, method): [metrics of each run]}."""
+    return [{"sequence": s, "method": m, "metrics": metrics} for (s, m), runs in values.items() for metrics in runs]
+
+
+def test_gate_metrics_are_medians_of_the_gated_figures_plus_suite_averages():
+    from eval.regress import gate_metrics
+
+    records = _records({
+        ("a", "X"): [{"ate_rmse": 0.1, "ate_min": 0.0, "frames": 10.0}, {"ate_rmse": 0.3, "frames": 10.0},
+                     {"ate_rmse": 0.2, "frames": 10.0}],
+        ("b", "X"): [{"ate_rmse": 0.4, "frames": 10.0}, {"ate_rmse": math.nan, "frames": 10.0}],
+        ("a", "Y"): [{"ate_rmse": 1.0, "frames": 10.0}],
+    })  # fmt: skip
+    figures = gate_metrics(records)
+    assert figures["a/X/ate_rmse"] == pytest.approx(0.2) and figures["b/X/ate_rmse"] == pytest.approx(0.4)
+    assert "a/X/ate_min" not in figures  # single-run statistics are not gated
+    assert figures["avg/X/ate_rmse"] == pytest.approx(0.3)  # mean of the two medians
+    assert "avg/Y/ate_rmse" not in figures  # Y lacks sequence b: no average
+    assert figures["a/X/frames"] == 10.0
+
+
+def test_calibration_allows_k_times_the_measured_spread_and_counts_held_out_alarms(tmp_path):
+    from eval.regress import calibrate, save_baseline
+
+    configs = {
+        "reference": {"s/M/ate_rmse": 0.100, "s/M/depth_percent_correct": 50.0, "s/M/frames": 60.0},
+        "threads2": {"s/M/ate_rmse": 0.104, "s/M/depth_percent_correct": 49.0, "s/M/frames": 60.0},
+        "other": {"s/M/ate_rmse": 0.098, "s/M/depth_percent_correct": 50.5, "s/M/frames": 60.0},
+    }
+    base = calibrate(configs, "reference", k=3.0, how="test")
+    assert base.metrics == configs["reference"]
+    assert base.calibrated["s/M/ate_rmse"]["spread"] == pytest.approx(0.006)
+    assert base.allowed("s/M/ate_rmse") == pytest.approx(0.018)  # 3 x spread beats the 0.0005 / 3 % floor
+    assert base.allowed("s/M/depth_percent_correct") == pytest.approx(4.5)
+    assert "s/M/frames" not in base.calibrated  # counts keep their rule (match)
+    assert base.calibration["alarms_per_configuration"] == {"reference": 0, "threads2": 0, "other": 0}
+    # held out: without 'threads2' the spread is 0.002 -> allowed 0.006 > its 0.004 change; without 'other' the
+    # ATE spread is 0.004 (allowed 0.012), depth 1.0 (3.0): both pass
+    assert base.calibration["holdout"] == {"alarms": 0, "comparisons": 6, "rate": 0.0, "runs_with_alarm": 0,
+                                           "held_out": 2}  # fmt: skip
+    assert compare(base, {**configs["reference"], "s/M/ate_rmse": 0.119}).passed is False  # beyond 0.018
+    round_trip = load_baseline(save_baseline(base, tmp_path / "b.json"))
+    assert round_trip.calibrated == base.calibrated and round_trip.calibration["k"] == 3.0

@@ -90,15 +90,21 @@ def test_ours_beside_paper_without_a_paper_column():
 def test_rotation_report(tmp_path):
     suite = get_suite("rotation").select(["rot_yaw_15", "rot_yaw_60"], ["LSD", "oracle"])
     values = {
-        ("rot_yaw_15", "LSD"): {"tracked_share": 0.9, "rot_deg_rmse": 2.0, "depth_percent_correct": 3.0},
-        ("rot_yaw_60", "LSD"): {"tracked_share": 0.2, "rot_deg_rmse": 20.0, "depth_percent_correct": 0.5},
-        ("rot_yaw_15", "oracle"): {"tracked_share": 1.0, "rot_deg_rmse": 0.0, "depth_percent_correct": 100.0},
-        ("rot_yaw_60", "oracle"): {"tracked_share": 1.0, "rot_deg_rmse": 0.0, "depth_percent_correct": 100.0},
+        ("rot_yaw_15", "LSD"): {"tracked_share": 0.9, "rot_deg_orient_rmse": 2.0, "rpe_rot_deg_rmse": 0.5,
+                                 "depth_percent_correct": 3.0},
+        ("rot_yaw_60", "LSD"): {"tracked_share": 0.2, "rot_deg_orient_rmse": 20.0, "rpe_rot_deg_rmse": 4.0,
+                                 "depth_percent_correct": 0.5},
+        ("rot_yaw_15", "oracle"): {"tracked_share": 1.0, "rot_deg_orient_rmse": 0.0, "rpe_rot_deg_rmse": 0.0,
+                                    "depth_percent_correct": 100.0},
+        ("rot_yaw_60", "oracle"): {"tracked_share": 1.0, "rot_deg_orient_rmse": 0.0, "rpe_rot_deg_rmse": 0.0,
+                                    "depth_percent_correct": 100.0},
     }
     report_rotation(fake_run(suite, values), tmp_path, "cnnslam bench rotation")
     md = (tmp_path / "rotation.md").read_text()
-    assert "| rot_yaw_60 | 0.200 | 1.000 | 20.000 | 0.000 | 0.500 | 100.000 |" in md
-    assert "| Avg. | 0.550 | 1.000 | 11.000 |" in md
+    assert "| rot_yaw_60 | 0.200 | 1.000 | 20.000 | 0.000 | 4.000 | 0.000 | 0.500 | 100.000 |" in md
+    assert "| Avg. | 0.550 | 1.000 | 11.000 | 0.000 | 2.250 |" in md
+    # the LSD run on rot_yaw_60 tracked 20 % of its frames: lost, one of LSD's two runs
+    assert "| LSD | 2 | 0 | 1 | 50% |" in md and "| oracle | 2 | 0 | 0 | 0% |" in md
     assert (tmp_path / "rotation_long.csv").is_file() and (tmp_path / "rotation.tex").is_file()
 
 

@@ -65,3 +65,22 @@ def test_constant_pose_agent_and_loading_by_entry_point():
     np.testing.assert_array_equal(a2["T_world_cam"], np.eye(4))
     out = agent.finish()
     assert out.keyframes == [] and out.extras["frames"] == 2
+
+
+def test_biased_pose_agent_turns_every_pose_in_the_camera_frame():
+    from scipy.spatial.transform import Rotation
+
+    from sim_envs.agents import BiasedPoseAgent
+
+    agent = BiasedPoseAgent("sim_envs.agents:OracleAgent", yaw_deg=1.0, keyframe_every=2)
+    assert agent.uses_ground_truth  # the wrapped oracle receives ground truth, so the wrapper does
+    agent.reset(np.array([5.0, 5.0, 2.5, 1.5]), (4, 6))
+    out = agent.step(_obs(0.0), _info(3))
+    T_gt = _info(3)["gt_T_world_cam"]
+    np.testing.assert_allclose(out["T_world_cam"][:3, 3], T_gt[:3, 3])  # positions untouched
+    rel = Rotation.from_matrix(T_gt[:3, :3].T @ out["T_world_cam"][:3, :3])
+    np.testing.assert_allclose(rel.as_rotvec(degrees=True), [0.0, 1.0, 0.0], atol=1e-9)  # 1 deg about camera y
+    kf = agent.finish().keyframes[0]
+    np.testing.assert_allclose(kf.T_world_cam, out["T_world_cam"])
+    with pytest.raises(SimEnvError, match="yaw_deg"):
+        BiasedPoseAgent("sim_envs.agents:OracleAgent", yaw_deg=float("nan"))
