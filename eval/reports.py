@@ -51,7 +51,8 @@ ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
     ("RPE rotation, 1 s [deg]", "rpe_rot_deg_rmse"),
     ("Perc. Correct Depth [%]", "depth_percent_correct"),
 )
-QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, ("Tracked share", "tracked_share"))
+SIM3_BLOCK: tuple[tuple[str, str], ...] = (("ATE after Sim(3) alignment [m]", "ate_sim3_rmse"),)
+QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, *SIM3_BLOCK, ("Tracked share", "tracked_share"))
 DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
     ("ATE / length [%]", "ate_percent_length"),
     ("Scale error [%]", "scale_error_percent"),
@@ -142,6 +143,43 @@ def status_markdown(run: SuiteRun) -> str:
         lines.append("\nFailed runs (rerun the same command to retry them):\n")
         lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]
     return "\n".join(lines) + "\n"
+
+
+def methods_markdown(run: SuiteRun) -> str:
+    """The methods that are not plain monocular ones: another sensor, or ground truth received (declared by an
+    agent's ``uses_ground_truth`` or an external folder's ``method.toml``), so no reader takes them for peers."""
+    fed = {}
+    for rec in run.records:
+        if rec.get("uses_ground_truth"):
+            fed.setdefault(rec["method"], set()).update(rec.get("ground_truth_used") or ["declared by the agent"])
+    lines = []
+    for m in run.methods:
+        notes = [f"sensor {m.sensor}"] if m.sensor != "mono" else []
+        if m.name in fed:
+            notes.append("receives ground truth (" + ", ".join(sorted(fed[m.name])) + ")")
+        if notes:
+            lines.append(f"- **{m.name}**: " + "; ".join(notes))
+    return ("\nNot plain monocular methods:\n\n" + "\n".join(lines) + "\n") if lines else ""
+
+
+def alignment_markdown(run: SuiteRun, frame: pd.DataFrame) -> str:
+    """Which alignment each cell's ATE actually used, where it is not the suite's plain Umeyama fit: methods with
+    their own ``align``, and cells whose fit fell back to rotation-only or was poorly conditioned (flags of
+    :mod:`eval.metrics`), with how many of their runs."""
+    lines = [f"- **{m.name}**: ATE after {m.align.upper()} alignment (the method's own)" for m in run.methods
+             if m.align and m.align != run.suite.alignment]  # fmt: skip
+    flags = frame[frame["metric"].isin(["ate_alignment_fallback", "ate_alignment_degenerate"])] if len(frame) else frame
+    if len(flags):
+        counts = flags.groupby(["sequence", "method", "metric"], sort=False)["value"].agg(["sum", "count"])
+        for (seq, method, metric), row in counts.iterrows():
+            if row["sum"] > 0:
+                what = ("rotation-only fallback (evo cannot fit: positions one point)" if metric.endswith("fallback")
+                        else "poorly conditioned fit (positions nearly collinear or tiny), kept and flagged")
+                lines.append(f"- {seq} / {method}: {what} in {int(row['sum'])} of {int(row['count'])} runs")
+    if not lines:
+        return ""
+    return ("\nAlignment, where a cell's ATE is not a well-conditioned Umeyama fit of the suite's kind (evo's "
+            "`evo_ape -a` figure):\n\n" + "\n".join(lines) + "\n")
 
 
 def failure_frame(run: SuiteRun) -> pd.DataFrame:
@@ -267,6 +305,10 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         "A pixel is correct when its depth is within 10 % of the ground truth; the share is over all pixels of the "
         "key-frames with valid ground truth (a sparse method is penalised for the pixels it has no depth for).\n",
         ours_beside_paper(table, depth_title, depth_metric, 3, spread),
+        "## Scale-aligned ATE, Sim(3) [m]\n",
+        "The paper's ATE (above) aligns with SE(3): no scale correction, so a monocular method pays for a wrong "
+        "scale. Monocular SLAM papers report ATE after Sim(3) alignment (`evo_ape -as`); both are here.\n",
+        table_to_markdown(_suite_table(run, SIM3_BLOCK), spread=_suite_spread(run, SIM3_BLOCK)),
         "## Ours alone (as in table1.csv / table1.tex)\n",
         table_to_markdown(table, spread=spread),
     ]
@@ -327,7 +369,8 @@ def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], 
         RUNS_FIGURE_METRICS, title=f"{run.suite.name}: every run (dots) and each cell's median (bars)")
     shown = [f"![every run of the suite]({figure.name})\n"] if figure is not None else []
     md = results_dir / f"{name}.md"
-    md.write_text("\n".join([*text, *shown, status_markdown(run)]))
+    md.write_text("\n".join([*text, *shown, methods_markdown(run), alignment_markdown(run, frame),
+                             status_markdown(run)]))  # fmt: skip
     return [md, *artifacts, write_long_csv(run, results_dir), stats, *([figure] if figure is not None else [])]
 
 

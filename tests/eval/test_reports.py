@@ -171,3 +171,20 @@ def test_depth_quality_report_checks_the_targets(tmp_path):
     assert csv.loc["Avg.", ("Scale error [%]", "CNN-SLAM")] == pytest.approx(22.0)
     assert math.isnan(csv.loc["office0", ("ATE / length [%]", "dev-depth-10")])  # not run there
     assert (tmp_path / "depth_quality.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_reports_say_which_alignment_and_which_methods_were_fed_ground_truth(tmp_path):
+    suite, values = table1_values()
+    values[("office0", "CNN-SLAM")].update({"ate_alignment_fallback": 1.0, "ate_alignment_degenerate": 1.0,
+                                            "ate_sim3_rmse": 0.05})  # fmt: skip
+    values[("living1", "LSD")]["ate_alignment_degenerate"] = 1.0
+    run = fake_run(suite, values)
+    for rec in run.records:
+        if rec["method"] == "oracle":
+            rec["uses_ground_truth"] = True
+    report_table1(run, tmp_path, "cnnslam bench table1")
+    md = (tmp_path / "table1.md").read_text()
+    assert "- office0 / CNN-SLAM: rotation-only fallback (evo cannot fit: positions one point) in 1 of 1 runs" in md
+    assert "- living1 / LSD: poorly conditioned fit" in md
+    assert "- **oracle**: receives ground truth (declared by the agent)" in md
+    assert "## Scale-aligned ATE, Sim(3) [m]" in md and "| office0 | 0.050 |" in md
