@@ -17,7 +17,12 @@ Baseline file (JSON, committed under ``results/baselines/``)::
      "calibration": {"how": "...", "configurations": [...], "k": 3.0, "false_alarms": ..., ...}}
 
 A metric's allowed change is ``calibrated[metric]["allowed"]`` when the baseline has it, else its rule's
-``max(abs, rel * |baseline|)``. Calibration (:func:`calibrate`, ``cnnslam bench quick --calibrate``) runs the suite
+``max(abs, rel * |baseline|)``. ``policy``: ``one-sided`` (default: only a change for the worse fails) or
+``two-sided`` (a calibrated baseline's: a change beyond the measured spread in either direction fails, since a tree
+whose results moved must come with an updated baseline; e.g. a 1 deg heading bias can lower one sequence's rotation
+error by cancelling an error of the method's own, and is still a change nobody intended).
+
+Calibration (:func:`calibrate`, ``cnnslam bench quick --calibrate``) runs the suite
 under a perturbation matrix (runs x thread counts x oneDNN on/off x the network's outputs perturbed in their last
 bits, what another CPU does) and sets ``allowed = max(k * spread, rule floor)``, where ``spread`` is the range of the
 metric's median over the matrix's configurations: a figure that moves more than k times what floating point moved it
@@ -63,6 +68,8 @@ GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics 
 AVERAGE_PREFIX = "avg"
 CALIBRATION_K = 3.0  # allowed change = k x the spread measured over the perturbation matrix (ours: see calibrate)
 Direction = Literal["lower", "higher", "match"]
+Policy = Literal["one-sided", "two-sided"]
+POLICIES: tuple[str, ...] = ("one-sided", "two-sided")
 DIRECTIONS: tuple[str, ...] = ("lower", "higher", "match")
 
 
@@ -133,6 +140,11 @@ class Baseline:
     description: str = ""
     calibrated: dict[str, dict[str, float]] = field(default_factory=dict)
     calibration: dict[str, Any] = field(default_factory=dict)
+    policy: Policy = "one-sided"
+
+    def __post_init__(self) -> None:
+        if self.policy not in POLICIES:
+            raise GateError(f"baseline policy must be one of {POLICIES}, got {self.policy!r}")
 
     def tolerance_for(self, metric: str) -> Tolerance:
         for rule in self.tolerances:
@@ -159,13 +171,15 @@ class GateRow:
 
 @dataclass(frozen=True)
 class GateReport:
-    """The comparison, row by row; ``passed`` when no row is ``regressed`` or ``missing``."""
+    """The comparison, row by row; ``passed`` when no row's status is in ``failing`` (one-sided: ``regressed``,
+    ``missing``; two-sided: also ``improved``)."""
 
     rows: tuple[GateRow, ...] = field(default_factory=tuple)
+    failing: tuple[str, ...] = ("regressed", "missing")
 
     @property
     def passed(self) -> bool:
-        return not any(r.status in ("regressed", "missing") for r in self.rows)
+        return not any(r.status in self.failing for r in self.rows)
 
     def counts(self) -> dict[str, int]:
         out: dict[str, int] = {}
@@ -212,7 +226,8 @@ def compare(baseline: Baseline, run_metrics: Mapping[str, float]) -> GateReport:
         if name not in baseline.metrics:
             rule = baseline.tolerance_for(name)
             rows.append(GateRow(name, math.nan, _as_float(value), math.nan, math.nan, rule.direction, "new"))
-    return GateReport(tuple(rows))
+    failing = ("regressed", "missing", "improved") if baseline.policy == "two-sided" else ("regressed", "missing")
+    return GateReport(tuple(rows), failing)
 
 
 def format_report(report: GateReport, only_changes: bool = False) -> str:
@@ -228,6 +243,9 @@ def format_report(report: GateReport, only_changes: bool = False) -> str:
         lines.append(shown.to_string(index=False))
     counts = ", ".join(f"{n} {status}" for status, n in sorted(report.counts().items()))
     lines.append(f"{'PASS' if report.passed else 'FAIL'}: {len(report.rows)} metrics ({counts or 'none'})")
+    if not report.passed and "improved" in report.failing and any(r.status == "improved" for r in report.rows):
+        lines.append("two-sided gate: a figure moved beyond its measured spread for the better too; if the change "
+                     "is intended, update the baseline (cnnslam bench quick --update-baseline) and commit it")
     return "\n".join(lines)
 
 
@@ -312,7 +330,8 @@ def load_baseline(path: str | Path) -> Baseline:
     ):
         raise GateError(f"{path}: 'calibrated' maps metric names to {{'spread', 'allowed'}} objects")
     return Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")),
-                    {k: dict(v) for k, v in calibrated.items()}, dict(data.get("calibration") or {}))  # fmt: skip
+                    {k: dict(v) for k, v in calibrated.items()}, dict(data.get("calibration") or {}),
+                    data.get("policy", "one-sided"))  # fmt: skip
 
 
 def baseline_to_json(baseline: Baseline) -> dict[str, Any]:
@@ -322,6 +341,7 @@ def baseline_to_json(baseline: Baseline) -> dict[str, Any]:
             "description": baseline.description,
             "metrics": dict(sorted(baseline.metrics.items())),
             "tolerances": [asdict(t) for t in baseline.tolerances],
+            "policy": baseline.policy,
             "calibrated": dict(sorted(baseline.calibrated.items())),
             "calibration": baseline.calibration,
         }
@@ -383,7 +403,8 @@ def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], referenc
     """:func:`calibrate`'s metrics and allowed changes, without the record of how."""
     if reference not in configurations:
         raise GateError(f"the reference configuration {reference!r} is not among {sorted(configurations)}")
-    base = Baseline({n: _as_float(v) for n, v in configurations[reference].items()}, tuple(tolerances))
+    base = Baseline({n: _as_float(v) for n, v in configurations[reference].items()}, tuple(tolerances),
+                    policy="two-sided")
     calibrated: dict[str, dict[str, float]] = {}
     for name, value in base.metrics.items():
         rule = base.tolerance_for(name)
@@ -397,7 +418,8 @@ def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], referenc
 
 
 def _alarms(baseline: Baseline, figures: Mapping[str, float]) -> int:
-    return sum(r.status in ("regressed", "missing") for r in compare(baseline, figures).rows)
+    report = compare(baseline, figures)
+    return sum(r.status in report.failing for r in report.rows)
 
 
 def holdout_false_alarms(

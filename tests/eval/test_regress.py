@@ -160,3 +160,19 @@ def test_calibration_allows_k_times_the_measured_spread_and_counts_held_out_alar
     assert compare(base, {**configs["reference"], "s/M/ate_rmse": 0.119}).passed is False  # beyond 0.018
     round_trip = load_baseline(save_baseline(base, tmp_path / "b.json"))
     assert round_trip.calibrated == base.calibrated and round_trip.calibration["k"] == 3.0
+
+
+def test_a_two_sided_baseline_fails_on_a_change_for_the_better_too(tmp_path):
+    from eval.regress import save_baseline
+
+    one = Baseline({"s/M/ate_rmse": 0.1})
+    better = {"s/M/ate_rmse": 0.05}
+    assert compare(one, better).passed  # one-sided (default): an improvement passes
+    two = Baseline({"s/M/ate_rmse": 0.1}, policy="two-sided")
+    report = compare(two, better)
+    assert not report.passed and report.rows[0].status == "improved"
+    assert "update the baseline" in format_report(report)
+    assert compare(two, {"s/M/ate_rmse": 0.101}).passed  # within tolerance either way
+    assert load_baseline(save_baseline(two, tmp_path / "b.json")).policy == "two-sided"
+    with pytest.raises(GateError, match="policy"):
+        Baseline({}, policy="sideways")
