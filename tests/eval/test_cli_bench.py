@@ -125,3 +125,10 @@ def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed1-frames6" / "metrics.json").is_file()
     assert main([*args, "--rerun"]) == 0
     assert "2 runs (2 run now, 0 reused" in capsys.readouterr().out
+
+
+def test_a_time_limit_needs_an_executor_that_can_stop_a_run(tmp_path, capsys):
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", *SMALL, "--timeout", "5") == 2
+    assert "--executor local" in capsys.readouterr().err  # the serial executor cannot stop work in its own process
+    assert bench(tmp_path, "table1", "--methods", "oracle", "--timeout", "0", *SMALL) == 2
+    assert "--timeout must be" in capsys.readouterr().err

@@ -181,11 +181,41 @@ def test_an_external_systems_output_is_scored_like_an_agent(tmp_path):
     write_tum_trajectory(out / "trajectory.txt", stamps[::2], moved @ T[::2])  # every other frame only
     depth_png = sorted((export / "depth").glob("*.png"))[4]
     shutil.copy(depth_png, out / "depth" / depth_png.name)
+    (tmp_path / "myslam" / "method.toml").write_text('sensor = "rgbd"\nuses_ground_truth = ["depth"]\n')
+    (out / "run.toml").write_text("wall_s = 12.5\n")
     method = external_method("MySLAM", tmp_path / "myslam")
     result = execute_run(spec_of(method, frames=10, sequence=ref))
     assert result.status == "done", result.error
-    m = json.loads(result.files["metrics.json"])["metrics"]
+    record = json.loads(result.files["metrics.json"])
+    assert record["association"]["rule"] == "tum"  # matched by timestamp, and recorded so
+    assert record["sensor"] == "rgbd" and record["uses_ground_truth"] and record["ground_truth_used"] == ["depth"]
+    assert json.loads(result.files["timing.json"])["method_wall_s"] == 12.5  # its own run time, beside ours
+    m = record["metrics"]
     assert m["frames"] == 10 and m["ate_pairs"] == 5 and m["tracked_share"] == 0.5
     assert m["ate_rmse"] < 1e-6 and m["depth_keyframes"] == 1 and m["depth_percent_correct"] > 99.9
     missing = execute_run(spec_of(method, frames=10))  # no output for office0
     assert missing.status == "failed" and "no trajectory for 'office0'" in missing.error
+
+
+def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
+    from eval.executors import LocalExecutor
+
+    (tmp_path / "slowagent.py").write_text(
+        "import time\n"
+        "class Slow:\n"
+        "    def reset(self, intrinsics, image_size): pass\n"
+        "    def step(self, observation):\n"
+        "        time.sleep(60)\n"
+        "    def finish(self): pass\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    methods = {"slow": Method("slow", entry_point="slowagent:Slow"), "oracle": ORACLE}
+    suite = get_suite("quick").select(["office0"], ["slow", "oracle"], frames=4, runs=1)
+    run = run_suite(suite, methods, tmp_path / "runs", executor=LocalExecutor(jobs=1, timeout_s=8), plots=False,
+                    progress=False, check=False)  # fmt: skip
+    assert run.counts() == {"done": 1, "failed": 1}
+    failed = run.failed[0]
+    assert failed.key.endswith("slow/seed0-frames4") and "exceeded its time limit of 8 s" in failed.error
+    stored = json.loads((tmp_path / "runs" / failed.key / FAILED_FILE).read_text())
+    assert "RunTimedOut" in stored["error"]
