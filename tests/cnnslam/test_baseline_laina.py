@@ -4,14 +4,21 @@ track too."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
 
 from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, LainaConfig
+from cnnslam.baselines.laina_kernels import (
+    LainaModel,
+    depth_surface_pyramid,
+    icp_point_to_plane_fast,
+)
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import rotation_angle_deg, se3_inverse
+from cnnslam.global_model import GlobalModel, GlobalModelConfig
+from cnnslam.icp import IcpConfig, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
 
 TRAIN_FOCAL = 200.0  # the stub network's training focal length; the room's camera has f = 240.3 px
 
@@ -114,3 +121,124 @@ def test_config_overrides_are_validated():
         LainaConfig(cnn_every=0)
     with pytest.raises(CnnSlamError, match="reset"):
         LainaAgent().step({"rgb": np.zeros((8, 8, 3), np.uint8), "timestamp": np.zeros(1)})
+
+
+# ------------------------------------------------------------------------------------------ the numba kernels
+
+
+def _noisy(depth: np.ndarray, seed: int) -> np.ndarray:
+    """Exact depth with CNN-like multiplicative noise (2 %), so that normals vary and thresholds are exercised."""
+    rng = np.random.default_rng(seed)
+    return (depth * (1.0 + 0.02 * rng.standard_normal(depth.shape))).astype(np.float32)
+
+
+def _probs(shape: tuple[int, int], seed: int) -> np.ndarray:
+    p = np.random.default_rng(seed).random((*shape, 4)).astype(np.float32)
+    p[0, 0] = 0.0  # no evidence
+    p[0, 1, 2] = np.nan  # read as 0
+    return p
+
+
+def test_depth_surface_pyramid_known_answer_on_a_fronto_parallel_plane():
+    intr = np.array([200.0, 200.0, 15.5, 11.5])
+    depth = np.full((24, 32), 2.0, np.float32)
+    depth[5, 7] = 0.0  # a hole: no vertex, and no normal at it or its 4 neighbours
+    pyr = depth_surface_pyramid(depth, intr, 3, 0.05)
+    assert [p.valid.shape for p in pyr] == [(24, 32), (12, 16), (6, 8)]
+    v, u = 10, 20
+    assert np.allclose(pyr[0].vertices[v, u], [(u - 15.5) / 200.0 * 2.0, (v - 11.5) / 200.0 * 2.0, 2.0], atol=1e-6)
+    inner = np.zeros((24, 32), bool)
+    inner[1:-1, 1:-1] = True
+    inner[5, 6:9] = inner[4:7, 7] = False
+    assert np.array_equal(pyr[0].valid, inner)
+    assert np.allclose(pyr[0].normals[inner], [0.0, 0.0, -1.0])  # facing the camera
+    assert np.allclose(pyr[1].intrinsics, [100.0, 100.0, 7.5, 5.5])
+    # level 1: the mean of the valid vertices of each 2x2 block (the block at (3, 3) lost pixel (6, 7) to the hole)
+    assert pyr[1].valid[4, 4] and np.allclose(pyr[1].vertices[4, 4], pyr[0].vertices[8:10, 8:10].mean(axis=(0, 1)))
+    block = pyr[0].vertices[6:8, 6:8][inner[6:8, 6:8]]
+    assert pyr[1].valid[3, 3] and len(block) == 3 and np.allclose(pyr[1].vertices[3, 3], block.mean(axis=0))
+    assert pyr[1].valid[0, 0] and np.allclose(pyr[1].vertices[0, 0], pyr[0].vertices[1, 1])  # one valid pixel
+    assert np.allclose(pyr[2].normals[pyr[2].valid], [0.0, 0.0, -1.0]) and pyr[2].valid.sum() == 48
+
+
+def test_depth_surface_pyramid_matches_the_reference(room, room_sequence):
+    depth = _noisy(room_sequence[3][1], 1)
+    ref = surface_pyramid(surface_maps_from_depth(depth, room.intrinsics, 0.05, 0.0), 3, 0.05)
+    fast = depth_surface_pyramid(depth, room.intrinsics, 3, 0.05)
+    for a, b in zip(ref, fast, strict=True):
+        assert np.array_equal(a.valid, b.valid) and np.allclose(a.intrinsics, b.intrinsics)
+        assert np.allclose(a.vertices, b.vertices, atol=1e-6) and np.allclose(a.normals, b.normals, atol=1e-6)
+
+
+def test_render_surface_known_answer_one_surfel_facing_the_camera():
+    model = LainaModel(GlobalModelConfig(pixel_stride=1, normal_smoothing_px=0.0))
+    intr = np.array([100.0, 100.0, 15.5, 11.5])
+    depth = np.zeros((24, 32), np.float32)
+    depth[10:13, 14:17] = 2.0  # a 3x3 patch: one measurement at its centre (15, 11) with a normal
+    model.integrate(depth, np.eye(4), intr)
+    assert len(model) == 1
+    maps = model.render_surface(np.eye(4), intr, (24, 32))
+    assert maps.valid[11, 15] and np.allclose(maps.normals[11, 15], [0.0, 0.0, -1.0])
+    assert np.allclose(maps.vertices[11, 15], [(15 - 15.5) / 100.0 * 2.0, (11 - 11.5) / 100.0 * 2.0, 2.0])
+    assert np.allclose(maps.vertices[maps.valid][:, 2], 2.0)  # the ray meets the disc plane at z = 2
+    assert not model.render_surface(np.eye(4), intr, (24, 32), min_confidence=5.0).valid.any()
+
+
+def test_probability_map_known_answer():
+    model = LainaModel(GlobalModelConfig())
+    p = np.zeros((1, 3, 4), np.float32)
+    p[0, 0] = [1.0, 1.0, 2.0, 0.0]
+    p[0, 1] = [np.nan, 3.0, 0.0, 1.0]
+    out = model._probability_map(p, (1, 3))
+    assert np.allclose(out[0], [[0.25, 0.25, 0.5, 0.0], [0.0, 0.75, 0.0, 0.25], [0.0, 0.0, 0.0, 0.0]])
+    with pytest.raises(CnnSlamError, match=">= 0"):
+        model._probability_map(-p, (1, 3))
+
+
+def test_laina_model_fuses_as_the_global_model_does(room, room_sequence):
+    """Step by step against GlobalModel on noisy depth: measurements, association, probabilities and the fused
+    model agree; the rendering may differ where two surfels tie in depth (float32 products rounded differently)."""
+    cfg = LainaConfig().model
+    ref, fast = GlobalModel(cfg), LainaModel(cfg)
+    intr, size = room.intrinsics, room_sequence[0][1].shape
+    for k in range(0, 12, 2):
+        _, exact, T = room_sequence[k]
+        depth, probs = _noisy(exact, k), _probs(size, k)
+        if k:
+            view = ref.render(T, intr, size, 1.0)
+            maps = fast.render_surface(T, intr, size, 1.0)
+            valid = (view.index >= 0) & (np.abs(view.normals).sum(axis=2) > 0)
+            same = (valid == maps.valid) & np.isclose(view.vertices, maps.vertices, atol=1e-5).all(axis=2)
+            assert same.mean() > 0.999
+        assert np.array_equal(ref._probability_map(probs, size), fast._probability_map(probs, size))
+        variance = (0.05 * depth) ** 2 * np.random.default_rng(k).choice([0.0, np.nan, np.inf, 1.0, 200.0], size)
+        for var in (None, variance):
+            a, b = ref._measure(depth, intr, var), fast._measure(depth, intr, var)
+            assert np.array_equal(a.vs, b.vs) and np.array_equal(a.us, b.us)
+            for name in ("x_cam", "n_cam", "z", "sigma2", "radius", "alpha"):
+                assert np.allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=0), name
+        if len(ref):
+            (ta, ia), (tb, ib) = ref._associate(a, T, intr, True), fast._associate(a, T, intr, True)
+            assert (ta != tb).mean() < 1e-3 and np.array_equal(ia, ib)
+        assert ref.integrate(depth, T, intr, room_sequence[k][0], probs) == fast.integrate(
+            depth, T, intr, room_sequence[k][0], probs)
+    assert ref.prune(2.0, 0) == fast.prune(2.0, 0)
+    sa, sb = ref.snapshot(), fast.snapshot()
+    assert len(sa) == len(sb) and np.array_equal(sa.observations, sb.observations)
+    for name in ("positions", "normals", "label_probs", "confidence", "radius"):
+        assert np.allclose(getattr(sa, name), getattr(sb, name), atol=1e-4), name
+
+
+def test_fast_icp_matches_the_reference_and_recovers_the_motion(room, room_sequence):
+    (_, d0, T0), (_, d1, T1) = room_sequence[0], room_sequence[2]
+    ref_pyr = depth_surface_pyramid(d0, room.intrinsics, 3)
+    cur_pyr = depth_surface_pyramid(d1, room.intrinsics, 3)
+    cfg = IcpConfig(smoothing_px=0.0)
+    a = icp_point_to_plane(ref_pyr, cur_pyr, np.eye(4), cfg)
+    b = icp_point_to_plane_fast(ref_pyr, cur_pyr, np.eye(4), cfg)
+    assert a.iterations == b.iterations and a.inliers == b.inliers and b.tracked
+    assert np.allclose(a.T_ref_cur, b.T_ref_cur, atol=1e-10) and np.allclose(a.hessian, b.hessian, rtol=1e-9)
+    E = se3_inverse(se3_inverse(T0) @ T1) @ b.T_ref_cur  # the known answer: the true relative motion
+    assert np.linalg.norm(E[:3, 3]) < 1e-3 and rotation_angle_deg(E) < 0.05
+    c = icp_point_to_plane_fast(ref_pyr, cur_pyr, np.eye(4), replace(cfg, convergence=6e-3))  # InfiniTAM's test
+    assert sum(c.iterations) < sum(b.iterations) and np.allclose(c.T_ref_cur, b.T_ref_cur, atol=1e-3)
