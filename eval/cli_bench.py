@@ -59,7 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = f"external method folder layout (--external NAME=FOLDER):\n{EXTERNAL_LAYOUT}"
     parser.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
-    parser.add_argument("--frames", type=int, default=None, help="first N frames of each sequence (suite default)")
+    parser.add_argument("--frames", type=_frames, default=None,
+                        help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
     parser.add_argument("--sequences", nargs="+", metavar="NAME",
                         help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
                              "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
@@ -133,6 +134,16 @@ def _command(args: argparse.Namespace) -> str:
     return " ".join(shlex.quote(w) for w in words)
 
 
+def _frames(text: str) -> int | str:
+    """``--frames``: a number of frames, or ``all`` (whole sequences)."""
+    if text == "all":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of frames or 'all', got {text!r}") from None
+
+
 def _image_size(text: str | None):
     """``--image-size``: ``WxH`` -> (W, H), ``native``, or None when not given."""
     if text is None or text == "native":
@@ -193,7 +204,8 @@ def run(args: argparse.Namespace) -> int:
             from eval.perf import run_perf
 
             results = args.results or Path("results")
-            report = run_perf(results, frames=args.frames, progress=not args.no_progress)
+            frames = None if args.frames == "all" else args.frames
+            report = run_perf(results, frames=frames, progress=not args.no_progress)
             print(f"wrote {results / 'perf.md'} and {results / 'perf.json'}")
             return 0 if report.ok else 1
         chosen = _names(args.methods) or list(suite.methods)

@@ -499,16 +499,17 @@ class Suite:
         self,
         sequences: Sequence[str] | None = None,
         methods: Sequence[str] | None = None,
-        frames: int | None = None,
+        frames: int | Literal["all"] | None = None,
         seeds: Sequence[int] | None = None,
         runs: int | None = None,
         camera: str | None = None,
         size: FolderSize | None = None,
     ) -> Suite:
         """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
-        name or folder path), ``methods`` (any method names), ``frames``, ``seeds``, or ``runs`` N (seeds 0 .. N-1;
-        not with ``seeds``); ``camera`` and ``size`` for every folder sequence (:meth:`SequenceRef.
-        with_folder_options`). Sequences named explicitly drop the suite's skipped ones not among them."""
+        name or folder path), ``methods`` (any method names), ``frames`` (a number, or ``"all"``: whole
+        sequences), ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with ``seeds``); ``camera`` and ``size`` for
+        every folder sequence (:meth:`SequenceRef.with_folder_options`). Sequences named explicitly drop the suite's
+        skipped ones not among them."""
         if runs is not None:
             if seeds:
                 raise SuiteError("give --runs or --seeds, not both")
@@ -528,13 +529,13 @@ class Suite:
             if not any(r.folder is not None for r in refs):
                 raise SuiteError("--camera and --image-size apply to folder sequences, and none is selected")
             refs = tuple(r.with_folder_options(camera, size) if r.folder is not None else r for r in refs)
-        if frames is not None and int(frames) < 2:
+        if frames is not None and frames != "all" and int(frames) < 2:
             raise SuiteError(f"--frames must be >= 2, got {frames}")
         return replace(
             self,
             sequences=_unique(refs),
             methods=tuple(methods) if methods else self.methods,
-            frames=int(frames) if frames is not None else self.frames,
+            frames=self.frames if frames is None else None if frames == "all" else int(frames),
             seeds=tuple(int(s) for s in seeds) if seeds else self.seeds,
             skipped=skipped,
         )

@@ -180,6 +180,9 @@ def test_bench_with_a_folder_path(folders, tmp_path, capsys):
                          "metrics.json").read_text())  # fmt: skip
     assert record["metadata"]["source"]["size"] == [32, 24]
     assert any(c.startswith("resized 64x48 -> 32x24") for c in record["metadata"]["source"]["conversions"])
+    assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", "--frames", "all", *SMALL[2:]) == 0
+    assert (tmp_path / "runs" / "table1" / "seq_7scenes" / "oracle" / "seed0-framesall" / "metrics.json").is_file()
+    capsys.readouterr()
     assert bench(tmp_path, "table1", "--sequences", str(tmp_path / "nope"), *SMALL) == 2
     err = capsys.readouterr().err
     assert "is not a folder" in err and len(err.strip().splitlines()) == 1
