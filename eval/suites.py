@@ -408,9 +408,9 @@ def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
 
 def resolve_sequence(name: str) -> SequenceRef:
     """A sequence by name: a registered sequence; ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by ``-``, or
-    ``rpy``; speed in deg/s) for any rotation stress sequence; a name of the dataset list
-    (:func:`load_dataset_list`); or the path of an RGB-D folder (:func:`folder_ref`: anything with a ``/``, starting
-    with ``.`` or ``~``, or an existing folder)."""
+    ``rpy``; speed in deg/s) for any rotation stress sequence; the path of an RGB-D folder (:func:`folder_ref`) when
+    it has a ``/`` or starts with ``.`` or ``~``; a name of the dataset list (:func:`load_dataset_list`); an existing
+    folder. The first that fits wins."""
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)
@@ -420,20 +420,21 @@ def resolve_sequence(name: str) -> SequenceRef:
             return rotation_ref(axes if axes == "rpy" else axes.replace("-", "+"), float(match["speed"]))
         except SimEnvError as exc:  # e.g. rot_yawn_30: a rotation name with a bad axis
             raise SuiteError(f"sequence {name!r}: {exc}") from None
-    path_like = "/" in name or os.sep in name or name.startswith((".", "~")) or Path(name).is_dir()
-    if not path_like:
-        datasets = load_dataset_list()
-        if name in datasets:
-            entry = datasets[name]
-            if not entry.path.is_dir():
-                raise SuiteError(f"dataset {name!r} of {dataset_list_file()}: {entry.path} is not a folder")
-            return entry.ref()
-        listed = f"; datasets of {dataset_list_file()}: {', '.join(datasets)}" if datasets else ""
-        raise SuiteError(
-            f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
-            f"(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90){listed}, or the path of an RGB-D folder"
-        )
-    return folder_ref(name)
+    if "/" in name or os.sep in name or name.startswith((".", "~")):
+        return folder_ref(name)
+    datasets = load_dataset_list()
+    if name in datasets:
+        entry = datasets[name]
+        if not entry.path.is_dir():
+            raise SuiteError(f"dataset {name!r} of {dataset_list_file()}: {entry.path} is not a folder")
+        return entry.ref()
+    if Path(name).is_dir():
+        return folder_ref(name)
+    listed = f"; datasets of {dataset_list_file()}: {', '.join(datasets)}" if datasets else ""
+    raise SuiteError(
+        f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
+        f"(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90){listed}, or the path of an RGB-D folder"
+    )
 
 
 def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
