@@ -1,9 +1,11 @@
 """``cnnslam bench [SUITE]``: run a benchmark suite and write its results (tables, plots, long-form CSV).
 
 Suites (``--list`` prints them with their sequences and methods): ``table1`` (default), ``rotation``, ``ablation``,
-``sweep``, ``perf``, ``quick``; see :mod:`eval.suites`. Runs go to ``--out`` (one folder per run, see
-:mod:`eval.runner`), results to ``--results`` (see :mod:`eval.reports`). A rerun skips finished runs and retries
-failed ones; methods that cannot run here are skipped and reported.
+``sweep``, ``depth_quality``, ``perf``, ``real`` (the folders of the local dataset list), ``quick``; see
+:mod:`eval.suites`. ``--sequences`` takes sequence names, dataset-list names and paths of real RGB-D folders (TUM
+RGB-D, ICL-NUIM, 7-Scenes, RGB-only; delivered at 320x240 unless ``--image-size``). Runs go to ``--out`` (one
+folder per run, see :mod:`eval.runner`), results to ``--results`` (see :mod:`eval.reports`). A rerun skips finished
+runs and retries failed ones; methods that cannot run here are skipped and reported.
 
 Examples::
 
@@ -11,6 +13,8 @@ Examples::
     cnnslam bench rotation --jobs 2 --frames 90
     cnnslam bench table1 --methods CNN-SLAM oracle --sequences office0 living1 --frames 100
     cnnslam bench table1 --external MySLAM=out/myslam  # score a third-party system's output too
+    cnnslam bench table1 --sequences ~/data/rgbd_dataset_freiburg1_desk   # a downloaded TUM sequence
+    cnnslam bench real                              # every folder of datasets.toml (or $CNNSLAM_DATASETS)
     cnnslam bench quick                             # the CI suite, compared with results/baselines/quick.json
     cnnslam bench quick --update-baseline           # after an intended change: rewrite the baseline
     cnnslam bench table1 --executor ray --address auto
@@ -21,7 +25,8 @@ Results: a suite run exactly as defined (any ``--runs``, ``--jobs``, executor) w
 overwrites the committed results; ``--results DIR`` puts them where you say.
 
 Exit status: 0 when every requested run finished (and the gate passed, where one runs); 1 when a run failed or
-timed out, a requested method or external folder was skipped (``--allow-skips``: only reported), or the gate
+timed out, a requested method, external folder or listed dataset folder was skipped (``--allow-skips``: only
+reported), or the gate
 failed (the results are written all the same); 2 on bad arguments (one line, the valid names); 130 on Ctrl-C (the
 runs finished before it are kept).
 """
@@ -37,7 +42,7 @@ from pathlib import Path
 from eval.errors import EvalError
 from eval.executors import EXECUTORS, make_executor
 from eval.methods import EXTERNAL_LAYOUT, MethodError, load_methods, merge_methods, parse_external
-from eval.suites import SUITES, get_suite
+from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
 GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
@@ -54,8 +59,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = f"external method folder layout (--external NAME=FOLDER):\n{EXTERNAL_LAYOUT}"
     parser.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
-    parser.add_argument("--frames", type=int, default=None, help="first N frames of each sequence (suite default)")
-    parser.add_argument("--sequences", nargs="+", metavar="NAME", help="only these sequences (or others by name)")
+    parser.add_argument("--frames", type=_frames, default=None,
+                        help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
+    parser.add_argument("--sequences", nargs="+", metavar="NAME",
+                        help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
+                             "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
+    parser.add_argument("--camera", default=None, metavar="PRESET|FILE",
+                        help="camera of the folder sequences: a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) "
+                             "or a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: "
+                             "the folder's camera.toml, side file, or its name (freiburg1/2/3)")  # fmt: skip
+    parser.add_argument("--image-size", default=None, metavar="WxH",
+                        help="resolution the folder sequences are delivered at (default 320x240, the paper's; "
+                             "'native': the images' own)")  # fmt: skip
     parser.add_argument("--methods", nargs="+", metavar="NAME", help="only these methods of the method table")
     parser.add_argument("--runs", type=int, default=None, metavar="N",
                         help="runs per cell, seeds 0..N-1 (default: 3); eval/methods.toml says what a seed changes")
@@ -104,7 +119,8 @@ def _command(args: argparse.Namespace) -> str:
     """The command line that reproduces the run (the options that shape the results), for the reports."""
     words = ["cnnslam", "bench", args.suite]
     renderer = None if args.renderer == "mujoco" else args.renderer
-    for flag, value in (("--frames", args.frames), ("--runs", args.runs), ("--renderer", renderer)):
+    for flag, value in (("--frames", args.frames), ("--runs", args.runs), ("--renderer", renderer),
+                        ("--camera", args.camera), ("--image-size", args.image_size)):  # fmt: skip
         if value is not None:
             words += [flag, str(value)]
     for flag, values in (("--sequences", _names(args.sequences)), ("--methods", _names(args.methods)),
@@ -118,13 +134,41 @@ def _command(args: argparse.Namespace) -> str:
     return " ".join(shlex.quote(w) for w in words)
 
 
+def _frames(text: str) -> int | str:
+    """``--frames``: a number of frames, or ``all`` (whole sequences)."""
+    if text == "all":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of frames or 'all', got {text!r}") from None
+
+
+def _image_size(text: str | None):
+    """``--image-size``: ``WxH`` -> (W, H), ``native``, or None when not given."""
+    if text is None or text == "native":
+        return text
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise SuiteError(f"--image-size must be WIDTHxHEIGHT (e.g. 320x240) or native, got {text!r}") from None
+    return width, height
+
+
 def _list(methods: dict) -> str:
     lines = ["suites:"]
     for suite in SUITES.values():
         lines.append(f"  {suite.name:<9} {suite.description}")
         if suite.kind == "runs":
+            if suite.name == "real":
+                try:
+                    suite = get_suite("real")
+                except SuiteError as exc:
+                    lines.append(f"            {exc}")
             frames = "all" if suite.frames is None else suite.frames
             lines.append(f"            frames {frames}; sequences: {', '.join(s.name for s in suite.sequences)}")
+            if suite.skipped:
+                lines.append(f"            missing here: {', '.join(name for name, _ in suite.skipped)}")
             lines.append(f"            methods: {', '.join(suite.methods)}")
     lines.append("methods:")
     for m in methods.values():
@@ -160,7 +204,8 @@ def run(args: argparse.Namespace) -> int:
             from eval.perf import run_perf
 
             results = args.results or Path("results")
-            report = run_perf(results, frames=args.frames, progress=not args.no_progress)
+            frames = None if args.frames == "all" else args.frames
+            report = run_perf(results, frames=frames, progress=not args.no_progress)
             print(f"wrote {results / 'perf.md'} and {results / 'perf.json'}")
             return 0 if report.ok else 1
         chosen = _names(args.methods) or list(suite.methods)
@@ -168,7 +213,8 @@ def run(args: argparse.Namespace) -> int:
         if unknown:
             raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
-        suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs)
+        suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
+                             camera=args.camera, size=_image_size(args.image_size))  # fmt: skip
         if args.timeout is not None and not args.timeout > 0:
             raise MethodError(f"--timeout must be a number of seconds > 0, got {args.timeout}")
         options = {"timeout_s": args.timeout} if args.timeout is not None else {}
@@ -180,6 +226,12 @@ def run(args: argparse.Namespace) -> int:
     from eval.reports import write_report
     from eval.runner import run_suite
 
+    if not suite.sequences:
+        for name, reason in suite.skipped:
+            print(f"  skipped sequence {name}: {reason}")
+        print(f"cnnslam bench: suite {suite.name} has no sequence to run here ({len(suite.skipped)} skipped; the "
+              f"dataset list is {dataset_list_file()})", file=sys.stderr)  # fmt: skip
+        return 0 if args.allow_skips and suite.skipped else 1
     if args.calibrate:
         return _calibrate(args, suite, methods)
     try:
@@ -209,10 +261,17 @@ def run(args: argparse.Namespace) -> int:
     for outcome in result.failed:
         print(f"  FAILED {outcome.key}: {outcome.error}")
     print("wrote " + ", ".join(str(p) for p in paths))
+    for name, reason in suite.skipped:
+        print(f"  skipped sequence {name}: {reason}")
     status = 1 if result.failed else 0
     if result.skipped_methods and not args.allow_skips:
         print(f"cnnslam bench: {len(result.skipped_methods)} requested method(s) skipped ("
               f"{', '.join(result.skipped_methods)}): exit status 1 (--allow-skips to accept)", file=sys.stderr)
+        status = 1
+    if suite.skipped and not args.allow_skips:
+        print(f"cnnslam bench: {len(suite.skipped)} listed sequence(s) skipped ("
+              f"{', '.join(name for name, _ in suite.skipped)}): exit status 1 (--allow-skips to accept)",
+              file=sys.stderr)  # fmt: skip
         status = 1
     return max(status, _gate(args, result))
 

@@ -139,6 +139,9 @@ def status_markdown(run: SuiteRun) -> str:
     if run.skipped_methods:
         lines.append("\nMethods skipped (they cannot run here):\n")
         lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.skipped_methods.items()]
+    if run.suite.skipped:
+        lines.append("\nSequences skipped (listed, but not here):\n")
+        lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.suite.skipped]
     if run.failed:
         lines.append("\nFailed runs (rerun the same command to retry them):\n")
         lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]

@@ -169,9 +169,9 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
 def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
     if method.kind == "external":
-        episode, n_frames = _external_episode(spec)
+        episode, n_frames, source_info = _external_episode(spec)
     else:
-        episode = _agent_episode(spec, progress)
+        episode, source_info = _agent_episode(spec, progress)
         n_frames = int(episode.timestamps.shape[0])
     metadata = {
         "suite": spec.suite,
@@ -189,9 +189,15 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         "sequence_definition": ref.describe(),
         "method_definition": method.describe(),
     }
+    if source_info is not None:
+        metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
     record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
     record["sequence"] = ref.name
     metrics = dict(record["metrics"])
+    has_depth = source_info is None or source_info.get("has_depth", True)
+    if not has_depth:  # an RGB-only folder: nothing to score key-frame depth against
+        metrics = {k: v for k, v in metrics.items() if not k.startswith("depth_")}
+        record["warnings"].append(f"{ref.name} has no ground-truth depth (RGB-only folder): depth metric skipped")
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
@@ -214,27 +220,36 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")
         depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
         if spec.plots:
-            _write_plots(folder, spec, episode, depth_est, depth_gt)
+            _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
         timing["wall_s"] = time.perf_counter() - start
         _write_json(folder / "timing.json", timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def _agent_episode(spec: RunSpec, progress: bool) -> Any:
+def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None]:
+    """The agent's episode and the frame source's own description (:func:`_source_info`)."""
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
 
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
     env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer)
     try:
-        return run_episode(env, agent, progress=progress)
+        return run_episode(env, agent, progress=progress), _source_info(env.unwrapped.source)
     finally:
         env.close()
 
 
-def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
+def _source_info(source: Any) -> dict[str, Any] | None:
+    """What a frame source says about itself (``describe()``: a real folder's layout, sizes, camera, depth scale,
+    conversions), for the run record; None for sources that say nothing (the simulated ones)."""
+    describe = getattr(source, "describe", None)
+    return describe() if callable(describe) else None
+
+
+def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, Any] | None]:
     """The external system's trajectory (and depth maps) for the sequence, associated with the ground truth of the
-    first ``frames`` frames (TUM greedy association, 0.02 s); returns the episode and the number of frames."""
+    first ``frames`` frames (TUM greedy association, 0.02 s); returns the episode, the number of frames and the
+    source's description."""
     from sim_envs.agent import KeyframeDepth
     from sim_envs.driver import KEYFRAME_TIME_TOLERANCE
 
@@ -248,6 +263,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
             f"{', '.join(str(p) for p in candidates)}"
         )
     source = ref.make_source(spec.renderer)
+    source_info = _source_info(source)
     try:
         n = len(source) if spec.frames is None else min(len(source), int(spec.frames))
         gt = PoseTrajectory(np.asarray(source.timestamps)[:n], np.asarray(source.poses)[:n])
@@ -284,7 +300,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int]:
                 "duplicate_timestamps": dropped,
                 "own_wall_s": _declared_wall_s(folder / ref.name / RUN_SIDE_FILE)},
     )
-    return episode, n
+    return episode, n, source_info
 
 
 def _declared_wall_s(path: Path) -> float | None:

@@ -34,17 +34,22 @@ the spec has the parameter, and by :class:`VariantSequence` where it has not:
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 import re
+import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from eval.errors import EvalError
-from sim_envs.camera import preset
+from sim_envs.camera import camera_presets, preset
+from sim_envs.datasets import LOADER_VERSION, PROCESSING_SIZE, RgbdFolder, detect_layout, folder_fingerprint
 from sim_envs.errors import SimEnvError
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
@@ -62,6 +67,10 @@ REPLAY_ENV_ID = "sim_envs/Replay-v0"
 NOMINAL_DEPTH_M = 2.0  # scene depth that weighs translation against rotation in rotation_share (ours: indoor rooms)
 ADDED_PAN_AMPLITUDE_DEG = 20.0  # amplitude of the sweep's extra pan (ours: keeps the view on the room's content)
 _ROTATION_NAME = re.compile(r"^rot_(?P<axes>[a-z]+(-[a-z]+)*)_(?P<speed>\d+(\.\d+)?)$")
+_SAFE_NAME = re.compile(r"[^A-Za-z0-9_.+-]")  # what a folder's name may keep in a sequence (and run folder) name
+DATASETS_ENV = "CNNSLAM_DATASETS"  # a user's list of local dataset folders, instead of the repository's
+DEFAULT_DATASETS_FILE = Path(__file__).resolve().parent.parent / "datasets.toml"
+FolderSize = tuple[int, int] | Literal["native"]
 
 
 class SuiteError(EvalError):
@@ -117,13 +126,16 @@ class VariantSequence(SimulatedSequence):
 
 @dataclass(frozen=True)
 class SequenceRef:
-    """A sequence of a suite: a registered one, a rotation stress sequence, or a variant of either.
+    """A sequence of a suite: a registered one, a rotation stress sequence, a variant of either, or an RGB-D folder.
 
     name: shown in results (and the run folder's name); base: a registered sequence name; rotation: ``(axes,
     speed_deg_s)`` of :func:`sim_envs.sequences.rotation_stress_spec` (instead of ``base``); overrides:
     :class:`SequenceSpec` fields to replace, as sorted ``(field, value)`` pairs (a mapping is accepted);
     focal_ratio / added_pan_deg_s: see :class:`VariantSequence`; axis / axis_value: the sweep axis and its nominal
-    value, for plots.
+    value, for plots. folder (instead of ``base`` or ``rotation``): the absolute path of a real RGB-D folder
+    (:class:`sim_envs.datasets.RgbdFolder`), with ``camera`` (a preset name or the path of a camera file; None:
+    detected), ``size`` ((width, height) of the delivered frames, default 320x240, or ``"native"``) and
+    ``depth_scale`` (None: detected).
     """
 
     name: str
@@ -134,17 +146,26 @@ class SequenceRef:
     added_pan_deg_s: float = 0.0
     axis: str | None = None
     axis_value: float | None = None
+    folder: str | None = None
+    camera: str | None = None
+    size: FolderSize = PROCESSING_SIZE
+    depth_scale: float | None = None
 
     def __post_init__(self) -> None:
         items = self.overrides.items() if isinstance(self.overrides, Mapping) else self.overrides
         object.__setattr__(self, "overrides", tuple(sorted((str(k), v) for k, v in items)))
-        if (self.base is None) == (self.rotation is None):
-            raise SuiteError(f"sequence {self.name!r}: give exactly one of base (a registered name) or rotation")
+        if sum(v is not None for v in (self.base, self.rotation, self.folder)) != 1:
+            raise SuiteError(
+                f"sequence {self.name!r}: give exactly one of base (a registered name), rotation or folder"
+            )
         bad = sorted(set(dict(self.overrides)) - set(SequenceSpec.__dataclass_fields__))
         if bad:
             raise SuiteError(f"sequence {self.name!r}: {bad} are not SequenceSpec fields")
         if not self.name or "/" in self.name or self.name.startswith("."):
             raise SuiteError(f"a sequence name must be non-empty, without '/', not starting with '.': {self.name!r}")
+        object.__setattr__(self, "size", _folder_size(self.size))
+        if self.folder is not None and (self.overrides or self.focal_ratio is not None or self.added_pan_deg_s):
+            raise SuiteError(f"sequence {self.name!r}: a folder sequence has no spec overrides or variants")
 
     @property
     def registered(self) -> bool:
@@ -164,6 +185,8 @@ class SequenceRef:
 
     def spec(self) -> SequenceSpec:
         """The sequence's spec (a registered one, or built, with the overrides applied; named ``name``)."""
+        if self.folder is not None:
+            raise SuiteError(f"sequence {self.name!r} is the folder {self.folder}, not a simulated sequence")
         if self.base is not None:
             spec = get_sequence(self.base)
         else:
@@ -171,8 +194,12 @@ class SequenceRef:
             spec = rotation_stress_spec(axes, float(speed))
         return replace(spec, name=self.name, **dict(self.overrides)) if not self.registered else spec
 
-    def make_source(self, renderer: str = "mujoco") -> SimulatedSequence:
-        """The frame source (lazy: nothing is rendered or generated until used)."""
+    def make_source(self, renderer: str = "mujoco") -> Any:
+        """The frame source (lazy: nothing is rendered or generated until used; a folder's frames are read from
+        disk when asked for). ``renderer`` does not apply to a folder."""
+        if self.folder is not None:
+            size = None if self.size == "native" else self.size
+            return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name)
         if self.focal_ratio is None and self.added_pan_deg_s == 0.0:
             return SimulatedSequence(self.spec(), renderer=renderer)
         return VariantSequence(
@@ -191,7 +218,20 @@ class SequenceRef:
         return gymnasium.make(REPLAY_ENV_ID, source=self.make_source(renderer), max_frames=max_frames)
 
     def describe(self) -> dict[str, Any]:
-        """JSON-ready definition (run metadata; part of a run's fingerprint)."""
+        """JSON-ready definition (run metadata; part of a run's fingerprint). A folder's includes its resolved path
+        and a content fingerprint (:func:`sim_envs.datasets.folder_fingerprint`), so a changed folder reruns."""
+        if self.folder is not None:
+            camera_file = [self.camera] if self.camera and Path(self.camera).is_file() else []
+            return {
+                "name": self.name,
+                "env_id": self.env_id,
+                "folder": self.folder,
+                "camera": self.camera,
+                "size": self.size if self.size == "native" else list(self.size),
+                "depth_scale": self.depth_scale,
+                "loader": LOADER_VERSION,
+                "content": folder_fingerprint(self.folder, camera_file) if Path(self.folder).is_dir() else None,
+            }
         return {
             "name": self.name,
             "env_id": self.env_id,
@@ -203,6 +243,157 @@ class SequenceRef:
             "axis": self.axis,
             "axis_value": self.axis_value,
         }
+
+    def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None) -> SequenceRef:
+        """This folder sequence with another camera (preset name or camera file) and/or delivered size."""
+        if self.folder is None:
+            raise SuiteError(f"sequence {self.name!r} is not a folder: --camera and --image-size do not apply")
+        return replace(
+            self,
+            camera=_camera_argument(camera) if camera is not None else self.camera,
+            size=_folder_size(size) if size is not None else self.size,
+        )
+
+
+def folder_ref(
+    path: str | os.PathLike[str],
+    *,
+    camera: str | None = None,
+    size: FolderSize = PROCESSING_SIZE,
+    depth_scale: float | None = None,
+    name: str | None = None,
+) -> SequenceRef:
+    """An RGB-D folder as a sequence (see :class:`SequenceRef`). Its name: ``name``, else the folder's name with
+    characters other than letters, digits and ``_.+-`` replaced by ``_``, and a short hash of the path appended
+    when that would be taken for a simulated sequence. :class:`SuiteError` (one line) when it is not a folder of a
+    known layout."""
+    folder = Path(path).expanduser().resolve()
+    try:
+        detect_layout(folder)
+    except SimEnvError as exc:
+        raise SuiteError(f"sequence {os.fspath(path)!r}: {exc}") from None
+    if name is None:
+        name = _SAFE_NAME.sub("_", folder.name).lstrip(".") or "folder"
+        if name in list_sequences("all") or _ROTATION_NAME.match(name):
+            name = f"{name}-{_path_tag(folder)}"
+    return SequenceRef(
+        name,
+        folder=str(folder),
+        camera=_camera_argument(camera) if camera is not None else None,
+        size=size,
+        depth_scale=depth_scale,
+    )
+
+
+def _folder_size(size: Any) -> FolderSize:
+    if size == "native":
+        return "native"
+    try:
+        width, height = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise SuiteError(f"an image size is WIDTHxHEIGHT in pixels or 'native', got {size!r}") from None
+    if width <= 0 or height <= 0:
+        raise SuiteError(f"an image size must be positive, got {width}x{height}")
+    return width, height
+
+
+def _camera_argument(camera: str, base: Path | None = None) -> str:
+    """A camera preset name as it is, or a camera file's absolute path (relative to ``base``, default the cwd)."""
+    if camera in camera_presets():
+        return camera
+    path = (base or Path.cwd()) / Path(camera).expanduser()
+    if not path.is_file():
+        raise SuiteError(
+            f"camera {camera!r} is neither a preset ({', '.join(camera_presets())}) nor a camera file (TOML/YAML)"
+        )
+    return str(path.resolve())
+
+
+def _path_tag(folder: str | Path) -> str:
+    return hashlib.sha256(str(folder).encode()).hexdigest()[:6]
+
+
+def _unique(refs: Sequence[SequenceRef]) -> tuple[SequenceRef, ...]:
+    """The refs in order, a repeated one once, and folders whose names clash given a short hash of their path."""
+    out: list[SequenceRef] = []
+    for ref in refs:
+        if ref not in out:
+            out.append(ref)
+    names = [r.name for r in out]
+    return tuple(
+        replace(r, name=f"{r.name}-{_path_tag(r.folder)}") if r.folder is not None and names.count(r.name) > 1 else r
+        for r in out
+    )
+
+
+# ------------------------------------------------------------------------------------------- local dataset list
+@dataclass(frozen=True)
+class DatasetEntry:
+    """A folder of the dataset list: ``name`` (its sequence name), ``path`` (absolute), and the optional
+    ``camera`` (preset name or absolute camera file path), ``size`` and ``depth_scale`` of :class:`SequenceRef`."""
+
+    name: str
+    path: Path
+    camera: str | None = None
+    size: FolderSize = PROCESSING_SIZE
+    depth_scale: float | None = None
+
+    def ref(self) -> SequenceRef:
+        return SequenceRef(
+            self.name, folder=str(self.path), camera=self.camera, size=self.size, depth_scale=self.depth_scale
+        )
+
+
+def dataset_list_file() -> Path:
+    """The dataset list in use: the file named by ``$CNNSLAM_DATASETS``, else the repository's ``datasets.toml``."""
+    named = os.environ.get(DATASETS_ENV)
+    return Path(named).expanduser() if named else DEFAULT_DATASETS_FILE
+
+
+def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]:
+    """The named local dataset folders of a TOML list (default :func:`dataset_list_file`), in file order.
+
+    Format: a ``[datasets]`` table whose entries are ``name = "path"`` or ``[datasets.<name>]`` tables with
+    ``path`` and optionally ``camera`` (preset name or camera file), ``size`` (``[width, height]`` or
+    ``"native"``) and ``depth_scale``. Relative paths are relative to the list file's folder; ``~`` is expanded.
+    A missing default list is an empty list; a missing list named by ``$CNNSLAM_DATASETS`` is an error.
+    """
+    explicit = path is not None or bool(os.environ.get(DATASETS_ENV))
+    file = Path(path) if path is not None else dataset_list_file()
+    if not file.is_file():
+        if explicit:
+            raise SuiteError(f"no dataset list at {file} (${DATASETS_ENV} or the given path)")
+        return {}
+    try:
+        data = tomllib.loads(file.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise SuiteError(f"{file}: not a readable TOML dataset list ({exc})") from None
+    table = data.get("datasets", {})
+    if not isinstance(table, dict) or set(data) - {"datasets"}:
+        raise SuiteError(f"{file}: expected only a [datasets] table (name = \"path\" or [datasets.<name>])")
+    base = file.resolve().parent
+    entries = {}
+    for name, value in table.items():
+        entry = value if isinstance(value, dict) else {"path": value}
+        unknown = sorted(set(entry) - {"path", "camera", "size", "depth_scale"})
+        if unknown or not isinstance(entry.get("path"), str):
+            raise SuiteError(
+                f"{file}: dataset {name!r} needs path = \"FOLDER\" (optional: camera, size, depth_scale)"
+                + (f"; unknown key(s) {', '.join(unknown)}" if unknown else "")
+            )
+        if _SAFE_NAME.search(name) or name.startswith(".") or name in list_sequences("all"):
+            raise SuiteError(f"{file}: dataset name {name!r} must use letters, digits, _.+- and not be a sequence's")
+        camera = entry.get("camera")
+        if camera is not None and camera not in camera_presets():
+            camera = str((base / Path(camera).expanduser()).resolve())  # checked when the folder is loaded
+        entries[name] = DatasetEntry(
+            name,
+            (base / Path(entry["path"]).expanduser()).resolve(),
+            camera,
+            _folder_size(entry.get("size", PROCESSING_SIZE)),
+            float(entry["depth_scale"]) if entry.get("depth_scale") is not None else None,
+        )
+    return entries
 
 
 def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
@@ -216,8 +407,10 @@ def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
 
 
 def resolve_sequence(name: str) -> SequenceRef:
-    """A sequence by name: a registered sequence, or ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by
-    ``-``, or ``rpy``; speed in deg/s) for any rotation stress sequence."""
+    """A sequence by name: a registered sequence; ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by ``-``, or
+    ``rpy``; speed in deg/s) for any rotation stress sequence; the path of an RGB-D folder (:func:`folder_ref`) when
+    it has a ``/`` or starts with ``.`` or ``~``; a name of the dataset list (:func:`load_dataset_list`); an existing
+    folder. The first that fits wins."""
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)
@@ -227,9 +420,20 @@ def resolve_sequence(name: str) -> SequenceRef:
             return rotation_ref(axes if axes == "rpy" else axes.replace("-", "+"), float(match["speed"]))
         except SimEnvError as exc:  # e.g. rot_yawn_30: a rotation name with a bad axis
             raise SuiteError(f"sequence {name!r}: {exc}") from None
+    if "/" in name or os.sep in name or name.startswith((".", "~")):
+        return folder_ref(name)
+    datasets = load_dataset_list()
+    if name in datasets:
+        entry = datasets[name]
+        if not entry.path.is_dir():
+            raise SuiteError(f"dataset {name!r} of {dataset_list_file()}: {entry.path} is not a folder")
+        return entry.ref()
+    if Path(name).is_dir():
+        return folder_ref(name)
+    listed = f"; datasets of {dataset_list_file()}: {', '.join(datasets)}" if datasets else ""
     raise SuiteError(
         f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
-        "(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90)"
+        f"(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90){listed}, or the path of an RGB-D folder"
     )
 
 
@@ -279,7 +483,8 @@ class Suite:
     """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds`` (the runs of each cell, see
     ``eval/methods.toml`` for what a seed changes per method), each run on the first ``frames`` frames (None: whole
     sequences); ``alignment`` of the ATE (``eval.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
-    the throughput suite, which runs no agents."""
+    the throughput suite, which runs no agents; ``skipped``: ``(name, reason)`` of sequences it lists but cannot
+    run here (a dataset folder that is missing)."""
 
     name: str
     description: str
@@ -289,18 +494,23 @@ class Suite:
     seeds: tuple[int, ...] = tuple(range(DEFAULT_RUNS))
     alignment: str = "se3"
     kind: SuiteKind = "runs"
+    skipped: tuple[tuple[str, str], ...] = ()
 
     def select(
         self,
         sequences: Sequence[str] | None = None,
         methods: Sequence[str] | None = None,
-        frames: int | None = None,
+        frames: int | Literal["all"] | None = None,
         seeds: Sequence[int] | None = None,
         runs: int | None = None,
+        camera: str | None = None,
+        size: FolderSize | None = None,
     ) -> Suite:
         """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
-        name), ``methods`` (any method names), ``frames``, ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with
-        ``seeds``)."""
+        name or folder path), ``methods`` (any method names), ``frames`` (a number, or ``"all"``: whole
+        sequences), ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with ``seeds``); ``camera`` and ``size`` for
+        every folder sequence (:meth:`SequenceRef.with_folder_options`). Sequences named explicitly drop the suite's
+        skipped ones not among them."""
         if runs is not None:
             if seeds:
                 raise SuiteError("give --runs or --seeds, not both")
@@ -309,25 +519,36 @@ class Suite:
             seeds = range(int(runs))
         if seeds is not None and len(set(seeds)) != len(list(seeds)):
             raise SuiteError(f"seeds must be distinct, got {list(seeds)}")
-        refs = self.sequences
+        refs, skipped = self.sequences, self.skipped
         if sequences:
             own = {s.name: s for s in self.sequences}
-            refs = tuple(own[name] if name in own else resolve_sequence(name) for name in sequences)
-        if frames is not None and int(frames) < 2:
+            missing = dict(self.skipped)
+            named = [name for name in sequences if name not in missing]
+            refs = tuple(own[name] if name in own else resolve_sequence(name) for name in named)
+            skipped = tuple((name, missing[name]) for name in sequences if name in missing)
+        if camera is not None or size is not None:
+            if not any(r.folder is not None for r in refs):
+                raise SuiteError("--camera and --image-size apply to folder sequences, and none is selected")
+            refs = tuple(r.with_folder_options(camera, size) if r.folder is not None else r for r in refs)
+        if frames is not None and frames != "all" and int(frames) < 2:
             raise SuiteError(f"--frames must be >= 2, got {frames}")
         return replace(
             self,
-            sequences=refs,
+            sequences=_unique(refs),
             methods=tuple(methods) if methods else self.methods,
-            frames=int(frames) if frames is not None else self.frames,
+            frames=self.frames if frames is None else None if frames == "all" else int(frames),
             seeds=tuple(int(s) for s in seeds) if seeds else self.seeds,
+            skipped=skipped,
         )
 
     @property
     def is_default(self) -> bool:
         """True when this is the suite exactly as defined (not a subset or variant): only then does it write the
-        committed results under ``results/``."""
-        return SUITES.get(self.name) == self
+        committed results under ``results/``. The ``real`` suite is defined by the dataset list as it is now."""
+        try:
+            return get_suite(self.name) == self
+        except SuiteError:
+            return False
 
 
 def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
@@ -389,6 +610,14 @@ def _suites() -> dict[str, Suite]:
         "perf": Suite(
             "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time", kind="perf"
         ),
+        "real": Suite(
+            "real",
+            "every folder of the local dataset list (datasets.toml, or the file $CNNSLAM_DATASETS names) x the "
+            "paper's methods and the oracle, whole sequences",
+            (),
+            TABLE1_METHODS,
+            frames=None,
+        ),
         "quick": Suite(
             "quick",
             "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
@@ -403,8 +632,29 @@ SUITES: dict[str, Suite] = _suites()
 
 
 def get_suite(name: str) -> Suite:
-    """A suite by name; :class:`SuiteError` listing the valid names otherwise."""
+    """A suite by name (``real``: built from the dataset list now, :func:`real_suite`); :class:`SuiteError`
+    listing the valid names otherwise."""
+    if name == "real":
+        return real_suite()
     try:
         return SUITES[name]
     except KeyError:
         raise SuiteError(f"unknown suite {name!r}; valid suites: {', '.join(SUITES)}") from None
+
+
+def real_suite(path: str | Path | None = None) -> Suite:
+    """The ``real`` suite: every folder of the dataset list (:func:`load_dataset_list`) that is there and of a
+    known layout; the others are its ``skipped`` sequences, with the reason."""
+    file = Path(path) if path is not None else dataset_list_file()
+    refs, skipped = [], []
+    for entry in load_dataset_list(path).values():
+        if not entry.path.is_dir():
+            skipped.append((entry.name, f"{entry.path} (listed in {file}) is not a folder here"))
+            continue
+        try:
+            detect_layout(entry.path)
+        except SimEnvError as exc:
+            skipped.append((entry.name, str(exc)))
+            continue
+        refs.append(entry.ref())
+    return replace(SUITES["real"], sequences=tuple(refs), skipped=tuple(skipped))

@@ -8,7 +8,7 @@ is imported until an environment is made):
 
 - ``sim_envs/Scene-v0``: a sequence built from arguments (style, seed, trajectory kind and parameters, renderer,
   camera, n_frames), :class:`sim_envs.env.SceneEnv`;
-- ``sim_envs/Replay-v0``: replays a given frame source or a TUM / ICL-NUIM RGB-D folder,
+- ``sim_envs/Replay-v0``: replays a given frame source or an RGB-D folder (TUM, ICL-NUIM, 7-Scenes, RGB-only),
   :class:`sim_envs.env.ReplayEnv`;
 - ``sim_envs/<name>-v0`` for every named sequence of :mod:`sim_envs.sequences` (``sim_envs/office0-v0``...),
   :class:`sim_envs.env.SlamEnv`.

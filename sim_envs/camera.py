@@ -1,14 +1,18 @@
-"""Pinhole camera intrinsics, presets of the usual RGB-D datasets, and resolution scaling.
+"""Pinhole camera intrinsics, lens distortion, presets of the usual RGB-D datasets, and resolution scaling.
 
 Conventions (used everywhere in this project):
 - camera frame: x right, y down, z forward (OpenCV); pixel (u, v) = (column, row), pixel centres at integers;
 - images are H x W; depth is metric planar z in metres;
 - poses are ``T_world_cam`` 4x4 (camera-to-world).
+
+Lens distortion (:class:`CameraModel`) is OpenCV's radial-tangential model with the five coefficients in OpenCV's
+order ``k1 k2 p1 p2 k3``, applied to normalised image coordinates (x, y) = ((u - cx) / fx, (v - cy) / fy): the
+coefficients do not change with the image resolution, only the intrinsics do.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -80,7 +84,15 @@ _NATIVE: dict[str, Intrinsics] = {
     "tum_fr3": Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480),
     "tum_default": Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480),
     "nyu": Intrinsics(518.8579, 519.4696, 325.5824, 253.7362, 640, 480),
+    "7scenes": Intrinsics(585.0, 585.0, 320.0, 240.0, 640, 480),  # the one set 7-Scenes gives (colour and depth)
 }
+# TUM fr1 and fr2 RGB images are distorted (OpenCV order k1 k2 p1 p2 k3, reference-facts.md); fr3's are not.
+_DISTORTION: dict[str, tuple[float, float, float, float, float]] = {
+    "tum_fr1": (0.2624, -0.9531, -0.0054, 0.0026, 1.1633),
+    "tum_fr2": (0.2312, -0.7849, -0.0033, -0.0001, 0.9172),
+}
+DISTORTION_NAMES: tuple[str, ...] = ("k1", "k2", "p1", "p2", "k3")
+NO_DISTORTION: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 DEFAULT_WIDTH, DEFAULT_HEIGHT = 320, 240  # the paper runs everything but the CNN at 320x240
 
@@ -98,3 +110,62 @@ def preset(name: str, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT) 
         valid = ", ".join(camera_presets())
         raise UnknownNameError(f"unknown camera preset {name!r}; valid presets: {valid}") from None
     return native.scaled(width, height)
+
+
+def preset_distortion(name: str) -> tuple[float, float, float, float, float]:
+    """The lens distortion ``(k1, k2, p1, p2, k3)`` of a named camera (zeros for an undistorted one)."""
+    if name not in _NATIVE:
+        valid = ", ".join(camera_presets())
+        raise UnknownNameError(f"unknown camera preset {name!r}; valid presets: {valid}")
+    return _DISTORTION.get(name, NO_DISTORTION)
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """A pinhole camera with OpenCV radial-tangential lens distortion.
+
+    ``intrinsics``: the pinhole part at the image size; ``distortion``: ``(k1, k2, p1, p2, k3)`` in OpenCV's order
+    (all zeros: an undistorted pinhole camera). A pixel (u, v) of the distorted image sees the ray whose normalised
+    coordinates (x, y) distort to ((u - cx) / fx, (v - cy) / fy) under OpenCV's model.
+    """
+
+    intrinsics: Intrinsics
+    distortion: tuple[float, float, float, float, float] = field(default=NO_DISTORTION)
+
+    def __post_init__(self) -> None:
+        coeffs = tuple(float(c) for c in self.distortion)
+        if len(coeffs) != len(DISTORTION_NAMES) or not np.isfinite(coeffs).all():
+            raise SimEnvError(
+                f"distortion must be 5 finite numbers (OpenCV order k1 k2 p1 p2 k3), got {self.distortion!r}"
+            )
+        object.__setattr__(self, "distortion", coeffs)
+
+    @property
+    def distorted(self) -> bool:
+        """True when any distortion coefficient is not zero."""
+        return any(c != 0.0 for c in self.distortion)
+
+    def scaled(self, width: int, height: int) -> CameraModel:
+        """The same camera at another resolution: intrinsics scaled (:meth:`Intrinsics.scaled`), distortion kept
+        (it acts on normalised coordinates)."""
+        return CameraModel(self.intrinsics.scaled(width, height), self.distortion)
+
+    def undistort_maps(self) -> tuple[np.ndarray, np.ndarray]:
+        """Maps for ``cv2.remap`` that turn a distorted image into the pinhole image of the same camera matrix K.
+
+        Returns ``(map_u, map_v)``, each (H, W) float32: for pixel (u, v) of the undistorted image, the position in
+        the distorted image to read (``cv2.initUndistortRectifyMap`` with no rectification and new camera matrix =
+        K, so the intrinsics of the undistorted image are this camera's own). Identity maps when not distorted.
+        """
+        import cv2  # lazily: the camera model itself needs only numpy
+
+        K = self.intrinsics
+        map_u, map_v = cv2.initUndistortRectifyMap(
+            K.K, np.asarray(self.distortion, dtype=np.float64), None, K.K, (K.width, K.height), cv2.CV_32FC1
+        )
+        return map_u, map_v
+
+
+def camera_model(name: str, width: int = DEFAULT_WIDTH, height: int = DEFAULT_HEIGHT) -> CameraModel:
+    """A named dataset camera with its lens distortion, its intrinsics scaled to ``width`` x ``height``."""
+    return CameraModel(preset(name, width, height), preset_distortion(name))

@@ -2,8 +2,8 @@
 
 :class:`SlamEnv` replays a :class:`~sim_envs.source.FrameSource` (a named simulated sequence, any spec, or a recorded
 folder); :class:`SceneEnv` builds the source from scene and trajectory arguments; :class:`ReplayEnv` replays a
-source or a TUM/ICL-NUIM RGB-D folder. Registered ids are listed in :mod:`sim_envs` (``sim_envs/Scene-v0``,
-``sim_envs/Replay-v0`` and ``sim_envs/<sequence>-v0``).
+source or an RGB-D folder (TUM, ICL-NUIM, 7-Scenes, RGB-only). Registered ids are listed in :mod:`sim_envs`
+(``sim_envs/Scene-v0``, ``sim_envs/Replay-v0`` and ``sim_envs/<sequence>-v0``).
 """
 
 from __future__ import annotations
@@ -318,11 +318,14 @@ class SceneEnv(SlamEnv):
 
 
 class ReplayEnv(SlamEnv):
-    """:class:`SlamEnv` replaying a given frame source or a TUM / ICL-NUIM RGB-D folder (``sim_envs/Replay-v0``).
+    """:class:`SlamEnv` replaying a given frame source or an RGB-D folder (``sim_envs/Replay-v0``).
 
-    Arguments: ``source``, a :class:`~sim_envs.source.FrameSource` or the path of a TUM RGB-D folder (``rgb.txt``,
-    ``depth.txt``, ``groundtruth.txt``; read by ``sim_envs.datasets.load_tum_rgbd_folder``); ``ground_truth``,
-    ``max_frames``, ``render_mode`` as in :class:`SlamEnv`. Everything else is :class:`SlamEnv`'s.
+    Arguments: ``source``, a :class:`~sim_envs.source.FrameSource` or the path of an RGB-D folder of any layout of
+    :func:`sim_envs.datasets.detect_layout` (TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only; read by
+    :class:`sim_envs.datasets.RgbdFolder`); for a path only: ``camera`` (a preset name, camera file, ``Intrinsics``
+    or ``CameraModel``; default: detected) and ``size`` ((width, height) of the delivered frames, e.g. (320, 240)
+    as the benchmark suites use; default None: the images' own); ``ground_truth``, ``max_frames``, ``render_mode``
+    as in :class:`SlamEnv`. Everything else is :class:`SlamEnv`'s.
     """
 
     def __init__(
@@ -331,21 +334,25 @@ class ReplayEnv(SlamEnv):
         ground_truth: GroundTruth = "pose",
         max_frames: int | None = None,
         render_mode: str | None = None,
+        camera: Any = None,
+        size: tuple[int, int] | None = None,
     ) -> None:
         if source is None:
-            raise SimEnvError("sim_envs/Replay-v0 needs source=<a FrameSource or the path of a TUM RGB-D folder>")
+            raise SimEnvError("sim_envs/Replay-v0 needs source=<a FrameSource or the path of an RGB-D folder>")
         if isinstance(source, str | os.PathLike):
-            source = _load_folder(os.fspath(source))
+            source = _load_folder(os.fspath(source), camera, size)
+        elif camera is not None or size is not None:
+            raise SimEnvError("camera and size apply to a folder path, not to a given frame source")
         super().__init__(source=source, ground_truth=ground_truth, max_frames=max_frames, render_mode=render_mode)
 
 
-def _load_folder(path: str) -> FrameSource:
-    """A TUM-format RGB-D folder as a frame source (imported lazily: the folder reader lives in sim_envs.datasets)."""
+def _load_folder(path: str, camera: Any, size: tuple[int, int] | None) -> FrameSource:
+    """An RGB-D folder as a frame source (imported lazily: the folder reader lives in sim_envs.datasets)."""
     try:
-        from sim_envs.datasets import load_tum_rgbd_folder
+        from sim_envs.datasets import RgbdFolder
     except ImportError as exc:
         raise SimEnvError(f"cannot replay the folder {path!r}: the folder reader is unavailable ({exc})") from exc
-    return load_tum_rgbd_folder(path)
+    return RgbdFolder(path, camera, size=size)
 
 
 def _check_ground_truth(value: str) -> GroundTruth:

@@ -156,9 +156,11 @@ def test_load_a_tum_benchmark_folder(tmp_path):
     assert loaded.intrinsics == preset("tum_fr1", 64, 48)  # guessed from "freiburg1" and scaled to 64x48
     np.testing.assert_allclose(loaded.timestamps, source.timestamps, atol=1e-6)
     np.testing.assert_allclose(loaded.poses, source.poses, atol=1e-8)
-    np.testing.assert_array_equal(loaded.frame(2).rgb, source.frame(2).rgb)
+    assert loaded.camera.distorted and any("undistorted" in c for c in loaded.conversions())  # fr1 RGB is distorted
     assert loaded.frame(2).labels is None and loaded.frame(2).instances is None
-    assert RgbdFolder(folder, "tum_fr3").intrinsics == preset("tum_fr3", 64, 48)
+    fr3 = RgbdFolder(folder, "tum_fr3")  # fr3 images are not distorted: delivered as they are
+    assert fr3.intrinsics == preset("tum_fr3", 64, 48) and not fr3.camera.distorted
+    np.testing.assert_array_equal(fr3.frame(2).rgb, source.frame(2).rgb)
     with pytest.raises(SimEnvError, match="intrinsics for 640x480 but the images are 64x48"):
         RgbdFolder(folder, Intrinsics(517.3, 516.5, 318.6, 255.3, 640, 480))
 
@@ -168,7 +170,7 @@ def test_unknown_camera_and_not_a_dataset(tmp_path):
     with pytest.raises(UnknownNameError, match="tum_fr1"):
         RgbdFolder(folder)
     (tmp_path / "empty").mkdir()
-    with pytest.raises(SimEnvError, match="neither a TUM RGB-D folder"):
+    with pytest.raises(SimEnvError, match="not an RGB-D folder of a known layout; expected one of: TUM RGB-D"):
         RgbdFolder(tmp_path / "empty")
 
 

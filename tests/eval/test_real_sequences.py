@@ -1,0 +1,210 @@
+"""Real RGB-D folders wherever a sequence name goes: folder references (names, fingerprints), the dataset list and
+the ``real`` suite, runs on folders (the source's description in the run record; RGB-only: no depth metric), and
+``cnnslam bench`` with folder paths, ``--camera`` and ``--image-size``. The folders are written at test time
+(``sim_envs.datasets.write_folder``) from a few synthetic frames."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cnnslam.cli import main
+from eval.methods import load_methods
+from eval.runner import run_suite
+from eval.suites import (
+    DATASETS_ENV,
+    DEFAULT_DATASETS_FILE,
+    REPLAY_ENV_ID,
+    SequenceRef,
+    SuiteError,
+    folder_ref,
+    get_suite,
+    load_dataset_list,
+    resolve_sequence,
+)
+from sim_envs.camera import preset
+from sim_envs.datasets import write_folder
+from sim_envs.frames import Frame
+from sim_envs.simsource import FrameListSource
+
+METHODS = load_methods()
+SMALL = ["--frames", "5", "--runs", "1", "--executor", "serial", "--no-plots", "--no-progress"]
+
+
+def tiny_source(n: int = 6) -> FrameListSource:
+    """Random-textured 64x48 frames in front of a plane 2 m away, moving sideways at 30 Hz."""
+    rng = np.random.default_rng(3)
+    frames = []
+    for k in range(n):
+        T = np.eye(4)
+        T[0, 3] = 0.02 * k
+        rgb = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+        frames.append(Frame(k, k / 30.0, rgb, np.full((48, 64), 2.0, np.float32), T))
+    return FrameListSource("tiny", preset("icl", 64, 48), frames)
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory):
+    root = tmp_path_factory.mktemp("real")
+    return {layout: write_folder(tiny_source(), root / f"seq_{layout}", layout) for layout in ("7scenes", "rgb_only")}
+
+
+def test_a_folder_is_a_sequence(folders, tmp_path):
+    ref = resolve_sequence(str(folders["7scenes"]))
+    assert ref == folder_ref(folders["7scenes"]) and ref.name == "seq_7scenes" and ref.env_id == REPLAY_ENV_ID
+    assert not ref.registered and ref.size == (320, 240) and ref.folder == str(folders["7scenes"].resolve())
+    source = ref.make_source()
+    assert source.size == (320, 240) and len(source) == 6
+    np.testing.assert_allclose(source.intrinsics.as_array(), preset("icl", 320, 240).as_array())
+    described = ref.describe()
+    assert described["folder"] == ref.folder and described["content"]["files"] == 19  # 6 x 3 files, camera.toml
+    assert described["size"] == [320, 240] and described["loader"].startswith("cnnslam-rgbd-folder/")
+    native = ref.with_folder_options(size="native")
+    assert native.make_source().size == (64, 48) and native.describe() != described
+    with pytest.raises(SuiteError, match="no spec overrides"):
+        SequenceRef("x", folder="/tmp", overrides={"n_frames": 3})
+    with pytest.raises(SuiteError, match="exactly one of base"):
+        SequenceRef("x", base="office0", folder="/tmp")
+    with pytest.raises(SuiteError, match="not a simulated sequence"):
+        ref.spec()
+
+
+def test_folder_names_are_safe_and_unique(tmp_path):
+    weird = write_folder(tiny_source(2), tmp_path / "my seq (1)", "7scenes")
+    assert folder_ref(weird).name == "my_seq__1_"
+    clash = write_folder(tiny_source(2), tmp_path / "office0", "7scenes")
+    assert folder_ref(clash).name.startswith("office0-")  # never taken for the simulated office0
+    a = write_folder(tiny_source(2), tmp_path / "a" / "rgbd", "7scenes")
+    b = write_folder(tiny_source(2), tmp_path / "b" / "rgbd", "7scenes")
+    suite = get_suite("table1").select([str(a), str(b), str(a)], ["oracle"])
+    names = [s.name for s in suite.sequences]
+    assert len(names) == 2 and len(set(names)) == 2 and all(n.startswith("rgbd-") for n in names)
+
+
+def test_a_changed_folder_changes_the_fingerprint(tmp_path):
+    folder = write_folder(tiny_source(3), tmp_path / "seq", "7scenes")
+    ref = folder_ref(folder)
+    before = ref.describe()
+    pose = folder / "frame-000001.pose.txt"
+    pose.write_text(pose.read_text().replace("2.000000000000000042e-02", "3.000000000000000042e-02"))
+    assert ref.describe()["content"] != before["content"]
+
+
+def test_unknown_names_and_paths_are_one_line_errors(tmp_path):
+    with pytest.raises(SuiteError, match="or the path of an RGB-D folder") as err:
+        resolve_sequence("office9")
+    assert "\n" not in str(err.value)
+    with pytest.raises(SuiteError, match="is not a folder"):
+        resolve_sequence(str(tmp_path / "missing"))
+    with pytest.raises(SuiteError, match="not an RGB-D folder of a known layout; expected one of: TUM RGB-D"):
+        resolve_sequence(str(tmp_path))
+    with pytest.raises(SuiteError, match="neither a preset"):
+        folder_ref(write_folder(tiny_source(2), tmp_path / "seq", "7scenes"), camera="tum_fr9")
+
+
+def test_the_dataset_list_and_the_real_suite(folders, tmp_path, monkeypatch):
+    camera = tmp_path / "cams" / "mine.toml"
+    camera.parent.mkdir()
+    camera.write_text("fx = 60\nfy = 60\ncx = 31.5\ncy = 23.5\nwidth = 64\nheight = 48\n")
+    listing = tmp_path / "lists" / "datasets.toml"
+    listing.parent.mkdir()
+    listing.write_text(
+        f'[datasets]\nseven = "{folders["7scenes"]}"\ngone = "../nowhere"\n'
+        f'[datasets.rgbonly]\npath = "{folders["rgb_only"]}"\ncamera = "../cams/mine.toml"\nsize = "native"\n'
+    )
+    monkeypatch.setenv(DATASETS_ENV, str(listing))
+    entries = load_dataset_list()
+    assert list(entries) == ["seven", "gone", "rgbonly"]
+    assert entries["gone"].path == (tmp_path / "nowhere").resolve()  # relative to the list's folder
+    assert entries["rgbonly"].camera == str(camera.resolve()) and entries["rgbonly"].size == "native"
+    suite = get_suite("real")
+    assert [s.name for s in suite.sequences] == ["seven", "rgbonly"] and suite.frames is None
+    assert [name for name, _ in suite.skipped] == ["gone"] and suite.is_default
+    assert suite.methods == get_suite("table1").methods
+    assert resolve_sequence("seven") == suite.sequences[0]  # list names work wherever a sequence name goes
+    assert suite.sequences[1].make_source().intrinsics.fx == 60
+    only = suite.select(["rgbonly"])
+    assert [s.name for s in only.sequences] == ["rgbonly"] and not only.skipped and not only.is_default
+    listing.write_text('[datasets]\n"bad name" = "x"\n')
+    with pytest.raises(SuiteError, match="dataset name 'bad name'"):
+        get_suite("real")
+    listing.write_text('[datasets.x]\npath = "x"\nzoom = 2\n')
+    with pytest.raises(SuiteError, match="unknown key.*zoom"):
+        get_suite("real")
+    monkeypatch.setenv(DATASETS_ENV, str(tmp_path / "none.toml"))
+    with pytest.raises(SuiteError, match="no dataset list at"):
+        get_suite("real")
+
+
+def test_the_shipped_list_names_the_shared_7scenes_folder(monkeypatch):
+    monkeypatch.delenv(DATASETS_ENV, raising=False)
+    entries = load_dataset_list()
+    repository = Path(__file__).resolve().parents[2]
+    assert DEFAULT_DATASETS_FILE == repository / "datasets.toml"
+    expected = (repository / ".." / "shared" / "data" / "real" / "7scenes_redkitchen").resolve()
+    assert entries["7scenes_redkitchen"].path == expected
+    suite = get_suite("real")  # a clone without ../shared: the folder is skipped, not an error
+    assert [s.name for s in suite.sequences] + [n for n, _ in suite.skipped] == ["7scenes_redkitchen"]
+
+
+def test_runs_on_folders_record_the_source_and_skip_depth_without_depth(folders, tmp_path):
+    suite = get_suite("table1").select([str(folders["7scenes"]), str(folders["rgb_only"])], ["oracle"], frames=5,
+                                       runs=1, size="native")  # fmt: skip
+    run = run_suite(suite, METHODS, tmp_path / "runs", plots=True, progress=False)
+    assert not run.failed, [o.error for o in run.failed]
+    seven, rgb_only = run.records
+    source = seven["metadata"]["source"]
+    assert source["layout"] == "7scenes" and source["original_size"] == [64, 48] and source["depth_scale"] == 1000
+    assert seven["metadata"]["sequence_definition"]["folder"] == str(folders["7scenes"].resolve())
+    assert seven["metrics"]["ate_rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert seven["metrics"]["depth_percent_correct"] == pytest.approx(100.0)  # ground truth depth, in mm
+    assert rgb_only["metadata"]["source"]["has_depth"] is False
+    assert not any(k.startswith("depth_") for k in rgb_only["metrics"])  # skipped, not crashed
+    assert any("depth metric skipped" in w for w in rgb_only["warnings"])
+    folder = tmp_path / "runs" / "table1" / "seq_rgb_only" / "oracle" / "seed0-frames5"
+    assert (folder / "trajectory.png").is_file() and not (folder / "depth.png").exists()
+
+
+def bench(tmp_path, *args):
+    return main(["bench", *args, "--out", str(tmp_path / "runs"), "--results", str(tmp_path / "results")])
+
+
+def test_bench_with_a_folder_path(folders, tmp_path, capsys):
+    path = str(folders["7scenes"])
+    assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", "--image-size", "32x24", *SMALL) == 0
+    out = capsys.readouterr().out
+    assert "1 runs (1 run now" in out
+    assert "| seq_7scenes (ours only) |" in (tmp_path / "results" / "table1.md").read_text()
+    record = json.loads((tmp_path / "runs" / "table1" / "seq_7scenes" / "oracle" / "seed0-frames5" /
+                         "metrics.json").read_text())  # fmt: skip
+    assert record["metadata"]["source"]["size"] == [32, 24]
+    assert any(c.startswith("resized 64x48 -> 32x24") for c in record["metadata"]["source"]["conversions"])
+    assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", "--frames", "all", *SMALL[2:]) == 0
+    assert (tmp_path / "runs" / "table1" / "seq_7scenes" / "oracle" / "seed0-framesall" / "metrics.json").is_file()
+    capsys.readouterr()
+    assert bench(tmp_path, "table1", "--sequences", str(tmp_path / "nope"), *SMALL) == 2
+    err = capsys.readouterr().err
+    assert "is not a folder" in err and len(err.strip().splitlines()) == 1
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--camera", "tum_fr1", *SMALL) == 2
+    assert "apply to folder sequences" in capsys.readouterr().err
+    assert bench(tmp_path, "table1", "--sequences", path, "--image-size", "big", *SMALL) == 2
+    assert "--image-size must be WIDTHxHEIGHT" in capsys.readouterr().err
+
+
+def test_bench_real_reports_missing_folders(folders, tmp_path, monkeypatch, capsys):
+    listing = tmp_path / "datasets.toml"
+    listing.write_text(f'[datasets]\nseven = "{folders["7scenes"]}"\ngone = "{tmp_path / "gone"}"\n')
+    monkeypatch.setenv(DATASETS_ENV, str(listing))
+    args = ["real", "--methods", "oracle", *SMALL]
+    assert bench(tmp_path, *args) == 1
+    captured = capsys.readouterr()
+    assert "skipped sequence gone" in captured.out and "--allow-skips" in captured.err
+    assert "Sequences skipped" in (tmp_path / "results" / "real.md").read_text()
+    assert bench(tmp_path, *args, "--allow-skips") == 0
+    listing.write_text(f'[datasets]\ngone = "{tmp_path / "gone"}"\n')
+    assert bench(tmp_path, *args) == 1
+    assert "no sequence to run here" in capsys.readouterr().err
+    assert bench(tmp_path, *args, "--allow-skips") == 0
+    assert main(["bench", "--list"]) == 0
+    assert "missing here: gone" in capsys.readouterr().out
