@@ -132,3 +132,15 @@ def test_a_time_limit_needs_an_executor_that_can_stop_a_run(tmp_path, capsys):
     assert "--executor local" in capsys.readouterr().err  # the serial executor cannot stop work in its own process
     assert bench(tmp_path, "table1", "--methods", "oracle", "--timeout", "0", *SMALL) == 2
     assert "--timeout must be" in capsys.readouterr().err
+
+
+def test_align_chooses_the_headline_ate(tmp_path, capsys):
+    args = ["table1", "--sequences", "office0", "--methods", "constant-pose", *SMALL]
+    assert bench(tmp_path, *args, "--align", "sim3") == 0
+    record = json.loads(next((tmp_path / "runs").rglob("metrics.json")).read_text())
+    m = record["metrics"]
+    assert record["alignment"]["requested"] == "sim3" and m["ate_rmse"] == pytest.approx(m["ate_sim3_rmse"])
+    assert "ATE after SIM3 alignment" in (tmp_path / "results" / "table1.md").read_text()
+    with pytest.raises(SystemExit) as exit_info:  # argparse rejects an unknown alignment, listing the valid ones
+        bench(tmp_path, *args, "--align", "affine")
+    assert exit_info.value.code == 2 and "invalid choice: 'affine'" in capsys.readouterr().err
