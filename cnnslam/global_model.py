@@ -256,6 +256,30 @@ class ModelView:
 # -------------------------------------------------------------------------------------------------- kernels
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _splat_one(index, best, i, u, v, z, r, observed, closest):  # pragma: no cover - compiled
+    """:func:`_splat` for the one point i at (u, v), depth z, radius r pixels, into ``index`` and ``best``."""
+    h, w = best.shape
+    uc = int(math.floor(u + 0.5))
+    vc = int(math.floor(v + 0.5))
+    ri = int(math.ceil(r))
+    r2 = r * r
+    for dv in range(-ri, ri + 1):
+        y = vc + dv
+        if y < 0 or y >= h:
+            continue
+        for du in range(-ri, ri + 1):
+            x = uc + du
+            if x < 0 or x >= w or (closest and observed[y, x] <= 0):
+                continue
+            if (du != 0 or dv != 0) and (x - u) ** 2 + (y - v) ** 2 > r2:
+                continue
+            cost = abs(z - observed[y, x]) if closest else z
+            if cost < best[y, x]:
+                best[y, x] = cost
+                index[y, x] = i
+
+
 @njit(cache=True, nogil=True)
 def _splat(u, v, z, radius_px, observed, closest):  # pragma: no cover - compiled
     """Per pixel the point of least cost among those whose disc covers it: cost z (front-most) or, with
@@ -269,25 +293,7 @@ def _splat(u, v, z, radius_px, observed, closest):  # pragma: no cover - compile
     index = np.full((h, w), -1, np.int32)
     best = np.full((h, w), np.inf, np.float32)
     for i in range(u.shape[0]):
-        r = radius_px[i]
-        uc = int(math.floor(u[i] + 0.5))
-        vc = int(math.floor(v[i] + 0.5))
-        ri = int(math.ceil(r))
-        r2 = r * r
-        for dv in range(-ri, ri + 1):
-            y = vc + dv
-            if y < 0 or y >= h:
-                continue
-            for du in range(-ri, ri + 1):
-                x = uc + du
-                if x < 0 or x >= w or (closest and observed[y, x] <= 0):
-                    continue
-                if (du != 0 or dv != 0) and (x - u[i]) ** 2 + (y - v[i]) ** 2 > r2:
-                    continue
-                cost = abs(z[i] - observed[y, x]) if closest else z[i]
-                if cost < best[y, x]:
-                    best[y, x] = cost
-                    index[y, x] = i
+        _splat_one(index, best, i, u[i], v[i], z[i], radius_px[i], observed, closest)
     return index, best
 
 

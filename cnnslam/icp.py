@@ -26,6 +26,7 @@ Hot loop: one numba kernel accumulates the 6x6 normal equations over the pixels 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -352,14 +353,17 @@ def point_to_plane_residuals(cur_vertices: np.ndarray, ref: SurfaceMaps, T_ref_c
 
 
 def icp_point_to_plane(reference: SurfaceMaps | tuple[SurfaceMaps, ...], current: SurfaceMaps | tuple[SurfaceMaps, ...],
-                       T_ref_cur_init: np.ndarray, config: IcpConfig | None = None) -> IcpResult:
+                       T_ref_cur_init: np.ndarray, config: IcpConfig | None = None,
+                       evaluate: Callable[..., tuple] | None = None) -> IcpResult:
     """Align the current surface to the reference surface, coarse to fine (module docstring).
 
     reference, current: level-0 :class:`SurfaceMaps` or pyramids from :func:`surface_pyramid` (built here when a
-    single level is given); T_ref_cur_init: (4, 4) initial guess. Never raises on bad data: a frame that cannot be
-    aligned comes back with ``tracked=False``.
+    single level is given); T_ref_cur_init: (4, 4) initial guess; evaluate: the normal equations ``(cur, ref, T,
+    config) -> (H, g, error, n)`` (default: this module's numpy ones; the Laina baseline passes a compiled kernel of
+    the same sums). Never raises on bad data: a frame that cannot be aligned comes back with ``tracked=False``.
     """
     cfg = config or IcpConfig()
+    evaluate = evaluate or _evaluate
     ref_pyr = reference if isinstance(reference, tuple) else surface_pyramid(reference, cfg.levels,
                                                                               cfg.max_relative_depth_jump)
     cur_pyr = current if isinstance(current, tuple) else surface_pyramid(current, cfg.levels,
@@ -371,7 +375,7 @@ def icp_point_to_plane(reference: SurfaceMaps | tuple[SurfaceMaps, ...], current
     for level in range(cfg.levels - 1, -1, -1):
         ref, cur = ref_pyr[level], cur_pyr[level]
         for _ in range(cfg.iterations[level]):
-            H, g, _, n = _evaluate(cur, ref, T, cfg)
+            H, g, _, n = evaluate(cur, ref, T, cfg)
             if n < 6:
                 break
             iterations[level] += 1
@@ -381,7 +385,7 @@ def icp_point_to_plane(reference: SurfaceMaps | tuple[SurfaceMaps, ...], current
             T = orthonormalize(se3_exp(xi) @ T)
             if float(np.linalg.norm(xi)) < cfg.convergence:
                 break
-    H, _, err, n = _evaluate(cur_pyr[0], ref_pyr[0], T, cfg)
+    H, _, err, n = evaluate(cur_pyr[0], ref_pyr[0], T, cfg)
     n_valid = int(np.count_nonzero(cur_pyr[0].valid))
     share = n / n_valid if n_valid else 0.0
     rmse = math.sqrt(err / n) if n else math.inf

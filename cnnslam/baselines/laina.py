@@ -56,7 +56,7 @@ import numpy as np
 from cnnslam.baselines.laina_kernels import (
     LainaModel,
     depth_surface_pyramid,
-    icp_point_to_plane_fast,
+    evaluate_icp,
     maps_surface_pyramid,
 )
 from cnnslam.config import TrackingConfig
@@ -64,7 +64,7 @@ from cnnslam.depth_prediction import GroundTruthHint, make_predictor, predict_ke
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, rotation_angle_deg, se3_inverse
 from cnnslam.global_model import GlobalModel, GlobalModelConfig
-from cnnslam.icp import IcpConfig, surface_maps_from_depth, surface_pyramid
+from cnnslam.icp import IcpConfig, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
 from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
 
 
@@ -298,7 +298,8 @@ class LainaAgent:
             cur_pyramid = depth_surface_pyramid(depth, self._intrinsics, icp.levels, icp.max_relative_depth_jump)
         t1 = time.perf_counter()
         self._seconds["render"] += t1 - t0
-        res = icp_point_to_plane_fast(ref_pyramid, cur_pyramid, se3_inverse(self._T_world_prev) @ T_world_pred, icp)
+        res = icp_point_to_plane(ref_pyramid, cur_pyramid, se3_inverse(self._T_world_prev) @ T_world_pred, icp,
+                                 evaluate=evaluate_icp)
         self._seconds["icp"] += time.perf_counter() - t1
         if not res.tracked:
             return T_world_pred, False

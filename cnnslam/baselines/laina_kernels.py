@@ -12,7 +12,7 @@ float rounding; the tests compare each one with its reference):
   ``pixel_stride``-th), step 2's projective association and free-space test, step 3's grouping and merging, the
   class-probability map and the compaction after removals. It overrides private steps of ``GlobalModel``: a change
   there must be made here too (``tests/cnnslam/test_baseline_laina.py`` runs both side by side);
-- :func:`icp_point_to_plane_fast` is :func:`cnnslam.icp.icp_point_to_plane` with a normal-equations kernel that
+- :func:`evaluate_icp` is the normal equations of :func:`cnnslam.icp.icp_point_to_plane` as a kernel that
   keeps its 27 sums in local variables.
 
 Rounding: float32 stays float32 where the reference computes in float32 (vertices, normals, projections), so that
@@ -29,9 +29,9 @@ import numpy as np
 from numba import njit
 
 from cnnslam.errors import CnnSlamError
-from cnnslam.geometry import orthonormalize, pyramid_intrinsics, se3_exp, se3_inverse
-from cnnslam.global_model import GlobalModel, _Measurements, _PixelMeasurements
-from cnnslam.icp import IcpConfig, IcpResult, SurfaceMaps, _truncated_step, smooth_depth
+from cnnslam.geometry import pyramid_intrinsics, se3_inverse
+from cnnslam.global_model import GlobalModel, _Measurements, _PixelMeasurements, _splat_one
+from cnnslam.icp import IcpConfig, SurfaceMaps, smooth_depth
 
 # cnnslam.icp.adaptive_normal_map's default: a raw normal is kept where the mean of its 3x3 neighbours is this long.
 ADAPTIVE_NORMAL_CONSISTENCY = 0.98
@@ -255,44 +255,12 @@ def _normal_equations_fast(cur_v, cur_n, cur_valid, ref_v, ref_n, ref_valid, R, 
     return H, g, err, count
 
 
-def _evaluate(cur: SurfaceMaps, ref: SurfaceMaps, T: np.ndarray, cfg: IcpConfig):
+def evaluate_icp(cur: SurfaceMaps, ref: SurfaceMaps, T: np.ndarray, cfg: IcpConfig):
     fx, fy, cx, cy = ref.intrinsics
     return _normal_equations_fast(cur.vertices, cur.normals, cur.valid, ref.vertices, ref.normals, ref.valid,
                                   np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), fx, fy, cx, cy,
                                   cfg.max_distance**2, math.cos(math.radians(cfg.max_normal_angle_deg)),
                                   cfg.huber_delta)
-
-
-def icp_point_to_plane_fast(reference: tuple[SurfaceMaps, ...], current: tuple[SurfaceMaps, ...],
-                            T_ref_cur_init: np.ndarray, config: IcpConfig) -> IcpResult:
-    """:func:`cnnslam.icp.icp_point_to_plane` on pyramids (``config.levels`` levels, finest first): Gauss-Newton
-    coarse to fine with the truncated step, a level ending after ``config.iterations`` or once ``|xi|`` drops below
-    ``config.convergence``; the tracked test on the finest level."""
-    cfg = config
-    if len(reference) < cfg.levels or len(current) < cfg.levels:
-        raise CnnSlamError(f"ICP needs {cfg.levels} pyramid levels, got {len(reference)} and {len(current)}")
-    T = orthonormalize(np.asarray(T_ref_cur_init, dtype=np.float64))
-    iterations = [0] * cfg.levels
-    for level in range(cfg.levels - 1, -1, -1):
-        ref, cur = reference[level], current[level]
-        for _ in range(cfg.iterations[level]):
-            H, g, _, n = _evaluate(cur, ref, T, cfg)
-            if n < 6:
-                break
-            iterations[level] += 1
-            xi = _truncated_step(H, g, cfg.min_eigenvalue_ratio)
-            if xi is None:
-                break
-            T = orthonormalize(se3_exp(xi) @ T)
-            if float(np.linalg.norm(xi)) < cfg.convergence:
-                break
-    H, _, err, n = _evaluate(current[0], reference[0], T, cfg)
-    n_valid = int(np.count_nonzero(current[0].valid))
-    share = n / n_valid if n_valid else 0.0
-    rmse = math.sqrt(err / n) if n else math.inf
-    tracked = bool(np.isfinite(T).all() and n >= cfg.min_inliers and share >= cfg.min_inlier_share
-                   and rmse <= cfg.max_rmse)
-    return IcpResult(T, tracked, int(n), float(share), float(rmse), tuple(iterations), H)
 
 
 # ------------------------------------------------------------------------------------------ the model
@@ -308,30 +276,6 @@ def _project_one(pos, i, R32, t32, fx, fy, cx, cy):  # pragma: no cover - compil
     if not q2 > np.float32(1e-3):
         return q0, q1, q2, 0.0, 0.0
     return q0, q1, q2, fx * q0 / q2 + cx, fy * q1 / q2 + cy
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _splat_one(index, best, i, u, v, z, r, observed, closest):  # pragma: no cover - compiled
-    """cnnslam.global_model._splat for one point (``best`` float32, ties to the lower index)."""
-    h, w = best.shape
-    uc = int(math.floor(u + 0.5))
-    vc = int(math.floor(v + 0.5))
-    ri = int(math.ceil(r))
-    r2 = r * r
-    for dv in range(-ri, ri + 1):
-        y = vc + dv
-        if y < 0 or y >= h:
-            continue
-        for du in range(-ri, ri + 1):
-            x = uc + du
-            if x < 0 or x >= w or (closest and observed[y, x] <= 0):
-                continue
-            if (du != 0 or dv != 0) and (x - u) ** 2 + (y - v) ** 2 > r2:
-                continue
-            cost = abs(z - observed[y, x]) if closest else z
-            if cost < best[y, x]:
-                best[y, x] = cost
-                index[y, x] = i
 
 
 @njit(cache=True, nogil=True)

@@ -13,7 +13,7 @@ from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, Lain
 from cnnslam.baselines.laina_kernels import (
     LainaModel,
     depth_surface_pyramid,
-    icp_point_to_plane_fast,
+    evaluate_icp,
 )
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import rotation_angle_deg, se3_inverse
@@ -235,10 +235,11 @@ def test_fast_icp_matches_the_reference_and_recovers_the_motion(room, room_seque
     cur_pyr = depth_surface_pyramid(d1, room.intrinsics, 3)
     cfg = IcpConfig(smoothing_px=0.0)
     a = icp_point_to_plane(ref_pyr, cur_pyr, np.eye(4), cfg)
-    b = icp_point_to_plane_fast(ref_pyr, cur_pyr, np.eye(4), cfg)
+    b = icp_point_to_plane(ref_pyr, cur_pyr, np.eye(4), cfg, evaluate=evaluate_icp)
     assert a.iterations == b.iterations and a.inliers == b.inliers and b.tracked
     assert np.allclose(a.T_ref_cur, b.T_ref_cur, atol=1e-10) and np.allclose(a.hessian, b.hessian, rtol=1e-9)
     E = se3_inverse(se3_inverse(T0) @ T1) @ b.T_ref_cur  # the known answer: the true relative motion
     assert np.linalg.norm(E[:3, 3]) < 1e-3 and rotation_angle_deg(E) < 0.05
-    c = icp_point_to_plane_fast(ref_pyr, cur_pyr, np.eye(4), replace(cfg, convergence=6e-3))  # InfiniTAM's test
+    c = icp_point_to_plane(ref_pyr, cur_pyr, np.eye(4), replace(cfg, convergence=6e-3),  # InfiniTAM's test
+                           evaluate=evaluate_icp)
     assert sum(c.iterations) < sum(b.iterations) and np.allclose(c.T_ref_cur, b.T_ref_cur, atol=1e-3)
