@@ -49,7 +49,14 @@ from scipy.spatial.transform import Rotation
 
 from eval.errors import EvalError
 from sim_envs.camera import camera_presets, preset
-from sim_envs.datasets import LOADER_VERSION, PROCESSING_SIZE, RgbdFolder, detect_layout, folder_fingerprint
+from sim_envs.datasets import (
+    LOADER_VERSION,
+    PROCESSING_SIZE,
+    RgbdFolder,
+    check_size,
+    detect_layout,
+    folder_fingerprint,
+)
 from sim_envs.errors import SimEnvError
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
@@ -289,12 +296,9 @@ def _folder_size(size: Any) -> FolderSize:
     if size == "native":
         return "native"
     try:
-        width, height = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise SuiteError(f"an image size is WIDTHxHEIGHT in pixels or 'native', got {size!r}") from None
-    if width <= 0 or height <= 0:
-        raise SuiteError(f"an image size must be positive, got {width}x{height}")
-    return width, height
+        return check_size(size)
+    except SimEnvError as exc:
+        raise SuiteError(f"an image size is WIDTHxHEIGHT in pixels or 'native': {exc}") from None
 
 
 def _camera_argument(camera: str, base: Path | None = None) -> str:

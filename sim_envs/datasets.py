@@ -429,7 +429,7 @@ class RgbdFolder:
         self.original_size: tuple[int, int] = self._image_size()
         self.camera, self.camera_source = self._resolve_camera(camera)
         self.native_intrinsics: Intrinsics = self.camera.intrinsics
-        self.size: tuple[int, int] = _check_size(size) if size is not None else self.original_size
+        self.size: tuple[int, int] = check_size(size) if size is not None else self.original_size
         self.intrinsics: Intrinsics = self.native_intrinsics.scaled(*self.size)
         self._maps: tuple[np.ndarray, np.ndarray] | None = None  # undistortion maps, made on first use
         self._raw_poses = index.poses
@@ -941,7 +941,8 @@ def _read_flat_yaml(text: str, path: Path) -> dict[str, Any]:
     return data
 
 
-def _check_size(size: Sequence[int]) -> tuple[int, int]:
+def check_size(size: Sequence[int]) -> tuple[int, int]:
+    """``size`` as a (width, height) pair of positive pixel counts; :class:`SimEnvError` otherwise."""
     try:
         width, height = (int(v) for v in size)
     except (TypeError, ValueError):
