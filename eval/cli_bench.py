@@ -93,6 +93,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=None, metavar="S",
                         help="stop a run after S seconds of wall time and record it as failed (timed out)")
     parser.add_argument("--rerun", action="store_true", help="run every run again, even finished ones")
+    parser.add_argument("--report-only", action="store_true",
+                        help="run nothing: write the tables from the finished runs in --out, whatever revision made "
+                             "them (each run records its revision)")  # fmt: skip
     parser.add_argument("--allow-skips", action="store_true",
                         help="exit 0 even when a requested method or external folder was skipped")
     parser.add_argument("--override", action="store_true",
@@ -252,6 +255,7 @@ def run(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             check=not args.no_check,
             rerun=args.rerun,
+            report_only=args.report_only,
         )
     except KeyboardInterrupt:
         print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/{suite.name}/ (rerun the same "

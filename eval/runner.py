@@ -579,13 +579,17 @@ def run_suite(
     revision: str | None = None,
     on_result: Callable[[RunOutcome], None] | None = None,
     rerun: bool = False,
+    report_only: bool = False,
 ) -> SuiteRun:
     """Run every unfinished run of ``suite`` (its methods looked up in ``methods``) and gather the records.
 
     Methods that cannot run here (:func:`eval.methods.check_methods`; ``check=False`` only checks the import)
     are skipped and reported, not failed. Finished runs (same fingerprint) are not run again. ``executor``:
     default :class:`~eval.executors.SerialExecutor`. ``revision``: recorded in every run (default: the git revision).
-    ``rerun``: run every run again, finished or not. Ctrl-C (KeyboardInterrupt) stops the executor and propagates;
+    ``rerun``: run every run again, finished or not. ``report_only``: run nothing; take every run folder that holds
+    a ``metrics.json``, whatever code made it (each record names its git revision), and report the others failed
+    ("not run"): for rewriting tables after a change of the report code, without rerunning. Ctrl-C
+    (KeyboardInterrupt) stops the executor and propagates;
     the runs finished before it are stored.
     """
     unknown = [m for m in suite.methods if m not in methods]
@@ -602,8 +606,13 @@ def run_suite(
     outcomes: dict[str, RunOutcome] = {}
     todo = []
     for spec in specs:
-        if not rerun and is_finished(out_root, spec):
-            outcomes[spec.key] = RunOutcome(spec.key, "cached", run_folder(out_root, spec))
+        folder = run_folder(out_root, spec)
+        if report_only:
+            done = (folder / DONE_FILE).is_file()
+            outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "failed", folder,
+                                            None if done else "not run (--report-only runs nothing)")  # fmt: skip
+        elif not rerun and is_finished(out_root, spec):
+            outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
             todo.append(spec)
     serial = isinstance(executor, SerialExecutor)

@@ -4,12 +4,12 @@
 Input is the long frame of :func:`eval.results.runs_frame` (``sequence, method, metric, value``). The runs of one
 (sequence, method) (its seeds) are summarised by :func:`cell_statistics`: a cell of the table is their **median**
 (the field's figure for non-deterministic SLAM: DPVO, DPV-SLAM report the median of 5 runs), its spread the
-**min-max range** (with 3 runs the interquartile range says little more; both are in the statistics). The Avg. row is
-the mean of the medians over the table's sequences, shown only for a column with a value on every sequence (an
-average over a different subset of sequences would not compare); its range is that of the per-seed averages (each
-seed's runs averaged over the sequences). Missing cells are NaN in the numeric table and ``-`` when written, like
-REMODE's ATE in the paper. Written as CSV (numeric medians, two header rows), Markdown and LaTeX (``median [min,
-max]`` per cell where its runs differ), and the statistics in long form (:func:`statistics_frame`).
+**min-max range** (with 3 runs the interquartile range says little more; both are in the statistics). The Avg. row
+averages each seed's runs over the table's sequences and gives the median and range of those per-seed averages (the
+mean of the cells where seeds do not line up), shown only for a column with a value on every sequence (an average
+over a different subset of sequences would not compare). Missing cells are NaN in the numeric table and ``-`` when
+written, like REMODE's ATE in the paper. Written as CSV (numeric medians, two header rows), Markdown and LaTeX
+(``median [min, max]`` per cell where its runs differ), and the statistics in long form (:func:`statistics_frame`).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ TABLE1_BLOCKS: tuple[tuple[str, str], ...] = (
 AVG_LABEL = "Avg."
 MISSING = "-"
 STATISTICS: tuple[str, ...] = ("median", "q1", "q3", "min", "max")
+_QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 
 
 def cell_statistics(frame: pd.DataFrame) -> pd.DataFrame:
@@ -64,8 +65,8 @@ def table1(
     """Numeric Table 1: index = sequences + ``Avg.``; columns = MultiIndex (block title, method); NaN = missing.
 
     Each cell is the statistic ``stat`` (one of :data:`STATISTICS`) of the cell's runs (:func:`cell_statistics`);
-    the Avg. row is the mean of the medians, or for ``min`` / ``max`` / ``q1`` / ``q3`` that statistic of the
-    per-seed averages (see the module docstring). ``methods`` / ``sequences`` fix the order (default: order of first
+    the Avg. row is that statistic of the per-seed averages over the sequences (see the module docstring).
+    ``methods`` / ``sequences`` fix the order (default: order of first
     appearance). ``drop_empty`` leaves out a method's column in a block where it has no value at all (the paper
     leaves REMODE out of the ATE block).
     """
@@ -87,12 +88,12 @@ def table1(
             columns.append((title, method))
             avg = np.nan
             if not np.any(np.isnan(values)):
-                per_seed = _avg_over_seeds(frame, sequences, method, metric) if stat != "median" else np.zeros(0)
-                if stat == "median" or not per_seed.size:
+                per_seed = _avg_over_seeds(frame, sequences, method, metric)
+                if not per_seed.size:  # no seeds with every sequence: the mean of the cells
                     avg = float(np.mean(values))
                 else:
-                    avg = float({"min": np.min, "max": np.max}.get(stat, lambda v: np.quantile(
-                        v, 0.25 if stat == "q1" else 0.75))(per_seed))
+                    avg = float(np.quantile(per_seed, _QUANTILES[stat], method="linear") if stat in _QUANTILES
+                                else (np.min if stat == "min" else np.max)(per_seed))  # fmt: skip
             data.append([*values, avg])
     table = pd.DataFrame(
         np.array(data, dtype=np.float64).T if data else np.zeros((len(sequences) + 1, 0)),

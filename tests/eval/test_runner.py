@@ -219,3 +219,15 @@ def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
     assert failed.key.endswith("slow/seed0-frames4") and "exceeded its time limit of 8 s" in failed.error
     stored = json.loads((tmp_path / "runs" / failed.key / FAILED_FILE).read_text())
     assert "RunTimedOut" in stored["error"]
+
+
+def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
+    suite = get_suite("quick").select(["office0"], ["oracle", "constant-pose"], frames=6, runs=1)
+    methods = load_methods()
+    run_suite(suite, {"oracle": methods["oracle"]} | {"constant-pose": methods["constant-pose"]}, tmp_path,
+              plots=False, progress=False, check=False)  # fmt: skip
+    changed = {"oracle": replace(methods["oracle"], kwargs={"keyframe_every": 3}), "constant-pose": CONSTANT}
+    shutil.rmtree(tmp_path / "quick" / "office0" / "constant-pose")
+    again = run_suite(suite, changed, tmp_path, plots=False, progress=False, check=False, report_only=True)
+    assert again.counts() == {"cached": 1, "failed": 1}  # the oracle's old run taken as is; nothing was run
+    assert "not run" in again.failed[0].error and [r["method"] for r in again.records] == ["oracle"]

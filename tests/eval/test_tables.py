@@ -80,3 +80,19 @@ def test_missing_columns_are_reported():
 
     with pytest.raises(EvalError, match="metric"):
         table1(pd.DataFrame({"sequence": [], "method": [], "value": []}))
+
+
+def test_cells_are_medians_with_their_range_and_the_average_is_per_seed():
+    from eval.tables import spread_of
+
+    rows = [("a", 0, 1.0), ("a", 1, 2.0), ("a", 2, 9.0), ("b", 0, 3.0), ("b", 1, 3.0), ("b", 2, 3.0)]
+    frame = pd.DataFrame([{"sequence": s, "method": "X", "metric": "ate_rmse", "value": v, "seed": k}
+                          for s, k, v in rows])  # fmt: skip
+    t = table1(frame)
+    lo, hi = spread_of(frame)
+    col = ("Abs. Trajectory Error [m]", "X")
+    assert t.at["a", col] == 2.0 and (lo.at["a", col], hi.at["a", col]) == (1.0, 9.0)  # median [min, max]
+    # per-seed averages over a and b: 2.0, 2.5, 6.0 -> Avg. median 2.5 in [2.0, 6.0]
+    assert t.at["Avg.", col] == 2.5 and (lo.at["Avg.", col], hi.at["Avg.", col]) == (2.0, 6.0)
+    md = table_to_markdown(t, spread=(lo, hi))
+    assert "| a | 2.000 [1.000, 9.000] |" in md and "| b | 3.000 |" in md  # runs that agree: a bare number
