@@ -6,8 +6,9 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
-# bench size of the Table-1 suite: the first BENCH_FRAMES frames of each of the 9 sequences x 7 methods, JOBS runs
-# at a time (<= 20 minutes on 2 cores; see docs/benchmarks.md). Finished runs under runs/ are reused.
+# bench size of the Table-1 suite: the first BENCH_FRAMES frames of each of the 9 sequences x 7 methods x 3 runs,
+# JOBS runs at a time (3419 s of run time in all on 2 cores; see docs/benchmarks.md). Finished runs under runs/ are
+# reused.
 BENCH_FRAMES ?= 200
 
 .PHONY: bench test venv lint clean
