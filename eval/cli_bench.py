@@ -307,7 +307,7 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
         print("not writing a baseline: runs failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
     path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
-    baseline = calibrated_baseline(suite, figures, _baseline_description(suite, methods), MATRIX)
+    baseline = calibrated_baseline(suite, figures, _baseline_description(suite), MATRIX)
     save_baseline(baseline, path)
     holdout = baseline.calibration["holdout"]
     print(f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "
@@ -316,7 +316,7 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
     return 0
 
 
-def _baseline_description(suite, methods) -> str:
+def _baseline_description(suite) -> str:
     frames = "all" if suite.frames is None else suite.frames
     return (f"cnnslam bench {suite.name}: {frames} frames, {len(suite.seeds)} runs per cell, sequences "
             f"{', '.join(s.name for s in suite.sequences)}; methods {', '.join(suite.methods)}")  # fmt: skip
@@ -337,7 +337,7 @@ def _gate(args: argparse.Namespace, result) -> int:
                   "skipped", file=sys.stderr)  # fmt: skip
             return 1
         old = load_baseline(path) if path.exists() else Baseline({})
-        new = replace(old, metrics=metrics, description=_baseline_description(suite, result.methods))
+        new = replace(old, metrics=metrics, description=_baseline_description(suite))
         save_baseline(new, path)
         print(f"updated {path}: {len(metrics)} gated figures ({len(new.calibrated)} with calibrated tolerances; "
               f"recalibrate with --calibrate after a change of the methods' spread)")

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from fnmatch import fnmatchcase
@@ -272,7 +273,9 @@ def gate_metrics(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GA
     sequences = {k.split("/", 1)[0] for k in every}
     cells: dict[tuple[str, str], list[float]] = {}
     for key, value in out.items():
-        sequence, method, metric = key.rsplit("/", 2) if key.count("/") == 2 else (None, None, None)
+        if key.count("/") != 2:  # a method name with a '/' in it: no suite average
+            continue
+        _, method, metric = key.split("/")
         if metric in gated and not math.isnan(value):
             cells.setdefault((method, metric), []).append(value)
     for (method, metric), values in cells.items():
@@ -282,11 +285,9 @@ def gate_metrics(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GA
 
 
 def _median(values: Sequence[float]) -> float:
-    finite = sorted(v for v in values if not math.isnan(v))
-    if not finite:
-        return math.nan
-    mid = len(finite) // 2
-    return finite[mid] if len(finite) % 2 else 0.5 * (finite[mid - 1] + finite[mid])
+    """The median of the non-NaN values (NaN when there are none)."""
+    finite = [v for v in values if not math.isnan(v)]
+    return statistics.median(finite) if finite else math.nan
 
 
 def metrics_from_json(data: Any, source: str = "<data>") -> dict[str, float]:
