@@ -87,11 +87,11 @@ def long_frame(run: SuiteRun) -> pd.DataFrame:
     return runs_frame(records, run_ids=[r["run"] for r in run.records])
 
 
-def write_long_csv(run: SuiteRun, results_dir: str | Path) -> Path:
-    """``<suite>_long.csv`` in ``results_dir``."""
+def write_long_csv(run: SuiteRun, results_dir: str | Path, frame: pd.DataFrame | None = None) -> Path:
+    """``<suite>_long.csv`` in ``results_dir`` (``frame``: the run's :func:`long_frame`, when already built)."""
     path = Path(results_dir) / f"{run.suite.name}_long.csv"
     path.parent.mkdir(parents=True, exist_ok=True)
-    long_frame(run).to_csv(path, index=False, float_format="%.6g")
+    (long_frame(run) if frame is None else frame).to_csv(path, index=False, float_format="%.6g")
     return path
 
 
@@ -226,27 +226,23 @@ def with_relative_errors(frame: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([frame, *extra], ignore_index=True) if extra else frame
 
 
-def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]], frame: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The suite's table of ``blocks`` from ``frame`` (default: the run's long frame)."""
+Spread = tuple[pd.DataFrame, pd.DataFrame]
+
+
+def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]],
+                 frame: pd.DataFrame | None = None) -> tuple[pd.DataFrame, Spread]:
+    """The suite's table of ``blocks`` (cell medians) and its spread (the min and max tables: the range of each
+    cell's runs), from ``frame`` (default: the run's long frame, built once for both)."""
     frame = long_frame(run) if frame is None else frame
     if frame.empty:
         frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
-    return table1(frame, methods=list(run.suite.methods), sequences=[s.name for s in run.suite.sequences],
-                  blocks=blocks)  # fmt: skip
-
-
-def _suite_spread(run: SuiteRun, blocks: Sequence[tuple[str, str]],
-                  frame: pd.DataFrame | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The min and max tables matching :func:`_suite_table` (the range of each cell's runs)."""
-    frame = long_frame(run) if frame is None else frame
-    if frame.empty:
-        frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
-    return spread_of(frame, methods=list(run.suite.methods), sequences=[s.name for s in run.suite.sequences],
-                     blocks=blocks)  # fmt: skip
+    shape = {"methods": list(run.suite.methods), "sequences": [s.name for s in run.suite.sequences],
+             "blocks": blocks}  # fmt: skip
+    return table1(frame, **shape), spread_of(frame, **shape)
 
 
 def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3,
-                  spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> list[Path]:
+                  spread: Spread | None = None) -> list[Path]:
     stem.parent.mkdir(parents=True, exist_ok=True)
     csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
     csv.write_text(table_to_csv(table))
@@ -256,7 +252,7 @@ def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3
 
 # ----------------------------------------------------------------------------------------------------- table1
 def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int,
-                      spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> str:
+                      spread: Spread | None = None) -> str:
     """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number; with
     ``spread`` (min and max tables), ours is ``median [min, max]``."""
     paper = paper_table1_frame()
@@ -289,8 +285,8 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
 def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """``table1.{md,csv,tex}`` and ``table1_long.csv``."""
     results_dir = Path(results_dir)
-    table = _suite_table(run, TABLE1_BLOCKS)
-    spread = _suite_spread(run, TABLE1_BLOCKS)
+    table, spread = _suite_table(run, TABLE1_BLOCKS)
+    sim3, sim3_spread = _suite_table(run, SIM3_BLOCK)
     paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)", spread=spread)
     ate_title, ate_metric = TABLE1_BLOCKS[0]
     depth_title, depth_metric = TABLE1_BLOCKS[1]
@@ -311,7 +307,7 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         "## Scale-aligned ATE, Sim(3) [m]\n",
         "The paper's ATE (above) aligns with SE(3): no scale correction, so a monocular method pays for a wrong "
         "scale. Monocular SLAM papers report ATE after Sim(3) alignment (`evo_ape -as`); both are here.\n",
-        table_to_markdown(_suite_table(run, SIM3_BLOCK), spread=_suite_spread(run, SIM3_BLOCK)),
+        table_to_markdown(sim3, spread=sim3_spread),
         "## Ours alone (as in table1.csv / table1.tex)\n",
         table_to_markdown(table, spread=spread),
     ]
@@ -322,8 +318,7 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
 def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """``rotation.{md,csv,tex}`` and ``rotation_long.csv``."""
     results_dir = Path(results_dir)
-    table = _suite_table(run, ROTATION_BLOCKS)
-    spread = _suite_spread(run, ROTATION_BLOCKS)
+    table, spread = _suite_table(run, ROTATION_BLOCKS)
     paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences", spread=spread)
     text = [
         header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
@@ -342,8 +337,7 @@ def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
 def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """``ablation.{md,csv,tex}``, ``ablation.png`` (when there are key-frames) and ``ablation_long.csv``."""
     results_dir = Path(results_dir)
-    table = _suite_table(run, TABLE1_BLOCKS)
-    spread = _suite_spread(run, TABLE1_BLOCKS)
+    table, spread = _suite_table(run, TABLE1_BLOCKS)
     paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)", spread=spread)
     figure = save_ablation_figure(run, results_dir / "ablation.png")
     text = [
@@ -363,7 +357,8 @@ def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], 
     ``<suite>_stats.csv`` and ``<suite>_runs.png``; return every file the report made: the Markdown, ``artifacts``
     (tables, figures), the long and statistics CSVs, the runs figure."""
     results_dir.mkdir(parents=True, exist_ok=True)
-    frame = with_relative_errors(long_frame(run))
+    base = long_frame(run)
+    frame = with_relative_errors(base)
     stats = results_dir / f"{run.suite.name}_stats.csv"
     statistics_frame(frame).to_csv(stats, index=False, float_format="%.6g")
     methods = [m for m in run.suite.methods if (frame["method"] == m).any()] if not frame.empty else []
@@ -374,7 +369,7 @@ def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], 
     md = results_dir / f"{name}.md"
     md.write_text("\n".join([*text, *shown, methods_markdown(run), alignment_markdown(run, frame),
                              status_markdown(run)]))  # fmt: skip
-    return [md, *artifacts, write_long_csv(run, results_dir), stats, *([figure] if figure is not None else [])]
+    return [md, *artifacts, write_long_csv(run, results_dir, base), stats, *([figure] if figure is not None else [])]
 
 
 def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray] | None:
@@ -504,8 +499,7 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -
     """``depth_quality.{md,csv,tex}``, ``depth_quality.png`` and ``depth_quality_long.csv``."""
     results_dir = Path(results_dir)
     frame = with_relative_errors(long_frame(run))
-    table = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
-    spread = _suite_spread(run, DEPTH_QUALITY_BLOCKS, frame)
+    table, spread = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
     paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth",
                           spread=spread)
     points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
@@ -543,8 +537,7 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
     results_dir.mkdir(parents=True, exist_ok=True)
     runs_json = results_dir / "quick_runs.json"
     runs_json.write_text(suite_records_json(run.records))
-    table = _suite_table(run, QUICK_BLOCKS)
-    spread = _suite_spread(run, QUICK_BLOCKS)
+    table, spread = _suite_table(run, QUICK_BLOCKS)
     text = [
         header_markdown(run, "Quick suite (the CI regression baseline)", command),
         "Compared metric by metric with `results/baselines/quick.json` by `cnnslam bench quick` and by "
@@ -557,8 +550,7 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
 def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``."""
     results_dir = Path(results_dir)
-    table = _suite_table(run, QUICK_BLOCKS)
-    spread = _suite_spread(run, QUICK_BLOCKS)
+    table, spread = _suite_table(run, QUICK_BLOCKS)
     paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}", spread=spread)
     text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table, spread=spread)]
     return _write_report(run, results_dir, run.suite.name, text, paths)
