@@ -73,6 +73,22 @@ def _normal_at(V, y, x, s, tol_factor):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _normal_map(V, tol):  # pragma: no cover - compiled
+    """:func:`_normal_at` (one-pixel step) at every pixel of the vertex map ``V``: (normals (h, w, 3) float32, zero
+    where none; valid (h, w) bool)."""
+    h, w = V.shape[:2]
+    N = np.zeros((h, w, 3), np.float32)
+    valid = np.zeros((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            n0, n1, n2 = _normal_at(V, y, x, 1, tol)
+            if n0 != 0 or n1 != 0 or n2 != 0:
+                N[y, x, 0], N[y, x, 1], N[y, x, 2] = n0, n1, n2
+                valid[y, x] = True
+    return N, valid
+
+
+@njit(cache=True, nogil=True)
 def _depth_surface_kernel(depth, fx, fy, cx, cy, tol_factor):  # pragma: no cover - compiled
     """Vertices (eq. 4, float32 of the float64 product), 1-pixel normals and validity of a depth map."""
     h, w = depth.shape
@@ -87,14 +103,7 @@ def _depth_surface_kernel(depth, fx, fy, cx, cy, tol_factor):  # pragma: no cove
             V[y, x, 0] = np.float32((x - cx) / fx * d64)
             V[y, x, 1] = np.float32(ry * d64)
             V[y, x, 2] = np.float32(d64)
-    N = np.zeros((h, w, 3), np.float32)
-    valid = np.zeros((h, w), np.bool_)
-    for y in range(h):
-        for x in range(w):
-            n0, n1, n2 = _normal_at(V, y, x, 1, tol_factor)
-            if n0 != 0 or n1 != 0 or n2 != 0:
-                N[y, x, 0], N[y, x, 1], N[y, x, 2] = n0, n1, n2
-                valid[y, x] = True
+    N, valid = _normal_map(V, tol_factor)
     return V, N, valid
 
 
@@ -338,15 +347,7 @@ def _sampled_normals(d, rays, smoothed, jump, step, stride, consistency, adaptiv
         for x in range(w):
             for k in range(3):
                 V[y, x, k] = rays[y, x, k] * d[y, x]
-    raw = np.zeros((h, w, 3), np.float32)
-    ok = np.zeros((h, w), np.bool_)
-    tol1 = np.float32(jump * 1)
-    for y in range(h):
-        for x in range(w):
-            n0, n1, n2 = _normal_at(V, y, x, 1, tol1)
-            if n0 != 0 or n1 != 0 or n2 != 0:
-                raw[y, x, 0], raw[y, x, 1], raw[y, x, 2] = n0, n1, n2
-                ok[y, x] = True
+    raw, ok = _normal_map(V, np.float32(jump * 1))
     hs, ws = (h + stride - 1) // stride, (w + stride - 1) // stride
     out = np.zeros((hs, ws, 3), np.float32)
     if adaptive:
