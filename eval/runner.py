@@ -556,13 +556,18 @@ def plan_runs(
     revision: str | None = None,
 ) -> list[RunSpec]:
     """Every run of the suite: sequences x methods x seeds, in that nesting order; a method's own ``align`` wins
-    over the suite's alignment."""
+    over the suite's alignment.
+
+    A method that takes no seed (no ``seed`` in its table: deterministic given the images, such as LSD-BS, the
+    oracle or a scored external folder) runs once per cell, with the suite's first seed: its other runs would be
+    byte-for-byte copies (``tests/eval/test_runner.py`` checks that they are), and its cell is that one run.
+    """
     return [
         RunSpec(suite.name, ref, method, seed, suite.frames, method.align or suite.alignment, renderer, plots,
                 revision)
         for ref in suite.sequences
         for method in methods
-        for seed in suite.seeds
+        for seed in (suite.seeds if method.seed_targets else suite.seeds[:1])
     ]
 
 

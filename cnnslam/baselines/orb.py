@@ -3,7 +3,7 @@
 ``"cnnslam.baselines.orb:OrbSlamAgent"``; keyword arguments (all optional)::
 
     OrbSlamAgent(config={"n_features": 1000, ...},   # OrbConfig field overrides (cnnslam.baselines.orb_config)
-                 seed=0)                              # seeds OpenCV's RANSAC (same seed, same bytes)
+                 seed=0)                              # RANSAC's draws (0: unseeded order; same seed, same bytes)
 
 What it does per frame (one thread; ORB-SLAM's local mapping runs synchronously after each new key-frame):
 
@@ -53,7 +53,7 @@ from cnnslam.baselines.orb_features import (
     match_in_windows,
     to_gray,
 )
-from cnnslam.baselines.orb_init import initialize_two_view
+from cnnslam.baselines.orb_init import initialize_two_view, ransac_order
 from cnnslam.baselines.orb_map import KeyFrame, SparseMap
 from cnnslam.baselines.orb_mapping import (
     cull_keyframes,
@@ -111,7 +111,8 @@ class OrbSlam:
             raise CnnSlamError(f"intrinsics must be finite [fx, fy, cx, cy] with fx, fy > 0, got {intrinsics!r}")
         self.K = intrinsics_matrix(self.intrinsics)
         self.image_size = (int(image_size[0]), int(image_size[1]))
-        self._rng = np.random.default_rng(seed)
+        # seed 0: the matches in their own order (the bytes of an unseeded run); s > 0: RANSAC's inputs permuted
+        self._rng = np.random.default_rng(seed) if seed else None
         self._orb = make_orb(self.config)
         self.map = SparseMap(self.config.scale_factor, self.config.n_levels)
         self.state: TrackingState = "not_initialized"
@@ -406,6 +407,8 @@ class OrbSlam:
             pairs = match_descriptors(f.descriptors, kf.features.descriptors[kps], cfg.th_low, 0.75)
             if len(pairs) < cfg.min_reference_matches:
                 continue
+            order = ransac_order(len(pairs), self._rng)
+            pairs = pairs[order]
             pids = kf.point_ids[kps[pairs[:, 1]]]
             obj = self.map.positions[pids]
             img = f.uv[pairs[:, 0]]

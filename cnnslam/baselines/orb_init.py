@@ -160,11 +160,23 @@ def check_rt(R: np.ndarray, t: np.ndarray, uv1: np.ndarray, uv2: np.ndarray, K: 
     return _Check(n_good, good, P_safe, parallax)
 
 
+def ransac_order(n: int, rng: np.random.Generator | None) -> np.ndarray:
+    """(n,) int64 order in which to hand n matches to an OpenCV RANSAC: ``arange(n)`` without a generator, else a
+    permutation drawn from ``rng``.
+
+    OpenCV's USAC and PnP RANSAC draw their minimal samples from a generator whose state is fixed inside OpenCV, so
+    the same inputs always give the same model; permuting the inputs makes them draw other samples, the effect of a
+    RANSAC seed. The models are scored on every match afterwards, so the order changes nothing else.
+    """
+    return np.arange(n) if rng is None else rng.permutation(n)
+
+
 def initialize_two_view(uv_ref: np.ndarray, uv_cur: np.ndarray, K: np.ndarray, config: OrbConfig,
                         rng: np.random.Generator | None = None, inv_sigma_ref: np.ndarray | None = None,
                         inv_sigma_cur: np.ndarray | None = None, refine: bool = True) -> TwoViewResult:
     """Try to initialise a map from matched pixels (N, 2) of the reference and the current frame (see the module
-    docstring). K: (3, 3) intrinsics. ``rng`` seeds OpenCV's RANSAC (``cv2.setRNGSeed``) for repeatable results.
+    docstring). K: (3, 3) intrinsics. ``rng`` (None: the matches' own order) reorders the matches given to OpenCV's
+    RANSAC (:func:`ransac_order`): another seed, other minimal samples.
 
     refine: the accepted motion and points are refined by a two-view bundle adjustment (reference camera fixed;
     ORB-SLAM's global bundle adjustment in CreateInitialMapMonocular), weighting each match by ``inv_sigma_ref`` /
@@ -176,12 +188,13 @@ def initialize_two_view(uv_ref: np.ndarray, uv_cur: np.ndarray, K: np.ndarray, c
     n = len(uv_ref)
     if n < config.init_min_matches:
         return _failure(f"{n} matches < {config.init_min_matches}")
-    if rng is not None:
-        cv2.setRNGSeed(int(rng.integers(0, 2**31 - 1)))
+    # OpenCV's USAC keeps its own generator state (cv2.setRNGSeed does not reach it): a seeded run hands it the
+    # matches in another order, so that it draws other minimal samples, which is what another RANSAC seed does
+    order = ransac_order(n, rng)
     sigma = config.init_sigma_px
-    E, _ = cv2.findEssentialMat(uv_ref, uv_cur, K, method=cv2.USAC_ACCURATE, prob=0.999,
+    E, _ = cv2.findEssentialMat(uv_ref[order], uv_cur[order], K, method=cv2.USAC_ACCURATE, prob=0.999,
                                 threshold=float(np.sqrt(CHI2_1DOF) * sigma), maxIters=config.init_ransac_iterations)
-    H, _ = cv2.findHomography(uv_ref, uv_cur, cv2.USAC_ACCURATE, float(np.sqrt(CHI2_2DOF) * sigma),
+    H, _ = cv2.findHomography(uv_ref[order], uv_cur[order], cv2.USAC_ACCURATE, float(np.sqrt(CHI2_2DOF) * sigma),
                               maxIters=config.init_ransac_iterations, confidence=0.999)
     score_f, inl_f, Es = -1.0, np.zeros(n, bool), []
     if E is not None and E.shape[0] >= 3:

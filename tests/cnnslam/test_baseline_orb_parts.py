@@ -258,11 +258,19 @@ def test_two_view_initialisation_recovers_the_relative_pose(rendered_pair) -> No
     fa, fb = extract_features(to_gray(rgb_a), orb, cfg), extract_features(to_gray(rgb_b), orb, cfg)
     pairs = match_descriptors(fa.descriptors, fb.descriptors, cfg.th_low, 0.8)
     ia, ib = pairs[:, 0], pairs[:, 1]
-    res = initialize_two_view(fa.uv[ia], fb.uv[ib], cam.K, cfg, np.random.default_rng(0),
-                              level_inv_sigma(fa.octave[ia], 1.2), level_inv_sigma(fb.octave[ib], 1.2))
+    sigmas = level_inv_sigma(fa.octave[ia], 1.2), level_inv_sigma(fb.octave[ib], 1.2)
+    res = initialize_two_view(fa.uv[ia], fb.uv[ib], cam.K, cfg, None, *sigmas)
     assert res.success, res.reason
     assert res.model == "essential" and res.parallax_deg > 1.0
     assert rotation_angle_deg(res.T_cur_ref @ se3_inverse(T_b_a)) < 1.0
+    # other RANSAC draws (the matches permuted, as a seeded run does): measured 6 of 10 seeds within 1 deg, 3 refuse
+    # (parallax below 1 deg or ambiguous) and 1 accepts a 7 deg error: the spread a seed shows in the suites
+    errors = []
+    for seed in range(10):
+        other = initialize_two_view(fa.uv[ia], fb.uv[ib], cam.K, cfg, np.random.default_rng(seed), *sigmas)
+        errors.append(rotation_angle_deg(other.T_cur_ref @ se3_inverse(T_b_a)) if other.success else np.inf)
+    assert sum(e < 1.0 for e in errors) >= 5, errors
+    assert len({round(e, 6) for e in errors if np.isfinite(e)}) > 1  # the seeds do draw other samples
     t_true = T_b_a[:3, 3] / np.linalg.norm(T_b_a[:3, 3])
     assert np.degrees(np.arccos(np.clip(res.T_cur_ref[:3, 3] @ t_true, -1, 1))) < 2.0
     assert np.linalg.norm(res.T_cur_ref[:3, 3]) == pytest.approx(1.0)  # no absolute scale

@@ -17,6 +17,7 @@ from eval.runner import (
     RunSpec,
     execute_run,
     is_finished,
+    plan_runs,
     remove_stale_temporaries,
     run_folder,
     run_suite,
@@ -231,3 +232,12 @@ def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
     again = run_suite(suite, changed, tmp_path, plots=False, progress=False, check=False, report_only=True)
     assert again.counts() == {"cached": 1, "failed": 1}  # the oracle's old run taken as is; nothing was run
     assert "not run" in again.failed[0].error and [r["method"] for r in again.records] == ["oracle"]
+
+
+def test_a_method_without_a_seed_runs_once_per_cell():
+    suite = replace(get_suite("quick"), seeds=(0, 1, 2))
+    specs = plan_runs(suite, [ORACLE, METHODS["LSD-BS"], METHODS["CNN-SLAM"]])
+    per_method = {name: sorted({s.seed for s in specs if s.method.name == name}) for name in ("oracle", "LSD-BS")}
+    assert per_method == {"oracle": [0], "LSD-BS": [0]}  # deterministic: their other runs would be copies
+    assert sorted({s.seed for s in specs if s.method.name == "CNN-SLAM"}) == [0, 1, 2]
+    assert len(specs) == len(suite.sequences) * (1 + 1 + 3)
