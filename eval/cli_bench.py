@@ -1,7 +1,8 @@
 """``cnnslam bench [SUITE]``: run a benchmark suite and write its results (tables, plots, long-form CSV).
 
 Suites (``--list`` prints them with their sequences and methods): ``table1`` (default), ``rotation``, ``ablation``,
-``sweep``, ``depth_quality``, ``perf``, ``real`` (the folders of the local dataset list), ``quick``; see
+``sweep``, ``depth_quality``, ``perf``, ``real`` (the folders of the local dataset list), ``transfer`` (the
+simulated analogues against the real folders: do their rankings agree?), ``quick``; see
 :mod:`eval.suites`. ``--sequences`` takes sequence names, dataset-list names and paths of real RGB-D folders (TUM
 RGB-D, ICL-NUIM, 7-Scenes, RGB-only; delivered at 320x240 unless ``--image-size``). Runs go to ``--out`` (one
 folder per run, see :mod:`eval.runner`), results to ``--results`` (see :mod:`eval.reports`). A rerun skips finished
@@ -15,6 +16,8 @@ Examples::
     cnnslam bench table1 --external MySLAM=out/myslam  # score a third-party system's output too
     cnnslam bench table1 --sequences ~/data/rgbd_dataset_freiburg1_desk   # a downloaded TUM sequence
     cnnslam bench real                              # every folder of datasets.toml (or $CNNSLAM_DATASETS)
+    cnnslam bench transfer --frames 300             # sim rankings vs real ones -> results/transfer.md (sim part:
+                                                    # table1's runs; --frames caps the real sequences)
     cnnslam bench quick                             # the CI suite, compared with results/baselines/quick.json
     cnnslam bench quick --update-baseline           # after an intended change: rewrite the baseline
     cnnslam bench table1 --executor ray --address auto
@@ -236,6 +239,8 @@ def run(args: argparse.Namespace) -> int:
     from eval.reports import write_report
     from eval.runner import run_suite
 
+    if suite.kind == "transfer":
+        return _transfer(args, suite, methods, executor, command)
     if not suite.sequences:
         for name, reason in suite.skipped:
             print(f"  skipped sequence {name}: {reason}")
@@ -285,6 +290,44 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)  # fmt: skip
         status = 1
     return max(status, _gate(args, result))
+
+
+def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str) -> int:
+    """The transfer suite: each part (:func:`eval.suites.transfer_parts`) run as its own suite (so its runs are
+    shared with ``make bench`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
+    from eval.runner import run_suite
+    from eval.suites import transfer_parts
+    from eval.transfer_report import report_transfer
+
+    parts, status = [], 0
+    try:
+        for domain, part in transfer_parts(suite):
+            if not part.sequences:
+                continue
+            print(f"transfer: part {domain}: suite {part.name}, {len(part.sequences)} sequence(s)")
+            result = run_suite(part, methods, args.out, executor=executor, renderer=args.renderer,
+                               plots=not args.no_plots, progress=not args.no_progress, check=not args.no_check,
+                               rerun=args.rerun, report_only=args.report_only)  # fmt: skip
+            parts.append((domain, result))
+            for outcome in result.failed:
+                print(f"  FAILED {outcome.key}: {outcome.error}")
+            status = max(status, 1 if result.failed else 0)
+            if result.skipped_methods and not args.allow_skips:
+                status = 1
+    except KeyboardInterrupt:
+        print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
+              "resume)", file=sys.stderr)  # fmt: skip
+        return 130
+    paths = report_transfer(parts, results_folder(args, suite, command), command)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    for name, reason in suite.skipped:
+        print(f"  skipped sequence {name}: {reason}")
+    if not suite.sequences or (suite.skipped and not args.allow_skips):
+        print(f"cnnslam bench: {len(suite.skipped)} listed real sequence(s) skipped, {len(suite.sequences)} run: "
+              f"exit status 1 (--allow-skips to accept; the dataset list is {dataset_list_file()})",
+              file=sys.stderr)  # fmt: skip
+        status = 1
+    return status
 
 
 def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:

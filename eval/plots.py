@@ -302,6 +302,38 @@ def save_runs_figure(frame: pd.DataFrame, path: str | Path, methods: Sequence[st
     return _save(fig, path, dpi)
 
 
+def save_transfer_figure(ranks: pd.DataFrame, path: str | Path, domains: Sequence[str], metrics: Sequence[Any],
+                         dpi: int = 110) -> Path | None:
+    """One bump chart per metric with ranks: each method's rank (1 = best, on top) in every domain, a line per
+    method, so a method that moves between the simulated and the real domains stands out. ``ranks``: domain, metric,
+    method, rank (:func:`eval.transfer.rank_methods`); ``metrics``: objects with ``name`` and ``label``."""
+    shown = [m for m in metrics if (ranks["metric"] == m.name).any()]
+    if not shown or not domains:
+        return None
+    fig = Figure(figsize=(max(4.0, 1.6 * len(domains) + 2.5) * min(len(shown), 2) / 1.4, 3.4 * ((len(shown) + 1) // 2)))
+    axes = fig.subplots((len(shown) + 1) // 2, min(len(shown), 2), squeeze=False).ravel()
+    cmap = colormaps["tab10"]
+    methods = sorted(ranks["method"].unique())
+    for ax, metric in zip(axes, shown, strict=False):
+        sub = ranks[ranks["metric"] == metric.name]
+        for i, method in enumerate(methods):
+            row = sub[sub["method"] == method].set_index("domain")["rank"].reindex(domains)
+            if row.notna().any():
+                ax.plot(range(len(domains)), row.to_numpy(), "o-", color=cmap(i % 10), label=method)
+        ax.set_xticks(range(len(domains)), list(domains), rotation=20, ha="right", fontsize=7)
+        n = int(sub["rank"].max()) if len(sub) else 1
+        ax.set_ylim(n + 0.5, 0.5)
+        ax.set_yticks(range(1, n + 1))
+        ax.set_ylabel("rank (1 = best)")
+        ax.set_title(metric.label, fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes[len(shown):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=6, loc="lower left")
+    fig.tight_layout()
+    return _save(fig, path, dpi)
+
+
 def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

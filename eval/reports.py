@@ -104,7 +104,8 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
     return (
         f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
         f"Made by `{command}`: {frames}, {len(suite.seeds)} run(s) per cell (seeds "
-        f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`), ATE after "
+        f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`; a method that "
+        "takes no seed is deterministic and runs once), ATE after "
         f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
         "Each cell: the **median** of its runs and their range **[min, max]** where the runs differ. Per-run "
         "artifacts (trajectories, "

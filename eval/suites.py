@@ -18,6 +18,9 @@ Suites (:data:`SUITES`):
   three known accuracies (ground truth degraded like a CNN's) in the network's place: how accurate key-frame depth
   must be for those targets;
 - ``perf``: throughput figures (:mod:`eval.perf`), no agent runs;
+- ``real``: every folder of the local dataset list x the paper's methods and the oracle, whole sequences;
+- ``transfer``: the paper's methods on the simulated Table-1 analogues (per camera preset) and on the real folders,
+  and whether the simulated rankings predict the real ones (:func:`transfer_parts`, :mod:`eval.transfer`);
 - ``quick``: a few short sequences x all methods, the CI regression baseline.
 
 Sweep variants (:func:`sweep_sequences`), built with :func:`dataclasses.replace` on the base sequence's spec where
@@ -459,9 +462,13 @@ def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) ->
 
 
 # --------------------------------------------------------------------------------------------------- the suites
-SuiteKind = Literal["runs", "perf"]
+SuiteKind = Literal["runs", "perf", "transfer"]
 
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
+# the transfer suite ranks the paper's methods; the oracle is fed ground truth and would win every ranking
+TRANSFER_METHODS: tuple[str, ...] = tuple(m for m in TABLE1_METHODS if m != "oracle")
+# camera presets of the simulated part of the transfer suite (sim_envs' camera models)
+SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean",)
 ABLATION_METHODS: tuple[str, ...] = ("raw-CNN", "focal-adjusted", "adjusted+refined")
 QUICK_METHODS: tuple[str, ...] = (*TABLE1_METHODS, "constant-pose")
 DEPTH_QUALITY_METHODS: tuple[str, ...] = ("CNN-SLAM", "raw-CNN", "dev-depth-5", "dev-depth-10", "dev-depth-20")
@@ -622,6 +629,16 @@ def _suites() -> dict[str, Suite]:
             TABLE1_METHODS,
             frames=None,
         ),
+        "transfer": Suite(
+            "transfer",
+            "sim-to-real transfer: the paper's methods on the simulated Table-1 analogues (per camera preset, at "
+            "bench size) and on every folder of the local dataset list (whole sequences); per metric, the methods' "
+            "rankings side by side and their rank correlation (Spearman, Kendall)",
+            (),
+            TRANSFER_METHODS,
+            frames=None,
+            kind="transfer",
+        ),
         "quick": Suite(
             "quick",
             "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
@@ -640,10 +657,30 @@ def get_suite(name: str) -> Suite:
     listing the valid names otherwise."""
     if name == "real":
         return real_suite()
+    if name == "transfer":
+        return replace(SUITES["transfer"], sequences=(real := real_suite()).sequences, skipped=real.skipped)
     try:
         return SUITES[name]
     except KeyError:
         raise SuiteError(f"unknown suite {name!r}; valid suites: {', '.join(SUITES)}") from None
+
+
+def transfer_parts(suite: Suite, presets: Sequence[str] = SIM_CAMERA_PRESETS) -> list[tuple[str, Suite]]:
+    """The suites the ``transfer`` suite is made of, as ``(domain, suite)``: ``sim:<preset>`` for each camera preset
+    (the ``table1`` suite at its bench size with the transfer suite's methods and seeds, so its runs are
+    ``make bench``'s own), then ``real`` (the transfer suite's folder sequences, frames and seeds, run as the
+    ``real`` suite: its runs are ``cnnslam bench real``'s own). Each real sequence is its own domain
+    ``real:<name>`` in the report."""
+    if suite.kind != "transfer":
+        raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
+    unknown = [p for p in presets if p not in SIM_CAMERA_PRESETS]
+    if unknown:
+        raise SuiteError(f"unknown camera preset(s) {unknown}; valid presets: {', '.join(SIM_CAMERA_PRESETS)}")
+    table1 = SUITES["table1"]
+    parts = [(f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds)) for p in presets]
+    real = replace(SUITES["real"], sequences=suite.sequences, skipped=suite.skipped, methods=suite.methods,
+                   frames=suite.frames, seeds=suite.seeds)  # fmt: skip
+    return [*parts, ("real", real)]
 
 
 def real_suite(path: str | Path | None = None) -> Suite:

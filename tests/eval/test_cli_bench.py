@@ -118,13 +118,14 @@ def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
             "--executor", "serial", "--no-plots", "--no-progress"]  # fmt: skip
     assert main(args) == 0
     out = capsys.readouterr().out
-    assert "2 runs (2 run now, 0 reused, 0 failed)" in out
+    assert "1 runs (1 run now, 0 reused, 0 failed)" in out  # the oracle takes no seed: one run stands for both
     assert not (tmp_path / "results").exists()  # a subset never writes the committed results
     reports = list((tmp_path / "runs" / "reports").glob("table1-*/table1.md"))
     assert len(reports) == 1 and "2 run(s) per cell (seeds 0, 1" in reports[0].read_text()
-    assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed1-frames6" / "metrics.json").is_file()
+    assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed0-frames6" / "metrics.json").is_file()
+    assert not (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed1-frames6").exists()
     assert main([*args, "--rerun"]) == 0
-    assert "2 runs (2 run now, 0 reused" in capsys.readouterr().out
+    assert "1 runs (1 run now, 0 reused" in capsys.readouterr().out
 
 
 def test_a_time_limit_needs_an_executor_that_can_stop_a_run(tmp_path, capsys):

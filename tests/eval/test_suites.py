@@ -25,7 +25,8 @@ from sim_envs.sequences import TABLE1_SEQUENCES, get_sequence
 
 
 def test_the_suites_of_the_issue():
-    assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "depth_quality", "perf", "real", "quick"}
+    assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "depth_quality", "perf", "real", "transfer",
+                           "quick"}
     table1 = get_suite("table1")
     assert tuple(s.name for s in table1.sequences) == TABLE1_SEQUENCES
     assert table1.methods == ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
