@@ -261,3 +261,27 @@ def test_a_rendered_sequence_through_each_camera():
     finally:
         for s in (clean, default, kinect_a, kinect_b, hard):
             s.close()
+
+
+def test_export_writes_the_photometric_calibration(tmp_path):
+    from sim_envs.datasets import export_tum_rgbd, load_rgbd_folder, read_camera_file
+
+    seq = SimulatedSequence(with_camera(_tiny(get_sequence("office0"), 6), "hard"))
+    try:
+        export_tum_rgbd(seq, tmp_path, progress=False)
+        exposure, gain = seq.exposures()
+        times = np.loadtxt(tmp_path / "times.txt")
+        assert times.shape == (6, 3)
+        np.testing.assert_allclose(times[:, 1], seq.timestamps, atol=1e-6)
+        np.testing.assert_allclose(times[:, 2], exposure * gain * 1000, rtol=1e-6)
+        G = np.loadtxt(tmp_path / "pcalib.txt")
+        np.testing.assert_allclose(G, inverse_response(seq.camera_effects), atol=1e-5)
+        V = cv2.imread(str(tmp_path / "vignette.png"), cv2.IMREAD_UNCHANGED)
+        assert V.dtype == np.uint16 and V.shape == (48, 64) and V.max() > 60000 and V[24, 32] > V[2, 2]
+        assert not read_camera_file(tmp_path / "camera.toml").distorted
+        assert read_camera_file(tmp_path / "camera_raw.toml").distortion == preset_distortion("tum_fr1")
+        assert len(list((tmp_path / "depth_sensor").iterdir())) == 6
+        loaded = load_rgbd_folder(tmp_path, size=None)
+        np.testing.assert_array_equal(loaded.frame(3).rgb, seq.rgb(3))  # the exported images are the delivered ones
+    finally:
+        seq.close()
