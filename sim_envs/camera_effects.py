@@ -88,10 +88,16 @@ class CameraEffects:
     ae_rate: the fraction of the log-brightness error corrected per frame (1 = no lag; 0.2 = a time constant of
     about 5 frames);
     ae_min_s, ae_max_s: exposure limits in seconds (the longest exposure is at most a frame interval);
-    max_gain: the analogue gain the controller may add once the exposure is at ``ae_max_s`` (it amplifies noise).
+    max_gain: the analogue gain the controller may add once the exposure is at ``ae_max_s`` (it amplifies noise);
+    exposure_jitter: std of a per-frame log-normal factor on the effective exposure (exposure x gain), drawn from
+    the frame's own generator, that the controller sees and corrects like any brightness change (real auto-exposure
+    hunts; 0 = off).
 
     Noise (linear domain, per channel R, G, B, on intensities in [0, 1], before the gain):
-    shot_noise: std ``sqrt(x) * shot_noise``; read_noise: std ``read_noise``.
+    shot_noise: std ``sqrt(x) * shot_noise``; read_noise: std ``read_noise``; sensor_width: the width in pixels of
+    the sensor these stds are for (None: the image's own): an image narrower than the sensor is the sensor's image
+    area-averaged, as the folder loader does to real frames (``cv2.INTER_AREA``), so both stds are scaled by
+    ``width / sensor_width`` (the mean of (sensor_width / width)^2 independent pixels).
 
     Geometry of the exposure:
     blur_subframes: renders per frame spread over the union of the rows' exposure windows (1 = one render at the
@@ -117,8 +123,10 @@ class CameraEffects:
     ae_min_s: float = 1e-4
     ae_max_s: float = 1.0 / FPS_NOMINAL
     max_gain: float = 1.0
+    exposure_jitter: float = 0.0
     shot_noise: tuple[float, float, float] = (0.0, 0.0, 0.0)
     read_noise: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sensor_width: int | None = None
     blur_subframes: int = 1
     readout_s: float = 0.0
     distortion: tuple[float, float, float, float, float] = field(default=NO_DISTORTION)
@@ -147,6 +155,10 @@ class CameraEffects:
             raise SimEnvError(f"ae_min_s ({self.ae_min_s}) must not exceed ae_max_s ({self.ae_max_s})")
         if not (np.isfinite(self.max_gain) and self.max_gain >= 1):
             raise SimEnvError(f"max_gain must be >= 1, got {self.max_gain}")
+        if not (np.isfinite(self.exposure_jitter) and self.exposure_jitter >= 0):
+            raise SimEnvError(f"exposure_jitter must be >= 0, got {self.exposure_jitter}")
+        if self.sensor_width is not None and int(self.sensor_width) < 1:
+            raise SimEnvError(f"sensor_width must be a positive number of pixels or None, got {self.sensor_width}")
         if int(self.blur_subframes) != self.blur_subframes or self.blur_subframes < 1:
             raise SimEnvError(f"blur_subframes must be an integer >= 1 (1 = one render), got {self.blur_subframes}")
         if not (np.isfinite(self.readout_s) and self.readout_s >= 0):
@@ -165,6 +177,7 @@ class CameraEffects:
             or self.vignette_corner != 1.0
             or self.scene_light != 1.0
             or self.auto_exposure
+            or self.exposure_jitter > 0
             or self.exposure_s != self.reference_exposure_s
             or any(self.shot_noise)
             or any(self.read_noise)
@@ -184,34 +197,39 @@ class CameraEffects:
 _PRESETS: dict[str, CameraEffects] = {
     # The renderer's image, byte for byte (what every sequence gave before camera effects existed).
     "clean": CameraEffects(name="clean"),
-    # A TUM / ICL-NUIM-like hand-held RGB-D camera (Kinect v1 class). Sources: noise, ICL-NUIM (real-cameras.md 4);
-    # shutter open about half the frame interval at 30 fps (BlenderProc's example, real-cameras.md 4) as the
-    # reference exposure; rolling-shutter readout 0.05 of the frame time (BlenderProc's example); an sRGB response
-    # (the 8-bit encoding of consumer cameras; ours). Calibrated against 7-Scenes redkitchen frames
-    # (results/camera_calibration.md): vignette_corner, ae_target and ae_rate; no lens distortion (7-Scenes gives
-    # none).
+    # A TUM / ICL-NUIM-like hand-held RGB-D camera (Kinect v1 class). Sources: noise, ICL-NUIM (real-cameras.md 4),
+    # for a 640-px-wide sensor (ICL-NUIM's and the Kinect's resolution; at 320x240 it is the 2x2 area average, as
+    # real frames are when loaded); shutter open about half the frame interval at 30 fps as the reference exposure
+    # and a rolling-shutter readout of 0.05 of the frame time (BlenderProc's example, real-cameras.md 4); an sRGB
+    # response (the 8-bit encoding of consumer cameras; ours). Calibrated on the first 100 frames of 7-Scenes
+    # redkitchen against office0 / living0 (results/camera_calibration.md): ae_target (mean grey level 116),
+    # exposure_jitter (frame-to-frame change of log mean grey level, std 0.008); vignette_corner 0.9 is a gentle value
+    # within that measurement's uncertainty (corner/centre ratios of scene content alone differ by +-8 % between
+    # rooms); ae_rate 0.25 (ours: a lag of a few frames). No lens distortion (7-Scenes gives none).
     "kinect": CameraEffects(
         name="kinect",
         response="srgb",
-        vignette_corner=0.80,
+        vignette_corner=0.90,
         reference_exposure_s=0.5 / FPS_NOMINAL,
         exposure_s=0.5 / FPS_NOMINAL,
         auto_exposure=True,
-        ae_target=0.18,
+        ae_target=0.20,
         ae_rate=0.25,
         ae_min_s=1e-3,
         ae_max_s=1.0 / FPS_NOMINAL,
         max_gain=2.0,
+        exposure_jitter=0.010,
         shot_noise=ICL_SHOT_NOISE,
         read_noise=ICL_READ_NOISE,
+        sensor_width=640,
         blur_subframes=3,
         readout_s=0.05 / FPS_NOMINAL,
         depth_noise=True,
     ),
     # TartanAir-like stress (ours): a dim room (a quarter of the light), so exposure runs at its longest (a whole
-    # frame interval: strong blur) with up to 4x gain (noisier); a fast controller (ae_rate 0.7: exposure changes
-    # from frame to frame); a readout of half the frame interval; a gamma-2.2 response; strong vignetting; the TUM
-    # fr1 lens (reference-facts.md).
+    # frame interval: strong blur) with up to 4x gain (noisier; ICL noise at the image's own resolution); a fast
+    # controller (ae_rate 0.7) and 3 % exposure jitter (exposure changes from frame to frame); a readout of half
+    # the frame interval; a gamma-2.2 response; strong vignetting; the TUM fr1 lens (reference-facts.md).
     "hard": CameraEffects(
         name="hard",
         response="gamma",
@@ -226,6 +244,7 @@ _PRESETS: dict[str, CameraEffects] = {
         ae_min_s=1e-3,
         ae_max_s=1.0 / FPS_NOMINAL,
         max_gain=4.0,
+        exposure_jitter=0.03,
         shot_noise=ICL_SHOT_NOISE,
         read_noise=ICL_READ_NOISE,
         blur_subframes=5,
@@ -381,7 +400,9 @@ def row_weights(times: np.ndarray, row_centres: np.ndarray, exposure_s: float, s
 
 
 # --------------------------------------------------------------------------------------------------- auto-exposure
-def auto_exposure(brightness: np.ndarray, effects: CameraEffects) -> tuple[np.ndarray, np.ndarray]:
+def auto_exposure(
+    brightness: np.ndarray, effects: CameraEffects, jitter: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-frame exposure time (s) and analogue gain from each frame's mean linear brightness at the reference
     exposure (``brightness``, (N,): mean of ``L * V * scene_light``). Returns two (N,) float64 arrays.
 
@@ -390,20 +411,29 @@ def auto_exposure(brightness: np.ndarray, effects: CameraEffects) -> tuple[np.nd
     brightness frame i was measured at (a first-order controller in log space: lag of about 1 / ae_rate frames);
     E_0 is the settled value of frame 0 (the camera ran before recording started). E is clamped to
     [ae_min_s, ae_max_s * max_gain]; the exposure takes it up to ae_max_s, the gain the rest. Frame i's values
-    depend on frames 0..i-1 only.
+    depend on frames 0..i-1 only (and on its own jitter).
+
+    jitter: (N,) standard normal draws, one per frame; the frame's effective exposure is multiplied by
+    ``exp(exposure_jitter * jitter_i)`` (the gain takes the factor, or the exposure when the gain is 1 and the
+    factor < 1), and the controller measures the frame as exposed. None or exposure_jitter 0: no jitter.
     """
     b = np.maximum(np.asarray(brightness, dtype=np.float64), 1e-6)
     n = b.shape[0]
+    factor = np.ones(n)
+    if jitter is not None and effects.exposure_jitter > 0:
+        factor = np.exp(effects.exposure_jitter * np.asarray(jitter, dtype=np.float64)[:n])
     if not effects.auto_exposure:
-        return np.full(n, effects.exposure_s), np.ones(n)
-    lo, hi = effects.ae_min_s, effects.ae_max_s * effects.max_gain
-    E = np.empty(n)
-    E[0] = np.clip(effects.reference_exposure_s * effects.ae_target / b[0], lo, hi) if n else 0.0
-    for i in range(1, n):
-        measured = b[i - 1] * E[i - 1] / effects.reference_exposure_s
-        E[i] = np.clip(E[i - 1] * (effects.ae_target / measured) ** effects.ae_rate, lo, hi)
-    exposure = np.minimum(E, effects.ae_max_s)
-    return exposure, E / exposure
+        E = effects.exposure_s * factor
+    else:
+        lo, hi = effects.ae_min_s, effects.ae_max_s * effects.max_gain
+        E = np.empty(n)
+        settled = np.clip(effects.reference_exposure_s * effects.ae_target / b[0], lo, hi) if n else 0.0
+        for i in range(n):
+            E[i] = settled * factor[i]
+            measured = b[i] * E[i] / effects.reference_exposure_s
+            settled = np.clip(settled * (effects.ae_target / measured) ** effects.ae_rate, lo, hi)
+    exposure = np.minimum(E, max(effects.ae_max_s, effects.exposure_s))
+    return exposure, E / np.where(exposure > 0, exposure, 1.0)
 
 
 def mean_brightness(rgb: np.ndarray, effects: CameraEffects, vignette_map: np.ndarray | None = None) -> float:
@@ -418,11 +448,13 @@ def mean_brightness(rgb: np.ndarray, effects: CameraEffects, vignette_map: np.nd
 # ---------------------------------------------------------------------------------------------- the sensor image
 def linear_noise(x: np.ndarray, effects: CameraEffects, rng: np.random.Generator) -> np.ndarray:
     """``x`` (H, W, 3) linear sensor signal plus shot noise (std ``sqrt(x) * shot_noise``) and read noise (std
-    ``read_noise``) per channel, as float32; no draw when both are zero."""
+    ``read_noise``) per channel, both scaled by ``width / sensor_width`` (at most 1) when ``sensor_width`` is set,
+    as float32; no draw when both are zero."""
     if not (any(effects.shot_noise) or any(effects.read_noise)):
         return x
-    shot = np.asarray(effects.shot_noise, dtype=np.float32)
-    read = np.asarray(effects.read_noise, dtype=np.float32)
+    scale = 1.0 if effects.sensor_width is None else min(1.0, x.shape[1] / effects.sensor_width)
+    shot = np.asarray(effects.shot_noise, dtype=np.float32) * np.float32(scale)
+    read = np.asarray(effects.read_noise, dtype=np.float32) * np.float32(scale)
     std = np.sqrt(np.maximum(x, 0.0) * shot**2 + read**2)
     return x + std * rng.standard_normal(x.shape, dtype=np.float32)
 

@@ -35,7 +35,7 @@ from sim_envs.sequences import SequenceSpec
 from sim_envs.trajectories import Trajectory, make_trajectory
 
 RENDERER_BACKENDS: tuple[str, ...] = ("mujoco", "pyrender")
-_TRAJECTORY_STREAM, _NOISE_STREAM, _DEPTH_NOISE_STREAM = 1, 2, 3  # seed-sequence streams of a spec's seed (ours)
+_TRAJECTORY_STREAM, _NOISE_STREAM, _DEPTH_NOISE_STREAM, _EXPOSURE_STREAM = 1, 2, 3, 4  # streams of a spec's seed (ours)
 BRIGHTNESS_SIZE: tuple[int, int] = (40, 30)  # (width, height) of the renders auto-exposure measures (ours)
 _ALL_OUTPUTS = ("rgb", "depth", "labels", "instances")
 
@@ -141,9 +141,12 @@ class SimulatedSequence:
 
         n = len(self) if upto is None else int(upto) + 1
         fx = self.camera_effects
-        if not fx.auto_exposure:
-            return auto_exposure(np.ones(n), fx)
-        return auto_exposure(self._brightness_series(n), fx)
+        jitter = None
+        if fx.exposure_jitter > 0:  # one draw per frame from its own generator: any access order, same values
+            seed = int(self.spec.seed)
+            jitter = np.array([np.random.default_rng((seed, _EXPOSURE_STREAM, i)).standard_normal() for i in range(n)])
+        brightness = self._brightness_series(n) if fx.auto_exposure else np.ones(n)
+        return auto_exposure(brightness, fx, jitter)
 
     def close(self) -> None:
         """Release the renderers; a later frame creates new ones."""
