@@ -313,6 +313,24 @@ def inverse_response(effects: CameraEffects) -> np.ndarray:
     return 255.0 * linear
 
 
+_ENCODE_STEPS = 1 << 18  # linear steps of the encoding table (a step moves the output by < 0.02 levels)
+
+
+@lru_cache(maxsize=8)
+def _encode_lut(response: str, gamma: float) -> np.ndarray:
+    fx = CameraEffects(response=response, response_gamma=gamma)  # type: ignore[arg-type]
+    lut = np.rint(apply_response(np.arange(_ENCODE_STEPS + 1) / _ENCODE_STEPS, fx) * 255.0).astype(np.uint8)
+    lut.setflags(write=False)
+    return lut
+
+
+def encode(x: np.ndarray, effects: CameraEffects) -> np.ndarray:
+    """The camera response and 8-bit quantisation of a linear signal (clipped to [0, 1]): uint8 of the same shape,
+    ``rint(255 f(x))`` read from a table of 2^18 + 1 linear steps (x rounded to the nearest step first)."""
+    index = np.rint(np.clip(x, 0.0, 1.0) * np.float32(_ENCODE_STEPS)).astype(np.int32)
+    return _encode_lut(effects.response, float(effects.response_gamma))[index]
+
+
 @lru_cache(maxsize=4)
 def _decode_lut() -> np.ndarray:
     lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
@@ -469,7 +487,7 @@ def expose(linear: np.ndarray, effects: CameraEffects, exposure_s: float, gain: 
         x = x * vignette_map[..., None]
     x = np.minimum(x, 1.0)  # the sensor saturates (full well) before the noise is read
     x = linear_noise(x, effects, rng) * np.float32(gain)
-    return np.clip(np.rint(apply_response(x, effects) * 255.0), 0, 255).astype(np.uint8)
+    return encode(x, effects)
 
 
 @dataclass(frozen=True)
