@@ -20,24 +20,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("folder", help="output folder (must not exist or be empty, unless --overwrite)")
     parser.add_argument("--renderer", default="mujoco", help="renderer backend (default: mujoco)")
     parser.add_argument("--frames", type=int, default=None, help="export only the first N frames")
+    parser.add_argument("--camera-effects", default="clean", metavar="PRESET",
+                        help="simulated camera (sim_envs.camera_effects): clean (default, the renderer's images), "
+                             "kinect or hard; a non-clean camera also writes its photometric calibration "
+                             "(times.txt, pcalib.txt, vignette.png) and camera files")  # fmt: skip
     parser.add_argument("--overwrite", action="store_true", help="write into a non-empty folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def open_sequence(name: str, renderer: str) -> Any:
-    """A registered sequence as a frame source (lazy imports: the registry pulls in scenes and renderers)."""
-    from sim_envs.sequences import get_sequence
+def open_sequence(name: str, renderer: str, camera_effects: str = "clean") -> Any:
+    """A registered sequence, seen through the ``camera_effects`` preset, as a frame source (lazy imports: the
+    registry pulls in scenes and renderers)."""
+    from sim_envs.sequences import get_sequence, with_camera
 
     try:
         from sim_envs.sequences import SimulatedSequence
     except ImportError:
         from sim_envs.simsource import SimulatedSequence
-    return SimulatedSequence(get_sequence(name), renderer=renderer)
+    spec = get_sequence(name)
+    spec = with_camera(spec, camera_effects) if camera_effects != "clean" else spec
+    return SimulatedSequence(spec, renderer=renderer)
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        source = open_sequence(args.sequence, args.renderer)
+        source = open_sequence(args.sequence, args.renderer, args.camera_effects)
         try:
             folder = export_tum_rgbd(
                 source, args.folder, overwrite=args.overwrite, progress=not args.no_progress, max_frames=args.frames

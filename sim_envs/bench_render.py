@@ -57,6 +57,58 @@ def measure(scene: Scene, backend: str, outputs: tuple[str, ...], poses: np.ndar
         return len(poses) / (time.perf_counter() - start)
 
 
+def camera_variants() -> dict[str, object]:
+    """The camera presets and each ``kinect`` effect alone (on the clean camera), for :func:`camera_throughput`."""
+    from sim_envs.camera import preset_distortion
+    from sim_envs.camera_effects import CameraEffects, camera_effect_presets, camera_effects_preset
+
+    kinect = camera_effects_preset("kinect")
+    alone = {
+        "noise only": CameraEffects(name="noise", shot_noise=kinect.shot_noise, read_noise=kinect.read_noise,
+                                    sensor_width=kinect.sensor_width),
+        "response+vignette only": CameraEffects(name="vignette", vignette_corner=kinect.vignette_corner),
+        "auto-exposure only": CameraEffects(
+            name="ae", auto_exposure=True, ae_target=kinect.ae_target, ae_rate=kinect.ae_rate,
+            exposure_jitter=kinect.exposure_jitter, reference_exposure_s=kinect.reference_exposure_s,
+            ae_min_s=kinect.ae_min_s, ae_max_s=kinect.ae_max_s, max_gain=kinect.max_gain),
+        "blur+rolling shutter only": CameraEffects(name="blur", blur_subframes=kinect.blur_subframes,
+                                                   readout_s=kinect.readout_s),
+        "distortion only (tum_fr1)": CameraEffects(name="dist", distortion=preset_distortion("tum_fr1")),
+        "depth noise only": CameraEffects(name="depth", depth_noise=True),
+    }  # fmt: skip
+    return {**{p: p for p in camera_effect_presets()}, **alone}
+
+
+def camera_throughput(
+    sequence: str = "office0",
+    frames: int = 100,
+    width: int = 320,
+    height: int = 240,
+    renderer: str = "mujoco",
+    variants: dict[str, object] | None = None,
+) -> dict[str, float]:
+    """Frames per second of RGB + depth through each camera variant (name -> preset name or ``CameraEffects``;
+    default :func:`camera_variants`) along the first ``frames`` frames of ``sequence`` at ``width`` x ``height``,
+    after one warm-up frame (context made, room generated; the auto-exposure brightness pass of the frames is
+    included in the time). Prints one line per variant and returns name -> fps."""
+    from dataclasses import replace
+
+    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.simsource import SimulatedSequence
+
+    spec = replace(get_sequence(sequence).with_frames(frames + 1), width=width, height=height)
+    out = {}
+    for name, camera in (variants or camera_variants()).items():
+        with SimulatedSequence(with_camera(spec, camera), renderer) as seq:  # type: ignore[arg-type]
+            seq._render(0, ("rgb", "depth"))
+            start = time.perf_counter()
+            for i in range(1, frames + 1):
+                seq._render(i, ("rgb", "depth"))
+            out[name] = frames / (time.perf_counter() - start)
+        print(f"{name:<28} {out[name]:8.1f} fps", flush=True)
+    return out
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Command-line options of the benchmark."""
     parser.add_argument("--styles", nargs="+", default=["office", "living"], help="room styles (default: test styles)")
@@ -66,11 +118,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=200, help="frames timed per row")
     parser.add_argument("--width", type=int, default=320)
     parser.add_argument("--height", type=int, default=240)
+    parser.add_argument(
+        "--cameras", action="store_true", help="instead: RGB+depth fps of office0 through each camera and effect alone"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Print the benchmark table; returns 0."""
     from sim_envs.scenegen import generate_scene
+
+    if args.cameras:
+        print(f"camera throughput, RGB + depth at {args.width}x{args.height}, office0, {args.frames} frames")
+        camera_throughput("office0", args.frames, args.width, args.height, args.backends[0])
+        return 0
 
     print(f"render throughput at {args.width}x{args.height}, {args.frames} frames per row (frames per second)")
     print(f"{'style':<10} {'renderer':<10} {'outputs':<10} {'fps':>8}")

@@ -35,7 +35,9 @@ class Frame:
     rgb: (H, W, 3) uint8; depth: (H, W) float32 planar z in metres, ``NO_DEPTH`` where no surface;
     T_world_cam: (4, 4) float64 camera-to-world, OpenCV camera axes; labels: (H, W) uint8 ``SemanticClass`` values,
     ``NO_LABEL`` where no surface; instances: (H, W) int32 instance ids, ``NO_INSTANCE`` where no surface.
-    labels / instances are None when the source has none (a real TUM folder).
+    labels / instances are None when the source has none (a real TUM folder). sensor_depth: (H, W) float32 metres,
+    0 = no measurement, a noisy depth as a depth sensor would give it (a simulated camera with Kinect-like depth noise,
+    :func:`sim_envs.camera_effects.kinect_depth`), None otherwise; ``depth`` stays the exact ground truth.
     """
 
     index: int
@@ -45,3 +47,4 @@ class Frame:
     T_world_cam: np.ndarray
     labels: np.ndarray | None = None
     instances: np.ndarray | None = None
+    sensor_depth: np.ndarray | None = None

@@ -27,6 +27,7 @@ from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_params
 
 if TYPE_CHECKING:
+    from sim_envs.camera_effects import CameraEffects
     from sim_envs.render.effects import SensorEffects
 
 Split = Literal["test", "train"]
@@ -52,9 +53,12 @@ class SequenceSpec:
     a kind of :data:`sim_envs.trajectories.TRAJECTORY_KINDS`; trajectory_params: its keyword parameters as sorted
     ``(name, value)`` pairs (a mapping is accepted and converted); camera: a :func:`sim_envs.camera.preset` name;
     n_frames: frames at ``fps`` Hz; split: "test" or "train"; seed: seeds the trajectory and the per-frame sensor
-    noise; texture_density: in [0, 1], passed to the room generator; effects: sensor effects
-    (``sim_envs.render.effects.SensorEffects``), None for none; width, height: image size in pixels;
-    description: one line for listings.
+    noise; texture_density: in [0, 1], passed to the room generator; effects: the older, simple sensor effects on
+    8-bit values (``sim_envs.render.effects.SensorEffects``), None for none; width, height: image size in pixels;
+    description: one line for listings; camera_effects: what the camera does to the image
+    (:mod:`sim_envs.camera_effects`): a preset name (``clean``, ``kinect``, ``hard``; kept as the name, so it is
+    part of the spec's repr and of run fingerprints) or a ``CameraEffects``; default ``clean``, the renderer's
+    bytes (see :func:`with_camera`). Not both ``effects`` and a ``camera_effects`` other than ``clean``.
     """
 
     name: str
@@ -72,8 +76,10 @@ class SequenceSpec:
     height: int = DEFAULT_HEIGHT
     fps: float = FPS
     description: str = ""
+    camera_effects: str | CameraEffects = "clean"
 
     def __post_init__(self) -> None:
+        self._check_camera_effects()
         params = self.trajectory_params
         items = params.items() if isinstance(params, Mapping) else params
         object.__setattr__(self, "trajectory_params", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
@@ -104,6 +110,32 @@ class SequenceSpec:
         if self.split == "train" and self.scene_seed < TRAIN_SEED_BASE:
             raise SimEnvError(f"training sequence {self.name!r}: scene_seed must be >= {TRAIN_SEED_BASE}")
 
+    def _check_camera_effects(self) -> None:
+        value = self.camera_effects
+        if isinstance(value, str) and value == "clean":
+            return
+        from sim_envs.camera_effects import CameraEffects, camera_effects_preset
+
+        if isinstance(value, str):
+            try:
+                camera_effects_preset(value)
+            except UnknownNameError as exc:
+                raise UnknownNameError(f"sequence {self.name!r}: {exc}") from None
+        elif not isinstance(value, CameraEffects):
+            raise SimEnvError(
+                f"sequence {self.name!r}: camera_effects must be a preset name or a CameraEffects, got {value!r}"
+            )
+        if self.effects is not None and self.effects.any:
+            raise SimEnvError(
+                f"sequence {self.name!r}: give either effects (SensorEffects) or camera_effects, not both"
+            )
+
+    def camera_effects_model(self) -> CameraEffects:
+        """The spec's camera effects as a :class:`~sim_envs.camera_effects.CameraEffects` (a preset resolved)."""
+        from sim_envs.camera_effects import resolve_camera_effects
+
+        return resolve_camera_effects(self.camera_effects)
+
     @property
     def params(self) -> dict[str, Any]:
         """The trajectory parameters as a dict."""
@@ -126,6 +158,16 @@ class SequenceSpec:
     def gym_id(self) -> str:
         """The Gymnasium id of this sequence, ``sim_envs/<name>-v0``."""
         return gym_id(self.name)
+
+
+def with_camera(spec: SequenceSpec, camera_effects: str | CameraEffects) -> SequenceSpec:
+    """``spec`` seen through another camera (a preset name of
+    :func:`sim_envs.camera_effects.camera_effect_presets` or a ``CameraEffects``); same name, trajectory and room.
+
+    The hook for suites: ``with_camera(get_sequence("office0"), "kinect")``. Registered sequences keep ``clean``
+    until the benchmark switches its default (which changes every committed result).
+    """
+    return replace(spec, camera_effects=camera_effects)
 
 
 def gym_id(name: str) -> str:

@@ -9,6 +9,16 @@ therefore be pickled to a spawned worker before use; pickling drops the renderer
 Determinism: frame ``i`` is a function of the spec and ``i`` only. Sensor noise is drawn from a generator seeded by
 ``(spec.seed, i)``, so frames come out the same in any access order; motion blur averages renders at
 ``pose_at(t_i - k * dt)`` sub-frame times.
+
+Camera effects (``spec.camera_effects``, :mod:`sim_envs.camera_effects`): the RGB is the camera's image (exposure,
+vignetting, noise, response, blur over the exposure, rolling shutter, lens distortion). Auto-exposure needs the
+brightness of frames 0..i-1: the sequence renders them at :data:`BRIGHTNESS_SIZE` with a second renderer the first
+time a frame needs them, and caches the series (a few milliseconds per frame, once). A distorted camera's image is
+delivered undistorted (:meth:`SimulatedSequence.rgb`, ``frame(i).rgb``), exactly as a real distorted camera's
+images are by :class:`sim_envs.datasets.RgbdFolder`, because agents receive pinhole intrinsics only; the raw sensor
+image is :meth:`SimulatedSequence.raw_rgb`. Ground truth (depth, labels, instances) is the exact pinhole render at
+the frame's pose, which is the pixel grid of the delivered image. With depth noise on, frames also carry a
+Kinect-like ``sensor_depth`` (its own generator, ``(spec.seed, 3, i)``).
 """
 
 from __future__ import annotations
@@ -25,7 +35,8 @@ from sim_envs.sequences import SequenceSpec
 from sim_envs.trajectories import Trajectory, make_trajectory
 
 RENDERER_BACKENDS: tuple[str, ...] = ("mujoco", "pyrender")
-_TRAJECTORY_STREAM, _NOISE_STREAM = 1, 2  # seed-sequence streams of a spec's seed (ours)
+_TRAJECTORY_STREAM, _NOISE_STREAM, _DEPTH_NOISE_STREAM, _EXPOSURE_STREAM = 1, 2, 3, 4  # streams of a spec's seed (ours)
+BRIGHTNESS_SIZE: tuple[int, int] = (40, 30)  # (width, height) of the renders auto-exposure measures (ours)
 _ALL_OUTPUTS = ("rgb", "depth", "labels", "instances")
 
 
@@ -69,6 +80,10 @@ class SimulatedSequence:
         self.intrinsics: Intrinsics = spec.intrinsics()
         self.backend = renderer
         self._renderer: Any = None
+        self.camera_effects = spec.camera_effects_model()
+        self._brightness_renderer: Any = None
+        self._brightness = np.empty(0)  # mean linear brightness of frames 0..len-1 (auto-exposure), cached
+        self._geometry: Any = None
 
     # -- FrameSource -----------------------------------------------------------------------------------------------
 
@@ -107,17 +122,38 @@ class SimulatedSequence:
             T_world_cam=self.poses[index].copy(),
             labels=out["labels"],
             instances=out["instances"],
+            sensor_depth=out.get("sensor_depth"),
         )
 
     def rgb(self, index: int) -> np.ndarray:
         """(H, W, 3) uint8 image of frame ``index`` (sensor effects applied), without the ground-truth passes."""
         return self._render(self._check_index(index), ("rgb",))["rgb"]
 
+    def raw_rgb(self, index: int) -> np.ndarray:
+        """(H, W, 3) uint8 raw sensor image of frame ``index``: :meth:`rgb` before undistortion (distorted by the
+        camera's lens when it has distortion; the same bytes as :meth:`rgb` otherwise)."""
+        return self._render(self._check_index(index), ("rgb",), undistort=False)["rgb"]
+
+    def exposures(self, upto: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Exposure times (s) and analogue gains of frames ``0..upto`` (default: all), two (n,) float64 arrays
+        (:func:`sim_envs.camera_effects.auto_exposure`; constant when auto-exposure is off)."""
+        from sim_envs.camera_effects import auto_exposure
+
+        n = len(self) if upto is None else int(upto) + 1
+        fx = self.camera_effects
+        jitter = None
+        if fx.exposure_jitter > 0:  # one draw per frame from its own generator: any access order, same values
+            seed = int(self.spec.seed)
+            jitter = np.array([np.random.default_rng((seed, _EXPOSURE_STREAM, i)).standard_normal() for i in range(n)])
+        brightness = self._brightness_series(n) if fx.auto_exposure else np.ones(n)
+        return auto_exposure(brightness, fx, jitter)
+
     def close(self) -> None:
-        """Release the renderer; a later frame creates a new one."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        """Release the renderers; a later frame creates new ones."""
+        for attr in ("_renderer", "_brightness_renderer"):
+            if getattr(self, attr) is not None:
+                getattr(self, attr).close()
+                setattr(self, attr, None)
 
     def __enter__(self) -> SimulatedSequence:
         return self
@@ -128,6 +164,7 @@ class SimulatedSequence:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         state["_renderer"] = None  # an OpenGL context does not travel; the copy makes its own
+        state["_brightness_renderer"] = None
         return state
 
     def __repr__(self) -> str:
@@ -148,10 +185,33 @@ class SimulatedSequence:
             self._renderer = make_renderer(self.scene, self.intrinsics, backend=self.backend)
         return self._renderer
 
-    def _render(self, index: int, outputs: tuple[str, ...]) -> dict[str, np.ndarray | None]:
-        """Render ``outputs`` of frame ``index``. The RGB gets the spec's sensor effects: motion blur (the mean of
-        renders at ``pose_at(t + offset)`` for the shutter's sub-frame offsets), then exposure and noise drawn from
-        :func:`frame_rng`. Ground truth (depth, labels, instances) is exact, at the frame's own pose."""
+    def _brightness_series(self, n: int) -> np.ndarray:
+        """(n,) mean linear brightness of frames 0..n-1 at the reference exposure, rendered at
+        :data:`BRIGHTNESS_SIZE` (cached; only the frames not yet measured are rendered)."""
+        from sim_envs.camera_effects import mean_brightness, vignette
+
+        done = self._brightness.shape[0]
+        if n > done:
+            if self._brightness_renderer is None:
+                from sim_envs.render import make_renderer
+
+                small = self.intrinsics.scaled(*BRIGHTNESS_SIZE)
+                self._brightness_renderer = make_renderer(self.scene, small, backend=self.backend)
+                self._brightness_vignette = vignette(small, self.camera_effects.vignette_corner)
+            fx, renderer = self.camera_effects, self._brightness_renderer
+            new = [
+                mean_brightness(renderer.render(self.poses[i], outputs=("rgb",)).rgb, fx, self._brightness_vignette)
+                for i in range(done, n)
+            ]
+            self._brightness = np.concatenate([self._brightness, np.asarray(new, dtype=np.float64)])
+        return self._brightness[:n]
+
+    def _render(self, index: int, outputs: tuple[str, ...], undistort: bool = True) -> dict[str, np.ndarray | None]:
+        """Render ``outputs`` of frame ``index``. The RGB gets the spec's camera effects
+        (:func:`sim_envs.camera_effects.sensor_image`, then undistortion unless ``undistort`` is False) or its older
+        sensor effects: motion blur (the mean of renders at ``pose_at(t + offset)`` for the shutter's sub-frame
+        offsets), then exposure and noise drawn from :func:`frame_rng`. Ground truth (depth, labels, instances) is
+        exact, at the frame's own pose."""
         from sim_envs.render.effects import apply_sensor_effects, average_frames, blur_offsets
 
         renderer = self._get_renderer()
@@ -162,6 +222,8 @@ class SimulatedSequence:
             "labels": out.labels,
             "instances": out.instances,
         }
+        if self.camera_effects.any or self.camera_effects.depth_noise:
+            return self._camera_render(index, result, undistort)
         effects = self.spec.effects
         if effects is None or not effects.any or out.rgb is None:
             return result
@@ -172,6 +234,34 @@ class SimulatedSequence:
             subframes = [renderer.render(T, outputs=("rgb",)).rgb for T in self.trajectory.pose_at(t + offsets[:-1])]
             rgb = average_frames([*subframes, rgb])  # the last offset is 0: the frame's own render
         result["rgb"] = apply_sensor_effects(rgb, effects, frame_rng(self.spec.seed, index))
+        return result
+
+    def _camera_render(self, index: int, result: dict[str, Any], undistort: bool) -> dict[str, Any]:
+        """``result`` (the renders at the frame's pose) with the camera's RGB and, when on, its sensor depth."""
+        from sim_envs.camera_effects import kinect_depth, sensor_geometry, sensor_image, undistort_image
+
+        fx = self.camera_effects
+        if self._geometry is None:
+            self._geometry = sensor_geometry(self.intrinsics, fx)
+        if result["rgb"] is not None and fx.any:
+            exposure, gain = self.exposures(index)
+            renderer = self._get_renderer()
+            raw = sensor_image(
+                lambda T: renderer.render(T, outputs=("rgb",)).rgb,
+                self.trajectory.pose_at,
+                float(self.timestamps[index]),
+                fx,
+                self.intrinsics,
+                frame_rng(self.spec.seed, index),
+                exposure_s=float(exposure[index]),
+                gain=float(gain[index]),
+                geometry=self._geometry,
+                own_render=result["rgb"],
+            )
+            result["rgb"] = undistort_image(raw, self._geometry) if undistort else raw
+        if fx.depth_noise and result["depth"] is not None:
+            rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
+            result["sensor_depth"] = kinect_depth(result["depth"], rng)
         return result
 
 

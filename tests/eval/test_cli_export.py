@@ -34,7 +34,7 @@ class TinySource:
 
 def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
     source = TinySource()
-    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer: source)
+    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer, camera_effects="clean": source)
     out = tmp_path / "tiny"
     assert main(["export", "tiny", str(out), "--no-progress", "--frames", "3"]) == 0
     assert "exported tiny" in capsys.readouterr().out and source.closed
@@ -51,3 +51,9 @@ def test_export_command_unknown_sequence(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences")
     assert main(["export", "no-such-sequence", str(tmp_path / "x"), "--no-progress"]) == 1
     assert "no-such-sequence" in capsys.readouterr().err
+
+
+def test_export_command_unknown_camera_effects(tmp_path, capsys):
+    pytest.importorskip("sim_envs.sequences")
+    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 1
+    assert "clean, hard, kinect" in capsys.readouterr().err

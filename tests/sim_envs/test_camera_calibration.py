@@ -1,0 +1,28 @@
+"""Camera statistics: known answers on synthetic frames."""
+
+import numpy as np
+import pytest
+
+from sim_envs.camera import Intrinsics
+from sim_envs.camera_calibration import camera_statistics, noise_std, vignette_ratio
+from sim_envs.camera_effects import vignette
+
+
+def test_noise_is_measured_on_flat_regions():
+    rng = np.random.default_rng(0)
+    image = np.full((120, 160), 100.0, np.float32)
+    image[:, 80:] = np.linspace(0, 120, 80, dtype=np.float32)[None, :] + 60  # a ramp: no noise, some gradient
+    noisy = image + rng.normal(0, 3.0, image.shape).astype(np.float32)
+    assert noise_std(noisy) == pytest.approx(3.0, rel=0.1)
+    assert noise_std(image) == pytest.approx(0.0, abs=1e-4)
+
+
+def test_vignette_ratio_and_brightness_change():
+    V = vignette(Intrinsics(100, 100, 79.5, 59.5, 160, 120), 0.5)
+    assert vignette_ratio(np.full((120, 160), 200.0, np.float32)) == pytest.approx(1.0)
+    assert 0.5 < vignette_ratio(200 * V) < 0.7
+    frames = [np.full((120, 160, 3), v, np.uint8) for v in (100, 100, 110, 100)]
+    stats = camera_statistics(frames)
+    changes = np.diff(np.log([100, 100, 110, 100]))
+    assert stats.log_brightness_change_std == pytest.approx(np.std(changes), rel=1e-3)
+    assert stats.brightness_mean == pytest.approx(102.5) and stats.frames == 4
