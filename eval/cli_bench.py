@@ -46,7 +46,7 @@ from pathlib import Path
 from eval.errors import EvalError
 from eval.executors import EXECUTORS, make_executor
 from eval.methods import ALIGNMENTS, EXTERNAL_LAYOUT, MethodError, load_methods, merge_methods, parse_external
-from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite
+from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_camera_presets
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
 GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
@@ -69,9 +69,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
                              "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
     parser.add_argument("--camera", default=None, metavar="PRESET|FILE",
-                        help="camera of the folder sequences: a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) "
-                             "or a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: "
-                             "the folder's camera.toml, side file, or its name (freiburg1/2/3)")  # fmt: skip
+                        help="simulated sequences: what the camera does to the images, clean (the renderer's "
+                             "bytes, default), kinect (a hand-held RGB-D camera) or hard (sim_envs/camera_effects.py; "
+                             "transfer: the simulated part's one preset, default all); folder sequences: their "
+                             "calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or a camera file "
+                             "(TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the folder's "
+                             "camera.toml, side file, or its name (freiburg1/2/3)")  # fmt: skip
     parser.add_argument("--image-size", default=None, metavar="WxH",
                         help="resolution the folder sequences are delivered at (default 320x240, the paper's; "
                              "'native': the images' own)")  # fmt: skip
@@ -224,8 +227,11 @@ def run(args: argparse.Namespace) -> int:
         if unknown:
             raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
+        camera, presets = args.camera, None
+        if suite.kind == "transfer" and camera in sim_camera_presets():  # the simulated part's camera
+            camera, presets = None, (args.camera,)
         suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
-                             camera=args.camera, size=_image_size(args.image_size))  # fmt: skip
+                             camera=camera, size=_image_size(args.image_size))  # fmt: skip
         if args.align is not None:
             suite = replace(suite, alignment=args.align)
         if args.timeout is not None and not args.timeout > 0:
@@ -240,7 +246,7 @@ def run(args: argparse.Namespace) -> int:
     from eval.runner import run_suite
 
     if suite.kind == "transfer":
-        return _transfer(args, suite, methods, executor, command)
+        return _transfer(args, suite, methods, executor, command, presets)
     if not suite.sequences:
         for name, reason in suite.skipped:
             print(f"  skipped sequence {name}: {reason}")
@@ -292,16 +298,18 @@ def run(args: argparse.Namespace) -> int:
     return max(status, _gate(args, result))
 
 
-def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str) -> int:
-    """The transfer suite: each part (:func:`eval.suites.transfer_parts`) run as its own suite (so its runs are
-    shared with ``make bench`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
+def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str,
+              presets: tuple[str, ...] | None = None) -> int:
+    """The transfer suite: each part (:func:`eval.suites.transfer_parts`; ``presets``: the simulated part's camera
+    presets, default all) run as its own suite (so its runs are shared with ``make bench``, ``cnnslam bench table1
+    --camera P`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
     from eval.runner import run_suite
-    from eval.suites import transfer_parts
+    from eval.suites import SIM_CAMERA_PRESETS, transfer_parts
     from eval.transfer_report import report_transfer
 
     parts, status = [], 0
     try:
-        for domain, part in transfer_parts(suite):
+        for domain, part in transfer_parts(suite, presets or SIM_CAMERA_PRESETS):
             if not part.sequences:
                 continue
             print(f"transfer: part {domain}: suite {part.name}, {len(part.sequences)} sequence(s)")

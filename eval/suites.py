@@ -254,6 +254,20 @@ class SequenceRef:
             "axis_value": self.axis_value,
         }
 
+    def with_camera_effects(self, preset: str) -> SequenceRef:
+        """This simulated sequence seen through the camera-effects preset ``preset``
+        (:func:`sim_envs.camera_effects.camera_effect_presets`), named ``<name>@<preset>`` (its own run folders);
+        ``clean`` (the renderer's bytes) leaves the sequence as it is."""
+        if self.folder is not None:
+            raise SuiteError(f"sequence {self.name!r} is a folder: its images come from a real camera")
+        if preset not in sim_camera_presets():
+            raise SuiteError(f"unknown camera preset {preset!r}; camera-effects presets of simulated sequences: "
+                             f"{', '.join(sim_camera_presets())}")  # fmt: skip
+        if preset == "clean":
+            return self
+        overrides = {**dict(self.overrides), "camera_effects": preset}
+        return replace(self, name=f"{self.name}@{preset}", overrides=tuple(overrides.items()))
+
     def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None) -> SequenceRef:
         """This folder sequence with another camera (preset name or camera file) and/or delivered size."""
         if self.folder is None:
@@ -467,8 +481,16 @@ SuiteKind = Literal["runs", "perf", "transfer"]
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
 # the transfer suite ranks the paper's methods; the oracle is fed ground truth and would win every ranking
 TRANSFER_METHODS: tuple[str, ...] = tuple(m for m in TABLE1_METHODS if m != "oracle")
-# camera presets of the simulated part of the transfer suite (sim_envs' camera models)
-SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean",)
+# camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
+SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
+
+
+def sim_camera_presets() -> list[str]:
+    """The camera-effects presets a simulated sequence can be seen through (``--camera`` of simulated sequences);
+    disjoint from the calibration presets of real folders (:func:`sim_envs.camera.camera_presets`)."""
+    from sim_envs.camera_effects import camera_effect_presets
+
+    return camera_effect_presets()
 ABLATION_METHODS: tuple[str, ...] = ("raw-CNN", "focal-adjusted", "adjusted+refined")
 QUICK_METHODS: tuple[str, ...] = (*TABLE1_METHODS, "constant-pose")
 DEPTH_QUALITY_METHODS: tuple[str, ...] = ("CNN-SLAM", "raw-CNN", "dev-depth-5", "dev-depth-10", "dev-depth-20")
@@ -537,9 +559,17 @@ class Suite:
             named = [name for name in sequences if name not in missing]
             refs = tuple(own[name] if name in own else resolve_sequence(name) for name in named)
             skipped = tuple((name, missing[name]) for name in sequences if name in missing)
+        if camera is not None and camera in sim_camera_presets():  # what the simulated camera does to its images
+            if not any(r.folder is None for r in refs):
+                raise SuiteError(f"--camera {camera} is a simulated camera's preset, and no simulated sequence is "
+                                 "selected (a folder's camera is a calibration preset or file)")  # fmt: skip
+            refs = tuple(r.with_camera_effects(camera) if r.folder is None else r for r in refs)
+            camera = None
         if camera is not None or size is not None:
             if not any(r.folder is not None for r in refs):
-                raise SuiteError("--camera and --image-size apply to folder sequences, and none is selected")
+                raise SuiteError("--camera (a calibration) and --image-size apply to folder sequences, and none is "
+                                 f"selected; simulated sequences take a camera preset: "
+                                 f"{', '.join(sim_camera_presets())}")  # fmt: skip
             refs = tuple(r.with_folder_options(camera, size) if r.folder is not None else r for r in refs)
         if frames is not None and frames != "all" and int(frames) < 2:
             raise SuiteError(f"--frames must be >= 2, got {frames}")
@@ -677,7 +707,9 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = SIM_CAMERA_PRESETS) ->
     if unknown:
         raise SuiteError(f"unknown camera preset(s) {unknown}; valid presets: {', '.join(SIM_CAMERA_PRESETS)}")
     table1 = SUITES["table1"]
-    parts = [(f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds)) for p in presets]
+    parts = [(f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds,
+                                  sequences=tuple(r.with_camera_effects(p) for r in table1.sequences)))
+             for p in presets]  # fmt: skip
     real = replace(SUITES["real"], sequences=suite.sequences, skipped=suite.skipped, methods=suite.methods,
                    frames=suite.frames, seeds=suite.seeds)  # fmt: skip
     return [*parts, ("real", real)]

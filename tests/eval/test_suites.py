@@ -20,7 +20,7 @@ from eval.suites import (
     rotation_share,
     sweep_sequences,
 )
-from sim_envs.camera import preset
+from sim_envs.camera import camera_presets, preset
 from sim_envs.sequences import TABLE1_SEQUENCES, get_sequence
 
 
@@ -127,3 +127,24 @@ def test_a_variant_environment_renders_with_its_camera():
         assert env.unwrapped.source.name == "office1@focal1.4"
     finally:
         env.close()
+
+
+def test_a_camera_preset_applies_to_simulated_sequences_and_a_calibration_to_folders():
+    kinect = get_suite("table1").select(["office0", "living1"], camera="kinect")
+    assert [r.name for r in kinect.sequences] == ["office0@kinect", "living1@kinect"]
+    spec = kinect.sequences[0].spec()
+    assert spec.camera_effects == "kinect" and spec.trajectory == get_sequence("office0").trajectory
+    assert kinect.sequences[0].describe()["overrides"] == {"camera_effects": "kinect"}  # in the fingerprint
+    assert get_suite("table1").select(["office0"], camera="clean").sequences[0].name == "office0"  # today's bytes
+    rot = get_suite("rotation").select(["rot_yaw_30"], camera="hard").sequences[0]
+    assert rot.name == "rot_yaw_30@hard" and rot.spec().camera_effects == "hard"
+    with pytest.raises(SuiteError, match="camera-effects presets of simulated sequences: clean, hard, kinect"):
+        SequenceRef("office0", base="office0").with_camera_effects("kinnect")
+    with pytest.raises(SuiteError, match="simulated sequences take a camera preset"):
+        get_suite("table1").select(["office0"], camera="tum_fr1")  # a folder calibration on a simulated sequence
+
+
+def test_camera_preset_names_do_not_collide_with_folder_calibrations():
+    from eval.suites import sim_camera_presets
+
+    assert not set(sim_camera_presets()) & set(camera_presets())

@@ -116,15 +116,18 @@ def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatc
     assert (tmp_path / "runs" / "table1" / "office0" / "oracle").is_dir()  # the sim part's runs are table1's
     assert (tmp_path / "runs" / "real" / "tiny" / "yawed").is_dir()  # the real part's are the real suite's
     ranks = pd.read_csv(tmp_path / "res" / "transfer.csv")
-    assert set(ranks["domain"]) == {"sim:clean", "real:tiny"}
+    assert set(ranks["domain"]) == {"sim:clean", "sim:kinect", "sim:hard", "real:tiny"}  # every camera preset
+    assert (tmp_path / "runs" / "table1" / "office0@kinect" / "constant-pose").is_dir()
     ate = ranks[ranks["metric"] == "ate_se3_rmse"].set_index(["domain", "method"])["rank"]
     assert ate["sim:clean", "constant-pose"] == ate["real:tiny", "constant-pose"] == 3  # the worst in both
     assert ate["sim:clean", "oracle"] == 1.5 or ate["sim:clean", "oracle"] == 1  # exact poses: best (or tied)
-    corr = pd.read_csv(tmp_path / "res" / "transfer_correlations.csv").set_index("metric")
+    corr = pd.read_csv(tmp_path / "res" / "transfer_correlations.csv")
+    assert len(corr) == 3 * 4  # every simulated domain against the real one, per metric
+    corr = corr[corr["sim"] == "sim:clean"].set_index("metric")
     sim_r = ranks[(ranks["metric"] == "ate_se3_rmse") & (ranks["domain"] == "sim:clean")].set_index("method")["rank"]
     real_r = ranks[(ranks["metric"] == "ate_se3_rmse") & (ranks["domain"] == "real:tiny")].set_index("method")["rank"]
     expected = np.corrcoef(sim_r.sort_index(), real_r.sort_index())[0, 1]  # Spearman = Pearson of the ranks
     assert corr.loc["ate_se3_rmse", "n"] == 3 and corr.loc["ate_se3_rmse", "spearman"] == pytest.approx(expected)
     text = (tmp_path / "res" / "transfer.md").read_text()
-    assert "## Verdict" in text and "| sim:clean | real:tiny |" in text
+    assert "## Verdict" in text and "| sim:clean | real:tiny |" in text and "| sim:hard | real:tiny |" in text
     assert (tmp_path / "res" / "transfer.png").is_file()
