@@ -9,6 +9,8 @@ cores per renderer (Mesa llvmpipe, EGL).
 from __future__ import annotations
 
 import argparse
+import json
+import re
 import time
 from collections.abc import Sequence
 
@@ -121,6 +123,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cameras", action="store_true", help="instead: RGB+depth fps of office0 through each camera and effect alone"
     )
+    parser.add_argument("--json", action="store_true", help="with --cameras: also print the figures as one JSON object")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -129,7 +132,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.cameras:
         print(f"camera throughput, RGB + depth at {args.width}x{args.height}, office0, {args.frames} frames")
-        camera_throughput("office0", args.frames, args.width, args.height, args.backends[0])
+        fps = camera_throughput("office0", args.frames, args.width, args.height, args.backends[0])
+        if args.json:  # one object, keys "<variant>_fps" (words joined by "_"), for `cnnslam bench perf`
+            print(json.dumps({re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_") + "_fps": round(value, 2)
+                              for name, value in fps.items()}))  # fmt: skip
         return 0
 
     print(f"render throughput at {args.width}x{args.height}, {args.frames} frames per row (frames per second)")
