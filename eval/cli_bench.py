@@ -71,9 +71,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--camera", default=None, metavar="PRESET|FILE",
                         help="simulated sequences: what the camera does to the images, clean (the renderer's "
                              "bytes, default), kinect (a hand-held RGB-D camera) or hard (sim_envs/camera_effects.py; "
-                             "transfer: the simulated part's one preset, default all); folder sequences: their "
-                             "calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or a camera file "
-                             "(TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the folder's "
+                             "transfer: the simulated part's presets, comma-separated, default all); folder "
+                             "sequences: their calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or "
+                             "a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the "
+                             "folder's "
                              "camera.toml, side file, or its name (freiburg1/2/3)")  # fmt: skip
     parser.add_argument("--image-size", default=None, metavar="WxH",
                         help="resolution the folder sequences are delivered at (default 320x240, the paper's; "
@@ -228,8 +229,8 @@ def run(args: argparse.Namespace) -> int:
             raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
         camera, presets = args.camera, None
-        if suite.kind == "transfer" and camera in sim_camera_presets():  # the simulated part's camera
-            camera, presets = None, (args.camera,)
+        if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= set(sim_camera_presets()):
+            camera, presets = None, tuple(args.camera.split(","))  # the simulated part's cameras, e.g. clean,kinect
         suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
                              camera=camera, size=_image_size(args.image_size))  # fmt: skip
         if args.align is not None:
