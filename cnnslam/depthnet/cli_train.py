@@ -3,6 +3,7 @@
     cnnslam train generate-data [--root data/depthnet] [--scenes 1200] [--views 20] [--val-scenes 20] [--workers 2]
     cnnslam train fit [--data data/depthnet] [--out data/depthnet/run] [--steps 16000] [--batch 16] ... [--export]
     cnnslam train validate [--weights W] [--frames 40] [--results results] [--update-manifest]
+    cnnslam train validate-folder FOLDER... [--frames 100]   # real RGB-D frames -> results/depthnet_real.md
     cnnslam train export [--run data/depthnet/run]
 
 ``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
@@ -36,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import sys
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -100,6 +102,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     v.add_argument("--threads", type=int, default=2)
     v.add_argument("--update-manifest", action="store_true",
                    help="store the figures in the manifest beside the weights (<weights>.json or manifest.json)")
+
+    r = sub.add_parser("validate-folder", help="score weights on real RGB-D folders' frames; write "
+                                                 "results/depthnet_real.{md,json}")  # fmt: skip
+    r.add_argument("folders", nargs="+", type=Path, help="RGB-D folders (TUM, ICL-NUIM, 7-Scenes layouts)")
+    r.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
+    r.add_argument("--frames", type=int, default=100, help="evenly spaced frames per folder")
+    r.add_argument("--results", type=Path, default=Path("results"))
+    r.add_argument("--threads", type=int, default=2)
 
     e = sub.add_parser("export", help="copy a run's weights + manifest to the shipped default")
     e.add_argument("--run", type=Path, default=Path(d.out_dir))
@@ -180,6 +190,30 @@ def _fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _validate_folder(args: argparse.Namespace) -> int:
+    from cnnslam.depthnet.predict import load_predictor
+    from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
+    from sim_envs.datasets import load_rgbd_folder
+    from sim_envs.errors import SimEnvError
+
+    predictor = load_predictor(args.weights, num_threads=args.threads)
+    results = []
+    for folder in args.folders:
+        try:
+            source = load_rgbd_folder(folder)
+        except SimEnvError as exc:
+            print(f"cnnslam train validate-folder: error: {exc}", file=sys.stderr)
+            return 2
+        results.append(validate_folder(predictor, source, args.frames, progress=_progress(f"validate {folder.name}")))
+    sim_json = args.results / "depthnet.json"
+    simulated = json.loads(sim_json.read_text())["validation"]["overall"] if sim_json.is_file() else None
+    args.results.mkdir(parents=True, exist_ok=True)
+    (args.results / "depthnet_real.md").write_text(folder_validation_markdown(results, simulated))
+    (args.results / "depthnet_real.json").write_text(json.dumps([r.to_dict() for r in results], indent=2) + "\n")
+    print(f"wrote {args.results / 'depthnet_real.md'} and {args.results / 'depthnet_real.json'}")
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     import matplotlib
 
@@ -239,5 +273,7 @@ def run(args: argparse.Namespace) -> int:
         return _fit(args)
     if args.action == "validate":
         return _validate(args)
+    if args.action == "validate-folder":
+        return _validate_folder(args)
     _export(args.run)
     return 0

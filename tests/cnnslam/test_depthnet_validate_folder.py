@@ -1,0 +1,49 @@
+"""The network on a real folder's frames: pooled depth metrics and the scale statistic, with known answers from a
+stub predictor on a written fixture folder (no network needed)."""
+
+import numpy as np
+import pytest
+
+from cnnslam.depthnet.predict import Prediction
+from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
+from sim_envs.camera import preset
+from sim_envs.datasets import load_rgbd_folder, write_folder
+from sim_envs.frames import Frame
+from sim_envs.simsource import FrameListSource
+
+
+class StubPredictor:
+    """Predicts ``factor x`` the truth (2 m everywhere) as the raw output for a camera of focal ``train_focal``."""
+
+    train_focal = 100.0
+
+    def __init__(self, factor: float) -> None:
+        self.factor = factor
+
+    def current_focal(self, intrinsics, image_size):
+        return 150.0
+
+    def predict_raw(self, rgb):
+        h, w = rgb.shape[:2]
+        depth = np.full((h, w), 2.0 * self.factor * self.train_focal / 150.0, np.float32)  # eq. 5 undoes f_cur/f_tr
+        return Prediction(depth, np.full((h, w, 4), 0.25, np.float32))
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    rng = np.random.default_rng(0)
+    frames = [Frame(k, k / 30.0, rng.integers(0, 256, (48, 64, 3), dtype=np.uint8),
+                    np.full((48, 64), 2.0, np.float32), np.eye(4)) for k in range(5)]  # fmt: skip
+    source = FrameListSource("tiny", preset("icl", 64, 48), frames)
+    return write_folder(source, tmp_path_factory.mktemp("real") / "tiny_7scenes", "7scenes")
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.25])
+def test_depth_metrics_and_scale_on_a_folder(folder, factor):
+    result = validate_folder(StubPredictor(factor), load_rgbd_folder(folder, size=None), frames=3)
+    assert result.frames == 3 and result.f_cur / result.f_tr == pytest.approx(1.5)
+    assert result.adjusted.abs_rel == pytest.approx(factor - 1.0, abs=1e-5)  # eq. 5 gives factor x 2 m
+    assert result.scale_median == pytest.approx(1.0 / factor, rel=1e-5)
+    assert result.adjusted.within_10pct == (1.0 if factor == 1.0 else 0.0)
+    assert result.to_dict()["scale_error"] == pytest.approx(abs(1.0 / factor - 1.0), rel=1e-5)
+    assert "| tiny_7scenes (real) | 3 |" in folder_validation_markdown([result])
