@@ -244,7 +244,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"cnnslam bench: error: {exc}", file=sys.stderr)
         return 2
     from eval.reports import write_report
-    from eval.runner import run_suite
 
     if suite.kind == "transfer":
         return _transfer(args, suite, methods, executor, command, presets)
@@ -257,18 +256,7 @@ def run(args: argparse.Namespace) -> int:
     if args.calibrate:
         return _calibrate(args, suite, methods)
     try:
-        result = run_suite(
-            suite,
-            methods,
-            args.out,
-            executor=executor,
-            renderer=args.renderer,
-            plots=not args.no_plots,
-            progress=not args.no_progress,
-            check=not args.no_check,
-            rerun=args.rerun,
-            report_only=args.report_only,
-        )
+        result = _run_suite(args, suite, methods, executor)
     except KeyboardInterrupt:
         print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/{suite.name}/ (rerun the same "
               "command to resume)", file=sys.stderr)  # fmt: skip
@@ -299,12 +287,20 @@ def run(args: argparse.Namespace) -> int:
     return max(status, _gate(args, result))
 
 
+def _run_suite(args: argparse.Namespace, suite, methods: dict, executor):
+    """``run_suite`` with the command line's run options (renderer, plots, progress, check, rerun, report-only)."""
+    from eval.runner import run_suite
+
+    return run_suite(suite, methods, args.out, executor=executor, renderer=args.renderer,
+                     plots=not args.no_plots, progress=not args.no_progress, check=not args.no_check,
+                     rerun=args.rerun, report_only=args.report_only)  # fmt: skip
+
+
 def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str,
               presets: tuple[str, ...] | None = None) -> int:
     """The transfer suite: each part (:func:`eval.suites.transfer_parts`; ``presets``: the simulated part's camera
     presets, default all) run as its own suite (so its runs are shared with ``make bench``, ``cnnslam bench table1
     --camera P`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
-    from eval.runner import run_suite
     from eval.suites import SIM_CAMERA_PRESETS, transfer_parts
     from eval.transfer_report import report_transfer
 
@@ -314,9 +310,7 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
             if not part.sequences:
                 continue
             print(f"transfer: part {domain}: suite {part.name}, {len(part.sequences)} sequence(s)")
-            result = run_suite(part, methods, args.out, executor=executor, renderer=args.renderer,
-                               plots=not args.no_plots, progress=not args.no_progress, check=not args.no_check,
-                               rerun=args.rerun, report_only=args.report_only)  # fmt: skip
+            result = _run_suite(args, part, methods, executor)
             parts.append((domain, result))
             for outcome in result.failed:
                 print(f"  FAILED {outcome.key}: {outcome.error}")

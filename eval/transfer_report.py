@@ -97,9 +97,9 @@ def report_transfer(parts: Sequence[tuple[str, SuiteRun]], results_dir: str | Pa
     frame = transfer_frame(parts)
     scores = domain_scores(frame) if not frame.empty else pd.DataFrame(
         columns=["domain", "metric", "method", "score", "sequences", "runs"])  # fmt: skip
-    domains = [d for d in dict.fromkeys(frame["domain"])] if not frame.empty else []
+    domains = list(dict.fromkeys(frame["domain"])) if not frame.empty else []
     ranks = rank_methods(scores, domains=domains) if not scores.empty else scores.assign(rank=[])
-    corr = rank_correlations(ranks) if not ranks.empty else rank_correlations(ranks.assign(domain=[]))
+    corr = rank_correlations(ranks)
     best = best_predictor(corr)
     csv = results_dir / "transfer.csv"
     ranks.to_csv(csv, index=False, float_format="%.6g")
