@@ -67,18 +67,31 @@ class DepthPredictor(Protocol):
 class GroundTruthHint:
     """Ground truth of one frame, for development predictors and the LSD-BS bootstrap only.
 
-    depth: (H, W) float32 metres, 0 = no surface; labels: (H, W) uint8 semantic classes (255 = none) or None.
+    depth: (H, W) float32 metres, 0 = no surface; labels: (H, W) uint8 semantic classes (255 = none) or None;
+    sensor_depth: (H, W) float32 metres, 0 = no measurement, the world's depth sensor where it has one (a simulated
+    Kinect), or None.
     """
 
     depth: np.ndarray
     labels: np.ndarray | None = None
+    sensor_depth: np.ndarray | None = None
 
     @classmethod
     def from_info(cls, info: dict[str, Any] | None) -> GroundTruthHint | None:
-        """The hint in an environment step's ``info`` (``gt_depth``, optional ``gt_labels``), or None without one."""
+        """The hint in an environment step's ``info`` (``gt_depth``, optional ``gt_labels`` and ``sensor_depth``),
+        or None without one."""
         if info is None or "gt_depth" not in info:
             return None
-        return cls(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"))
+        sensor = info.get("sensor_depth")
+        return cls(np.asarray(info["gt_depth"], dtype=np.float32), info.get("gt_labels"),
+                   None if sensor is None else np.asarray(sensor, dtype=np.float32))  # fmt: skip
+
+    @property
+    def measured_depth(self) -> np.ndarray:
+        """The depth an RGB-D camera measured: ``sensor_depth`` where the world has a depth sensor, else ``depth``
+        (a real folder's depth channel is already the sensor's). LSD-BS bootstraps from it, as the paper's LSD-BS
+        does from the Kinect depth of TUM's first frame."""
+        return self.depth if self.sensor_depth is None else self.sensor_depth
 
 
 @dataclass(frozen=True)

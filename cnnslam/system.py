@@ -431,7 +431,7 @@ class CnnSlam:
             if cfg.refinement.density == "semi_dense":
                 gx, gy = pyramid.grad_x[0], pyramid.grad_y[0]
                 mask = np.sqrt(gx * gx + gy * gy) >= cfg.refinement.min_gradient_create
-            gt_depth = None if ground_truth is None else ground_truth.depth
+            gt_depth = None if ground_truth is None else ground_truth.measured_depth  # LSD-BS: the sensor's depth
             init = init_first_keyframe_without_cnn(self.image_size, cfg.depth, self._rng, mask, gt_depth)
         else:
             parent_maps = parent.maps

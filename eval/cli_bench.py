@@ -69,8 +69,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
                              "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
     parser.add_argument("--camera", default=None, metavar="PRESET|FILE",
-                        help="simulated sequences: what the camera does to the images, clean (the renderer's "
-                             "bytes, default), kinect (a hand-held RGB-D camera) or hard (sim_envs/camera_effects.py; "
+                        help="simulated sequences: what the camera does to the images, kinect (a hand-held RGB-D "
+                             "camera, default), clean (the renderer's bytes) or hard (sim_envs/camera_effects.py; "
+                             "a name with @PRESET in --sequences picks one sequence's camera; "
                              "transfer: the simulated part's presets, comma-separated, default all); folder "
                              "sequences: their calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or "
                              "a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the "

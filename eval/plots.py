@@ -207,19 +207,23 @@ def save_depth_error_row_figure(
 def save_sweep_figure(
     points: pd.DataFrame, path: str | Path, methods: Sequence[str], axes_titles: dict[str, str], dpi: int = 110
 ) -> Path:
-    """ATE (top row) and correct depth (bottom row) against each difficulty axis (columns), one line per method.
+    """ATE and correct depth (a pair of rows) against each difficulty axis (columns, at most ``per_row`` axes to a
+    pair of rows), one line per method.
 
     ``points``: one row per run with columns axis, x, method, ate_rmse, depth_percent_correct; ``axes_titles``:
     axis name -> x-axis label, in column order.
     """
     names = list(axes_titles)
-    fig = Figure(figsize=(4.2 * len(names), 7.0), layout="constrained")
-    grid = fig.subplots(2, len(names), squeeze=False)
-    for col, axis in enumerate(names):
+    per_row = 4
+    cols, bands = min(len(names), per_row), max(1, -(-len(names) // per_row))
+    fig = Figure(figsize=(4.2 * cols, 6.0 * bands), layout="constrained")
+    grid = fig.subplots(2 * bands, cols, squeeze=False)
+    for i, axis in enumerate(names):
+        band, col = divmod(i, per_row)
         sub = points[points["axis"] == axis]
         for row, (metric, label) in enumerate((("ate_rmse", "ATE RMSE [m]"),
                                                ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
-            ax = grid[row, col]
+            ax = grid[2 * band + row, col]
             for k, method in enumerate(methods):  # one colour per method in every panel
                 line = sub[sub["method"] == method].groupby("x")[metric].mean().sort_index()
                 if line.notna().any():
@@ -229,7 +233,11 @@ def save_sweep_figure(
             ax.grid(True, alpha=0.3)
             if axis == "focal":
                 ax.axvline(1.0, color="0.5", linestyle=":", linewidth=1)
-        grid[0, col].set_title(axes_titles[axis])
+        grid[2 * band, col].set_title(axes_titles[axis], fontsize="medium")
+    for i in range(len(names), 2 * bands * cols // 2):  # empty panels of the last band
+        band, col = divmod(i, per_row)
+        grid[2 * band, col].set_visible(False)
+        grid[2 * band + 1, col].set_visible(False)
     legend: dict[str, Any] = {}  # every method drawn in any panel (some have no ATE, e.g. REMODE)
     for ax in grid.ravel():
         for handle, name in zip(*ax.get_legend_handles_labels(), strict=True):

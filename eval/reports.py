@@ -76,6 +76,23 @@ PAPER_NAMES: dict[str, str] = dict(
 )  # fmt: skip
 
 
+def paper_name(label: object, default: str) -> str:
+    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through (``office0@kinect``
+    is ICL/office0); ``default`` for a sequence of ours only."""
+    return PAPER_NAMES.get(str(label).split("@")[0], default)
+
+
+def camera_sentence(suite: Any) -> str:
+    """Which simulated camera(s) the suite's simulated sequences are seen through (:mod:`sim_envs.camera_effects`),
+    as a sentence for a report's header; empty when it has none."""
+    cameras = sorted({str(dict(r.overrides).get("camera_effects", "clean")) for r in suite.sequences
+                      if r.folder is None})  # fmt: skip
+    if not cameras:
+        return ""
+    return (f"Simulated camera: **{', '.join(cameras)}** (`sim_envs/camera_effects.py`; `--camera clean|kinect|hard` "
+            "switches; a sequence's `@PRESET` suffix names its camera). ")  # fmt: skip
+
+
 # --------------------------------------------------------------------------------------------------- long form
 def long_frame(run: SuiteRun) -> pd.DataFrame:
     """All finished runs in long form (:func:`eval.results.runs_frame`) with ``wall_s`` from each run's timing."""
@@ -107,7 +124,8 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
         f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`; a method that "
         "takes no seed is deterministic and runs once), ATE after "
         f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
-        "Each cell: the **median** of its runs and their range **[min, max]** where the runs differ. Per-run "
+        f"{camera_sentence(suite)}Each cell: the **median** of its runs and their range **[min, max]** where the "
+        "runs differ. Per-run "
         "artifacts (trajectories, "
         f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every run's figures in long form "
         f"in `{suite.name}_long.csv`, the statistics per cell in `{suite.name}_stats.csv`, every run as a dot in "
@@ -274,11 +292,11 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
             if label == AVG_LABEL:
                 quoted = paper_avg.get(method, math.nan)
             else:
-                quoted = paper_value.get((PAPER_NAMES.get(str(label), ""), method), math.nan)
+                quoted = paper_value.get((paper_name(label, ""), method), math.nan)
             if not math.isnan(quoted):
                 text += f" ({quoted:.{digits}f})"
             cells.append(text)
-        name = str(label) if label == AVG_LABEL else f"{label} ({PAPER_NAMES.get(str(label), 'ours only')})"
+        name = str(label) if label == AVG_LABEL else f"{label} ({paper_name(label, 'ours only')})"
         lines.append("| " + " | ".join([name, *cells]) + " |")
     return "\n".join(lines) + "\n"
 
@@ -456,7 +474,12 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         "Axes: texture density of the room (share of textured surfaces); share of rotation in the motion (the "
         "hand-held trajectory with an extra pan at 0-60 deg/s; x = measured share of image motion due to "
         "rotation, for a scene 2 m away); focal length of the test camera over the training camera's (NYU) at the "
-        "same resolution (1 = no mismatch; the base sequence's ICL camera is 0.93).\n",
+        "same resolution (1 = no mismatch; the base sequence's ICL camera is 0.93); these three through the "
+        "default camera (kinect). Camera axes: one effect of the camera alone, on the clean camera, at strengths "
+        "where 1 is the kinect preset's value (`sim_envs.camera_effects.SINGLE_EFFECTS`): noise (x ICL-NUIM's), "
+        "motion blur (exposure x half a frame interval, global shutter), auto-exposure (exposure jitter x 1 %), "
+        "rolling shutter (readout in frame intervals; kinect 0.05, hard 0.5) and lens distortion (x TUM fr1's, "
+        "undistorted before the agent sees it).\n",
         f"![ATE and correct depth against each axis]({figure.name})\n",
     ]
     for axis, title in SWEEP_AXES.items():

@@ -257,16 +257,22 @@ class SequenceRef:
     def with_camera_effects(self, preset: str) -> SequenceRef:
         """This simulated sequence seen through the camera-effects preset ``preset``
         (:func:`sim_envs.camera_effects.camera_effect_presets`), named ``<name>@<preset>`` (its own run folders);
-        ``clean`` (the renderer's bytes) leaves the sequence as it is."""
+        ``clean`` (the renderer's bytes) is the plain ``<name>``. A preset the sequence already has is replaced."""
         if self.folder is not None:
             raise SuiteError(f"sequence {self.name!r} is a folder: its images come from a real camera")
+        if dict(self.overrides).get("camera_effects", "clean") not in sim_camera_presets():
+            return self  # a camera of its own (one effect alone, the sweep's camera axes): not a preset's to replace
         if preset not in sim_camera_presets():
             raise SuiteError(f"unknown camera preset {preset!r}; camera-effects presets of simulated sequences: "
                              f"{', '.join(sim_camera_presets())}")  # fmt: skip
-        if preset == "clean":
-            return self
-        overrides = {**dict(self.overrides), "camera_effects": preset}
-        return replace(self, name=f"{self.name}@{preset}", overrides=tuple(overrides.items()))
+        overrides = dict(self.overrides)
+        name = self.name
+        if overrides.get("camera_effects") in sim_camera_presets() and name.endswith(f"@{overrides['camera_effects']}"):
+            name = name[: -len(overrides.pop("camera_effects")) - 1]  # seen through another preset: replaced
+        if preset != "clean":
+            overrides["camera_effects"] = preset
+            name = f"{name}@{preset}"
+        return replace(self, name=name, overrides=tuple(overrides.items()))
 
     def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None) -> SequenceRef:
         """This folder sequence with another camera (preset name or camera file) and/or delivered size."""
@@ -431,7 +437,14 @@ def resolve_sequence(name: str) -> SequenceRef:
     """A sequence by name: a registered sequence; ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by ``-``, or
     ``rpy``; speed in deg/s) for any rotation stress sequence; the path of an RGB-D folder (:func:`folder_ref`) when
     it has a ``/`` or starts with ``.`` or ``~``; a name of the dataset list (:func:`load_dataset_list`); an existing
-    folder. The first that fits wins."""
+    folder. The first that fits wins. A simulated sequence's name may end in ``@<camera preset>``
+    (``office0@clean``): that sequence seen through that camera (:meth:`SequenceRef.with_camera_effects`); without
+    one it is the renderer's image (``clean``)."""
+    plain, sep, preset = name.rpartition("@")
+    if sep and preset in sim_camera_presets() and plain:
+        ref = resolve_sequence(plain)
+        if ref.folder is None:
+            return ref.with_camera_effects(preset)
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)
@@ -456,6 +469,16 @@ def resolve_sequence(name: str) -> SequenceRef:
         f"unknown sequence {name!r}; valid: {', '.join(list_sequences('test'))}, or rot_<axes>_<deg/s> "
         f"(e.g. rot_yaw_45, rot_yaw-pitch_20, rot_rpy_90){listed}, or the path of an RGB-D folder"
     )
+
+
+def _with_default_camera(name: str) -> SequenceRef:
+    """:func:`resolve_sequence`, a simulated sequence named without a camera preset seen through the default camera
+    (what the suites run: ``office0`` is ``office0@kinect``)."""
+    ref = resolve_sequence(name)
+    named_camera = name.rpartition("@")[2] in sim_camera_presets()
+    if ref.folder is not None or named_camera or "camera_effects" in dict(ref.overrides):
+        return ref
+    return ref.with_camera_effects(DEFAULT_SIM_CAMERA)
 
 
 def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
@@ -483,6 +506,9 @@ TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", 
 TRANSFER_METHODS: tuple[str, ...] = tuple(m for m in TABLE1_METHODS if m != "oracle")
 # camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
 SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
+# the camera every suite sees its simulated sequences through unless --camera says otherwise (a hand-held RGB-D
+# camera calibrated on real Kinect frames: results/camera_calibration.md)
+DEFAULT_SIM_CAMERA = "kinect"
 
 
 def sim_camera_presets() -> list[str]:
@@ -505,10 +531,24 @@ BENCH_FRAMES = 200  # table1 and ablation: the first 200 frames (6.7 s) of each 
 TEXTURE_DENSITIES: tuple[float, ...] = (1.0, 0.6, 0.3, 0.1)
 ADDED_PAN_SPEEDS: tuple[float, ...] = (0.0, 15.0, 30.0, 60.0)
 FOCAL_RATIOS: tuple[float, ...] = (0.7, 0.85, 1.0, 1.2, 1.4)
+# the sweep's camera axes: each effect alone on the clean camera (sim_envs.camera_effects.SINGLE_EFFECTS), strength 1
+# = the kinect preset's value
+CAMERA_EFFECT_STRENGTHS: dict[str, tuple[float, ...]] = {
+    "noise": (1.0, 2.0, 4.0),
+    "blur": (0.5, 1.0, 2.0),
+    "exposure": (1.0, 3.0, 6.0),
+    "rolling_shutter": (0.1, 0.5, 1.0),
+    "distortion": (0.5, 1.0, 2.0),
+}
 SWEEP_AXES: dict[str, str] = {
     "texture": "texture density",
     "rotation": "share of rotation in the motion",
     "focal": "focal length, test / training camera",
+    "noise": "camera noise alone, x ICL-NUIM's",
+    "blur": "motion blur alone, exposure x half a frame interval",
+    "exposure": "auto-exposure alone, exposure jitter x kinect's",
+    "rolling_shutter": "rolling shutter alone, readout in frame intervals",
+    "distortion": "lens distortion alone, x TUM fr1's",
 }
 
 
@@ -558,7 +598,7 @@ class Suite:
             own = {s.name: s for s in self.sequences}
             missing = dict(self.skipped)
             named = [name for name in sequences if name not in missing]
-            refs = tuple(own[name] if name in own else resolve_sequence(name) for name in named)
+            refs = tuple(own[name] if name in own else _with_default_camera(name) for name in named)
             skipped = tuple((name, missing[name]) for name in sequences if name in missing)
         if camera is not None and camera in sim_camera_presets():  # what the simulated camera does to its images
             if not any(r.folder is None for r in refs):
@@ -606,11 +646,22 @@ def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
     refs += [
         SequenceRef(f"{base}@focal{r:g}", base=base, focal_ratio=r, axis="focal", axis_value=r) for r in FOCAL_RATIOS
     ]
+    refs = [r.with_camera_effects(DEFAULT_SIM_CAMERA) for r in refs]
+    refs += [  # one camera effect alone, on the clean camera
+        SequenceRef(f"{base}@{effect}{s:g}", base=base, overrides={"camera_effects": f"{effect}:{s:g}"}, axis=effect,
+                    axis_value=s)
+        for effect, strengths in CAMERA_EFFECT_STRENGTHS.items() for s in strengths
+    ]  # fmt: skip
     return tuple(refs)
 
 
+def _named(name: str) -> SequenceRef:
+    """A registered sequence as suites run it: through the default camera (:data:`DEFAULT_SIM_CAMERA`)."""
+    return SequenceRef(name, base=name).with_camera_effects(DEFAULT_SIM_CAMERA)
+
+
 def _suites() -> dict[str, Suite]:
-    table1 = tuple(SequenceRef(name, base=name) for name in TABLE1_SEQUENCES)
+    table1 = tuple(_named(name) for name in TABLE1_SEQUENCES)
     return {
         "table1": Suite(
             "table1",
@@ -623,7 +674,8 @@ def _suites() -> dict[str, Suite]:
             "rotation",
             "pure-rotation stress sequences (yaw, pitch, roll, all three at 15, 30, 60 deg/s): tracked share, "
             "rotation error, correct depth (the paper's Sec. 4.2)",
-            tuple(rotation_ref(a, s) for a in ROTATION_AXES for s in ROTATION_SPEEDS),
+            tuple(rotation_ref(a, s).with_camera_effects(DEFAULT_SIM_CAMERA) for a in ROTATION_AXES
+                  for s in ROTATION_SPEEDS),
             TABLE1_METHODS,
             frames=150,
         ),
@@ -636,7 +688,8 @@ def _suites() -> dict[str, Suite]:
         ),
         "sweep": Suite(
             "sweep",
-            f"one difficulty axis at a time on {SWEEP_BASE}: texture density, share of rotation, focal mismatch",
+            f"one difficulty axis at a time on {SWEEP_BASE}: texture density, share of rotation, focal mismatch, and "
+            "each camera effect alone (noise, blur, auto-exposure, rolling shutter, distortion)",
             sweep_sequences(),
             tuple(m for m in TABLE1_METHODS if m != "oracle"),
             frames=150,
@@ -645,7 +698,7 @@ def _suites() -> dict[str, Suite]:
             "depth_quality",
             "full-length office and living sequences: CNN-SLAM against the raw CNN, and CNN-SLAM on development "
             "depth of known accuracy (ATE / length, scale error, correct depth)",
-            tuple(SequenceRef(name, base=name) for name in DEPTH_QUALITY_SEQUENCES),
+            tuple(_named(name) for name in DEPTH_QUALITY_SEQUENCES),
             DEPTH_QUALITY_METHODS,
             frames=None,
         ),
@@ -673,7 +726,7 @@ def _suites() -> dict[str, Suite]:
         "quick": Suite(
             "quick",
             "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
-            tuple(SequenceRef(name, base=name) for name in ("office0", "tum_nostructure_near", "rot_yaw_30")),
+            tuple(_named(name) for name in ("office0", "tum_nostructure_near", "rot_yaw_30")),
             QUICK_METHODS,
             frames=60,
         ),

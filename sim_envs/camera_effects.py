@@ -256,17 +256,67 @@ _PRESETS: dict[str, CameraEffects] = {
 
 
 def camera_effect_presets() -> list[str]:
-    """Names accepted by :func:`camera_effects_preset`: ``clean``, ``hard``, ``kinect``."""
+    """Names of the whole-camera presets of :func:`camera_effects_preset`: ``clean``, ``hard``, ``kinect``."""
     return sorted(_PRESETS)
 
 
+# One camera effect alone on the clean camera, at a strength (the sweep's camera axes): the effect's name and what
+# strength s means. s = 1 is the kinect preset's value where it has one.
+SINGLE_EFFECTS: dict[str, str] = {
+    "noise": "shot + read noise, s x ICL-NUIM's (640-px sensor, as kinect)",
+    "blur": "motion blur, exposure s x half the frame interval (kinect's; 2 = the whole interval), global shutter",
+    "exposure": "auto-exposure with kinect's lag, per-frame exposure jitter s x kinect's (1 %)",
+    "rolling_shutter": "rolling-shutter readout of s frame intervals (kinect: 0.05, hard: 0.5), 1 ms exposure",
+    "distortion": "lens distortion s x TUM fr1's coefficients, undistorted for the agent",
+}
+
+
+def single_effect(effect: str, strength: float) -> CameraEffects:
+    """The clean camera with one effect of :data:`SINGLE_EFFECTS` at ``strength`` (>= 0; 0 = the clean camera's
+    bytes), named ``"<effect>:<strength>"``. :class:`SimEnvError` for an unknown effect or a bad strength."""
+    if effect not in SINGLE_EFFECTS:
+        raise UnknownNameError(f"unknown camera effect {effect!r}; valid effects: {', '.join(SINGLE_EFFECTS)}")
+    s = float(strength)
+    if not (np.isfinite(s) and s >= 0):
+        raise SimEnvError(f"camera effect {effect!r}: strength must be a finite number >= 0, got {strength!r}")
+    if effect == "blur" and s > 2:
+        raise SimEnvError(f"camera effect 'blur': strength is at most 2 (an exposure of the whole frame interval), "
+                          f"got {s:g}")  # fmt: skip
+    name, kinect = f"{effect}:{s:g}", _PRESETS["kinect"]
+    if s == 0:
+        return replace(_PRESETS["clean"], name=name)
+    if effect == "noise":
+        return CameraEffects(name=name, shot_noise=tuple(s * v for v in kinect.shot_noise),  # type: ignore[arg-type]
+                             read_noise=tuple(s * v for v in kinect.read_noise),  # type: ignore[arg-type]
+                             sensor_width=kinect.sensor_width)  # fmt: skip
+    if effect == "blur":
+        exposure = s * 0.5 / FPS_NOMINAL  # the brightness stays the renderer's: reference exposure = exposure
+        return CameraEffects(name=name, exposure_s=exposure, reference_exposure_s=exposure, blur_subframes=5)
+    if effect == "exposure":
+        return replace(kinect, name=name, vignette_corner=1.0, shot_noise=(0.0,) * 3, read_noise=(0.0,) * 3,
+                       sensor_width=None, blur_subframes=1, readout_s=0.0, depth_noise=False,
+                       exposure_jitter=s * kinect.exposure_jitter)  # fmt: skip
+    if effect == "rolling_shutter":
+        return CameraEffects(name=name, exposure_s=1e-3, reference_exposure_s=1e-3, readout_s=s / FPS_NOMINAL,
+                             blur_subframes=max(3, int(np.ceil(8 * s))))  # fmt: skip
+    return CameraEffects(name=name, distortion=tuple(s * c for c in preset_distortion("tum_fr1")))  # type: ignore[arg-type]
+
+
 def camera_effects_preset(name: str) -> CameraEffects:
-    """The camera-effects preset ``name``; :class:`UnknownNameError` listing the valid names otherwise."""
-    try:
+    """The camera-effects preset ``name`` (:func:`camera_effect_presets`) or one effect alone, ``"<effect>:<s>"``
+    (:func:`single_effect`); :class:`UnknownNameError` listing the valid names otherwise."""
+    if name in _PRESETS:
         return _PRESETS[name]
-    except KeyError:
-        valid = ", ".join(camera_effect_presets())
-        raise UnknownNameError(f"unknown camera-effects preset {name!r}; valid presets: {valid}") from None
+    effect, sep, strength = str(name).partition(":")
+    if sep and effect in SINGLE_EFFECTS:
+        try:
+            value = float(strength)
+        except ValueError:
+            raise SimEnvError(f"camera effect {name!r}: the strength after ':' must be a number") from None
+        return single_effect(effect, value)
+    valid = ", ".join(camera_effect_presets())
+    raise UnknownNameError(f"unknown camera-effects preset {name!r}; valid presets: {valid}, or one effect alone as "
+                           f"EFFECT:STRENGTH with EFFECT one of {', '.join(SINGLE_EFFECTS)}") from None  # fmt: skip
 
 
 def resolve_camera_effects(value: str | CameraEffects | None) -> CameraEffects:

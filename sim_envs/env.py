@@ -101,8 +101,10 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
 
     ``info`` always holds ``frame_index`` (int, of the returned observation), ``timestamp`` (float, seconds) and
     ``gt_T_world_cam`` ((4, 4) float64); with ``ground_truth="full"`` also ``gt_depth`` ((H, W) float32 metres, 0 =
-    no surface), and where the source has them ``gt_labels`` ((H, W) uint8 semantic classes, 255 = none) and
-    ``gt_instances`` ((H, W) int32, -1 = none). Full ground truth costs extra render passes.
+    no surface), ``sensor_depth`` ((H, W) float32 metres, 0 = no measurement) where the camera has a simulated depth
+    sensor (what an RGB-D folder's depth channel is: noisy, with holes), and where the source has them
+    ``gt_labels`` ((H, W) uint8 semantic classes, 255 = none) and ``gt_instances`` ((H, W) int32, -1 = none). Full
+    ground truth costs extra render passes.
 
     ## Arguments
 
@@ -253,6 +255,8 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
             rgb = frame.rgb
             if self._episode_gt == "full":
                 info["gt_depth"] = np.array(frame.depth, dtype=np.float32)
+                if frame.sensor_depth is not None:
+                    info["sensor_depth"] = np.array(frame.sensor_depth, dtype=np.float32)
                 if frame.labels is not None:
                     info["gt_labels"] = np.array(frame.labels, dtype=np.uint8)
                 if frame.instances is not None:

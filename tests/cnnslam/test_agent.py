@@ -74,3 +74,18 @@ def test_agent_arguments_are_checked() -> None:
     assert build_config("cnn_slam", {"depth.focal_adjustment": False}, threads=False).system.threads is False
     with pytest.raises(CnnSlamError, match="finish"):
         CnnSlamAgent(predictor=_ConstantDepthNet()).save_trajectory("/nonexistent/x.txt")
+
+
+def test_lsd_bs_bootstraps_from_the_depth_sensor_when_the_world_has_one() -> None:
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+    obs = {"rgb": rgb, "timestamp": np.array([0.0]), "intrinsics": np.array([50.0, 50.0, 31.5, 23.5])}
+    exact, sensor = np.full((48, 64), 2.0, np.float32), np.full((48, 64), 3.0, np.float32)
+    depths = []
+    for info in ({"gt_depth": exact}, {"gt_depth": exact, "sensor_depth": sensor}):
+        agent = GroundTruthAidedAgent(preset="lsd_bs", threads=False)
+        agent.reset(np.array([50.0, 50.0, 31.5, 23.5]), (48, 64))
+        agent.step(obs, info)
+        kf = agent.finish().keyframes[0].depth
+        depths.append(np.median(kf[kf > 0]))
+    assert depths == [pytest.approx(2.0, rel=1e-5), pytest.approx(3.0, rel=1e-5)]

@@ -96,3 +96,16 @@ def test_degraded_predictor_needs_ground_truth() -> None:
                                np.array([4.0, 4.0, 1.5, 1.5]), True)
     with pytest.raises(CnnSlamError, match="valid predictors"):
         make_predictor("oracle")
+
+
+def test_ground_truth_hint_prefers_the_depth_sensor_for_the_lsd_bs_bootstrap() -> None:
+    from cnnslam.depth_prediction import GroundTruthHint
+
+    exact = np.full((4, 5), 2.0, np.float32)
+    sensor = np.full((4, 5), 2.03, np.float32)
+    assert GroundTruthHint.from_info({"frame_index": 0}) is None
+    hint = GroundTruthHint.from_info({"gt_depth": exact})
+    assert hint.sensor_depth is None and hint.measured_depth is hint.depth  # a real folder: its depth is the sensor's
+    hint = GroundTruthHint.from_info({"gt_depth": exact, "sensor_depth": sensor})
+    np.testing.assert_array_equal(hint.measured_depth, sensor)
+    np.testing.assert_array_equal(hint.depth, exact)

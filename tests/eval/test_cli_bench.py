@@ -52,10 +52,10 @@ def test_a_small_table1_with_a_user_method_file(tmp_path, capsys):
     code = bench(tmp_path, *args, "--override")
     assert code == 0, capsys.readouterr()
     md = (tmp_path / "results" / "table1.md").read_text()
-    assert "| office0 (ICL/office0) | 0.000 (0.266) |" in md
-    assert "| office0 (ICL/office0) | 100.000 (19.410) | - |" in md  # constant-pose has no depth
+    assert "| office0@kinect (ICL/office0) | 0.000 (0.266) |" in md
+    assert "| office0@kinect (ICL/office0) | 100.000 (19.410) | - |" in md  # constant-pose has no depth
     assert "--method-file" in md and "2 runs: 2 run now" in md
-    runs = tmp_path / "runs" / "table1" / "office0"
+    runs = tmp_path / "runs" / "table1" / "office0@kinect"  # the default camera
     assert (runs / "CNN-SLAM" / "seed0-frames6" / "metrics.json").is_file()
     assert (runs / "constant-pose" / "seed0-frames6" / "keyframes.npz").is_file()
 
@@ -65,18 +65,18 @@ def test_quick_gate_update_pass_and_fail(tmp_path, capsys):
     args = ["quick", "--sequences", "office0", "--methods", "oracle", "constant-pose", "--baseline", str(baseline)]
     assert bench(tmp_path, *args, *SMALL, "--update-baseline") == 0
     stored = json.loads(baseline.read_text())
-    assert stored["metrics"]["office0/oracle/ate_rmse"] == pytest.approx(0.0, abs=1e-9)
-    assert "office0/constant-pose/ate_rmse" in stored["metrics"]
+    assert stored["metrics"]["office0@kinect/oracle/ate_rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert "office0@kinect/constant-pose/ate_rmse" in stored["metrics"]
     assert "quick" in stored["description"] and stored["tolerances"]
     capsys.readouterr()
     assert bench(tmp_path, *args, *SMALL) == 0  # the same runs (reused) pass the gate
     out = capsys.readouterr().out
     assert "PASS" in out and "2 reused" in out
-    stored["metrics"]["office0/constant-pose/ate_rmse"] /= 2  # the baseline was better: the run regressed
+    stored["metrics"]["office0@kinect/constant-pose/ate_rmse"] /= 2  # the baseline was better: the run regressed
     baseline.write_text(json.dumps(stored))
     assert bench(tmp_path, *args, *SMALL) == 1
     out = capsys.readouterr().out
-    assert "office0/constant-pose/ate_rmse" in out and "regressed" in out and "FAIL" in out
+    assert "office0@kinect/constant-pose/ate_rmse" in out and "regressed" in out and "FAIL" in out
     runs = json.loads((tmp_path / "results" / "quick_runs.json").read_text())
     assert [r["method"] for r in runs] == ["oracle", "constant-pose"]
 
@@ -88,7 +88,7 @@ def test_a_failed_run_makes_the_exit_status_1(tmp_path, capsys):
                  "--method-file", str(methods), *SMALL)  # fmt: skip
     assert code == 1
     out = capsys.readouterr().out
-    assert "FAILED table1/office0/broken/seed0-frames6: SimEnvError: keyframe_every must be >= 1" in out
+    assert "FAILED table1/office0@kinect/broken/seed0-frames6: SimEnvError: keyframe_every must be >= 1" in out
     assert "2 runs (1 run now, 0 reused, 1 failed)" in out
 
 
@@ -122,8 +122,8 @@ def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "results").exists()  # a subset never writes the committed results
     reports = list((tmp_path / "runs" / "reports").glob("table1-*/table1.md"))
     assert len(reports) == 1 and "2 run(s) per cell (seeds 0, 1" in reports[0].read_text()
-    assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed0-frames6" / "metrics.json").is_file()
-    assert not (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed1-frames6").exists()
+    assert (tmp_path / "runs" / "table1" / "office0@kinect" / "oracle" / "seed0-frames6" / "metrics.json").is_file()
+    assert not (tmp_path / "runs" / "table1" / "office0@kinect" / "oracle" / "seed1-frames6").exists()
     assert main([*args, "--rerun"]) == 0
     assert "1 runs (1 run now, 0 reused" in capsys.readouterr().out
 

@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 from eval.methods import load_methods
 from eval.suites import (
     ADDED_PAN_AMPLITUDE_DEG,
+    CAMERA_EFFECT_STRENGTHS,
     FOCAL_RATIOS,
     REPLAY_ENV_ID,
     SUITES,
@@ -28,16 +29,20 @@ def test_the_suites_of_the_issue():
     assert set(SUITES) == {"table1", "rotation", "ablation", "sweep", "depth_quality", "perf", "real", "transfer",
                            "quick"}
     table1 = get_suite("table1")
-    assert tuple(s.name for s in table1.sequences) == TABLE1_SEQUENCES
+    # every suite sees its simulated sequences through the default camera, kinect
+    assert tuple(s.name for s in table1.sequences) == tuple(f"{n}@kinect" for n in TABLE1_SEQUENCES)
+    assert all(s.spec().camera_effects == "kinect" and s.base == s.name.split("@")[0] for s in table1.sequences)
     assert table1.methods == ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
-    assert all(s.registered and s.env_id == f"sim_envs/{s.name}-v0" for s in table1.sequences)
+    clean = table1.select(camera="clean")
+    assert all(s.registered and s.env_id == f"sim_envs/{s.name}-v0" for s in clean.sequences)
     rotation = get_suite("rotation")
-    assert [s.name for s in rotation.sequences][:3] == ["rot_yaw_15", "rot_yaw_30", "rot_yaw_60"]
-    assert {s.name for s in rotation.sequences} >= {"rot_pitch_60", "rot_roll_15", "rot_rpy_30"}
+    assert [s.name for s in rotation.sequences][:3] == ["rot_yaw_15@kinect", "rot_yaw_30@kinect", "rot_yaw_60@kinect"]
+    assert {s.name for s in rotation.sequences} >= {"rot_pitch_60@kinect", "rot_roll_15@kinect", "rot_rpy_30@kinect"}
     assert get_suite("ablation").methods == ("raw-CNN", "focal-adjusted", "adjusted+refined")
     assert get_suite("perf").kind == "perf" and not get_suite("perf").sequences
     quality = get_suite("depth_quality")
-    assert [s.name for s in quality.sequences] == ["office0", "office1", "office2", "living0", "living1", "living2"]
+    assert [s.name for s in quality.sequences] == [f"{n}@kinect" for n in ("office0", "office1", "office2", "living0",
+                                                                           "living1", "living2")]
     assert quality.frames is None and quality.methods[:2] == ("CNN-SLAM", "raw-CNN")
     methods = load_methods()
     assert all(methods[m].entry_point == "cnnslam.agent:GroundTruthAidedAgent" for m in quality.methods[2:])
@@ -50,7 +55,10 @@ def test_the_suites_of_the_issue():
 
 def test_selecting_and_resolving_sequences():
     suite = get_suite("table1").select(["office1", "rot_yaw_45"], ["oracle"], frames=12, seeds=[1, 2])
-    assert [s.name for s in suite.sequences] == ["office1", "rot_yaw_45"]
+    assert [s.name for s in suite.sequences] == ["office1@kinect", "rot_yaw_45@kinect"]  # the default camera
+    named = get_suite("table1").select(["office1@clean", "office1@hard", "rot_yaw_45@clean"])
+    assert [s.name for s in named.sequences] == ["office1", "office1@hard", "rot_yaw_45"]
+    assert named.sequences[1].spec().camera_effects == "hard" and named.sequences[0].registered
     assert suite.methods == ("oracle",) and suite.frames == 12 and suite.seeds == (1, 2)
     rot = resolve_sequence("rot_yaw_45")
     assert rot.rotation == ("yaw", 45.0) and not rot.registered and rot.env_id == REPLAY_ENV_ID
@@ -71,13 +79,18 @@ def test_selecting_and_resolving_sequences():
 def test_sweep_variants_change_one_thing_each():
     refs = sweep_sequences("office1")
     axes = {r.axis for r in refs}
-    assert axes == {"texture", "rotation", "focal"}
+    assert axes == {"texture", "rotation", "focal", "noise", "blur", "exposure", "rolling_shutter", "distortion"}
     base = get_sequence("office1")
     for ref in refs:
         spec = ref.spec()
         assert spec.name == ref.name and ref.env_id == REPLAY_ENV_ID
         changed = {k for k in base.__dataclass_fields__ if getattr(spec, k) != getattr(base, k)} - {"name"}
-        assert changed <= {"texture_density"}
+        assert changed <= {"texture_density", "camera_effects"}
+        if ref.axis in CAMERA_EFFECT_STRENGTHS:  # one effect alone, on the clean camera
+            assert changed == {"camera_effects"} and spec.camera_effects == f"{ref.axis}:{ref.axis_value:g}"
+            assert spec.camera_effects_model().name == spec.camera_effects
+        else:  # the other axes through the default camera
+            assert spec.camera_effects == "kinect" and ref.name.endswith("@kinect")
         if ref.axis == "texture":
             assert spec.texture_density == ref.axis_value and ref.focal_ratio is None
     assert [r.axis_value for r in refs if r.axis == "focal"] == list(FOCAL_RATIOS)

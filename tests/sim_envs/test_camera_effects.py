@@ -285,3 +285,34 @@ def test_export_writes_the_photometric_calibration(tmp_path):
         np.testing.assert_array_equal(loaded.frame(3).rgb, seq.rgb(3))  # the exported images are the delivered ones
     finally:
         seq.close()
+
+
+def test_one_effect_alone_by_name():
+    from sim_envs.camera_effects import FPS_NOMINAL, SINGLE_EFFECTS, single_effect
+    from sim_envs.errors import SimEnvError
+
+    kinect = camera_effects_preset("kinect")
+    noise = camera_effects_preset("noise:2")
+    assert noise.name == "noise:2" and noise.shot_noise == pytest.approx(tuple(2 * v for v in ICL_SHOT_NOISE))
+    assert noise.read_noise == pytest.approx(tuple(2 * v for v in ICL_READ_NOISE)) and noise.sensor_width == 640
+    assert not noise.auto_exposure and noise.blur_subframes == 1 and not noise.distorted
+    blur = camera_effects_preset("blur:2")  # the whole frame interval, brightness unchanged
+    assert blur.exposure_s == pytest.approx(1 / FPS_NOMINAL) and not blur.photometric and blur.readout_s == 0
+    rs = camera_effects_preset("rolling_shutter:0.5")
+    assert rs.readout_s == pytest.approx(0.5 / FPS_NOMINAL) and rs.exposure_s == 1e-3 and not rs.photometric
+    exposure = camera_effects_preset("exposure:3")
+    assert exposure.auto_exposure and exposure.exposure_jitter == pytest.approx(3 * kinect.exposure_jitter)
+    assert not any(exposure.shot_noise) and exposure.blur_subframes == 1 and not exposure.depth_noise
+    dist = camera_effects_preset("distortion:0.5")
+    assert dist.distortion == pytest.approx(tuple(0.5 * c for c in preset_distortion("tum_fr1")))
+    assert all(not single_effect(e, 0).any for e in SINGLE_EFFECTS)  # strength 0: the clean camera's bytes
+    with pytest.raises(UnknownNameError, match="EFFECT:STRENGTH with EFFECT one of noise, blur"):
+        camera_effects_preset("glare:1")
+    with pytest.raises(SimEnvError, match="strength after ':' must be a number"):
+        camera_effects_preset("noise:lots")
+    with pytest.raises(SimEnvError, match="at most 2"):
+        camera_effects_preset("blur:3")
+    with pytest.raises(SimEnvError, match=">= 0"):
+        single_effect("noise", -1)
+    spec = with_camera(get_sequence("office0"), "noise:2")
+    assert spec.camera_effects_model() == noise  # a spec names it by string, so it enters the run fingerprint

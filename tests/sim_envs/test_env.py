@@ -120,6 +120,7 @@ def test_full_ground_truth_by_argument_or_reset_option():
     assert "gt_depth" not in env.reset()[1]
     assert "gt_depth" in env.reset(options={"ground_truth": "full"})[1]
     assert "gt_depth" not in env.reset()[1]  # the option holds for one episode
+    assert "sensor_depth" not in env.reset(options={"ground_truth": "full"})[1]  # no depth sensor: no key
     with pytest.raises(SimEnvError, match="ground_truth"):
         env.reset(options={"ground_truth": "all"})
     with pytest.raises(SimEnvError, match="unknown reset option"):
@@ -234,3 +235,15 @@ def test_replay_env_reads_a_tum_rgbd_folder(tmp_path):
     assert terminated
     with pytest.raises(SimEnvError):
         gym.make("sim_envs/Replay-v0", source=str(tmp_path / "missing"))
+
+
+def test_full_ground_truth_carries_the_depth_sensor_apart_from_the_exact_depth():
+    base = _source()
+    frames = [Frame(f.index, f.timestamp, f.rgb, f.depth, f.T_world_cam, labels=f.labels, instances=f.instances,
+                    sensor_depth=np.where(np.arange(32) % 5 == 0, 0.0, 2.01).astype(np.float32)[None].repeat(24, 0))
+              for f in (base.frame(i) for i in range(N))]  # fmt: skip
+    env = SlamEnv(source=FrameListSource("arrays", base.intrinsics, frames), ground_truth="full")
+    _, info = env.reset()
+    assert info["sensor_depth"].dtype == np.float32 and info["sensor_depth"].shape == (24, 32)
+    assert (info["sensor_depth"][:, 0] == 0).all() and info["sensor_depth"][0, 1] == pytest.approx(2.01)
+    assert (info["gt_depth"] == 2.0).all()  # the judge's depth stays exact
