@@ -283,7 +283,7 @@ def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
         local = results(LocalExecutor(jobs=2, threads=1), math.sqrt, items)
         assert on_ray[25.0] == local[25.0] and on_ray[2.0] == local[2.0] and isinstance(local[-1.0], ValueError)
         methods = load_methods()
-        suite = get_suite("quick").select(["office0"], ["oracle"], frames=5, seeds=[0])
+        suite = get_suite("quick").select(["office0@clean"], ["oracle"], frames=5, seeds=[0])
         run = run_suite(suite, methods, tmp_path / "ray", executor=RayExecutor(), plots=False, progress=False,
                         check=False, revision="r")  # fmt: skip
         assert run.counts() == {"done": 1}

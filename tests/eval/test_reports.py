@@ -47,7 +47,7 @@ def fake_run(suite, values, skipped=None, failed=()):
 
 
 def table1_values():
-    suite = get_suite("table1").select(["office0", "living1"], list(METHOD_NAMES))
+    suite = get_suite("table1").select(["office0@clean", "living1@clean"], list(METHOD_NAMES))
     values = {}
     for k, seq in enumerate(("office0", "living1")):
         values[(seq, "CNN-SLAM")] = {"ate_rmse": 0.1 + k, "depth_percent_correct": 30.0 + k}
@@ -88,7 +88,7 @@ def test_ours_beside_paper_without_a_paper_column():
 
 
 def test_rotation_report(tmp_path):
-    suite = get_suite("rotation").select(["rot_yaw_15", "rot_yaw_60"], ["LSD", "oracle"])
+    suite = get_suite("rotation").select(["rot_yaw_15@clean", "rot_yaw_60@clean"], ["LSD", "oracle"])
     values = {
         ("rot_yaw_15", "LSD"): {"tracked_share": 0.9, "rot_deg_orient_rmse": 2.0, "rpe_rot_deg_rmse": 0.5,
                                  "depth_percent_correct": 3.0},
@@ -116,7 +116,8 @@ def test_sweep_report_plots_each_axis(tmp_path):
         values[(ref.name, "LSD")] = {"ate_rmse": 0.1 * k, "depth_percent_correct": 2.0 * k, "_meta": meta}
     run = fake_run(suite, values)
     points = sweep_points(run)
-    assert set(points["axis"]) == {"texture", "rotation", "focal"} and len(points) == len(suite.sequences)
+    assert set(points["axis"]) == {"texture", "rotation", "focal", "noise", "blur", "exposure", "rolling_shutter",
+                                   "distortion"} and len(points) == len(suite.sequences)
     pan = points[points["axis"] == "rotation"]
     assert pan["x"].tolist() == pytest.approx([0.44, 0.45, 0.46, 0.47])  # measured share, not the pan speed
     assert points[points["axis"] == "focal"]["x"].tolist() == [0.7, 0.85, 1.0, 1.2, 1.4]
@@ -124,6 +125,7 @@ def test_sweep_report_plots_each_axis(tmp_path):
     assert (tmp_path / "sweep.png").read_bytes()[:4] == b"\x89PNG" and tmp_path / "sweep.png" in paths
     md = (tmp_path / "sweep.md").read_text()
     assert "### focal length, test / training camera" in md and "| 1.4 | 1.400 |" in md
+    assert "### rolling shutter alone, readout in frame intervals" in md and "| 0.5 | 0.500 |" in md
 
 
 def test_status_lists_skips_and_failures():
@@ -147,7 +149,8 @@ def test_relative_errors_are_per_run_percentages():
 
 
 def test_depth_quality_report_checks_the_targets(tmp_path):
-    suite = get_suite("depth_quality").select(["office0", "living0"], ["CNN-SLAM", "raw-CNN", "dev-depth-10"])
+    suite = get_suite("depth_quality").select(["office0@clean", "living0@clean"],
+                                              ["CNN-SLAM", "raw-CNN", "dev-depth-10"])
     assert suite.frames is None  # whole sequences: the targets are per full sequence
     values = {
         ("office0", "CNN-SLAM"): {"ate_rmse": 0.19, "length_gt_m": 10.0, "scale_error": 0.04, "rot_deg_rmse": 5.0,
@@ -188,3 +191,14 @@ def test_reports_say_which_alignment_and_which_methods_were_fed_ground_truth(tmp
     assert "- living1 / LSD: poorly conditioned fit" in md
     assert "- **oracle**: receives ground truth (declared by the agent)" in md
     assert "## Scale-aligned ATE, Sim(3) [m]" in md and "| office0 | 0.050 |" in md
+
+
+def test_reports_name_the_camera_and_map_camera_sequences_to_the_paper():
+    from eval.reports import camera_sentence, paper_name
+
+    assert paper_name("office0@kinect", "-") == paper_name("office0", "-") == "ICL/office0"
+    assert paper_name("rot_yaw_30@kinect", "ours only") == "ours only"
+    assert "**kinect**" in camera_sentence(get_suite("table1"))
+    assert "**clean**" in camera_sentence(get_suite("table1").select(camera="clean"))
+    assert "**hard, kinect**" in camera_sentence(get_suite("table1").select(["office0", "office1@hard"]))
+    assert camera_sentence(get_suite("perf")) == ""  # no simulated sequence

@@ -144,7 +144,8 @@ def test_a_suite_run_resumes_skips_and_isolates_failures(tmp_path):
     table = dict(METHODS)
     table["bad"] = replace(ORACLE, name="bad", kwargs={"keyframe_every": 0})
     table["missing"] = Method("missing", entry_point="no_such_module:Agent")
-    suite = get_suite("quick").select(["office0"], ["oracle", "constant-pose", "bad", "missing"], frames=6, runs=1)
+    suite = get_suite("quick").select(["office0@clean"], ["oracle", "constant-pose", "bad", "missing"], frames=6,
+                                      runs=1)
     seen = []
     first = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r1",
                       on_result=seen.append)  # fmt: skip
@@ -212,7 +213,7 @@ def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
     methods = {"slow": Method("slow", entry_point="slowagent:Slow"), "oracle": ORACLE}
-    suite = get_suite("quick").select(["office0"], ["slow", "oracle"], frames=4, runs=1)
+    suite = get_suite("quick").select(["office0@clean"], ["slow", "oracle"], frames=4, runs=1)
     run = run_suite(suite, methods, tmp_path / "runs", executor=LocalExecutor(jobs=1, timeout_s=8), plots=False,
                     progress=False, check=False)  # fmt: skip
     assert run.counts() == {"done": 1, "failed": 1}
@@ -223,7 +224,7 @@ def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
 
 
 def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
-    suite = get_suite("quick").select(["office0"], ["oracle", "constant-pose"], frames=6, runs=1)
+    suite = get_suite("quick").select(["office0@clean"], ["oracle", "constant-pose"], frames=6, runs=1)
     methods = load_methods()
     run_suite(suite, {"oracle": methods["oracle"]} | {"constant-pose": methods["constant-pose"]}, tmp_path,
               plots=False, progress=False, check=False)  # fmt: skip
