@@ -7,7 +7,8 @@ per sequence with the measured angular speed of its trajectory; ``--export DIR``
 ``DIR/<name>/`` (``rgb/``, ``depth/``, ``groundtruth.txt``, ... see :mod:`sim_envs.datasets`) and writes
 ``DIR/sequences.json`` with the specs, so a third-party system can run on them and be scored with
 ``cnnslam bench rotation --sequences <names> --external NAME=ITS_OUTPUT``. The same names work in
-``cnnslam bench --sequences``.
+``cnnslam bench --sequences``. ``--camera`` picks the simulated camera (``kinect`` by default, as every suite; the
+names then end in ``@kinect``, as the suites' do).
 
 Example::
 
@@ -19,13 +20,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 
 from eval.errors import EvalError
-from eval.suites import SequenceRef, rotation_ref
+from eval.suites import DEFAULT_SIM_CAMERA, SequenceRef, rotation_ref, sim_camera_presets
 from sim_envs.errors import SimEnvError
 
 KINDS = ("rotation",)
@@ -57,27 +58,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=300, help="frames per sequence at 30 Hz (default: 300)")
     parser.add_argument("--export", type=Path, default=None, metavar="DIR",
                         help="render each sequence into DIR/<name>/ as a TUM RGB-D folder")  # fmt: skip
+    parser.add_argument("--camera", choices=sim_camera_presets(), default=DEFAULT_SIM_CAMERA,
+                        help="what the camera does to the images (sim_envs/camera_effects.py): kinect (default, as "
+                             "every suite), clean (the renderer's bytes) or hard; names get its @PRESET suffix as in "
+                             "cnnslam bench (none for clean)")  # fmt: skip
     parser.add_argument("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
     parser.add_argument("--overwrite", action="store_true", help="export into non-empty folders")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def rotation_refs(axes: list[str], speeds: list[float], frames: int) -> list[SequenceRef]:
+def rotation_refs(axes: list[str], speeds: list[float], frames: int, camera: str = "clean") -> list[SequenceRef]:
     """The sequences of every (axes, speed) pair, ``frames`` long (a registered one keeps its name and content,
-    generated at the new length)."""
+    generated at the new length), seen through the camera preset ``camera`` (named ``<name>@<camera>`` unless
+    clean, as the suites name them)."""
     if int(frames) < 2:
         raise EvalError(f"--frames must be >= 2, got {frames}")
     refs = []
     for axis in axes:
         for speed in speeds:
-            ref = rotation_ref(axis, speed)
-            refs.append(SequenceRef(ref.name, base=ref.base, rotation=ref.rotation, overrides={"n_frames": frames}))
+            ref = rotation_ref(axis, speed).with_camera_effects(camera)
+            refs.append(replace(ref, overrides={**dict(ref.overrides), "n_frames": frames}))
     return refs
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        refs = rotation_refs(args.axes, args.speeds, args.frames)
+        refs = rotation_refs(args.axes, args.speeds, args.frames, args.camera)
         print(f"{'sequence':<22} {'axes':<16} {'deg/s':>6} {'frames':>6} {'measured deg/s (median, max)':>30}")
         manifest = []
         for ref in refs:

@@ -22,7 +22,7 @@ def test_help(capsys):
 def test_generate_and_export(tmp_path, capsys):
     out = tmp_path / "rot"
     code = main(["generate", "rotation", "--axes", "yaw,yaw+pitch", "--speeds", "45", "--frames", "5",
-                 "--export", str(out), "--no-progress"])  # fmt: skip
+                 "--export", str(out), "--no-progress", "--camera", "clean"])  # fmt: skip
     assert code == 0
     printed = capsys.readouterr().out
     assert "rot_yaw_45" in printed and "rot_yaw-pitch_45" in printed
@@ -52,3 +52,10 @@ def test_bad_arguments(capsys):
     assert "bad rotation axes" in capsys.readouterr().err
     with pytest.raises(EvalError, match="frames must be >= 2"):
         rotation_refs(["yaw"], [30.0], 1)
+
+
+def test_generated_sequences_take_the_suites_camera_and_names():
+    (kinect,) = rotation_refs(["yaw"], [30.0], 20, "kinect")
+    assert kinect.name == "rot_yaw_30@kinect" and kinect.spec().camera_effects == "kinect"
+    assert kinect.spec().n_frames == 20
+    assert resolve_sequence("rot_yaw_30@kinect").make_source().poses[:20] == pytest.approx(kinect.make_source().poses)
