@@ -6,7 +6,8 @@
   (method, inputs, agent source, sequence, seed, frames) on one machine with one thread count and math back-end;
 - **another CPU, thread count or math back-end: within the calibrated tolerance.** The network's float32 outputs
   differ there in their last bits and the SLAM system amplifies that; the gate allows each gated figure
-  ``max(k x spread, floor)`` (:func:`eval.regress.calibrate`), where ``spread`` is what this module measures.
+  ``max(k x spread, floor)`` (:func:`eval.regress.calibrate`), where ``spread`` is what this module measures: how
+  far each gated figure's median, and each single run's value, moved over the matrix.
 
 The perturbation matrix (:data:`MATRIX`) runs the suite, with all its runs per cell, once per configuration:
 
@@ -31,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from eval.executors import LocalExecutor
-from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics
+from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
 from eval.runner import SuiteRun, run_suite
 from eval.suites import Suite
 
@@ -86,25 +87,29 @@ def measure(
     matrix: Sequence[Perturbation] = MATRIX,
     progress: bool = True,
     on_config: Callable[[Perturbation, SuiteRun], None] | None = None,
-) -> dict[str, dict[str, float]]:
-    """The gated figures (:func:`eval.regress.gate_metrics`) of ``suite`` under every configuration of
-    ``matrix``; runs already finished in a configuration's folder are reused."""
-    figures: dict[str, dict[str, float]] = {}
+) -> dict[str, list[dict[str, Any]]]:
+    """The run records of ``suite`` under every configuration of ``matrix`` (configuration name -> records); runs
+    already finished in a configuration's folder are reused."""
+    records: dict[str, list[dict[str, Any]]] = {}
     for config in matrix:
         run = run_configuration(suite, methods, Path(out_root) / "calibrate", config, progress)
         if on_config is not None:
             on_config(config, run)
-        figures[config.name] = gate_metrics(run.records)
-    return figures
+        records[config.name] = list(run.records)
+    return records
 
 
-def calibrated_baseline(suite: Suite, figures: Mapping[str, Mapping[str, float]], description: str,
+def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[Mapping[str, Any]]], description: str,
                         matrix: Sequence[Perturbation] = MATRIX, k: float = CALIBRATION_K) -> Baseline:
-    """The baseline of ``figures`` (the reference configuration's figures, tolerances from the spread)."""
+    """The baseline of the configurations' run records (:func:`measure`): the reference configuration's gated
+    figures, tolerances from how far the medians and the single runs moved over the matrix."""
     how = (
         f"cnnslam bench {suite.name} --calibrate: {len(suite.seeds)} runs per cell (seeds "
-        f"{', '.join(map(str, suite.seeds))}), gated figure = median over the runs; spread = range of each gated "
-        "figure over the configurations: " + "; ".join(f"{c.name}: {c.description}" for c in matrix)
+        f"{', '.join(map(str, suite.seeds))}), gated figure = median over the runs; spread = the larger of the range "
+        "of each gated figure and the largest range of one seed's value over the configurations: "
+        + "; ".join(f"{c.name}: {c.description}" for c in matrix)
         + f"; allowed change = max({k:g} x spread, the rule's floor)"
     )
-    return calibrate(figures, matrix[0].name, k=k, description=description, how=how)
+    figures = {name: gate_metrics(rs) for name, rs in records.items()}
+    runs = {name: seed_figures(rs) for name, rs in records.items()}
+    return calibrate(figures, matrix[0].name, k=k, description=description, how=how, runs=runs)

@@ -346,7 +346,7 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
         failed.extend(f"{config.name}: {o.key}: {o.error}" for o in run.failed)
 
     try:
-        figures = measure(suite, methods, args.out, progress=not args.no_progress, on_config=note)
+        records = measure(suite, methods, args.out, progress=not args.no_progress, on_config=note)
     except KeyboardInterrupt:
         print("cnnslam bench: calibration interrupted; finished runs are kept", file=sys.stderr)
         return 130
@@ -354,7 +354,7 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
         print("not writing a baseline: runs failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
     path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
-    baseline = calibrated_baseline(suite, figures, _baseline_description(suite), MATRIX)
+    baseline = calibrated_baseline(suite, records, _baseline_description(suite), MATRIX)
     save_baseline(baseline, path)
     holdout = baseline.calibration["holdout"]
     print(f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "

@@ -24,9 +24,13 @@ error by cancelling an error of the method's own, and is still a change nobody i
 
 Calibration (:func:`calibrate`, ``cnnslam bench quick --calibrate``) runs the suite
 under a perturbation matrix (runs x thread counts x oneDNN on/off x the network's outputs perturbed in their last
-bits, what another CPU does) and sets ``allowed = max(k * spread, rule floor)``, where ``spread`` is the range of the
-metric's median over the matrix's configurations: a figure that moves more than k times what floating point moved it
-is a regression. Its false-alarm rate is measured by holding configurations out (:func:`holdout_false_alarms`).
+bits, what another CPU does) and sets ``allowed = max(k * spread, rule floor)``, where ``spread`` is the larger of the
+range of the metric's median over the matrix's configurations and the largest range of one run's value (one seed's)
+over them: a figure that moves more than k times what floating point moved it is a regression. The run-level range
+counts because a median of three runs moves as far as one run when the perturbation moves two of them: an ill-posed
+figure (the rotation error after an SE(3) fit on a near-static start) can jump between two solutions in one seed
+while the median stays put in the configurations the matrix tried. Its false-alarm rate is measured by holding
+configurations out (:func:`holdout_false_alarms`).
 
 Rules: ``tolerances`` is optional (then :data:`DEFAULT_TOLERANCES` apply); the first rule whose ``pattern``
 (:func:`fnmatch.fnmatchcase`) matches a metric name is used, and a metric that no rule matches gets
@@ -373,6 +377,15 @@ def update_baseline(
 
 
 # -------------------------------------------------------------------------------------------------- calibration
+def seed_figures(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GATED) -> dict[str, dict[str, float]]:
+    """The gated figures of each seed's runs alone: seed (as a string) -> :func:`gate_metrics` of the records whose
+    ``metadata.seed`` is that seed (records without one form the seed ``"-"``)."""
+    by_seed: dict[str, list[Mapping[str, Any]]] = {}
+    for record in records:
+        by_seed.setdefault(str((record.get("metadata") or {}).get("seed", "-")), []).append(record)
+    return {seed: gate_metrics(rs, gated) for seed, rs in sorted(by_seed.items())}
+
+
 def calibrate(
     configurations: Mapping[str, Mapping[str, float]],
     reference: str,
@@ -380,13 +393,15 @@ def calibrate(
     k: float = CALIBRATION_K,
     description: str = "",
     how: str = "",
+    runs: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None,
 ) -> Baseline:
     """A baseline from the gated figures of the same suite run under several configurations (name -> figures of
     :func:`gate_metrics`): the metrics are ``reference``'s; each metric's ``spread`` is the range of its value over
-    the configurations and its allowed change ``max(k * spread, the rule's floor)``; count metrics (direction
+    the configurations, or, where ``runs`` (name -> :func:`seed_figures`) is given and larger, the largest range of
+    one seed's value over them; its allowed change is ``max(k * spread, the rule's floor)``; count metrics (direction
     ``match``) keep their rule. ``calibration`` records ``how``, ``k``, the configurations, the alarms each of them
     raises against the result (0 by construction) and the held-out false-alarm rate (:func:`holdout_false_alarms`)."""
-    base = replace(_spread_baseline(configurations, reference, tolerances, k), description=description)
+    base = replace(_spread_baseline(configurations, reference, tolerances, k, runs), description=description)
     alarms = {name: _alarms(base, figures) for name, figures in configurations.items()}
     calibration = {
         "how": how,
@@ -394,27 +409,39 @@ def calibrate(
         "reference": reference,
         "configurations": sorted(configurations),
         "alarms_per_configuration": alarms,
-        "holdout": holdout_false_alarms(configurations, reference, tolerances, k),
+        "holdout": holdout_false_alarms(configurations, reference, tolerances, k, runs),
     }
     return replace(base, calibration=calibration)
 
 
+def _range(values: Iterable[float]) -> float:
+    """max - min of the non-NaN values (0 when there are none)."""
+    finite = [v for v in values if not math.isnan(v)]
+    return max(finite) - min(finite) if finite else 0.0
+
+
 def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], reference: str,
-                     tolerances: Sequence[Tolerance], k: float) -> Baseline:
+                     tolerances: Sequence[Tolerance], k: float,
+                     runs: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None) -> Baseline:
     """:func:`calibrate`'s metrics and allowed changes, without the record of how."""
     if reference not in configurations:
         raise GateError(f"the reference configuration {reference!r} is not among {sorted(configurations)}")
     base = Baseline({n: _as_float(v) for n, v in configurations[reference].items()}, tuple(tolerances),
                     policy="two-sided")
+    seeds = sorted({s for name in configurations for s in (runs or {}).get(name, {})})
     calibrated: dict[str, dict[str, float]] = {}
     for name, value in base.metrics.items():
         rule = base.tolerance_for(name)
         if rule.direction == "match" or math.isnan(value):
             continue
-        seen = [_as_float(c[name]) for c in configurations.values() if name in c]
-        seen = [v for v in seen if not math.isnan(v)]
-        spread = max(seen) - min(seen) if seen else 0.0
+        median_spread = _range(_as_float(c[name]) for c in configurations.values() if name in c)
+        run_spread = max((_range(_as_float(runs[c][s][name]) for c in configurations
+                                 if s in runs.get(c, {}) and name in runs[c][s]) for s in seeds),
+                         default=0.0) if runs else 0.0  # fmt: skip
+        spread = max(median_spread, run_spread)
         calibrated[name] = {"spread": spread, "allowed": max(k * spread, rule.allowed(value))}
+        if runs:
+            calibrated[name].update(median_spread=median_spread, run_spread=run_spread)
     return replace(base, calibrated=calibrated)
 
 
@@ -428,18 +455,20 @@ def holdout_false_alarms(
     reference: str,
     tolerances: Sequence[Tolerance] = DEFAULT_TOLERANCES,
     k: float = CALIBRATION_K,
+    runs: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None,
 ) -> dict[str, float]:
     """The false-alarm rate of calibration on data it has not seen: for each configuration other than
-    ``reference``, calibrate without it and compare it with that baseline. Returns ``alarms`` (metrics that
-    alarmed, summed), ``comparisons`` (metrics compared) and ``rate`` (their ratio), and ``runs_with_alarm`` (held-out
-    configurations that would have failed the gate) over ``held_out`` configurations."""
+    ``reference``, calibrate without it (and without its runs) and compare it with that baseline. Returns ``alarms``
+    (metrics that alarmed, summed), ``comparisons`` (metrics compared) and ``rate`` (their ratio), and
+    ``runs_with_alarm`` (held-out configurations that would have failed the gate) over ``held_out`` configurations."""
     alarms = comparisons = failed = 0
     others = [c for c in configurations if c != reference]
     for held in others:
         rest = {c: v for c, v in configurations.items() if c != held}
         if len(rest) < 2:
             continue
-        base = _spread_baseline(rest, reference, tolerances, k)
+        rest_runs = {c: v for c, v in runs.items() if c != held} if runs else None
+        base = _spread_baseline(rest, reference, tolerances, k, rest_runs)
         bad = _alarms(base, configurations[held])
         alarms += bad
         comparisons += len(base.metrics)

@@ -162,6 +162,32 @@ def test_calibration_allows_k_times_the_measured_spread_and_counts_held_out_alar
     assert round_trip.calibrated == base.calibrated and round_trip.calibration["k"] == 3.0
 
 
+def test_calibration_counts_how_far_one_run_moved_not_only_the_median():
+    from eval.regress import calibrate, gate_metrics, seed_figures
+
+    def run(seed, value):
+        return {"sequence": "s", "method": "M", "metadata": {"seed": seed}, "metrics": {"rot_deg_rmse": value}}
+
+    # one seed jumps to another solution under 'onednn-off'; the median of the three does not move there
+    records = {
+        "reference": [run(0, 2.24), run(1, 2.20), run(2, 2.21)],
+        "onednn-off": [run(0, 2.22), run(1, 2.82), run(2, 2.24)],
+        "another-cpu": [run(0, 2.20), run(1, 2.20), run(2, 2.21)],
+    }
+    figures = {name: gate_metrics(rs) for name, rs in records.items()}
+    runs = {name: seed_figures(rs) for name, rs in records.items()}
+    assert sorted(runs["reference"]) == ["0", "1", "2"] and runs["onednn-off"]["1"]["s/M/rot_deg_rmse"] == 2.82
+    medians_only = calibrate(figures, "reference", k=3.0)
+    assert medians_only.calibrated["s/M/rot_deg_rmse"]["spread"] == pytest.approx(0.04)  # 2.20 .. 2.24
+    base = calibrate(figures, "reference", k=3.0, runs=runs)
+    row = base.calibrated["s/M/rot_deg_rmse"]
+    assert row["median_spread"] == pytest.approx(0.04) and row["run_spread"] == pytest.approx(0.62)  # seed 1
+    assert base.allowed("s/M/rot_deg_rmse") == pytest.approx(1.86)
+    # two seeds on the other solution (the median jumps by one run's move): a false alarm for the medians-only gate
+    two_jumped = gate_metrics([run(0, 2.80), run(1, 2.82), run(2, 2.21)])
+    assert not compare(medians_only, two_jumped).passed and compare(base, two_jumped).passed
+
+
 def test_a_two_sided_baseline_fails_on_a_change_for_the_better_too(tmp_path):
     from eval.regress import save_baseline
 
