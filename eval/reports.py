@@ -479,7 +479,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         "where 1 is the kinect preset's value (`sim_envs.camera_effects.SINGLE_EFFECTS`): noise (x ICL-NUIM's), "
         "motion blur (exposure x half a frame interval, global shutter), auto-exposure (exposure jitter x 1 %), "
         "rolling shutter (readout in frame intervals; kinect 0.05, hard 0.5) and lens distortion (x TUM fr1's, "
-        "undistorted before the agent sees it).\n",
+        "undistorted and cropped to what the lens saw before the agent sees it).\n",
         f"![ATE and correct depth against each axis]({figure.name})\n",
     ]
     for axis, title in SWEEP_AXES.items():

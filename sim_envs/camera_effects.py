@@ -46,7 +46,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from sim_envs.camera import NO_DISTORTION, CameraModel, Intrinsics, preset_distortion
+from sim_envs.camera import NO_DISTORTION, CameraModel, Intrinsics, pinhole_maps, preset_distortion
 from sim_envs.errors import SimEnvError, UnknownNameError
 
 Response = Literal["srgb", "gamma"]
@@ -416,7 +416,7 @@ def distortion_maps(intrinsics: Intrinsics, distortion: tuple[float, ...]) -> tu
 
     For each pixel (u, v) of the distorted image: the pinhole pixel ``K undistort(K^-1 (u, v))`` to read, computed
     with ``cv2.undistortPoints`` (OpenCV radial-tangential model, iterative inverse). Returns ``(map_u, map_v)``,
-    each (H, W) float32. The inverse resampling is :meth:`sim_envs.camera.CameraModel.undistort_maps`.
+    each (H, W) float32. Back to a pinhole image: :meth:`sim_envs.camera.CameraModel.undistort_maps`.
     """
     K = intrinsics
     u, v = np.meshgrid(np.arange(K.width, dtype=np.float64), np.arange(K.height, dtype=np.float64))
@@ -543,20 +543,42 @@ def expose(linear: np.ndarray, effects: CameraEffects, exposure_s: float, gain: 
 @dataclass(frozen=True)
 class SensorGeometry:
     """Precomputed maps of a camera at one image size: vignette (H, W) float32 or None, distortion maps (map_u,
-    map_v) or None, undistortion maps (the inverse, for delivering pinhole images) or None."""
+    map_v) or None, undistortion maps (to the pinhole camera ``delivered``, for the agent's images) or None, and
+    ``ground_truth`` maps (the exact pinhole renders resampled onto ``delivered``'s grid) or None; ``delivered``: the
+    intrinsics of the delivered images (:meth:`sim_envs.camera.CameraModel.rectified`: the rendered camera's own when
+    the lens has no distortion)."""
 
     vignette: np.ndarray | None
     distort: tuple[np.ndarray, np.ndarray] | None
     undistort: tuple[np.ndarray, np.ndarray] | None
+    delivered: Intrinsics | None = None
+    ground_truth: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def delivered_intrinsics(intrinsics: Intrinsics, effects: CameraEffects) -> Intrinsics:
+    """The intrinsics of the images an agent receives from a camera of ``intrinsics`` (the rendered pinhole camera)
+    with ``effects``' lens: undistorted images are cropped to what the lens saw
+    (:meth:`sim_envs.camera.CameraModel.rectified`); ``intrinsics`` itself without distortion."""
+    return CameraModel(intrinsics, effects.distortion).rectified() if effects.distorted else intrinsics
 
 
 def sensor_geometry(intrinsics: Intrinsics, effects: CameraEffects) -> SensorGeometry:
     """The vignette and distortion maps of ``effects`` at ``intrinsics``' size (computed once per sequence)."""
     vig = vignette(intrinsics, effects.vignette_corner) if effects.vignette_corner != 1.0 else None
     if not effects.distorted:
-        return SensorGeometry(vig, None, None)
+        return SensorGeometry(vig, None, None, intrinsics)
     model = CameraModel(intrinsics, effects.distortion)
-    return SensorGeometry(vig, distortion_maps(intrinsics, effects.distortion), model.undistort_maps())
+    delivered = model.rectified()
+    ground_truth = pinhole_maps(intrinsics, delivered)
+    if (ground_truth[0].min() < -0.5 or ground_truth[0].max() > intrinsics.width - 0.5
+            or ground_truth[1].min() < -0.5 or ground_truth[1].max() > intrinsics.height - 0.5):  # fmt: skip
+        raise SimEnvError(
+            f"lens distortion {effects.distortion} sees wider than the rendered pinhole camera (barrel distortion, "
+            "k1 < 0): the simulated camera supports lenses whose undistorted view lies inside the render "
+            "(pincushion-like, k1 >= 0, as the TUM fr1 and fr2 calibrations)"
+        )
+    return SensorGeometry(vig, distortion_maps(intrinsics, effects.distortion), model.undistort_maps(), delivered,
+                          ground_truth)  # fmt: skip
 
 
 def sensor_image(
@@ -600,12 +622,20 @@ def sensor_image(
 
 
 def undistort_image(rgb: np.ndarray, geometry: SensorGeometry) -> np.ndarray:
-    """A distorted sensor image resampled to the pinhole image of the same K, as
-    :class:`sim_envs.datasets.RgbdFolder` does with a real distorted camera (bilinear, black outside); the image
-    itself when the lens has no distortion."""
+    """A distorted sensor image resampled to the pinhole image of ``geometry.delivered`` (bilinear), as
+    :class:`sim_envs.datasets.RgbdFolder` does with a real distorted camera; the image itself when the lens has no
+    distortion."""
     if geometry.undistort is None:
         return rgb
-    return cv2.remap(rgb, *geometry.undistort, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    return cv2.remap(rgb, *geometry.undistort, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def ground_truth_on_delivered_grid(image: np.ndarray, geometry: SensorGeometry) -> np.ndarray:
+    """An exact pinhole render (depth, labels or instance ids) resampled onto the delivered images' grid by nearest
+    neighbour (no depth of no surface, no averaged ids); the image itself when the lens has no distortion."""
+    if geometry.ground_truth is None:
+        return image
+    return cv2.remap(image, *geometry.ground_truth, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
 
 
 # ----------------------------------------------------------------------------------------------------- depth noise

@@ -54,10 +54,12 @@ Otherwise an error lists the presets. Presets are scaled to the images' size.
 
 What the agent receives is always an undistorted pinhole image, because the agent contract (``reset(intrinsics,
 image_size)``) has only pinhole intrinsics: a distorted camera's images are undistorted with
-``cv2.initUndistortRectifyMap`` + ``cv2.remap`` at the original resolution, with the new camera matrix equal to the
-original K (so the intrinsics stay); RGB is interpolated bilinearly, depth, labels and instances take the nearest
-pixel (depth registered to the RGB image shares its pixel grid; see below for why nearest). Pixels that come from
-outside the original image are black in RGB and 0 (no measurement) in depth.
+``cv2.initUndistortRectifyMap`` + ``cv2.remap`` at the original resolution, with the new camera matrix of
+``cv2.getOptimalNewCameraMatrix`` at alpha = 0 (:meth:`sim_envs.camera.CameraModel.rectified`: cropped to what the
+lens saw, a focal length a few per cent longer than K's, as LSD-SLAM's and DSO's undistorters do, so that no border
+without image, fixed in the image, gives direct tracking a static edge); RGB is interpolated bilinearly, depth,
+labels and instances take the nearest pixel (depth registered to the RGB image shares its pixel grid; see below for
+why nearest).
 
 Then each frame is resized to ``size`` (width, height; :data:`PROCESSING_SIZE` = 320x240, the paper's, for
 :func:`load_rgbd_folder`; ``None`` keeps the original): intrinsics f' = f s and c' = (c + 0.5) s - 0.5 per axis
@@ -127,7 +129,7 @@ SEVEN_SCENES_INVALID_DEPTH = 65535  # 7-Scenes marks no measurement by 0 and by 
 ICL_FPS: float = 30.0
 SEVEN_SCENES_FPS: float = 30.0  # 7-Scenes has no timestamps; the Kinect's nominal rate
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
-LOADER_VERSION = "cnnslam-rgbd-folder/2"  # recorded in descriptions; bump when a conversion changes its output
+LOADER_VERSION = "cnnslam-rgbd-folder/3"  # recorded in descriptions; bump when a conversion changes its output
 Layout = Literal["tum", "icl", "7scenes", "7scenes_split", "rgb_only"]
 LAYOUTS: dict[str, str] = {
     "tum": "TUM RGB-D (rgb.txt, depth.txt, groundtruth.txt)",
@@ -260,11 +262,13 @@ def export_photometric_calibration(source: Any, folder: str | Path, *, max_frame
     - ``pcalib.txt``: the inverse response G, 256 values on one line (G(0) = 0, G(255) = 255; linear signal on the
       0-255 scale);
     - ``vignette.png``: 16-bit vignette V (65535 = 1) on the pixel grid of the exported images (undistorted like
-      them when the lens is distorted; 0 where the undistorted image has no pixel);
+      them when the lens is distorted);
     - ``camera.toml``: the camera of the exported images (``rgb/``): pinhole intrinsics at the image size and zero
-      distortion, since delivered images are undistorted (:mod:`sim_envs.simsource`);
-    - ``camera_raw.toml``: the lens, for raw sensor images (``SimulatedSequence.raw_rgb``): the same intrinsics and
-      the OpenCV distortion ``k1 k2 p1 p2 k3``. Both camera files are readable by :func:`read_camera_file`.
+      distortion, since delivered images are undistorted (:mod:`sim_envs.simsource`: the crop of
+      :meth:`sim_envs.camera.CameraModel.rectified` when the lens is distorted);
+    - ``camera_raw.toml``: the lens, for raw sensor images (``SimulatedSequence.raw_rgb``): the rendered camera's
+      intrinsics and the OpenCV distortion ``k1 k2 p1 p2 k3``. Both camera files are readable by
+      :func:`read_camera_file`.
     """
     from sim_envs.camera_effects import inverse_response, sensor_geometry, undistort_image
 
@@ -278,19 +282,20 @@ def export_photometric_calibration(source: Any, folder: str | Path, *, max_frame
     lines = [f"{i:05d} {t:.6f} {e:.6f}" for i, (t, e) in enumerate(zip(stamps, effective_ms, strict=True))]
     (folder / "times.txt").write_text("\n".join(lines) + "\n")
     (folder / "pcalib.txt").write_text(" ".join(f"{g:.6f}" for g in inverse_response(effects)) + "\n")
-    K = source.intrinsics
+    K = getattr(source, "sensor_intrinsics", source.intrinsics)  # the rendered camera (raw sensor images)
     geometry = sensor_geometry(K, effects)
     V = geometry.vignette if geometry.vignette is not None else np.ones((K.height, K.width), np.float32)
     V = undistort_image(V, geometry)
     _write_png(folder / "vignette.png", np.rint(np.clip(V, 0.0, 1.0) * 65535).astype(np.uint16))
-    pinhole = "".join(f"{k} = {v!r}\n" for k, v in _intrinsics_dict(K).items())
+    pinhole = "".join(f"{k} = {v!r}\n" for k, v in _intrinsics_dict(source.intrinsics).items())
     (folder / "camera.toml").write_text(
         "# the exported rgb/ images: pinhole (undistorted; OpenCV convention, pixel centres at integers)\n" + pinhole
     )
+    raw = "".join(f"{k} = {v!r}\n" for k, v in _intrinsics_dict(K).items())
     lens = "".join(f"{k} = {float(v)!r}\n" for k, v in zip(DISTORTION_NAMES, effects.distortion, strict=True))
     (folder / "camera_raw.toml").write_text(
         "# the raw sensor images (SimulatedSequence.raw_rgb): OpenCV radial-tangential distortion k1 k2 p1 p2 k3\n"
-        + pinhole
+        + raw
         + lens
     )
     return list(PHOTOMETRIC_FILES)
@@ -496,7 +501,7 @@ class RgbdFolder:
         self.has_depth: bool = index.depth_files is not None
         self.original_size: tuple[int, int] = self._image_size()
         self.camera, self.camera_source = self._resolve_camera(camera)
-        self.native_intrinsics: Intrinsics = self.camera.intrinsics
+        self.native_intrinsics: Intrinsics = self.camera.rectified()  # the undistorted images' camera
         self.size: tuple[int, int] = check_size(size) if size is not None else self.original_size
         self.intrinsics: Intrinsics = self.native_intrinsics.scaled(*self.size)
         self._maps: tuple[np.ndarray, np.ndarray] | None = None  # undistortion maps, made on first use
@@ -590,7 +595,9 @@ class RgbdFolder:
             "original_size": list(self.original_size),
             "size": list(self.size),
             "camera_source": self.camera_source,
-            "camera": {**_intrinsics_dict(K0), **dict(zip(DISTORTION_NAMES, self.camera.distortion, strict=True))},
+            "camera": {**_intrinsics_dict(self.camera.intrinsics),
+                       **dict(zip(DISTORTION_NAMES, self.camera.distortion, strict=True))},  # fmt: skip
+            "undistorted_intrinsics": _intrinsics_dict(K0),
             "intrinsics": _intrinsics_dict(K),
             "has_depth": self.has_depth,
             "depth_scale": self.depth_scale if self.has_depth else None,
@@ -615,10 +622,12 @@ class RgbdFolder:
         if self.pose_convention_used == "icl":
             steps.append("poses: ICL-NUIM y-up camera converted to OpenCV, T = S T S, S = diag(1, -1, 1, 1)")
         if self.camera.distorted:
+            K, K0 = self.camera.intrinsics, self.native_intrinsics
             coeffs = " ".join(f"{n}={c:g}" for n, c in zip(DISTORTION_NAMES, self.camera.distortion, strict=True))
             steps.append(
                 f"undistorted ({coeffs}, OpenCV model): cv2.initUndistortRectifyMap + cv2.remap, new camera matrix "
-                "= original K; RGB bilinear, depth/labels nearest"
+                f"cv2.getOptimalNewCameraMatrix alpha=0 (fx {K.fx:g} -> {K0.fx:.2f}, fy {K.fy:g} -> {K0.fy:.2f}, "
+                f"cx {K.cx:g} -> {K0.cx:.2f}, cy {K.cy:g} -> {K0.cy:.2f}); RGB bilinear, depth/labels nearest"
             )
         if self.size != self.original_size:
             (w0, h0), (w, h) = self.original_size, self.size
@@ -644,9 +653,8 @@ class RgbdFolder:
         if self.camera.distorted:
             if self._maps is None:
                 self._maps = self.camera.undistort_maps()
-            fill = NO_LABEL if kind == "labels" else 0  # outside the original image: nothing seen
             interpolation = cv2.INTER_LINEAR if kind == "rgb" else cv2.INTER_NEAREST
-            image = cv2.remap(image, *self._maps, interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+            image = cv2.remap(image, *self._maps, interpolation, borderMode=cv2.BORDER_REPLICATE)  # all inside
         if self.size != self.original_size:
             interpolation = cv2.INTER_AREA if kind == "rgb" else cv2.INTER_NEAREST_EXACT
             image = cv2.resize(image, self.size, interpolation=interpolation)

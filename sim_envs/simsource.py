@@ -15,10 +15,12 @@ vignetting, noise, response, blur over the exposure, rolling shutter, lens disto
 brightness of frames 0..i-1: the sequence renders them at :data:`BRIGHTNESS_SIZE` with a second renderer the first
 time a frame needs them, and caches the series (a few milliseconds per frame, once). A distorted camera's image is
 delivered undistorted (:meth:`SimulatedSequence.rgb`, ``frame(i).rgb``), exactly as a real distorted camera's
-images are by :class:`sim_envs.datasets.RgbdFolder`, because agents receive pinhole intrinsics only; the raw sensor
-image is :meth:`SimulatedSequence.raw_rgb`. Ground truth (depth, labels, instances) is the exact pinhole render at
-the frame's pose, which is the pixel grid of the delivered image. With depth noise on, frames also carry a
-Kinect-like ``sensor_depth`` (its own generator, ``(spec.seed, 3, i)``).
+images are by :class:`sim_envs.datasets.RgbdFolder`, because agents receive pinhole intrinsics only: cropped to what
+the lens saw, so the delivered intrinsics (``intrinsics``) are :meth:`sim_envs.camera.CameraModel.rectified`, a few
+per cent longer in focal length than the rendered camera's (``sensor_intrinsics``); the raw sensor image is
+:meth:`SimulatedSequence.raw_rgb`. Ground truth (depth, labels, instances) is the exact pinhole render at the
+frame's pose, on the delivered image's pixel grid (resampled by nearest neighbour when the lens is distorted).
+With depth noise on, frames also carry a Kinect-like ``sensor_depth`` (its own generator, ``(spec.seed, 3, i)``).
 """
 
 from __future__ import annotations
@@ -67,9 +69,11 @@ def frame_rng(spec_seed: int, index: int) -> np.random.Generator:
 class SimulatedSequence:
     """A :class:`~sim_envs.source.FrameSource` rendering a :class:`SequenceSpec`.
 
-    name: the spec's name; intrinsics: the spec's camera; timestamps: (N,) float64 seconds; poses: (N, 4, 4) float64
-    ground-truth ``T_world_cam``; ``frame(i)`` renders RGB, depth, labels and instances; ``rgb(i)`` renders the
-    image alone (the same bytes as ``frame(i).rgb``, cheaper). ``renderer``: "mujoco" or "pyrender".
+    name: the spec's name; intrinsics: the camera of the delivered frames (the spec's camera, or its undistorted crop
+    when the camera effects have lens distortion); sensor_intrinsics: the spec's camera, as rendered; timestamps:
+    (N,) float64 seconds; poses: (N, 4, 4) float64 ground-truth ``T_world_cam``; ``frame(i)`` renders RGB, depth,
+    labels and instances; ``rgb(i)`` renders the image alone (the same bytes as ``frame(i).rgb``, cheaper).
+    ``renderer``: "mujoco" or "pyrender".
     """
 
     def __init__(self, spec: SequenceSpec, renderer: str = "mujoco") -> None:
@@ -77,10 +81,11 @@ class SimulatedSequence:
             raise UnknownNameError(f"unknown renderer {renderer!r}; valid renderers: {', '.join(RENDERER_BACKENDS)}")
         self.spec = spec
         self.name: str = spec.name
-        self.intrinsics: Intrinsics = spec.intrinsics()
+        self.sensor_intrinsics: Intrinsics = spec.intrinsics()
         self.backend = renderer
         self._renderer: Any = None
         self.camera_effects = spec.camera_effects_model()
+        self.intrinsics: Intrinsics = self._delivered_intrinsics()
         self._brightness_renderer: Any = None
         self._brightness = np.empty(0)  # mean linear brightness of frames 0..len-1 (auto-exposure), cached
         self._geometry: Any = None
@@ -178,11 +183,18 @@ class SimulatedSequence:
             raise SimEnvError(f"frame index {index} out of range for {self.name!r} with {len(self)} frames")
         return i
 
+    def _delivered_intrinsics(self) -> Intrinsics:
+        if not self.camera_effects.distorted:
+            return self.sensor_intrinsics
+        from sim_envs.camera_effects import delivered_intrinsics
+
+        return delivered_intrinsics(self.sensor_intrinsics, self.camera_effects)
+
     def _get_renderer(self) -> Any:
         if self._renderer is None:
             from sim_envs.render import make_renderer
 
-            self._renderer = make_renderer(self.scene, self.intrinsics, backend=self.backend)
+            self._renderer = make_renderer(self.scene, self.sensor_intrinsics, backend=self.backend)
         return self._renderer
 
     def _brightness_series(self, n: int) -> np.ndarray:
@@ -195,7 +207,7 @@ class SimulatedSequence:
             if self._brightness_renderer is None:
                 from sim_envs.render import make_renderer
 
-                small = self.intrinsics.scaled(*BRIGHTNESS_SIZE)
+                small = self.sensor_intrinsics.scaled(*BRIGHTNESS_SIZE)
                 self._brightness_renderer = make_renderer(self.scene, small, backend=self.backend)
                 self._brightness_vignette = vignette(small, self.camera_effects.vignette_corner)
             fx, renderer = self.camera_effects, self._brightness_renderer
@@ -238,11 +250,17 @@ class SimulatedSequence:
 
     def _camera_render(self, index: int, result: dict[str, Any], undistort: bool) -> dict[str, Any]:
         """``result`` (the renders at the frame's pose) with the camera's RGB and, when on, its sensor depth."""
-        from sim_envs.camera_effects import kinect_depth, sensor_geometry, sensor_image, undistort_image
+        from sim_envs.camera_effects import (
+            ground_truth_on_delivered_grid,
+            kinect_depth,
+            sensor_geometry,
+            sensor_image,
+            undistort_image,
+        )
 
         fx = self.camera_effects
         if self._geometry is None:
-            self._geometry = sensor_geometry(self.intrinsics, fx)
+            self._geometry = sensor_geometry(self.sensor_intrinsics, fx)
         if result["rgb"] is not None and fx.any:
             exposure, gain = self.exposures(index)
             renderer = self._get_renderer()
@@ -251,7 +269,7 @@ class SimulatedSequence:
                 self.trajectory.pose_at,
                 float(self.timestamps[index]),
                 fx,
-                self.intrinsics,
+                self.sensor_intrinsics,
                 frame_rng(self.spec.seed, index),
                 exposure_s=float(exposure[index]),
                 gain=float(gain[index]),
@@ -259,6 +277,9 @@ class SimulatedSequence:
                 own_render=result["rgb"],
             )
             result["rgb"] = undistort_image(raw, self._geometry) if undistort else raw
+        for name in ("depth", "labels", "instances"):  # exact renders, onto the delivered grid
+            if result[name] is not None:
+                result[name] = ground_truth_on_delivered_grid(result[name], self._geometry)
         if fx.depth_noise and result["depth"] is not None:
             rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
             result["sensor_depth"] = kinect_depth(result["depth"], rng)

@@ -153,7 +153,8 @@ def test_load_a_tum_benchmark_folder(tmp_path):
     source = BoxRoomSource(5, intrinsics=preset("tum_fr1", 64, 48))
     folder = write_tum_style_folder(tmp_path, source)
     loaded = RgbdFolder(folder)
-    assert loaded.intrinsics == preset("tum_fr1", 64, 48)  # guessed from "freiburg1" and scaled to 64x48
+    assert loaded.camera.intrinsics == preset("tum_fr1", 64, 48)  # guessed from "freiburg1" and scaled to 64x48
+    assert loaded.intrinsics == loaded.camera.rectified()  # delivered undistorted: the crop to what the lens saw
     np.testing.assert_allclose(loaded.timestamps, source.timestamps, atol=1e-6)
     np.testing.assert_allclose(loaded.poses, source.poses, atol=1e-8)
     assert loaded.camera.distorted and any("undistorted" in c for c in loaded.conversions())  # fr1 RGB is distorted

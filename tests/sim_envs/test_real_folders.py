@@ -204,7 +204,7 @@ def test_undistortion_agrees_with_cv2_undistort_points():
     u = rng.integers(20, 620, 200)
     v = rng.integers(20, 460, 200)
     distorted = np.stack([map_u[v, u], map_v[v, u]], axis=-1).astype(np.float64)  # where pixel (u, v) reads
-    back = cv2.undistortPoints(distorted.reshape(-1, 1, 2), K, D, P=K).reshape(-1, 2)
+    back = cv2.undistortPoints(distorted.reshape(-1, 1, 2), K, D, P=model.rectified().K).reshape(-1, 2)
     np.testing.assert_allclose(back, np.stack([u, v], axis=-1), atol=0.02)
     assert np.abs(distorted - np.stack([u, v], axis=-1)).max() > 5  # fr1's distortion moves corner pixels
 
@@ -222,9 +222,11 @@ def test_a_distorted_folder_is_delivered_undistorted(tmp_path, name, distorted):
     folder = write_folder(FrameListSource("blobs", K0, frames), tmp_path / f"rgbd_dataset_{name}_blobs", "tum",
                           camera_file=False)  # fmt: skip
     loaded = RgbdFolder(folder)
-    assert loaded.camera.distorted == distorted and loaded.intrinsics == K0  # new camera matrix = original K
+    assert loaded.camera.distorted == distorted and loaded.camera.intrinsics == K0
+    K1 = loaded.intrinsics  # new camera matrix: the crop to what the lens saw (K itself without distortion)
+    assert (K1.fx > K0.fx) == distorted and (K1 == K0) != distorted
     frame = loaded.frame(0)
-    expected = cv2.undistortPoints(points.reshape(-1, 1, 2), K0.K, np.asarray(loaded.camera.distortion), P=K0.K)
+    expected = cv2.undistortPoints(points.reshape(-1, 1, 2), K0.K, np.asarray(loaded.camera.distortion), P=K1.K)
     weight = frame.rgb[..., 0].astype(np.float64) - 40
     for (x, y) in expected.reshape(-1, 2):
         window = (np.abs(u - x) < 12) & (np.abs(v - y) < 12)
@@ -237,10 +239,8 @@ def test_a_distorted_folder_is_delivered_undistorted(tmp_path, name, distorted):
         assert (frame.depth[inner] == 1.0).all()  # the blob's depth moved with its colour
     if distorted:
         assert any("undistorted" in c for c in loaded.conversions())
-        # fr1/fr2: the undistorted image's corners and edge centres see beyond the original image: nothing there
-        assert frame.depth[0, 0] == frame.depth[240, 0] == 0 and not frame.rgb[0, 0].any()
-    else:
-        assert frame.depth.all()
+        assert loaded.describe()["undistorted_intrinsics"]["fx"] == K1.fx
+    assert frame.depth.all()  # fr1/fr2 too: every delivered pixel comes from inside the original image
 
 
 # ------------------------------------------------------------------------------------------------------- resize
