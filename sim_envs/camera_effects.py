@@ -555,13 +555,6 @@ class SensorGeometry:
     ground_truth: tuple[np.ndarray, np.ndarray] | None = None
 
 
-def delivered_intrinsics(intrinsics: Intrinsics, effects: CameraEffects) -> Intrinsics:
-    """The intrinsics of the images an agent receives from a camera of ``intrinsics`` (the rendered pinhole camera)
-    with ``effects``' lens: undistorted images are cropped to what the lens saw
-    (:meth:`sim_envs.camera.CameraModel.rectified`); ``intrinsics`` itself without distortion."""
-    return CameraModel(intrinsics, effects.distortion).rectified() if effects.distorted else intrinsics
-
-
 def sensor_geometry(intrinsics: Intrinsics, effects: CameraEffects) -> SensorGeometry:
     """The vignette and distortion maps of ``effects`` at ``intrinsics``' size (computed once per sequence)."""
     vig = vignette(intrinsics, effects.vignette_corner) if effects.vignette_corner != 1.0 else None

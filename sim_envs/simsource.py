@@ -85,10 +85,10 @@ class SimulatedSequence:
         self.backend = renderer
         self._renderer: Any = None
         self.camera_effects = spec.camera_effects_model()
-        self.intrinsics: Intrinsics = self._delivered_intrinsics()
         self._brightness_renderer: Any = None
         self._brightness = np.empty(0)  # mean linear brightness of frames 0..len-1 (auto-exposure), cached
         self._geometry: Any = None
+        self.intrinsics: Intrinsics = self._delivered_intrinsics()
 
     # -- FrameSource -----------------------------------------------------------------------------------------------
 
@@ -186,9 +186,10 @@ class SimulatedSequence:
     def _delivered_intrinsics(self) -> Intrinsics:
         if not self.camera_effects.distorted:
             return self.sensor_intrinsics
-        from sim_envs.camera_effects import delivered_intrinsics
+        from sim_envs.camera_effects import sensor_geometry
 
-        return delivered_intrinsics(self.sensor_intrinsics, self.camera_effects)
+        self._geometry = sensor_geometry(self.sensor_intrinsics, self.camera_effects)  # refuses a lens wider than the
+        return self._geometry.delivered  # render at once, not at the first frame
 
     def _get_renderer(self) -> Any:
         if self._renderer is None:

@@ -180,6 +180,9 @@ def test_a_distorted_camera_delivers_the_pinhole_image_of_its_crop():
         seq.close()
         if renderer is not None:
             renderer.close()
+    barrel = replace(effects, distortion=(-0.3, 0.1, 0.0, 0.0, 0.0))  # sees wider than the render: refused at once
+    with pytest.raises(SimEnvError, match="wider than the rendered pinhole camera"):
+        SimulatedSequence(replace(base, camera_effects=barrel))
 
 
 def test_noise_statistics_in_the_linear_domain():
