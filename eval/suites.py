@@ -61,6 +61,7 @@ from sim_envs.datasets import (
     folder_fingerprint,
 )
 from sim_envs.errors import SimEnvError
+from sim_envs.scene import LIGHTINGS
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
     TRAIN_CAMERA,
@@ -274,6 +275,26 @@ class SequenceRef:
             name = f"{name}@{preset}"
         return replace(self, name=name, overrides=tuple(overrides.items()))
 
+    def with_lighting(self, lighting: str) -> SequenceRef:
+        """This simulated sequence in the same room lit otherwise (:data:`sim_envs.scene.LIGHTINGS`; ``lit``:
+        :mod:`sim_envs.lighting`), named ``<name>+<lighting>`` before any ``@<camera preset>`` (its own run folders);
+        ``flat`` is the plain name. The trajectory is the same."""
+        if self.folder is not None:
+            raise SuiteError(f"sequence {self.name!r} is a folder: its light is the real room's")
+        if lighting not in LIGHTINGS:
+            raise SuiteError(f"unknown lighting {lighting!r}; valid: {', '.join(LIGHTINGS)}")
+        overrides = dict(self.overrides)
+        base, at, preset = self.name.rpartition("@")
+        if not (at and preset == overrides.get("camera_effects")):
+            base, at, preset = self.name, "", ""
+        old = overrides.pop("lighting", "flat")
+        if old != "flat" and base.endswith(f"+{old}"):
+            base = base[: -len(old) - 1]
+        if lighting != "flat":
+            overrides["lighting"] = lighting
+            base = f"{base}+{lighting}"
+        return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
+
     def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None) -> SequenceRef:
         """This folder sequence with another camera (preset name or camera file) and/or delivered size."""
         if self.folder is None:
@@ -439,12 +460,18 @@ def resolve_sequence(name: str) -> SequenceRef:
     it has a ``/`` or starts with ``.`` or ``~``; a name of the dataset list (:func:`load_dataset_list`); an existing
     folder. The first that fits wins. A simulated sequence's name may end in ``@<camera preset>``
     (``office0@clean``): that sequence seen through that camera (:meth:`SequenceRef.with_camera_effects`); without
-    one it is the renderer's image (``clean``)."""
+    one it is the renderer's image (``clean``). A simulated name may end in ``+lit`` before that (``office0+lit@hard``):
+    the same room and trajectory with lamps, shadows and highlights (:meth:`SequenceRef.with_lighting`)."""
     plain, sep, preset = name.rpartition("@")
     if sep and preset in sim_camera_presets() and plain:
         ref = resolve_sequence(plain)
         if ref.folder is None:
             return ref.with_camera_effects(preset)
+    plain, sep, lighting = name.rpartition("+")
+    if sep and lighting in LIGHTINGS and lighting != "flat" and plain:
+        ref = resolve_sequence(plain)
+        if ref.folder is None:
+            return ref.with_lighting(lighting)
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)

@@ -5,11 +5,16 @@ floor's top face is ``z = 0``. Primitives use MuJoCo's half sizes. Every primiti
 :class:`~sim_envs.frames.SemanticClass` and an instance id (``0 .. n_instances - 1``; several primitives may share one
 instance, e.g. the top and legs of a desk).
 
-Lighting model (both renderers use it, so a surface point has the same colour from every view: direct SLAM needs that
-photometric consistency): matte (Lambertian) surfaces, no specular, no shadows, static directional lights plus an
-ambient term. The colour of a point with unit normal ``n`` is
-``albedo * (ambient + sum_i intensity_i * max(0, -n . direction_i))`` with ``albedo = material.rgb * texture``, see
-:meth:`Scene.shade`.
+Lighting, two models (``Scene.lighting``):
+
+- ``flat`` (every registered sequence; both renderers): matte (Lambertian) surfaces, no specular, no shadows, static
+  directional lights plus an ambient term, so a surface point has the same colour from every view (the photometric
+  consistency direct SLAM assumes). The colour of a point with unit normal ``n`` is
+  ``albedo * (ambient + sum_i intensity_i * max(0, -n . direction_i))`` with ``albedo = material.rgb * texture``, see
+  :meth:`Scene.shade`.
+- ``lit`` (:mod:`sim_envs.lighting`; MuJoCo renderer only): the flat model dimmed, plus :class:`Lamp` spot lights
+  with distance fall-off and shadow maps (light through the windows, a ceiling lamp), glowing window panes and
+  specular highlights on some materials: brightness changes across the room and with the view, as in a real room.
 
 Texture coordinates (:class:`TriMesh`) follow OpenGL: ``v = 0`` is the BOTTOM row of a texture image, and on the side
 faces of a box the image appears upright and unmirrored to a viewer outside the face.
@@ -39,17 +44,25 @@ class Material:
 
     name: unique within a scene; rgb: base colour, 3 floats in [0, 1] multiplying the texture (linear, no gamma);
     texture: (h, w, 3) uint8 image or None for a plain colour; tile_m: metres covered by one repeat of the texture
-    along each surface axis, or None to stretch the image exactly once over each face (posters, screens).
+    along each surface axis, or None to stretch the image exactly once over each face (posters, screens);
+    specular, shininess, emission: in [0, 1], MuJoCo's material terms (Phong highlight strength, its sharpness, light
+    the surface gives off itself); 0 in ``flat`` scenes, set by :mod:`sim_envs.lighting` in ``lit`` ones.
     """
 
     name: str
     rgb: tuple[float, float, float] = (0.8, 0.8, 0.8)
     texture: np.ndarray | None = None
     tile_m: float | None = 1.0
+    specular: float = 0.0
+    shininess: float = 0.0
+    emission: float = 0.0
 
     def __post_init__(self) -> None:
         if len(self.rgb) != 3 or not all(0.0 <= c <= 1.0 for c in self.rgb):
             raise SimEnvError(f"material {self.name!r}: rgb must be 3 values in [0, 1], got {self.rgb}")
+        for key in ("specular", "shininess", "emission"):
+            if not 0.0 <= float(getattr(self, key)) <= 1.0:
+                raise SimEnvError(f"material {self.name!r}: {key} must be in [0, 1], got {getattr(self, key)}")
         if self.texture is not None:
             tex = self.texture
             if tex.dtype != np.uint8 or tex.ndim != 3 or tex.shape[2] != 3 or min(tex.shape[:2]) < 2:
@@ -89,6 +102,30 @@ class TriMesh:
             np.concatenate([m.uv for m in meshes]),
             np.concatenate([m.faces + o for m, o in zip(meshes, offsets, strict=True)]).astype(np.int32),
         )
+
+    def subdivided(self, max_edge: float) -> TriMesh:
+        """The same surface with every triangle split in four (at its edge midpoints) until the longest edge is at
+        most ``max_edge`` metres; every triangle is split the same number of times, so an edge two triangles share is
+        split at the same points in both (no cracks). Normals are interpolated and renormalised, uv interpolated.
+
+        Why: MuJoCo lights per vertex (fixed-function OpenGL), so a spot lamp's fall-off across a 5 m wall is only
+        seen at vertices that are close enough together.
+        """
+        v, n, uv, f = self.vertices, self.normals, self.uv, self.faces
+        while len(f):
+            edges = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], 1).reshape(-1, 2)  # (3M, 2)
+            if np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1).max() <= max_edge:
+                break
+            key = np.sort(edges, axis=1)
+            unique, inverse = np.unique(key, axis=0, return_inverse=True)
+            mid = len(v) + inverse.reshape(-1, 3)  # index of the midpoint of each face's edges 01, 12, 20
+            normals = n[unique[:, 0]] + n[unique[:, 1]]
+            v = np.concatenate([v, (v[unique[:, 0]] + v[unique[:, 1]]) / 2])
+            n = np.concatenate([n, normals / np.linalg.norm(normals, axis=1, keepdims=True)])
+            uv = np.concatenate([uv, (uv[unique[:, 0]] + uv[unique[:, 1]]) / 2])
+            a, b, c, ab, bc, ca = f[:, 0], f[:, 1], f[:, 2], mid[:, 0], mid[:, 1], mid[:, 2]
+            f = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+        return TriMesh(v, n, uv, f.astype(np.int32))
 
 
 def _uv_scale(extent: float, tile_m: float | None) -> float:
@@ -255,6 +292,39 @@ class Light:
     intensity: float
 
 
+LIGHTINGS: tuple[str, ...] = ("flat", "lit")
+
+
+@dataclass(frozen=True)
+class Lamp:
+    """A static spot light in the room (``lit`` scenes; rendered by the MuJoCo backend).
+
+    position: (3,) world metres; direction: (3,) unit vector of the cone's axis; cutoff_deg: the cone's half angle;
+    exponent: how fast light falls off from the axis to the cone's edge (MuJoCo's spot exponent); intensity: diffuse
+    gain (grey); attenuation: ``(c, l, q)``, the light is divided by ``c + l d + q d^2`` at distance ``d`` metres;
+    shadows: the lamp casts shadows (a shadow map per lamp and frame: the cost of ``lit``).
+    """
+
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    cutoff_deg: float
+    exponent: float
+    intensity: float
+    attenuation: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    shadows: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.cutoff_deg < 90.0:
+            raise SimEnvError(f"lamp cutoff_deg must be in (0, 90), got {self.cutoff_deg}")
+        if not self.intensity >= 0.0 or min(self.attenuation) < 0.0 or sum(self.attenuation) <= 0.0:
+            raise SimEnvError(
+                f"lamp intensity must be >= 0 and attenuation (c, l, q) >= 0 with a positive sum, got "
+                f"{self.intensity}, {self.attenuation}"
+            )
+        if abs(float(np.linalg.norm(self.direction)) - 1.0) > 1e-6:
+            raise SimEnvError(f"lamp direction must be a unit vector, got {self.direction}")
+
+
 @dataclass(frozen=True, eq=False)
 class Scene:
     """A generated room.
@@ -262,7 +332,8 @@ class Scene:
     style: room style name; seed: generator seed; room_size: (3,) float64 (Lx, Ly, H) metres, the room's interior
     spans ``[0, Lx] x [0, Ly] x [0, H]``; primitives: every shape; lights: static directional lights; ambient:
     ambient gain (``ambient + sum of intensities <= 1`` so colours never clip); texture_density: what the generator
-    was asked for, in [0, 1].
+    was asked for, in [0, 1]; lighting: ``flat`` or ``lit`` (module docstring); lamps: the spot lights of a ``lit``
+    scene.
     """
 
     style: str
@@ -272,9 +343,16 @@ class Scene:
     lights: tuple[Light, ...] = ()
     ambient: float = 0.4
     texture_density: float = 1.0
+    lighting: str = "flat"
+    lamps: tuple[Lamp, ...] = ()
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # derived arrays (bounds)
 
     def __post_init__(self) -> None:
+        if self.lighting not in LIGHTINGS:
+            raise SimEnvError(f"scene lighting must be one of {', '.join(LIGHTINGS)}, got {self.lighting!r}")
+        glossy = any(p.material.specular or p.material.emission for p in self.primitives)
+        if self.lighting == "flat" and (self.lamps or glossy):
+            raise SimEnvError("a flat scene has no lamps, specular or emissive materials (make it lighting='lit')")
         ids = sorted({p.instance for p in self.primitives})
         if ids != list(range(len(ids))):
             raise SimEnvError(f"scene instance ids must be 0..n-1 without gaps, got {ids[:10]}...")
@@ -358,7 +436,8 @@ class Scene:
         return free
 
     def shade(self, normals: np.ndarray) -> np.ndarray:
-        """Lighting gain of surfaces with unit world ``normals`` (N, 3): (N,) float64 in [0, 1] (module docstring)."""
+        """Lighting gain of surfaces with unit world ``normals`` (N, 3): (N,) float64 in [0, 1], the ``flat`` model's
+        (module docstring; a ``lit`` scene's lamps, shadows and highlights are the renderer's)."""
         gain = np.full(len(normals), float(self.ambient))
         for light in self.lights:
             gain += light.intensity * np.clip(-(normals @ np.asarray(light.direction)), 0.0, None)

@@ -28,7 +28,7 @@ from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import SemanticClass
 from sim_envs.materials import MaterialBank
 from sim_envs.physics import FreeBody, settle_bodies
-from sim_envs.scene import Light, Material, Primitive, Scene
+from sim_envs.scene import LIGHTINGS, Light, Material, Primitive, Scene
 
 TEST_STYLES: tuple[str, ...] = ("office", "living")
 TRAIN_STYLES: tuple[str, ...] = ("bedroom", "kitchen", "classroom", "study")
@@ -762,13 +762,19 @@ class _Builder:
         return lights, ambient
 
 
-def generate_scene(style: str, seed: int, texture_density: float = 1.0, settle: bool = True) -> Scene:
+def generate_scene(
+    style: str, seed: int, texture_density: float = 1.0, settle: bool = True, lighting: str = "flat"
+) -> Scene:
     """A furnished room of ``style`` from ``seed``: the same arguments always give the same scene (bit for bit).
 
     style: one of :data:`ROOM_STYLES`; seed: any non-negative int; texture_density in [0, 1]: how many surfaces are
     textured and how strongly (0 = nearly textureless); settle: drop the small objects with MuJoCo physics until they
-    rest (False: they are placed exactly on their supports, which is faster but allows no piles to topple).
+    rest (False: they are placed exactly on their supports, which is faster but allows no piles to topple);
+    lighting: ``flat`` (the same colour from every view) or ``lit`` (the same room relit by
+    :func:`sim_envs.lighting.light_room`: lamps with shadows, bright windows, highlights; MuJoCo renderer only).
     """
+    if lighting not in LIGHTINGS:
+        raise SimEnvError(f"lighting must be one of {', '.join(LIGHTINGS)}, got {lighting!r}")
     if style not in STYLES:
         raise UnknownNameError(f"unknown room style {style!r}; valid styles: {', '.join(ROOM_STYLES)}")
     if not 0.0 <= float(texture_density) <= 1.0:
@@ -798,4 +804,9 @@ def generate_scene(style: str, seed: int, texture_density: float = 1.0, settle: 
     for a, T in placed:
         b.add_assembly(a, T)
     lights, ambient = b.lights()
-    return Scene(style, int(seed), b.size, tuple(b.primitives), lights, ambient, float(texture_density))
+    scene = Scene(style, int(seed), b.size, tuple(b.primitives), lights, ambient, float(texture_density))
+    if lighting == "lit":
+        from sim_envs.lighting import light_room
+
+        scene = light_room(scene)
+    return scene

@@ -24,6 +24,7 @@ import numpy as np
 
 from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, Intrinsics, camera_presets, preset
 from sim_envs.errors import SimEnvError, UnknownNameError
+from sim_envs.scene import LIGHTINGS
 from sim_envs.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_params
 
 if TYPE_CHECKING:
@@ -58,7 +59,9 @@ class SequenceSpec:
     description: one line for listings; camera_effects: what the camera does to the image
     (:mod:`sim_envs.camera_effects`): a preset name (``clean``, ``kinect``, ``hard``; kept as the name, so it is
     part of the spec's repr and of run fingerprints) or a ``CameraEffects``; default ``clean``, the renderer's
-    bytes (see :func:`with_camera`). Not both ``effects`` and a ``camera_effects`` other than ``clean``.
+    bytes (see :func:`with_camera`). Not both ``effects`` and a ``camera_effects`` other than ``clean``; lighting:
+    ``flat`` (every registered sequence) or ``lit`` (lamps, shadows, bright windows, highlights:
+    :mod:`sim_envs.lighting`; MuJoCo renderer only); the trajectory does not depend on it.
     """
 
     name: str
@@ -77,9 +80,14 @@ class SequenceSpec:
     fps: float = FPS
     description: str = ""
     camera_effects: str | CameraEffects = "clean"
+    lighting: str = "flat"
 
     def __post_init__(self) -> None:
         self._check_camera_effects()
+        if self.lighting not in LIGHTINGS:
+            raise SimEnvError(
+                f"sequence {self.name!r}: lighting must be one of {', '.join(LIGHTINGS)}, got {self.lighting!r}"
+            )
         params = self.trajectory_params
         items = params.items() if isinstance(params, Mapping) else params
         object.__setattr__(self, "trajectory_params", tuple(sorted((str(k), _freeze(v)) for k, v in items)))

@@ -43,14 +43,13 @@ _ALL_OUTPUTS = ("rgb", "depth", "labels", "instances")
 
 
 @lru_cache(maxsize=8)
-def cached_scene(style: str, seed: int, texture_density: float = 1.0) -> Any:
-    """The room ``generate_scene(style, seed, texture_density)``, generated once per process (settled by physics).
-
-    Scenes are treated as immutable by every user; the cache holds the last 8.
+def cached_scene(style: str, seed: int, texture_density: float = 1.0, lighting: str = "flat") -> Any:
+    """The room ``generate_scene(style, seed, texture_density, lighting=lighting)``, generated once per process
+    (settled by physics). Scenes are treated as immutable by every user; the cache holds the last 8.
     """
     from sim_envs.scenegen import generate_scene
 
-    return generate_scene(style, int(seed), texture_density=float(texture_density))
+    return generate_scene(style, int(seed), texture_density=float(texture_density), lighting=lighting)
 
 
 @lru_cache(maxsize=64)
@@ -79,6 +78,11 @@ class SimulatedSequence:
     def __init__(self, spec: SequenceSpec, renderer: str = "mujoco") -> None:
         if renderer not in RENDERER_BACKENDS:
             raise UnknownNameError(f"unknown renderer {renderer!r}; valid renderers: {', '.join(RENDERER_BACKENDS)}")
+        if spec.lighting != "flat" and renderer != "mujoco":
+            raise SimEnvError(
+                f"sequence {spec.name!r}: lighting {spec.lighting!r} (lamps, shadows, highlights) is drawn by the "
+                f"mujoco renderer only, not {renderer!r}"
+            )
         self.spec = spec
         self.name: str = spec.name
         self.sensor_intrinsics: Intrinsics = spec.intrinsics()
@@ -98,7 +102,7 @@ class SimulatedSequence:
     @property
     def scene(self) -> Any:
         """The room (``sim_envs.scene.Scene``), generated on first use."""
-        return cached_scene(self.spec.style, self.spec.scene_seed, self.spec.texture_density)
+        return cached_scene(self.spec.style, self.spec.scene_seed, self.spec.texture_density, self.spec.lighting)
 
     @property
     def trajectory(self) -> Trajectory:

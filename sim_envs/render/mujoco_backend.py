@@ -3,7 +3,9 @@
 Geometry: one mesh geom per (instance, material) pair, in world coordinates, with the scene's own texture coordinates
 and flat/smooth normals (:meth:`Primitive.mesh`), so texture mapping is identical to the pyrender backend's.
 Textures come from numpy arrays. Lighting reproduces :meth:`Scene.shade`: the headlight gives only the ambient term,
-and each scene light is a MuJoCo directional light with diffuse colour = intensity (no specular, no shadows).
+and each scene light is a MuJoCo directional light with diffuse colour = intensity (no specular, no shadows). A
+``lit`` scene (:mod:`sim_envs.lighting`) adds its lamps as MuJoCo spot lights (attenuation, cone, shadow maps of
+1024 x 1024 for those that cast shadows) and its materials' specular, shininess and emission.
 
 Camera: the model's one camera gets exact pinhole intrinsics through ``cam_intrinsic`` / ``cam_sensorsize`` and is
 posed per frame by writing ``data.cam_xpos`` / ``data.cam_xmat`` (MuJoCo cameras look down -z with y up:
@@ -12,7 +14,8 @@ posed per frame by writing ``data.cam_xpos`` / ``data.cam_xmat`` (MuJoCo cameras
 Passes (each ``mjr_render``, only those needed): RGB (colour and, when asked, the depth buffer) and segmentation
 (``mjRND_SEGMENT | mjRND_IDCOLOR``: geom ids -> instance -> class, and the depth buffer when RGB was not asked for).
 Depth is read from MuJoCo's reversed-z float depth buffer and converted to planar z in metres; background -> 0.
-Costs cut as the stack notes measured: no shadows, reflections or skybox, ``offsamples = 0``.
+Costs cut as the stack notes measured: no shadows (unless a lit scene's lamps cast them), reflections or skybox,
+``offsamples = 0``.
 """
 
 from __future__ import annotations
@@ -35,13 +38,19 @@ from sim_envs.render.base import (
 from sim_envs.render.gl import configure_gl, context_error
 from sim_envs.scene import Material, Scene, TriMesh
 
+SHADOW_MAP_SIZE = 1024  # texels per side of a shadow map (ours: at 320x240 as sharp as 2048, 2.4x faster)
+LIT_MAX_EDGE_M = 0.5  # a lit scene's meshes are split down to this edge length (MuJoCo lights per vertex; ours)
+LAMP_SPECULAR = 0.5  # a lamp's specular colour per unit of its diffuse intensity (ours)
+
 
 def _merged_meshes(scene: Scene) -> list[tuple[int, Material, TriMesh]]:
-    """World-frame meshes of ``scene`` merged per (instance, material), in order of first appearance."""
+    """World-frame meshes of ``scene`` merged per (instance, material), in order of first appearance; a lit scene's
+    split into triangles of edges <= :data:`LIT_MAX_EDGE_M` (:meth:`TriMesh.subdivided`: MuJoCo lights per vertex)."""
     groups: dict[tuple[int, int], tuple[int, Material, list[TriMesh]]] = {}
     for prim in scene.primitives:
         key = (prim.instance, id(prim.material))
-        groups.setdefault(key, (prim.instance, prim.material, []))[2].append(prim.mesh())
+        mesh = prim.mesh() if scene.lighting == "flat" else prim.mesh().subdivided(LIT_MAX_EDGE_M)
+        groups.setdefault(key, (prim.instance, prim.material, []))[2].append(mesh)
     return [(inst, mat, TriMesh.concatenate(meshes)) for inst, mat, meshes in groups.values()]
 
 
@@ -59,7 +68,7 @@ def build_model(scene: Scene, intrinsics: Intrinsics, znear: float, zfar: float)
     vis = spec.visual
     vis.global_.offwidth, vis.global_.offheight = intrinsics.width, intrinsics.height
     vis.quality.offsamples = 0  # no multisampling: labels and depth stay exact at edges, and it is faster
-    vis.quality.shadowsize = 0
+    vis.quality.shadowsize = SHADOW_MAP_SIZE if any(lamp.shadows for lamp in scene.lamps) else 0
     vis.headlight.active = 1
     vis.headlight.ambient = [scene.ambient] * 3  # the ambient term of Scene.shade
     vis.headlight.diffuse = [0.0] * 3
@@ -82,13 +91,27 @@ def build_model(scene: Scene, intrinsics: Intrinsics, znear: float, zfar: float)
             pos=list(np.asarray(scene.room_size, dtype=float) / 2),
         )
 
+    for lamp in scene.lamps:
+        spec.worldbody.add_light(
+            type=mujoco.mjtLightType.mjLIGHT_SPOT,
+            pos=list(lamp.position),
+            dir=list(lamp.direction),
+            cutoff=lamp.cutoff_deg,  # MuJoCo takes a light's cutoff in degrees whatever compiler.degree says
+            exponent=lamp.exponent,
+            attenuation=list(lamp.attenuation),
+            diffuse=[lamp.intensity] * 3,
+            ambient=[0.0] * 3,
+            specular=[LAMP_SPECULAR * lamp.intensity] * 3,
+            castshadow=lamp.shadows,
+        )
+
     for k, mat in enumerate(scene.materials()):
         material = spec.add_material(name=f"mat{k}")
         material.rgba = [*mat.rgb, 1.0]
-        material.specular = 0.0
-        material.shininess = 0.0
+        material.specular = mat.specular
+        material.shininess = mat.shininess
         material.reflectance = 0.0
-        material.emission = 0.0
+        material.emission = mat.emission
         if mat.texture is not None:
             tex = mat.texture
             # MuJoCo's texture row 0 is v = 0; the scene's convention puts v = 0 at the image's bottom row
@@ -173,6 +196,7 @@ class MujocoRenderer(Renderer):
         off = ("mjRND_SHADOW", "mjRND_REFLECTION", "mjRND_SKYBOX", "mjRND_FOG", "mjRND_HAZE")
         for flag in off:
             scn.flags[getattr(mujoco.mjtRndFlag, flag)] = 0
+        scn.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(any(lamp.shadows for lamp in self.scene.lamps))
         option = mujoco.MjvOption()
         camera = mujoco.MjvCamera()
         camera.type = mujoco.mjtCamera.mjCAMERA_FIXED

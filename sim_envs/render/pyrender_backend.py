@@ -23,8 +23,10 @@ from typing import Any
 import numpy as np
 
 from sim_envs.camera import Intrinsics
+from sim_envs.errors import SimEnvError
 from sim_envs.render.base import (
     CV_TO_GL,
+    DEFAULT_ZNEAR,
     OUTPUTS,
     Renderer,
     RenderOutput,
@@ -233,6 +235,14 @@ class PyrenderRenderer(Renderer):
     """Renders a :class:`Scene` with pyrender (see the module docstring). ``znear`` in metres."""
 
     backend = "pyrender"
+
+    def __init__(self, scene: Scene, intrinsics: Intrinsics, znear: float = DEFAULT_ZNEAR) -> None:
+        if scene.lighting != "flat":
+            raise SimEnvError(
+                f"the pyrender renderer draws flat-lit scenes only (lighting baked into vertex colours); this scene's "
+                f"lighting is {scene.lighting!r}: render it with renderer='mujoco' (lamps, shadows, highlights)"
+            )
+        super().__init__(scene, intrinsics, znear)
 
     def _ensure_context(self) -> dict[str, Any]:
         """Create the pyrender scene and the offscreen OpenGL context on first use."""

@@ -157,6 +157,18 @@ def test_a_camera_preset_applies_to_simulated_sequences_and_a_calibration_to_fol
         get_suite("table1").select(["office0"], camera="tum_fr1")  # a folder calibration on a simulated sequence
 
 
+def test_a_lit_sequence_is_named_with_plus_lit_before_its_camera_and_fingerprinted():
+    lit = get_suite("table1").select(["office0+lit", "living1@hard+lit"]).sequences  # the default camera: kinect
+    assert [r.name for r in lit] == ["office0+lit@kinect", "living1+lit@hard"]
+    assert lit[0].describe()["overrides"] == {"camera_effects": "kinect", "lighting": "lit"}
+    spec = lit[1].spec()
+    assert (spec.lighting, spec.camera_effects, spec.trajectory) == ("lit", "hard", get_sequence("living1").trajectory)
+    assert resolve_sequence("rot_yaw_30+lit").spec().lighting == "lit"
+    assert lit[0].with_lighting("flat").name == "office0@kinect"
+    with pytest.raises(SuiteError, match="unknown lighting 'dark'; valid: flat, lit"):
+        lit[0].with_lighting("dark")
+
+
 def test_camera_preset_names_do_not_collide_with_folder_calibrations():
     from eval.suites import sim_camera_presets
 

@@ -134,3 +134,27 @@ def test_instance_ids_must_be_contiguous_and_single_class():
     bad = Primitive("box", (1, 1, 1), np.eye(4), PLAIN, SemanticClass.SMALL_STRUCTURE, 1, "cabinet_0/other")
     with pytest.raises(SimEnvError, match="mixes"):
         Scene("x", 0, np.ones(3), (a, b, bad))
+
+
+@pytest.mark.parametrize("mesh", [box_mesh(np.array([2.5, 0.05, 1.4])), cylinder_mesh(0.3, 0.9)], ids=["wall", "cyl"])
+def test_subdividing_a_mesh_keeps_its_surface_and_splits_shared_edges_alike(mesh):
+    def area(m):
+        a, b, c = (m.vertices[m.faces[:, k]] for k in range(3))
+        return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+
+    fine = mesh.subdivided(0.3)
+    edges = np.concatenate([fine.faces[:, [0, 1]], fine.faces[:, [1, 2]], fine.faces[:, [2, 0]]])
+    assert np.linalg.norm(fine.vertices[edges[:, 0]] - fine.vertices[edges[:, 1]], axis=1).max() <= 0.3
+    assert area(fine) == pytest.approx(area(mesh), rel=1e-9)  # planar faces: the same surface
+    assert np.allclose(np.linalg.norm(fine.normals, axis=1), 1.0)
+    # no T-junctions: a closed mesh stays closed, every edge (by its end points) shared by exactly two triangles
+    def open_edges(m):
+        pairs = np.round(m.vertices[np.concatenate([m.faces[:, [0, 1]], m.faces[:, [1, 2]], m.faces[:, [2, 0]]])], 9)
+        keys = [tuple(sorted((tuple(a), tuple(b)))) for a, b in pairs]
+        counts: dict = {}
+        for k in keys:
+            counts[k] = counts.get(k, 0) + 1
+        return sum(c != 2 for c in counts.values())
+
+    assert open_edges(mesh) == 0 and open_edges(fine) == 0
+    assert mesh.subdivided(100.0).faces.shape == mesh.faces.shape
