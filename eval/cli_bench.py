@@ -72,7 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulated sequences: what the camera does to the images, kinect (a hand-held RGB-D "
                              "camera, default), clean (the renderer's bytes) or hard (sim_envs/camera_effects.py; "
                              "a name with @PRESET in --sequences picks one sequence's camera; "
-                             "transfer: the simulated part's presets, comma-separated, default all); folder "
+                             "transfer: the simulated domains, comma-separated presets, each maybe with +lit "
+                             "(clean,kinect,kinect+lit), default the presets); folder "
                              "sequences: their calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or "
                              "a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the "
                              "folder's "
@@ -230,7 +231,8 @@ def run(args: argparse.Namespace) -> int:
             raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
         camera, presets = args.camera, None
-        if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= set(sim_camera_presets()):
+        sim_domains = {p for c in sim_camera_presets() for p in (c, f"{c}+lit")}
+        if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= sim_domains:
             camera, presets = None, tuple(args.camera.split(","))  # the simulated part's cameras, e.g. clean,kinect
         suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
                              camera=camera, size=_image_size(args.image_size))  # fmt: skip

@@ -776,21 +776,32 @@ def get_suite(name: str) -> Suite:
         raise SuiteError(f"unknown suite {name!r}; valid suites: {', '.join(SUITES)}") from None
 
 
+def sim_domain(name: str) -> tuple[str, str]:
+    """A simulated domain of the transfer report, ``<camera preset>`` or ``<camera preset>+<lighting>``
+    (``kinect+lit``), as ``(camera preset, lighting)``; raises :class:`SuiteError` naming the valid ones."""
+    camera, _, lighting = name.partition("+")
+    if camera not in SIM_CAMERA_PRESETS or (lighting or "flat") not in LIGHTINGS:
+        raise SuiteError(
+            f"unknown simulated domain {name!r}; valid: a camera preset ({', '.join(SIM_CAMERA_PRESETS)}), "
+            f"optionally with +lit (kinect+lit: the rooms lit by lamps with shadows)"
+        )
+    return camera, lighting or "flat"
+
+
 def transfer_parts(suite: Suite, presets: Sequence[str] = SIM_CAMERA_PRESETS) -> list[tuple[str, Suite]]:
-    """The suites the ``transfer`` suite is made of, as ``(domain, suite)``: ``sim:<preset>`` for each camera preset
-    (the ``table1`` suite at its bench size with the transfer suite's methods and seeds, so its runs are
-    ``make bench``'s own), then ``real`` (the transfer suite's folder sequences, frames and seeds, run as the
-    ``real`` suite: its runs are ``cnnslam bench real``'s own). Each real sequence is its own domain
-    ``real:<name>`` in the report."""
+    """The suites the ``transfer`` suite is made of, as ``(domain, suite)``: ``sim:<preset>`` for each simulated
+    domain of ``presets`` (a camera preset, or one with ``+lit``, :func:`sim_domain`): the ``table1`` suite at its
+    bench size with the transfer suite's methods and seeds, so its runs are ``make bench``'s own; then ``real``
+    (the transfer suite's folder sequences, frames and seeds, run as the ``real`` suite: its runs are
+    ``cnnslam bench real``'s own). Each real sequence is its own domain ``real:<name>`` in the report."""
     if suite.kind != "transfer":
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
-    unknown = [p for p in presets if p not in SIM_CAMERA_PRESETS]
-    if unknown:
-        raise SuiteError(f"unknown camera preset(s) {unknown}; valid presets: {', '.join(SIM_CAMERA_PRESETS)}")
     table1 = SUITES["table1"]
-    parts = [(f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds,
-                                  sequences=tuple(r.with_camera_effects(p) for r in table1.sequences)))
-             for p in presets]  # fmt: skip
+    parts = []
+    for p in presets:
+        camera, lighting = sim_domain(p)
+        refs = tuple(r.with_lighting(lighting).with_camera_effects(camera) for r in table1.sequences)
+        parts.append((f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs)))
     real = replace(SUITES["real"], sequences=suite.sequences, skipped=suite.skipped, methods=suite.methods,
                    frames=suite.frames, seeds=suite.seeds)  # fmt: skip
     return [*parts, ("real", real)]

@@ -173,3 +173,14 @@ def test_camera_preset_names_do_not_collide_with_folder_calibrations():
     from eval.suites import sim_camera_presets
 
     assert not set(sim_camera_presets()) & set(camera_presets())
+
+
+def test_the_transfer_report_takes_lit_simulated_domains():
+    from eval.suites import transfer_parts
+
+    parts = transfer_parts(get_suite("transfer"), ("kinect", "kinect+lit"))
+    assert [d for d, _ in parts] == ["sim:kinect", "sim:kinect+lit", "real"]
+    assert [r.name for r in parts[1][1].sequences][:2] == ["office0+lit@kinect", "office1+lit@kinect"]
+    assert parts[0][1].sequences[0].name == "office0@kinect"  # table1's own runs
+    with pytest.raises(SuiteError, match="unknown simulated domain 'kinect\\+dark'"):
+        transfer_parts(get_suite("transfer"), ("kinect+dark",))
