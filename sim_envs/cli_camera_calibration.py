@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from sim_envs.camera_calibration import CameraStatistics, camera_statistics
+from sim_envs.sequences import SequenceSpec
 
 ROWS: dict[str, str] = {
     "noise_std": "noise std on flat regions [levels]",
@@ -28,14 +30,22 @@ ROWS: dict[str, str] = {
 }
 
 
+def sequence_spec(name: str) -> SequenceSpec:
+    """The registered sequence ``name``, or ``<name>+lit``: the same in its lit room (:mod:`sim_envs.lighting`)."""
+    from sim_envs.sequences import get_sequence
+
+    base, plus, lighting = name.partition("+")
+    return replace(get_sequence(base), lighting=lighting) if plus else get_sequence(base)
+
+
 def measure_sequence(name: str, preset: str, frames: int, renderer: str = "mujoco") -> tuple[CameraStatistics, float]:
-    """Statistics of the first ``frames`` frames of registered sequence ``name`` through camera preset ``preset``,
-    and the seconds it took (rendering included)."""
-    from sim_envs.sequences import get_sequence, with_camera
+    """Statistics of the first ``frames`` frames of registered sequence ``name`` (maybe ``+lit``,
+    :func:`sequence_spec`) through camera preset ``preset``, and the seconds it took (rendering included)."""
+    from sim_envs.sequences import with_camera
     from sim_envs.simsource import SimulatedSequence
 
     start = time.perf_counter()
-    with SimulatedSequence(with_camera(get_sequence(name).with_frames(frames), preset), renderer) as seq:
+    with SimulatedSequence(with_camera(sequence_spec(name).with_frames(frames), preset), renderer) as seq:
         stats = camera_statistics(seq.rgb(i) for i in range(frames))
     return stats, time.perf_counter() - start
 
@@ -53,12 +63,12 @@ def markdown_table(columns: dict[str, CameraStatistics]) -> str:
 def side_by_side(name: str, presets: Sequence[str], index: int, path: Path, crop: int = 2) -> None:
     """Write frame ``index`` of sequence ``name`` through each preset side by side (labelled), and a 2x enlarged
     crop of the centre of each under it, as a PNG."""
-    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.sequences import with_camera
     from sim_envs.simsource import SimulatedSequence
 
     tiles = []
     for preset in presets:
-        with SimulatedSequence(with_camera(get_sequence(name).with_frames(index + 1), preset)) as seq:
+        with SimulatedSequence(with_camera(sequence_spec(name).with_frames(index + 1), preset)) as seq:
             rgb = seq.rgb(index)
         h, w = rgb.shape[:2]
         zoom = rgb[
@@ -78,7 +88,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="python -m sim_envs.cli_camera_calibration", description=__doc__.splitlines()[0]
     )
     parser.add_argument("--real", default="../shared/data/real/7scenes_redkitchen", help="a real RGB-D folder")
-    parser.add_argument("--sequences", nargs="+", default=["office0", "living0"], help="simulated sequences")
+    parser.add_argument("--sequences", nargs="+", default=["office0", "living0"],
+                        help="simulated sequences (name+lit: in its lit room)")
     parser.add_argument("--presets", nargs="+", default=["kinect", "clean", "hard"])
     parser.add_argument("--frames", type=int, default=100, help="first N frames of each")
     parser.add_argument("--out", default=None, help="Markdown file to write (default: print only)")

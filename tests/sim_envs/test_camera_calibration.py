@@ -26,3 +26,13 @@ def test_vignette_ratio_and_brightness_change():
     changes = np.diff(np.log([100, 100, 110, 100]))
     assert stats.log_brightness_change_std == pytest.approx(np.std(changes), rel=1e-3)
     assert stats.brightness_mean == pytest.approx(102.5) and stats.frames == 4
+
+
+def test_a_calibration_sequence_may_be_named_in_its_lit_room():
+    from sim_envs.cli_camera_calibration import sequence_spec
+    from sim_envs.errors import SimEnvError
+
+    assert sequence_spec("office0+lit").lighting == "lit" and sequence_spec("office0").lighting == "flat"
+    assert sequence_spec("office0+lit").trajectory == sequence_spec("office0").trajectory
+    with pytest.raises(SimEnvError, match="lighting must be one of flat, lit"):
+        sequence_spec("office0+dark")
