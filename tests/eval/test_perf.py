@@ -47,7 +47,7 @@ def test_the_default_probes():
     probes, frames = load_probes()
     by_name = {p.name: p for p in probes}
     assert set(by_name) == {"render", "cameras", "cameras_lit", "cnn", "slam", "metrics"} and frames > 0
-    assert by_name["cameras_lit"].args[:3] == ["--cameras", "--lighting", "lit"]
+    assert tuple(by_name["cameras_lit"].args[:3]) == ("--cameras", "--lighting", "lit")
     assert "--cameras" in by_name["cameras"].args and by_name["cameras"].output == "json_stdout"
     assert by_name["render"].module == "sim_envs.bench_render" and by_name["render"].output == "render_table"
     assert by_name["cnn"].output == "json_file" and "{json}" in by_name["cnn"].args
