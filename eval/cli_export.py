@@ -24,13 +24,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulated camera (sim_envs.camera_effects): clean (default, the renderer's images), "
                              "kinect or hard; a non-clean camera also writes its photometric calibration "
                              "(times.txt, pcalib.txt, vignette.png) and camera files")  # fmt: skip
+    parser.add_argument("--lighting", default="flat", metavar="LIGHTING",
+                        help="flat (default) or lit: the room with lamps, shadows and highlights "
+                             "(sim_envs/lighting.py; mujoco renderer only)")  # fmt: skip
     parser.add_argument("--overwrite", action="store_true", help="write into a non-empty folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def open_sequence(name: str, renderer: str, camera_effects: str = "clean") -> Any:
-    """A registered sequence, seen through the ``camera_effects`` preset, as a frame source (lazy imports: the
-    registry pulls in scenes and renderers)."""
+def open_sequence(name: str, renderer: str, camera_effects: str = "clean", lighting: str = "flat") -> Any:
+    """A registered sequence, seen through the ``camera_effects`` preset in its room lit ``lighting``, as a frame
+    source (lazy imports: the registry pulls in scenes and renderers)."""
+    from dataclasses import replace
+
     from sim_envs.sequences import get_sequence, with_camera
 
     try:
@@ -39,12 +44,13 @@ def open_sequence(name: str, renderer: str, camera_effects: str = "clean") -> An
         from sim_envs.simsource import SimulatedSequence
     spec = get_sequence(name)
     spec = with_camera(spec, camera_effects) if camera_effects != "clean" else spec
+    spec = replace(spec, lighting=lighting) if lighting != "flat" else spec
     return SimulatedSequence(spec, renderer=renderer)
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        source = open_sequence(args.sequence, args.renderer, args.camera_effects)
+        source = open_sequence(args.sequence, args.renderer, args.camera_effects, args.lighting)
         try:
             folder = export_tum_rgbd(
                 source, args.folder, overwrite=args.overwrite, progress=not args.no_progress, max_frames=args.frames

@@ -34,7 +34,7 @@ class TinySource:
 
 def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
     source = TinySource()
-    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer, camera_effects="clean": source)
+    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer, effects="clean", lighting="flat": source)
     out = tmp_path / "tiny"
     assert main(["export", "tiny", str(out), "--no-progress", "--frames", "3"]) == 0
     assert "exported tiny" in capsys.readouterr().out and source.closed
@@ -57,3 +57,13 @@ def test_export_command_unknown_camera_effects(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences")
     assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 1
     assert "clean, hard, kinect" in capsys.readouterr().err
+
+
+def test_export_command_lighting(tmp_path, capsys):
+    pytest.importorskip("sim_envs.sequences")
+    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--lighting", "dim"]) == 1
+    assert "lighting must be one of flat, lit" in capsys.readouterr().err
+    assert main(["export", "office0", str(tmp_path / "y"), "--no-progress", "--lighting", "lit", "--renderer",
+                 "pyrender"]) == 1  # fmt: skip
+    assert "mujoco renderer only" in capsys.readouterr().err
+    assert cli_export.open_sequence("office0", "mujoco", "kinect", "lit").spec.lighting == "lit"
