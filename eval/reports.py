@@ -77,9 +77,9 @@ PAPER_NAMES: dict[str, str] = dict(
 
 
 def paper_name(label: object, default: str) -> str:
-    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through (``office0@kinect``
-    is ICL/office0); ``default`` for a sequence of ours only."""
-    return PAPER_NAMES.get(str(label).split("@")[0], default)
+    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through and however its room is
+    lit (``office0@kinect`` and ``office0+lit@kinect`` are ICL/office0); ``default`` for a sequence of ours only."""
+    return PAPER_NAMES.get(str(label).split("@")[0].split("+")[0], default)
 
 
 def camera_sentence(suite: Any) -> str:
@@ -89,8 +89,12 @@ def camera_sentence(suite: Any) -> str:
                       if r.folder is None})  # fmt: skip
     if not cameras:
         return ""
+    lit = sorted({r.name for r in suite.sequences if r.folder is None and dict(r.overrides).get("lighting", "flat")
+                  != "flat"})  # fmt: skip
+    rooms = (f"Rooms lit with lamps, shadows and highlights (`sim_envs/lighting.py`, the `+lit` names): {len(lit)} of "
+             f"{sum(r.folder is None for r in suite.sequences)} simulated sequences. ") if lit else ""  # fmt: skip
     return (f"Simulated camera: **{', '.join(cameras)}** (`sim_envs/camera_effects.py`; `--camera clean|kinect|hard` "
-            "switches; a sequence's `@PRESET` suffix names its camera). ")  # fmt: skip
+            "switches; a sequence's `@PRESET` suffix names its camera). " + rooms)  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------------- long form

@@ -197,8 +197,11 @@ def test_reports_name_the_camera_and_map_camera_sequences_to_the_paper():
     from eval.reports import camera_sentence, paper_name
 
     assert paper_name("office0@kinect", "-") == paper_name("office0", "-") == "ICL/office0"
+    assert paper_name("office0+lit@kinect", "-") == paper_name("office0+lit", "-") == "ICL/office0"
     assert paper_name("rot_yaw_30@kinect", "ours only") == "ours only"
     assert "**kinect**" in camera_sentence(get_suite("table1"))
     assert "**clean**" in camera_sentence(get_suite("table1").select(camera="clean"))
     assert "**hard, kinect**" in camera_sentence(get_suite("table1").select(["office0", "office1@hard"]))
     assert camera_sentence(get_suite("perf")) == ""  # no simulated sequence
+    assert "Rooms lit" not in camera_sentence(get_suite("table1"))
+    assert "1 of 2 simulated sequences" in camera_sentence(get_suite("table1").select(["office0", "office1+lit"]))
