@@ -25,6 +25,8 @@ With depth noise on, frames also carry a Kinect-like ``sensor_depth`` (its own g
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 from typing import Any
 
@@ -91,7 +93,11 @@ class SimulatedSequence:
         self.camera_effects = spec.camera_effects_model()
         self._brightness_renderer: Any = None
         self._brightness = np.empty(0)  # mean linear brightness of frames 0..len-1 (auto-exposure), cached
+        self._jitter = np.empty(0)  # the exposure jitter draws of frames 0..len-1, cached
+        self._exposure: tuple[np.ndarray, np.ndarray] = (np.empty(0), np.empty(0))  # exposures() of 0..len-1
         self._geometry: Any = None
+        self._pool: ThreadPoolExecutor | None = None
+        self._pool_pid = 0
         self.intrinsics: Intrinsics = self._delivered_intrinsics()
 
     # -- FrameSource -----------------------------------------------------------------------------------------------
@@ -146,16 +152,25 @@ class SimulatedSequence:
     def exposures(self, upto: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Exposure times (s) and analogue gains of frames ``0..upto`` (default: all), two (n,) float64 arrays
         (:func:`sim_envs.camera_effects.auto_exposure`; constant when auto-exposure is off)."""
+        n = len(self) if upto is None else int(upto) + 1
+        done = self._exposure[0].shape[0]
+        if n > done:  # the controller is causal: a longer run keeps the values of a shorter one, so the series
+            self._extend_exposures(min(len(self), max(n, 2 * done)))  # grows by doubling (linear, not quadratic)
+        return self._exposure[0][:n].copy(), self._exposure[1][:n].copy()
+
+    def _extend_exposures(self, n: int) -> None:
+        """Compute the exposure series of frames 0..n-1 into the cache (jitter drawn only for the new frames)."""
         from sim_envs.camera_effects import auto_exposure
 
-        n = len(self) if upto is None else int(upto) + 1
         fx = self.camera_effects
-        jitter = None
         if fx.exposure_jitter > 0:  # one draw per frame from its own generator: any access order, same values
             seed = int(self.spec.seed)
-            jitter = np.array([np.random.default_rng((seed, _EXPOSURE_STREAM, i)).standard_normal() for i in range(n)])
+            new = [np.random.default_rng((seed, _EXPOSURE_STREAM, i)).standard_normal()
+                   for i in range(self._jitter.shape[0], n)]  # fmt: skip
+            self._jitter = np.concatenate([self._jitter, np.asarray(new, dtype=np.float64)])
+        jitter = self._jitter[:n] if fx.exposure_jitter > 0 else None
         brightness = self._brightness_series(n) if fx.auto_exposure else np.ones(n)
-        return auto_exposure(brightness, fx, jitter)
+        self._exposure = auto_exposure(brightness, fx, jitter)
 
     def close(self) -> None:
         """Release the renderers; a later frame creates new ones."""
@@ -163,6 +178,9 @@ class SimulatedSequence:
             if getattr(self, attr) is not None:
                 getattr(self, attr).close()
                 setattr(self, attr, None)
+        if self._pool is not None and self._pool_pid == os.getpid():
+            self._pool.shutdown()
+        self._pool = None
 
     def __enter__(self) -> SimulatedSequence:
         return self
@@ -174,6 +192,7 @@ class SimulatedSequence:
         state = self.__dict__.copy()
         state["_renderer"] = None  # an OpenGL context does not travel; the copy makes its own
         state["_brightness_renderer"] = None
+        state["_pool"] = None  # nor does a thread
         return state
 
     def __repr__(self) -> str:
@@ -254,10 +273,15 @@ class SimulatedSequence:
         return result
 
     def _camera_render(self, index: int, result: dict[str, Any], undistort: bool) -> dict[str, Any]:
-        """``result`` (the renders at the frame's pose) with the camera's RGB and, when on, its sensor depth."""
+        """``result`` (the renders at the frame's pose) with the camera's RGB and, when on, its sensor depth.
+
+        The sensor depth and the image noise's draws are computed on a worker thread while this one renders the
+        blur sub-frames (NumPy and OpenCV release the GIL there); each has its own generator, so the bytes are
+        those of a serial run."""
         from sim_envs.camera_effects import (
             ground_truth_on_delivered_grid,
             kinect_depth,
+            noise_draws,
             sensor_geometry,
             sensor_image,
             undistort_image,
@@ -266,29 +290,44 @@ class SimulatedSequence:
         fx = self.camera_effects
         if self._geometry is None:
             self._geometry = sensor_geometry(self.sensor_intrinsics, fx)
+        for name in ("depth", "labels", "instances"):  # exact renders, onto the delivered grid
+            if result[name] is not None:
+                result[name] = ground_truth_on_delivered_grid(result[name], self._geometry)
+        sensor_depth = None
+        if fx.depth_noise and result["depth"] is not None:
+            rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
+            sensor_depth = self._worker().submit(kinect_depth, result["depth"], rng)
         if result["rgb"] is not None and fx.any:
             exposure, gain = self.exposures(index)
             renderer = self._get_renderer()
+            rng = frame_rng(self.spec.seed, index)
+            shape = (self.sensor_intrinsics.height, self.sensor_intrinsics.width, 3)
+            normals = self._worker().submit(noise_draws, shape, fx, rng)
             raw = sensor_image(
                 lambda T: renderer.render(T, outputs=("rgb",)).rgb,
                 self.trajectory.pose_at,
                 float(self.timestamps[index]),
                 fx,
                 self.sensor_intrinsics,
-                frame_rng(self.spec.seed, index),
+                rng,
                 exposure_s=float(exposure[index]),
                 gain=float(gain[index]),
                 geometry=self._geometry,
                 own_render=result["rgb"],
+                normals=normals.result,
             )
             result["rgb"] = undistort_image(raw, self._geometry) if undistort else raw
-        for name in ("depth", "labels", "instances"):  # exact renders, onto the delivered grid
-            if result[name] is not None:
-                result[name] = ground_truth_on_delivered_grid(result[name], self._geometry)
-        if fx.depth_noise and result["depth"] is not None:
-            rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
-            result["sensor_depth"] = kinect_depth(result["depth"], rng)
+        if sensor_depth is not None:
+            result["sensor_depth"] = sensor_depth.result()
         return result
+
+    def _worker(self) -> ThreadPoolExecutor:
+        """The one worker thread of this sequence's per-frame side computations (made on first use, and anew in a
+        forked child process, where the parent's thread does not exist)."""
+        if self._pool is None or self._pool_pid != os.getpid():
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="simsource")
+            self._pool_pid = os.getpid()
+        return self._pool
 
 
 class FrameListSource:

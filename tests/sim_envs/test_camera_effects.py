@@ -228,6 +228,37 @@ def test_same_seed_same_bytes_and_clean_is_identity():
     np.testing.assert_array_equal(sensor_image(render, pose_at, 0.1, clean, K, np.random.default_rng(0)), img)
 
 
+def test_noise_drawn_ahead_gives_the_same_bytes():
+    from sim_envs.camera_effects import noise_draws
+
+    render, pose_at = _moving_edge(300.0)
+    fx = camera_effects_preset("kinect")
+    serial = sensor_image(render, pose_at, 0.1, fx, K, np.random.default_rng(7), exposure_s=0.02, gain=1.5)
+    rng = np.random.default_rng(7)
+    drawn = noise_draws((K.height, K.width, 3), fx, rng)
+    ahead = sensor_image(render, pose_at, 0.1, fx, K, rng, exposure_s=0.02, gain=1.5, normals=lambda: drawn)
+    np.testing.assert_array_equal(serial, ahead)
+    assert noise_draws((4, 4, 3), CameraEffects(), np.random.default_rng(0)) is None  # no noise: no draw
+    with pytest.raises(ValueError, match="rng or normals"):
+        linear_noise(np.zeros((2, 2, 3), np.float32), fx)
+
+
+def test_exposures_are_the_same_in_any_order_of_asking():
+    spec = with_camera(_tiny(get_sequence("office1"), 40), "kinect")
+    whole, pieces = SimulatedSequence(spec), SimulatedSequence(spec)
+    try:
+        e_all, g_all = whole.exposures()
+        for upto in (0, 3, 17, 2, 39):  # the cache grows by doubling and keeps every value it gave
+            e, g = pieces.exposures(upto)
+            np.testing.assert_array_equal(e, e_all[: upto + 1])
+            np.testing.assert_array_equal(g, g_all[: upto + 1])
+        e[:] = -1  # a copy: the caller cannot change the cache
+        assert (pieces.exposures(5)[0] > 0).all()
+    finally:
+        whole.close()
+        pieces.close()
+
+
 def test_presets_and_unknown_names():
     assert camera_effect_presets() == ["clean", "hard", "kinect"]
     kinect = camera_effects_preset("kinect")
