@@ -89,24 +89,29 @@ def camera_throughput(
     renderer: str = "mujoco",
     variants: dict[str, object] | None = None,
     lighting: str = "flat",
+    first: int = 0,
 ) -> dict[str, float]:
     """Frames per second of RGB + depth through each camera variant (name -> preset name or ``CameraEffects``;
     default :func:`camera_variants`) along the first ``frames`` frames of ``sequence`` at ``width`` x ``height``,
     after one warm-up frame (context made, room generated; the auto-exposure brightness pass of the frames is
-    included in the time), the room lit ``lighting`` (``flat`` or ``lit``). Prints one line per variant and returns
-    name -> fps."""
+    included in the time), the room lit ``lighting`` (``flat`` or ``lit``). ``first`` > 0: the warm-up frame is
+    frame ``first`` of a sequence that long and the timed frames follow it (what a frame costs late in a long
+    sequence). Prints one line per variant and returns name -> fps."""
     from dataclasses import replace
 
     from sim_envs.sequences import get_sequence, with_camera
     from sim_envs.simsource import SimulatedSequence
 
-    spec = replace(get_sequence(sequence).with_frames(frames + 1), width=width, height=height, lighting=lighting)
+    if first < 0:
+        raise ValueError(f"first must be >= 0, got {first}")
+    spec = replace(get_sequence(sequence).with_frames(first + frames + 1), width=width, height=height,
+                   lighting=lighting)  # fmt: skip
     out = {}
     for name, camera in (variants or camera_variants()).items():
         with SimulatedSequence(with_camera(spec, camera), renderer) as seq:  # type: ignore[arg-type]
-            seq._render(0, ("rgb", "depth"))
+            seq._render(first, ("rgb", "depth"))
             start = time.perf_counter()
-            for i in range(1, frames + 1):
+            for i in range(first + 1, first + frames + 1):
                 seq._render(i, ("rgb", "depth"))
             out[name] = frames / (time.perf_counter() - start)
         print(f"{name:<28} {out[name]:8.1f} fps", flush=True)
@@ -126,6 +131,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--cameras", action="store_true", help="instead: RGB+depth fps of office0 through each camera and effect alone"
     )
     parser.add_argument("--json", action="store_true", help="with --cameras: also print the figures as one JSON object")
+    parser.add_argument("--first", type=int, default=0,
+                        help="with --cameras: time the frames after frame FIRST of a sequence that long (default 0)")
     parser.add_argument("--lighting", default="flat", choices=LIGHTINGS,
                         help="flat (default) or lit: lamps with shadows, bright windows, highlights (mujoco only)")
 
@@ -136,9 +143,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.cameras:
         print(f"camera throughput, RGB + depth at {args.width}x{args.height}, office0 ({args.lighting}), "
-              f"{args.frames} frames")  # fmt: skip
-        fps = camera_throughput("office0", args.frames, args.width, args.height, args.backends[0],
-                                lighting=args.lighting)  # fmt: skip
+              f"{args.frames} frames after frame {args.first}")  # fmt: skip
+        variants = None if args.first == 0 else {"kinect": "kinect", "hard": "hard"}  # late frames: the presets
+        fps = camera_throughput("office0", args.frames, args.width, args.height, args.backends[0], variants,
+                                lighting=args.lighting, first=args.first)  # fmt: skip
         if args.json:  # one object, keys "<variant>_fps" (words joined by "_"), for `cnnslam bench perf`
             print(json.dumps({re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_") + "_fps": round(value, 2)
                               for name, value in fps.items()}))  # fmt: skip

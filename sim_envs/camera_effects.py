@@ -377,8 +377,10 @@ def _encode_lut(response: str, gamma: float) -> np.ndarray:
 def encode(x: np.ndarray, effects: CameraEffects) -> np.ndarray:
     """The camera response and 8-bit quantisation of a linear signal (clipped to [0, 1]): uint8 of the same shape,
     ``rint(255 f(x))`` read from a table of 2^18 + 1 linear steps (x rounded to the nearest step first)."""
-    index = np.rint(np.clip(x, 0.0, 1.0) * np.float32(_ENCODE_STEPS)).astype(np.int32)
-    return _encode_lut(effects.response, float(effects.response_gamma))[index]
+    t = np.clip(x, 0.0, 1.0)
+    t *= np.float32(_ENCODE_STEPS)  # in place: the same float32 operations as rint(clip(x) * steps), fewer copies
+    np.rint(t, out=t)
+    return np.take(_encode_lut(effects.response, float(effects.response_gamma)), t.astype(np.int32))
 
 
 @lru_cache(maxsize=4)
@@ -538,8 +540,13 @@ def linear_noise(x: np.ndarray, effects: CameraEffects, rng: np.random.Generator
     scale = 1.0 if effects.sensor_width is None else min(1.0, x.shape[1] / effects.sensor_width)
     shot = np.asarray(effects.shot_noise, dtype=np.float32) * np.float32(scale)
     read = np.asarray(effects.read_noise, dtype=np.float32) * np.float32(scale)
-    std = np.sqrt(np.maximum(x, 0.0) * shot**2 + read**2)
-    return x + std * normals
+    std = np.maximum(x, 0.0)  # std = sqrt(max(x, 0) shot^2 + read^2), computed in place (the same float32 steps)
+    std *= shot**2
+    std += read**2
+    np.sqrt(std, out=std)
+    std *= normals
+    std += x
+    return std
 
 
 def expose(linear: np.ndarray, effects: CameraEffects, exposure_s: float, gain: float,
@@ -549,11 +556,12 @@ def expose(linear: np.ndarray, effects: CameraEffects, exposure_s: float, gain: 
     (from ``normals`` when given, else from ``rng``: :func:`linear_noise`), gain, response, 8-bit quantisation
     (steps 4-6 of the module docstring)."""
     scale = effects.scene_light * exposure_s / effects.reference_exposure_s
-    x = np.asarray(linear, dtype=np.float32) * np.float32(scale)
+    x = np.asarray(linear, dtype=np.float32) * np.float32(scale)  # a new array: the steps below work in place
     if vignette_map is not None:
-        x = x * vignette_map[..., None]
-    x = np.minimum(x, 1.0)  # the sensor saturates (full well) before the noise is read
-    x = linear_noise(x, effects, rng, normals=normals) * np.float32(gain)
+        x *= vignette_map[..., None]
+    np.minimum(x, np.float32(1.0), out=x)  # the sensor saturates (full well) before the noise is read
+    x = linear_noise(x, effects, rng, normals=normals)
+    x *= np.float32(gain)
     return encode(x, effects)
 
 

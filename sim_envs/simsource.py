@@ -26,7 +26,7 @@ With depth noise on, frames also carry a Kinect-like ``sensor_depth`` (its own g
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from functools import lru_cache
 from typing import Any
 
@@ -280,7 +280,6 @@ class SimulatedSequence:
         those of a serial run."""
         from sim_envs.camera_effects import (
             ground_truth_on_delivered_grid,
-            kinect_depth,
             noise_draws,
             sensor_geometry,
             sensor_image,
@@ -293,16 +292,13 @@ class SimulatedSequence:
         for name in ("depth", "labels", "instances"):  # exact renders, onto the delivered grid
             if result[name] is not None:
                 result[name] = ground_truth_on_delivered_grid(result[name], self._geometry)
-        sensor_depth = None
-        if fx.depth_noise and result["depth"] is not None:
-            rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
-            sensor_depth = self._worker().submit(kinect_depth, result["depth"], rng)
         if result["rgb"] is not None and fx.any:
             exposure, gain = self.exposures(index)
             renderer = self._get_renderer()
             rng = frame_rng(self.spec.seed, index)
             shape = (self.sensor_intrinsics.height, self.sensor_intrinsics.width, 3)
-            normals = self._worker().submit(noise_draws, shape, fx, rng)
+            normals = self._worker().submit(noise_draws, shape, fx, rng)  # first: the image needs it sooner
+            sensor_depth = self._submit_sensor_depth(index, result)
             raw = sensor_image(
                 lambda T: renderer.render(T, outputs=("rgb",)).rgb,
                 self.trajectory.pose_at,
@@ -317,9 +313,20 @@ class SimulatedSequence:
                 normals=normals.result,
             )
             result["rgb"] = undistort_image(raw, self._geometry) if undistort else raw
+        else:
+            sensor_depth = self._submit_sensor_depth(index, result)
         if sensor_depth is not None:
             result["sensor_depth"] = sensor_depth.result()
         return result
+
+    def _submit_sensor_depth(self, index: int, result: dict[str, Any]) -> Future[np.ndarray] | None:
+        """The Kinect-like sensor depth of frame ``index``, queued on the worker (None when the camera has none)."""
+        from sim_envs.camera_effects import kinect_depth
+
+        if not self.camera_effects.depth_noise or result["depth"] is None:
+            return None
+        rng = np.random.default_rng((int(self.spec.seed), _DEPTH_NOISE_STREAM, int(index)))
+        return self._worker().submit(kinect_depth, result["depth"], rng)
 
     def _worker(self) -> ThreadPoolExecutor:
         """The one worker thread of this sequence's per-frame side computations (made on first use, and anew in a

@@ -46,8 +46,10 @@ def test_parsers_read_the_figures_and_skip_the_rest():
 def test_the_default_probes():
     probes, frames = load_probes()
     by_name = {p.name: p for p in probes}
-    assert set(by_name) == {"render", "cameras", "cameras_lit", "cnn", "slam", "metrics"} and frames > 0
+    assert set(by_name) == {"render", "cameras", "cameras_late", "cameras_lit", "cnn", "slam", "metrics"}
+    assert frames > 0
     assert tuple(by_name["cameras_lit"].args[:3]) == ("--cameras", "--lighting", "lit")
+    assert tuple(by_name["cameras_late"].args[:3]) == ("--cameras", "--first", "900")
     assert "--cameras" in by_name["cameras"].args and by_name["cameras"].output == "json_stdout"
     assert by_name["render"].module == "sim_envs.bench_render" and by_name["render"].output == "render_table"
     assert by_name["cnn"].output == "json_file" and "{json}" in by_name["cnn"].args
