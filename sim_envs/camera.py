@@ -84,7 +84,10 @@ _NATIVE: dict[str, Intrinsics] = {
     "tum_fr3": Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480),
     "tum_default": Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480),
     "nyu": Intrinsics(518.8579, 519.4696, 325.5824, 253.7362, 640, 480),
-    "7scenes": Intrinsics(585.0, 585.0, 320.0, 240.0, 640, 480),  # the one set 7-Scenes gives (colour and depth)
+    "7scenes": Intrinsics(585.0, 585.0, 320.0, 240.0, 640, 480),  # the one set 7-Scenes gives: its depth camera's
+    # 7-Scenes' colour camera: focal length 525 px, principal point at the centre, as the relocalisation setups
+    # that register 7-Scenes to its colour camera use it (DSAC*, ACE: datasets/setup_7scenes.py)
+    "7scenes_rgb": Intrinsics(525.0, 525.0, 320.0, 240.0, 640, 480),
 }
 # TUM fr1 and fr2 RGB images are distorted (OpenCV order k1 k2 p1 p2 k3, reference-facts.md); fr3's are not.
 _DISTORTION: dict[str, tuple[float, float, float, float, float]] = {

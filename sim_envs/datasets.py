@@ -48,9 +48,18 @@ Camera (intrinsics and lens distortion, :class:`~sim_envs.camera.CameraModel`), 
 argument (an :class:`Intrinsics` or :class:`CameraModel` at the image size, a preset name of
 :func:`sim_envs.camera.preset` with the preset's distortion, or the path of a camera file); the folder's camera file
 (:data:`CAMERA_FILES`, see :func:`read_camera_file`); the side file's ``intrinsics`` (and ``distortion``); for
-7-Scenes layouts ``camera-intrinsics.txt`` (a 3x3 K) or the ``7scenes`` preset; the folder name (``freiburg1/2/3``
--> ``tum_fr1/2/3``: fr1 and fr2 with their published distortion, fr3 without); ``icl`` for the ICL layout.
-Otherwise an error lists the presets. Presets are scaled to the images' size.
+7-Scenes layouts the ``7scenes_rgb`` preset (below); the folder name (``freiburg1/2/3`` -> ``tum_fr1/2/3``: fr1 and
+fr2 with their published distortion, fr3 without); ``icl`` for the ICL layout. Otherwise an error lists the
+presets. Presets are scaled to the images' size.
+
+7-Scenes' depth maps and KinectFusion poses are the depth camera's, its colour camera another, unregistered one
+(7-Scenes gives one intrinsic set, fx = fy = 585, the depth camera's; ``camera-intrinsics.txt`` of andyzeng's
+tsdf-fusion is that one). A 7-Scenes folder whose camera is not given (no argument, camera file or side file) is
+therefore delivered as its colour camera, as the relocalisation setups ACE and DSAC* register it: intrinsics the
+``7scenes_rgb`` preset (525 px), each depth map registered to it (:func:`register_depth`, from the depth camera of
+``camera-intrinsics.txt`` or the ``7scenes`` preset, with the LIRIS Kinect calibration
+:data:`SEVEN_SCENES_T_COLOUR_DEPTH`), and each pose moved to it (``T_world_depth T_colour_depth^-1``). A camera
+given names the colour camera and takes the depth maps and poses as its own, unchanged.
 
 What the agent receives is always an undistorted pinhole image, because the agent contract (``reset(intrinsics,
 image_size)``) has only pinhole intrinsics: a distorted camera's images are undistorted with
@@ -129,7 +138,18 @@ SEVEN_SCENES_INVALID_DEPTH = 65535  # 7-Scenes marks no measurement by 0 and by 
 ICL_FPS: float = 30.0
 SEVEN_SCENES_FPS: float = 30.0  # 7-Scenes has no timestamps; the Kinect's nominal rate
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
-LOADER_VERSION = "cnnslam-rgbd-folder/3"  # recorded in descriptions; bump when a conversion changes its output
+LOADER_VERSION = "cnnslam-rgbd-folder/4"  # recorded in descriptions; bump when a conversion changes its output
+# 7-Scenes' depth camera -> colour camera (X_colour = T X_depth, metres): the Kinect calibration of LIRIS
+# (projet.liris.cnrs.fr/voir/activities-dataset/kinect-calibration.html), with which the relocalisation setups (ACE,
+# DSAC*) register 7-Scenes' depth maps and KinectFusion poses (the depth camera's) to its colour camera.
+SEVEN_SCENES_T_COLOUR_DEPTH = np.array([
+    [9.9996518012567637e-01, 2.6765126468950343e-03, -7.9041012313000904e-03, -2.5558943178152542e-02],
+    [-2.7409311281316700e-03, 9.9996302803027592e-01, -8.1504520778013286e-03, 1.0109636268061706e-04],
+    [7.8819942130445332e-03, 8.1718328771890631e-03, 9.9993554558014031e-01, 2.0318321729487039e-03],
+    [0.0, 0.0, 0.0, 1.0],
+])  # fmt: skip
+SEVEN_SCENES_T_COLOUR_DEPTH.setflags(write=False)
+SEVEN_SCENES_COLOUR_SOURCE = "preset 7scenes_rgb (layout: 7-Scenes' colour camera)"
 Layout = Literal["tum", "icl", "7scenes", "7scenes_split", "rgb_only"]
 LAYOUTS: dict[str, str] = {
     "tum": "TUM RGB-D (rgb.txt, depth.txt, groundtruth.txt)",
@@ -461,6 +481,46 @@ def detect_layout(folder: str | Path) -> str:
     )
 
 
+@dataclass(frozen=True)
+class DepthRig:
+    """A depth camera beside the colour camera, whose depth maps and poses the loader moves to the colour camera.
+
+    depth_intrinsics: the depth camera's pinhole K at the depth images' size; T_colour_depth: (4, 4) maps depth-camera
+    coordinates to colour-camera coordinates (OpenCV axes, metres); source: where both came from (for the record).
+    """
+
+    depth_intrinsics: Intrinsics
+    T_colour_depth: np.ndarray
+    source: str
+
+
+def register_depth(depth: np.ndarray, depth_intrinsics: Intrinsics, colour_intrinsics: Intrinsics,
+                   T_colour_depth: np.ndarray) -> np.ndarray:  # fmt: skip
+    """A depth camera's (H, W) planar z map (metres, 0 = none) seen from the colour camera: each measured pixel is
+    back-projected with ``depth_intrinsics``, moved by ``T_colour_depth`` and projected with ``colour_intrinsics``
+    to its nearest pixel, the nearest surface winning where several land on one pixel (a z-buffer). Returns
+    (colour height, colour width) float32 planar z in the colour camera, 0 where no measurement lands."""
+    d = np.asarray(depth, dtype=np.float64)
+    Kd, Kc = depth_intrinsics, colour_intrinsics
+    if d.shape != (Kd.height, Kd.width):
+        raise SimEnvError(f"depth of shape {d.shape} for a depth camera of {Kd.width}x{Kd.height}")
+    v, u = np.nonzero(d > 0)
+    z = d[v, u]
+    points = np.stack([(u - Kd.cx) / Kd.fx * z, (v - Kd.cy) / Kd.fy * z, z])
+    T = np.asarray(T_colour_depth, dtype=np.float64)
+    moved = T[:3, :3] @ points + T[:3, 3:4]
+    zc = moved[2]
+    ahead = zc > 1e-6
+    uc = np.rint(Kc.fx * moved[0, ahead] / zc[ahead] + Kc.cx).astype(np.int64)
+    vc = np.rint(Kc.fy * moved[1, ahead] / zc[ahead] + Kc.cy).astype(np.int64)
+    zc = zc[ahead]
+    inside = (uc >= 0) & (uc < Kc.width) & (vc >= 0) & (vc < Kc.height)
+    out = np.full(Kc.height * Kc.width, np.inf)
+    np.minimum.at(out, vc[inside] * Kc.width + uc[inside], zc[inside])
+    out[~np.isfinite(out)] = 0.0
+    return out.reshape(Kc.height, Kc.width).astype(np.float32)
+
+
 class RgbdFolder:
     """A real (or exported) RGB-D folder as a :class:`~sim_envs.source.FrameSource`.
 
@@ -501,6 +561,7 @@ class RgbdFolder:
         self.has_depth: bool = index.depth_files is not None
         self.original_size: tuple[int, int] = self._image_size()
         self.camera, self.camera_source = self._resolve_camera(camera)
+        self.depth_rig: DepthRig | None = self._resolve_depth_rig()
         self.native_intrinsics: Intrinsics = self.camera.rectified()  # the undistorted images' camera
         self.size: tuple[int, int] = check_size(size) if size is not None else self.original_size
         self.intrinsics: Intrinsics = self.native_intrinsics.scaled(*self.size)
@@ -515,6 +576,8 @@ class RgbdFolder:
             convention = max(self.pose_convention_scores, key=lambda c: np.nan_to_num(self.pose_convention_scores[c]))
         self.pose_convention_used: str = convention
         self.poses: np.ndarray = convert_pose_convention(index.poses, convention)
+        if self.depth_rig is not None:  # the depth camera's poses -> the colour camera's: T_wc = T_wd T_dc
+            self.poses = self.poses @ np.linalg.inv(self.depth_rig.T_colour_depth)
         self._labels = self._optional_folder("labels")
         self._instances = self._optional_folder("instances")
 
@@ -575,6 +638,9 @@ class RgbdFolder:
             depth[raw == SEVEN_SCENES_INVALID_DEPTH] = 0.0
         if self.depth_is_ray_length:
             depth = ray_length_to_z(depth, self.native_intrinsics)
+        if self.depth_rig is not None:
+            rig = self.depth_rig
+            depth = register_depth(depth, rig.depth_intrinsics, self.camera.intrinsics, rig.T_colour_depth)
         return self._deliver(depth, "depth")
 
     def close(self) -> None:
@@ -597,6 +663,11 @@ class RgbdFolder:
             "camera_source": self.camera_source,
             "camera": {**_intrinsics_dict(self.camera.intrinsics),
                        **dict(zip(DISTORTION_NAMES, self.camera.distortion, strict=True))},  # fmt: skip
+            "depth_registration": None if self.depth_rig is None else {
+                "depth_intrinsics": _intrinsics_dict(self.depth_rig.depth_intrinsics),
+                "T_colour_depth": np.asarray(self.depth_rig.T_colour_depth).tolist(),
+                "source": self.depth_rig.source,
+            },
             "undistorted_intrinsics": _intrinsics_dict(K0),
             "intrinsics": _intrinsics_dict(K),
             "has_depth": self.has_depth,
@@ -616,8 +687,18 @@ class RgbdFolder:
                 steps.append("depth: Euclidean ray length -> planar z")
         else:
             steps.append("depth: none in the folder (frames get all-zero depth; no depth metric)")
+        if self.depth_rig is not None:
+            Kd = self.depth_rig.depth_intrinsics
+            steps.append(
+                f"depth: registered from the depth camera (fx {Kd.fx:g}, fy {Kd.fy:g}, cx {Kd.cx:g}, cy {Kd.cy:g}) "
+                "to the colour camera: back-projected, moved by T_colour_depth, projected to the nearest pixel, "
+                "nearest surface wins"
+            )
         if self.layout in _LAYOUT_DEPTH_SCALE:
             steps.append("poses: 4x4 camera-to-world matrices, rotation projected onto SO(3) (SVD)")
+        if self.depth_rig is not None:
+            steps.append("poses: the depth camera's -> the colour camera's, T_world_colour = T_world_depth "
+                         "T_colour_depth^-1")  # fmt: skip
             steps.append(f"timestamps: frame number / {SEVEN_SCENES_FPS:g} s (7-Scenes has none)")
         if self.pose_convention_used == "icl":
             steps.append("poses: ICL-NUIM y-up camera converted to OpenCV, T = S T S, S = diag(1, -1, 1, 1)")
@@ -778,11 +859,8 @@ class RgbdFolder:
             return read_camera_file(own, width, height), f"camera file {own.name}"
         if self.side.get("intrinsics"):
             return self._side_camera(width, height), SIDE_FILE
-        if self.layout in _LAYOUT_DEPTH_SCALE:
-            path = self.folder / SEVEN_SCENES_INTRINSICS_FILE
-            if path.is_file():
-                return CameraModel(_read_intrinsics_matrix(path, width, height)), SEVEN_SCENES_INTRINSICS_FILE
-            return camera_model("7scenes", width, height), "preset 7scenes (layout)"
+        if self.layout in _LAYOUT_DEPTH_SCALE:  # its colour camera; depth and poses are the depth camera's
+            return camera_model("7scenes_rgb", width, height), SEVEN_SCENES_COLOUR_SOURCE
         guess = _preset_from_name(self.folder.name)
         if guess is not None:
             return camera_model(guess, width, height), f"preset {guess} (folder name)"
@@ -792,6 +870,21 @@ class RgbdFolder:
             f"{self.folder}: cannot tell the camera; pass a camera preset ({', '.join(camera_presets())}) or a "
             f"camera file, or put a {CAMERA_FILES[0]} in the folder"
         )
+
+    def _resolve_depth_rig(self) -> DepthRig | None:
+        """7-Scenes with its own colour camera (no camera given): its depth camera (``camera-intrinsics.txt``, else
+        the ``7scenes`` preset) and the published depth-to-colour calibration; None otherwise (the depth maps and
+        poses are taken as the colour camera's)."""
+        if self.camera_source != SEVEN_SCENES_COLOUR_SOURCE or not self.has_depth:
+            return None
+        width, height = self.original_size
+        path = self.folder / SEVEN_SCENES_INTRINSICS_FILE
+        if path.is_file():
+            K, source = _read_intrinsics_matrix(path, width, height), SEVEN_SCENES_INTRINSICS_FILE
+        else:
+            K, source = camera_model("7scenes", width, height).intrinsics, "preset 7scenes"
+        return DepthRig(K, SEVEN_SCENES_T_COLOUR_DEPTH, f"depth camera {source}; depth-to-colour: LIRIS Kinect "
+                        "calibration (as ACE and DSAC* register 7-Scenes)")  # fmt: skip
 
     def _side_camera(self, width: int, height: int) -> CameraModel:
         k = self.side["intrinsics"]

@@ -17,6 +17,8 @@ from sim_envs.camera import CameraModel, Intrinsics, camera_model, preset
 from sim_envs.datasets import (
     LAYOUTS,
     PROCESSING_SIZE,
+    SEVEN_SCENES_COLOUR_SOURCE,
+    SEVEN_SCENES_T_COLOUR_DEPTH,
     SIDE_FILE,
     RgbdFolder,
     detect_layout,
@@ -24,6 +26,7 @@ from sim_envs.datasets import (
     load_rgbd_folder,
     read_camera_file,
     read_pose_matrix,
+    register_depth,
     write_folder,
 )
 from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
@@ -122,17 +125,21 @@ def test_seven_scenes_depth_in_millimetres_invalid_values_and_dropped_frames(tmp
     cv2.imwrite(str(folder / "frame-000001.depth.png"), raw)
     (folder / "frame-000002.pose.txt").write_text("\n".join(["-inf -inf -inf -inf"] * 3 + ["0 0 0 1"]) + "\n")
     (folder / "frame-000003.depth.png").unlink()
-    loaded = RgbdFolder(folder)
+    loaded = RgbdFolder(folder, camera="7scenes")  # a camera given: depth and poses taken as that camera's
     assert len(loaded) == 2 and loaded.describe()["frames_dropped"] == 2  # no pose, no depth
     np.testing.assert_allclose(loaded.timestamps, [0.0, 1 / 30])  # frame number / 30 s
     assert loaded.depth_scale == 1000.0 and loaded.depth_scale_source == "layout 7scenes"
     np.testing.assert_allclose(loaded.depth(1)[0, :4], [1.5, 0.0, 0.0, 0.001])  # mm; 65535 and 0 = none
-    assert loaded.camera_source == "preset 7scenes (layout)" and loaded.intrinsics == preset("7scenes", 64, 48)
+    assert loaded.depth_rig is None and loaded.describe()["depth_registration"] is None
+    own = RgbdFolder(folder)  # no camera anywhere: 7-Scenes' colour camera, depth registered to it
+    assert own.camera_source == SEVEN_SCENES_COLOUR_SOURCE and own.intrinsics == preset("7scenes_rgb", 64, 48)
+    assert own.depth_rig is not None and own.depth_rig.depth_intrinsics == preset("7scenes", 64, 48)
     jpeg, png = loaded.frame(0).rgb, box_room(1).frame(0).rgb  # JPEG is lossy: the colours on average
     np.testing.assert_allclose(jpeg.reshape(-1, 3).mean(axis=0), png.reshape(-1, 3).mean(axis=0), atol=4)
     (folder / SIDE_FILE).write_text(json.dumps({"depth_scale": 500}))
-    assert RgbdFolder(folder).depth(1)[0, 0] == pytest.approx(3.0)  # the side file's scale wins over the layout's
-    assert RgbdFolder(folder, depth_scale=3000).depth(1)[0, 0] == pytest.approx(0.5)  # the argument over both
+    given = {"camera": "7scenes"}  # depth as the files have it
+    assert RgbdFolder(folder, **given).depth(1)[0, 0] == pytest.approx(3.0)  # the side file's scale over the layout's
+    assert RgbdFolder(folder, depth_scale=3000, **given).depth(1)[0, 0] == pytest.approx(0.5)  # the argument over both
     split = write_folder(box_room(4), tmp_path / "split", "7scenes_split")
     assert RgbdFolder(split).depth_scale == 1000.0
     assert RgbdFolder(write_folder(box_room(2), tmp_path / "tum", "tum")).depth_scale == 5000.0  # TUM's default
@@ -298,22 +305,72 @@ def test_folder_fingerprint_follows_the_content_not_the_place(tmp_path):
     assert folder_fingerprint(folder)["files"] == 11
 
 
+# ------------------------------------------------------------------------------------ depth-to-colour registration
+KD = Intrinsics(585.0, 585.0, 320.0, 240.0, 640, 480)
+KC = Intrinsics(525.0, 525.0, 320.0, 240.0, 640, 480)
+
+
+def test_registering_a_plane_seen_from_a_shifted_colour_camera():
+    T = np.eye(4)
+    T[0, 3] = 0.05  # the colour camera 5 cm to the left of the depth camera: points move +5 cm in x
+    out = register_depth(np.full((480, 640), 2.0, np.float32), KD, KC, T)
+    assert out.shape == (480, 640) and out.dtype == np.float32
+    assert out[240, 333] == pytest.approx(2.0)  # the depth camera's centre: 525 * 0.05 / 2 + 320 = 333.1
+    # the depth camera's left edge: 525 * ((0 - 320) / 585 * 2 + 0.05) / 2 + 320 = 45.97 -> column 46
+    assert not out[:, :46].any() and (out[100:380, 46:600] == np.float32(2.0)).all()
+    assert not register_depth(np.zeros((480, 640)), KD, KC, T).any()  # no measurement: nothing lands
+    np.testing.assert_array_equal(register_depth(np.full((480, 640), 2.0), KD, KD, np.eye(4)),
+                                  np.full((480, 640), 2.0, np.float32))  # one camera: the same map  # fmt: skip
+    with pytest.raises(SimEnvError, match="depth of shape"):
+        register_depth(np.ones((48, 64)), KD, KC, T)
+
+
+def test_registration_keeps_the_nearest_surface():
+    depth = np.tile(np.array([[2.0, 3.0], [4.0, 5.0]]), (240, 320))  # every 2x2 block: 2, 3, 4, 5 m
+    out = register_depth(depth, KD, KD.scaled(320, 240), np.eye(4))  # half the resolution: 4 pixels onto one
+    assert out.shape == (240, 320) and (out == np.float32(2.0)).all()
+
+
+def test_a_seven_scenes_folder_gets_its_colour_camera_poses(tmp_path):
+    source = box_room(3)
+    folder = write_folder(source, tmp_path / "seven", "7scenes", camera_file=False)
+    loaded = RgbdFolder(folder)
+    T_cd = SEVEN_SCENES_T_COLOUR_DEPTH
+    np.testing.assert_allclose(loaded.poses, source.poses @ np.linalg.inv(T_cd), atol=1e-8)
+    centres = loaded.poses[:, :3, 3] - source.poses[:, :3, 3]
+    np.testing.assert_allclose(np.linalg.norm(centres, axis=1), np.linalg.norm(T_cd[:3, 3]), rtol=1e-6)  # 2.6 cm
+    info = loaded.describe()
+    json.dumps(info)
+    assert info["loader"].endswith("/4") and info["depth_registration"]["T_colour_depth"] == T_cd.tolist()
+    assert any(step.startswith("depth: registered") for step in info["conversions"])
+    assert any("T_world_colour" in step for step in info["conversions"])
+    depth = loaded.depth(0)
+    assert depth.shape == (48, 64) and (depth > 0).mean() > 0.5  # most of the view has a registered measurement
+    expected = register_depth(source.frame(0).depth, preset("7scenes", 64, 48), preset("7scenes_rgb", 64, 48),
+                              T_cd)  # fmt: skip
+    np.testing.assert_allclose(depth, expected, atol=0.0006)  # the millimetre PNG's rounding
+
+
 # ----------------------------------------------------------------------------------------- the real 7-Scenes data
 @pytest.mark.skipif(not REDKITCHEN.is_dir(), reason="../shared/data/real/7scenes_redkitchen is not here")
 def test_the_shared_7scenes_redkitchen_folder():
     folder = load_rgbd_folder(REDKITCHEN)
     assert folder.layout == "7scenes_split" and len(folder) == 1000 and folder.original_size == (640, 480)
-    assert folder.depth_scale == 1000.0 and folder.camera_source == "camera-intrinsics.txt"
-    K = folder.intrinsics
-    assert (K.width, K.height, K.fx, K.fy, K.cx, K.cy) == (320, 240, 292.5, 292.5, 159.75, 119.75)
+    assert folder.depth_scale == 1000.0 and folder.camera_source == SEVEN_SCENES_COLOUR_SOURCE
+    K = folder.intrinsics  # the colour camera's 525 px, not camera-intrinsics.txt's 585 (the depth camera's)
+    assert (K.width, K.height, K.fx, K.fy, K.cx, K.cy) == (320, 240, 262.5, 262.5, 159.75, 119.75)
+    assert folder.depth_rig.depth_intrinsics.fx == 585.0 and "camera-intrinsics.txt" in folder.depth_rig.source
     stamps, _ = read_tum_image_list(REDKITCHEN / "rgb.txt")
     np.testing.assert_allclose(folder.timestamps, stamps, atol=1e-6)
-    gt_t, gt_T = read_tum_trajectory(REDKITCHEN / "groundtruth.txt")
-    np.testing.assert_allclose(folder.poses, gt_T, atol=1e-4)  # the index files were made from the same matrices
+    gt_t, gt_T = read_tum_trajectory(REDKITCHEN / "groundtruth.txt")  # the depth camera's poses
+    np.testing.assert_allclose(folder.poses, gt_T @ np.linalg.inv(SEVEN_SCENES_T_COLOUR_DEPTH), atol=1e-4)
+    as_given = RgbdFolder(REDKITCHEN, camera="7scenes", size=(320, 240))  # a camera given: depth as the files have it
+    np.testing.assert_allclose(as_given.poses, gt_T, atol=1e-4)  # the index files were made from the same matrices
     raw = cv2.imread(str(REDKITCHEN / "depth" / "frame-000500.depth.png"), cv2.IMREAD_UNCHANGED)
-    frame = folder.frame(500)
     expected = raw[1::2, 1::2].astype(np.float32) / 1000.0
     expected[raw[1::2, 1::2] == 65535] = 0.0
-    np.testing.assert_allclose(frame.depth, expected)
+    np.testing.assert_allclose(as_given.frame(500).depth, expected)
+    frame = folder.frame(500)
+    assert (frame.depth > 0).mean() > 0.6  # registered: the depth camera's narrower view covers most of the image
     assert frame.rgb.shape == (240, 320, 3) and 0 < frame.depth.max() <= 3.975
     assert folder_fingerprint(REDKITCHEN)["files"] >= 3000
