@@ -89,6 +89,25 @@ def vignette_ratio(image: np.ndarray) -> float:
     return float(np.mean([c.mean() for c in corners]) / max(float(centre.mean()), 1e-6))
 
 
+def depth_edge_alignment(rgb: np.ndarray, depth: np.ndarray, log_step: float = 0.15) -> float:
+    """How well a depth map is registered to its colour image: the mean Sobel gradient magnitude of the grey image
+    on the depth map's discontinuities (pixels where the Sobel gradient of log depth exceeds ``log_step``) over its
+    mean on every pixel with depth (both 2 px inside the measured area). 1: the depth edges fall anywhere; larger:
+    they fall on colour edges, as a registered pair's do. rgb: (H, W, 3) uint8; depth: (H, W) metres, 0 = none."""
+    d = np.asarray(depth, dtype=np.float32)
+    if d.shape != np.asarray(rgb).shape[:2]:
+        raise SimEnvError(f"depth of shape {d.shape} for an image of {np.asarray(rgb).shape[:2]}")
+    image = grey(rgb)
+    edges = np.hypot(cv2.Sobel(image, cv2.CV_32F, 1, 0), cv2.Sobel(image, cv2.CV_32F, 0, 1))
+    inside = cv2.erode((d > 0).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    log_d = np.log(np.where(d > 0, d, 1.0)).astype(np.float32)
+    steps = np.hypot(cv2.Sobel(log_d, cv2.CV_32F, 1, 0), cv2.Sobel(log_d, cv2.CV_32F, 0, 1))
+    at_steps = (steps > log_step) & inside
+    if not at_steps.any() or float(edges[inside].mean()) <= 0:
+        return float("nan")  # no depth edge or a blank image: nothing to measure
+    return float(edges[at_steps].mean() / edges[inside].mean())
+
+
 def camera_statistics(frames: Iterable[np.ndarray]) -> CameraStatistics:
     """The statistics of consecutive frames ((H, W, 3) uint8 each; at least two)."""
     noise, grad, lap, mean, vig = [], [], [], [], []

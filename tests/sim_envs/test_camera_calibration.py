@@ -36,3 +36,19 @@ def test_a_calibration_sequence_may_be_named_in_its_lit_room():
     assert sequence_spec("office0+lit").trajectory == sequence_spec("office0").trajectory
     with pytest.raises(SimEnvError, match="lighting must be one of flat, lit"):
         sequence_spec("office0+dark")
+
+
+def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
+    from sim_envs.camera_calibration import depth_edge_alignment
+    from sim_envs.errors import SimEnvError
+
+    rgb = np.full((120, 160, 3), 60, np.uint8)
+    depth = np.full((120, 160), 3.0, np.float32)
+    rgb[40:80, 50:110] = 200  # a bright box in front of a dark wall: one edge in colour and depth
+    depth[40:80, 50:110] = 1.5
+    aligned = depth_edge_alignment(rgb, depth)
+    shifted = depth_edge_alignment(rgb, np.roll(depth, 6, axis=1))  # 6 px off, as an unregistered pair
+    assert aligned > 5.0 and shifted < 0.6 * aligned
+    assert np.isnan(depth_edge_alignment(rgb, np.full((120, 160), 2.0, np.float32)))  # no depth edge
+    with pytest.raises(SimEnvError, match="depth of shape"):
+        depth_edge_alignment(rgb, depth[:10])

@@ -14,6 +14,7 @@ import pytest
 
 import sim_envs  # noqa: F401 - registers the environments
 from sim_envs.camera import CameraModel, Intrinsics, camera_model, preset
+from sim_envs.camera_calibration import depth_edge_alignment
 from sim_envs.datasets import (
     LAYOUTS,
     PROCESSING_SIZE,
@@ -372,5 +373,9 @@ def test_the_shared_7scenes_redkitchen_folder():
     np.testing.assert_allclose(as_given.frame(500).depth, expected)
     frame = folder.frame(500)
     assert (frame.depth > 0).mean() > 0.6  # registered: the depth camera's narrower view covers most of the image
+    # registered, the depth edges fall on the colour edges better than as the files have them
+    scores = [(depth_edge_alignment(folder.frame(i).rgb, folder.frame(i).depth),
+               depth_edge_alignment(as_given.frame(i).rgb, as_given.frame(i).depth)) for i in (0, 500, 999)]
+    assert all(registered > given + 0.2 for registered, given in scores), scores
     assert frame.rgb.shape == (240, 320, 3) and 0 < frame.depth.max() <= 3.975
     assert folder_fingerprint(REDKITCHEN)["files"] >= 3000
