@@ -276,8 +276,10 @@ def folder_validation_markdown(results: Sequence[FolderValidation], simulated: d
         "The shipped network (trained on rendered rooms only; real data is test data) on evenly spaced frames of real "
         "RGB-D folders at 320x240, scored against the sensor's depth. Raw = the network's output, eq. 5 = after the "
         "focal-length adjustment. Scale = per frame median(sensor depth / eq. 5 depth), median [quartiles] over the "
-        "frames: 1 is the right metric scale. 7-Scenes' colour and depth cameras are not registered (depth edges a "
-        "few pixels off), which inflates errors at edges. Made by `cnnslam train validate-folder`.\n",
+        "frames: 1 is the right metric scale. 7-Scenes folders are read as their colour camera (525 px), their "
+        "depth registered to it from the depth camera (585 px) by the Kinect's 2.6 cm baseline "
+        "(`docs/benchmarks.md`); the registration is not exact at depth edges. Made by "
+        "`cnnslam train validate-folder`.\n",
         "| data | frames | f_cur/f_tr | AbsRel raw | AbsRel eq. 5 | RMSE eq. 5 [m] | δ<1.25 eq. 5 [%] | "
         "within 10 % raw [%] | within 10 % eq. 5 [%] | scale (sensor / eq. 5) |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
