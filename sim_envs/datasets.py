@@ -138,7 +138,7 @@ SEVEN_SCENES_INVALID_DEPTH = 65535  # 7-Scenes marks no measurement by 0 and by 
 ICL_FPS: float = 30.0
 SEVEN_SCENES_FPS: float = 30.0  # 7-Scenes has no timestamps; the Kinect's nominal rate
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
-LOADER_VERSION = "cnnslam-rgbd-folder/4"  # recorded in descriptions; bump when a conversion changes its output
+LOADER_VERSION = "cnnslam-rgbd-folder/5"  # recorded in descriptions; bump when a conversion changes its output
 # 7-Scenes' depth camera -> colour camera (X_colour = T X_depth, metres): the Kinect's 2.6 cm baseline between
 # them, the translation of the LIRIS Kinect calibration (projet.liris.cnrs.fr/voir/activities-dataset/
 # kinect-calibration.html) with which the relocalisation setups ACE and DSAC* register 7-Scenes. Its 0.65 deg

@@ -342,7 +342,7 @@ def test_a_seven_scenes_folder_gets_its_colour_camera_poses(tmp_path):
     np.testing.assert_allclose(np.linalg.norm(centres, axis=1), np.linalg.norm(T_cd[:3, 3]), rtol=1e-6)  # 2.6 cm
     info = loaded.describe()
     json.dumps(info)
-    assert info["loader"].endswith("/4") and info["depth_registration"]["T_colour_depth"] == T_cd.tolist()
+    assert info["loader"].endswith("/5") and info["depth_registration"]["T_colour_depth"] == T_cd.tolist()
     assert any(step.startswith("depth: registered") for step in info["conversions"])
     assert any("T_world_colour" in step for step in info["conversions"])
     depth = loaded.depth(0)
