@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from eval.environment import machine_label
 from eval.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
 from eval.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
 from eval.results import runs_frame
@@ -137,13 +138,32 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
     )
 
 
+def machines_sentence(run: SuiteRun) -> str:
+    """Which machines (CPU, ISA, torch, numpy; ``timing.json``'s ``environment``) the finished runs ran on."""
+    counts: dict[str, int] = {}
+    unknown = 0
+    for timing in run.timings.values():
+        env = timing.get("environment")
+        if env:
+            label = machine_label(env)
+            counts[label] = counts.get(label, 0) + 1
+        else:
+            unknown += 1
+    if not counts:
+        return "Machine: not recorded (runs from before `timing.json` recorded it)." if unknown else ""
+    parts = [f"{label}: {n} run(s)" for label, n in sorted(counts.items())]
+    if unknown:
+        parts.append(f"not recorded: {unknown} run(s)")
+    return "Machines: " + "; ".join(parts) + "."
+
+
 def status_markdown(run: SuiteRun) -> str:
     """Runs done / failed, methods skipped with their reasons, failed runs with their errors."""
     counts = run.counts()
     lines = [
         "## Runs\n",
         f"{len(run.specs)} runs: {counts.get('done', 0)} run now, {counts.get('cached', 0)} reused from earlier, "
-        f"{counts.get('failed', 0)} failed.",
+        f"{counts.get('failed', 0)} failed. {machines_sentence(run)}",
     ]
     failures = failure_frame(run)
     if failures.empty:

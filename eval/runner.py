@@ -10,7 +10,8 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 - ``metrics.json``: the run record (:mod:`eval.results`) with the method's metric groups only, and ``metadata``
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
-- ``timing.json``: wall time of the run, per-frame step times, frames per second (never compared by the gate);
+- ``timing.json``: wall time of the run, per-frame step times, frames per second, and ``environment``, the machine
+  and package versions it ran on (:mod:`eval.environment`; never compared by the gate);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
 - ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
@@ -47,6 +48,7 @@ import numpy as np
 from tqdm import tqdm
 
 from eval.association import associate
+from eval.environment import machine_description
 from eval.errors import EvalError
 from eval.executors import Executor, SerialExecutor
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
@@ -222,6 +224,7 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         if spec.plots:
             _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
         timing["wall_s"] = time.perf_counter() - start
+        timing["environment"] = machine_description()  # which CPU and versions made these bytes
         _write_json(folder / "timing.json", timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 

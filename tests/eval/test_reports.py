@@ -132,6 +132,18 @@ def test_status_lists_skips_and_failures():
     suite, values = table1_values()
     text = status_markdown(fake_run(suite, values, skipped={"Laina": "no weights\nat all"}))
     assert "8 runs: 8 run now, 0 reused from earlier, 0 failed." in text and "**Laina**: no weights at all" in text
+    assert "Machine: not recorded" in text  # the fake runs' timing.json has no environment
+
+
+def test_status_names_the_machines_runs_came_from():
+    suite, values = table1_values()
+    run = fake_run(suite, values)
+    env = {"cpu": "Test CPU", "isa": ["avx512f", "avx2"], "packages": {"torch": "9.9", "numpy": "1.0"}}
+    keys = sorted(run.timings)
+    for key in keys[:5]:
+        run.timings[key]["environment"] = env
+    text = status_markdown(run)
+    assert "Machines: Test CPU (avx512f), torch 9.9, numpy 1.0: 5 run(s); not recorded: 3 run(s)." in text
 
 
 def test_relative_errors_are_per_run_percentages():

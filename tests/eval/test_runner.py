@@ -63,6 +63,7 @@ def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
     assert meta["fingerprint"] == spec_of(ORACLE).fingerprint() and 0.0 <= meta["rotation_share"] <= 1.0
     timing = json.loads((folder / "timing.json").read_text())
     assert timing["wall_s"] > 0 and timing["fps"] > 0
+    assert timing["environment"]["packages"]["numpy"] == np.__version__ and timing["environment"]["python"]
     stamps, est = read_tum_trajectory(folder / "trajectory.tum")
     _, gt = read_tum_trajectory(folder / "groundtruth.tum")
     assert stamps.shape == (FRAMES,) and np.allclose(est, gt, atol=1e-8)
