@@ -2,9 +2,10 @@
 
 A run's ``timing.json`` carries it (``environment``) and suite reports name the machines their runs came from. The
 same machine and the same versions give the same bytes; another CPU (other SIMD kernels in torch's oneDNN and in
-OpenBLAS) changes the network's outputs in their last bits, which SLAM amplifies (docs/benchmarks.md, "Same
-machine, other machines"). It is kept out of ``metrics.json`` and out of the run fingerprint: a run from another
-machine is still the same run, only its figures may differ within the measured tolerances.
+OpenBLAS) changes the network's outputs in their last bits, which SLAM amplifies (docs/benchmarks.md, "Seeds,
+determinism and what 'the same result' means", with figures measured across two hosts). It is kept out of
+``metrics.json`` and out of the run fingerprint: a run from another machine is still the same run, only its figures
+may differ within the measured tolerances.
 """
 
 from __future__ import annotations
