@@ -699,9 +699,9 @@ class RgbdFolder:
             )
         if self.layout in _LAYOUT_DEPTH_SCALE:
             steps.append("poses: 4x4 camera-to-world matrices, rotation projected onto SO(3) (SVD)")
-        if self.depth_rig is not None:
-            steps.append("poses: the depth camera's -> the colour camera's, T_world_colour = T_world_depth "
-                         "T_colour_depth^-1")  # fmt: skip
+            if self.depth_rig is not None:
+                steps.append("poses: the depth camera's -> the colour camera's, T_world_colour = T_world_depth "
+                             "T_colour_depth^-1")  # fmt: skip
             steps.append(f"timestamps: frame number / {SEVEN_SCENES_FPS:g} s (7-Scenes has none)")
         if self.pose_convention_used == "icl":
             steps.append("poses: ICL-NUIM y-up camera converted to OpenCV, T = S T S, S = diag(1, -1, 1, 1)")

@@ -132,6 +132,9 @@ def test_seven_scenes_depth_in_millimetres_invalid_values_and_dropped_frames(tmp
     assert loaded.depth_scale == 1000.0 and loaded.depth_scale_source == "layout 7scenes"
     np.testing.assert_allclose(loaded.depth(1)[0, :4], [1.5, 0.0, 0.0, 0.001])  # mm; 65535 and 0 = none
     assert loaded.depth_rig is None and loaded.describe()["depth_registration"] is None
+    steps = loaded.describe()["conversions"]  # the layout's timestamps are recorded whether registered or not
+    assert any(step.startswith("timestamps: frame number") for step in steps)
+    assert not any("T_world_colour" in step for step in steps)
     own = RgbdFolder(folder)  # no camera anywhere: 7-Scenes' colour camera, depth registered to it
     assert own.camera_source == SEVEN_SCENES_COLOUR_SOURCE and own.intrinsics == preset("7scenes_rgb", 64, 48)
     assert own.depth_rig is not None and own.depth_rig.depth_intrinsics == preset("7scenes", 64, 48)
