@@ -428,25 +428,33 @@ def depth_consistency(
 
     depth_*: (H, W) planar z metres (0 = none); T_world_*: (4, 4) camera-to-world; every ``stride``-th pixel is used.
     """
-    K = intrinsics
     v, u = np.mgrid[0 : depth_a.shape[0] : stride, 0 : depth_a.shape[1] : stride]
     z = np.asarray(depth_a, dtype=np.float64)[v, u]
     ok = np.isfinite(z) & (z > 0)
-    u, v, z = u[ok], v[ok], z[ok]
-    points_a = np.stack([(u - K.cx) / K.fx * z, (v - K.cy) / K.fy * z, z, np.ones_like(z)])
-    points_b = (np.linalg.inv(T_world_b) @ T_world_a @ points_a)[:3]
-    zb = points_b[2]
-    front = zb > 1e-6
-    ub = np.rint(K.fx * points_b[0, front] / zb[front] + K.cx).astype(np.int64)
-    vb = np.rint(K.fy * points_b[1, front] / zb[front] + K.cy).astype(np.int64)
-    zb = zb[front]
-    inside = (ub >= 0) & (ub < depth_b.shape[1]) & (vb >= 0) & (vb < depth_b.shape[0])
-    measured = np.asarray(depth_b, dtype=np.float64)[vb[inside], ub[inside]]
+    ub, vb, zb = move_pixels(u[ok], v[ok], z[ok], intrinsics, np.linalg.inv(T_world_b) @ T_world_a, intrinsics,
+                             depth_b.shape)  # fmt: skip
+    measured = np.asarray(depth_b, dtype=np.float64)[vb, ub]
     valid = np.isfinite(measured) & (measured > 0)
     if not valid.any():
         return math.nan
-    agree = np.abs(zb[inside][valid] - measured[valid]) < rel_tol * measured[valid]
+    agree = np.abs(zb[valid] - measured[valid]) < rel_tol * measured[valid]
     return float(agree.mean())
+
+
+def move_pixels(u: np.ndarray, v: np.ndarray, z: np.ndarray, K_from: Intrinsics, T_to_from: np.ndarray,
+                K_to: Intrinsics, shape_to: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Pixels (u, v) with planar depth z (1-D arrays, metres) of a camera ``K_from``, back-projected, moved by
+    ``T_to_from`` (4, 4; OpenCV axes) and projected with ``K_to`` to their nearest pixel: (u', v', z') int64, int64,
+    float64 of those that land in front of the camera and inside an image of ``shape_to`` (height, width, ...)."""
+    points = np.stack([(u - K_from.cx) / K_from.fx * z, (v - K_from.cy) / K_from.fy * z, z, np.ones_like(z)])
+    moved = (np.asarray(T_to_from, dtype=np.float64) @ points)[:3]
+    zt = moved[2]
+    front = zt > 1e-6
+    ut = np.rint(K_to.fx * moved[0, front] / zt[front] + K_to.cx).astype(np.int64)
+    vt = np.rint(K_to.fy * moved[1, front] / zt[front] + K_to.cy).astype(np.int64)
+    zt = zt[front]
+    inside = (ut >= 0) & (ut < shape_to[1]) & (vt >= 0) & (vt < shape_to[0])
+    return ut[inside], vt[inside], zt[inside]
 
 
 # ------------------------------------------------------------------------------------------------------------ load
@@ -508,18 +516,9 @@ def register_depth(depth: np.ndarray, depth_intrinsics: Intrinsics, colour_intri
     if d.shape != (Kd.height, Kd.width):
         raise SimEnvError(f"depth of shape {d.shape} for a depth camera of {Kd.width}x{Kd.height}")
     v, u = np.nonzero(d > 0)
-    z = d[v, u]
-    points = np.stack([(u - Kd.cx) / Kd.fx * z, (v - Kd.cy) / Kd.fy * z, z])
-    T = np.asarray(T_colour_depth, dtype=np.float64)
-    moved = T[:3, :3] @ points + T[:3, 3:4]
-    zc = moved[2]
-    ahead = zc > 1e-6
-    uc = np.rint(Kc.fx * moved[0, ahead] / zc[ahead] + Kc.cx).astype(np.int64)
-    vc = np.rint(Kc.fy * moved[1, ahead] / zc[ahead] + Kc.cy).astype(np.int64)
-    zc = zc[ahead]
-    inside = (uc >= 0) & (uc < Kc.width) & (vc >= 0) & (vc < Kc.height)
+    uc, vc, zc = move_pixels(u, v, d[v, u], Kd, T_colour_depth, Kc, (Kc.height, Kc.width))
     out = np.full(Kc.height * Kc.width, np.inf)
-    np.minimum.at(out, vc[inside] * Kc.width + uc[inside], zc[inside])
+    np.minimum.at(out, vc * Kc.width + uc, zc)
     out[~np.isfinite(out)] = 0.0
     return out.reshape(Kc.height, Kc.width).astype(np.float32)
 
