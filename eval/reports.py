@@ -22,6 +22,7 @@ skipped (and why), runs that failed (and their errors).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -140,15 +141,9 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
 
 def machines_sentence(run: SuiteRun) -> str:
     """Which machines (CPU, ISA, torch, numpy; ``timing.json``'s ``environment``) the finished runs ran on."""
-    counts: dict[str, int] = {}
-    unknown = 0
-    for timing in run.timings.values():
-        env = timing.get("environment")
-        if env:
-            label = machine_label(env)
-            counts[label] = counts.get(label, 0) + 1
-        else:
-            unknown += 1
+    envs = [timing.get("environment") for timing in run.timings.values()]
+    counts = Counter(machine_label(env) for env in envs if env)
+    unknown = sum(1 for env in envs if not env)
     if not counts:
         return "Machine: not recorded (runs from before `timing.json` recorded it)." if unknown else ""
     parts = [f"{label}: {n} run(s)" for label, n in sorted(counts.items())]
