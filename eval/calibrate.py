@@ -15,7 +15,19 @@ The perturbation matrix (:data:`MATRIX`) runs the suite, with all its runs per c
 - ``threads2``: 1 run at a time, two math threads per run (other reduction orders in torch, OpenCV, numba);
 - ``onednn-off``: torch's oneDNN kernels off (``CNNSLAM_ONEDNN=0``: another math back-end);
 - ``another-cpu``: the network's outputs perturbed in their last bits in every run, seed 0 included
-  (``CNNSLAM_NET_JITTER``: what another CPU does to them; see ``cnnslam/depthnet/predict.py``).
+  (``CNNSLAM_NET_JITTER``: what another CPU does to them; see ``cnnslam/depthnet/predict.py``);
+- ``another-isa``: every numeric library of the stack on an older instruction set than this CPU's (:data:`OLDER_ISA`:
+  OpenBLAS's Sandy Bridge kernels, numpy's and OpenCV's dispatch without AVX2/FMA, numba compiling for a generic
+  x86-64, torch's ATen kernels without vectorisation and oneDNN up to SSE4.1). Another CPU changes the bytes of the
+  methods without a network too (LSD, LSD-BS: their reductions and BLAS calls); this configuration makes this
+  machine do the same. Measured: the quick suite's LSD-BS and LSD figures moved as much under it on an AMD EPYC
+  (AVX2) as between that machine and an Intel Xeon (AVX-512) (docs/benchmarks.md, "Which machine").
+
+Other machines: ``--calibrate`` also writes this machine's reference figures to ``<baseline dir>/machines/<suite>/``
+(:func:`machine_record`), and folds every such record of another machine into the spread as one more configuration
+(``machine:<label>``) when it was made from the same runs: the same run fingerprints (agents, inputs, sequences,
+seeds), so an intended change of results leaves the older records out (reported) until they are made again there.
+The matrix emulates another CPU; a record measures one.
 
 The environment variables reach the runs because the local executor's workers are spawned from this process. Each
 configuration's runs go to their own folder (``<out>/calibrate/<name>/``): the fingerprint does not cover the
@@ -24,13 +36,17 @@ environment, so they must not share one. ``cnnslam bench quick --calibrate`` run
 
 from __future__ import annotations
 
+import json
+import math
 import os
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from eval.environment import machine_description
 from eval.executors import LocalExecutor
 from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
 from eval.runner import SuiteRun, run_suite
@@ -48,12 +64,24 @@ class Perturbation:
     description: str = ""
 
 
+# Environment variables read by the libraries at import: each selects an older code path than the CPU offers.
+OLDER_ISA: dict[str, str] = {
+    "OPENBLAS_CORETYPE": "Sandybridge",
+    "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
+    "OPENCV_CPU_DISABLE": "AVX2,FMA3",
+    "NUMBA_CPU_NAME": "generic",
+    "ATEN_CPU_CAPABILITY": "default",
+    "ONEDNN_MAX_CPU_ISA": "SSE41",
+}
+
 MATRIX: tuple[Perturbation, ...] = (
     Perturbation("reference", 2, {}, "2 runs at a time, 1 math thread per run (as CI runs the gate)"),
     Perturbation("threads2", 1, {}, "1 run at a time, 2 math threads per run"),
     Perturbation("onednn-off", 2, {"CNNSLAM_ONEDNN": "0"}, "torch's oneDNN kernels off"),
     Perturbation("another-cpu", 2, {"CNNSLAM_NET_JITTER": "1009"},
                  "the network's outputs perturbed in their last bits (2 ulp) in every run, seed 0 included"),
+    Perturbation("another-isa", 2, OLDER_ISA,
+                 "every numeric library on an older instruction set (BLAS, numpy, OpenCV, numba, torch, oneDNN)"),
 )  # fmt: skip
 
 
@@ -99,17 +127,88 @@ def measure(
     return records
 
 
+def run_fingerprints(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The sorted fingerprints of a configuration's runs: what two machines must share for their figures to be
+    compared (the same agents, inputs, sequences, seeds and frames)."""
+    return sorted({str((r.get("metadata") or r).get("fingerprint")) for r in records})
+
+
+def machine_record(suite: Suite, records: Sequence[Mapping[str, Any]], revision: str = "") -> dict[str, Any]:
+    """This machine's reference figures of ``suite`` (:func:`gate_metrics` of the reference configuration's run
+    records), with the machine (:func:`eval.environment.machine_description`), the run fingerprints and the git
+    revision: what another machine's calibration folds in (:func:`load_machine_records`)."""
+    return {
+        "schema": "cnnslam-machine-figures/1",
+        "suite": suite.name,
+        "environment": machine_description(),
+        "revision": revision,
+        "fingerprints": run_fingerprints(records),
+        "metrics": gate_metrics(records),
+    }
+
+
+def machine_file_name(environment: Mapping[str, Any]) -> str:
+    """A file name for a machine's record: its CPU, widest ISA and core count, lower case, [a-z0-9-] only."""
+    isa = (environment.get("isa") or ["x86"])[0]
+    text = f"{environment.get('cpu', 'cpu')}-{isa}-{environment.get('cores', 0)}cores"
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") + ".json"
+
+
+def save_machine_record(record: Mapping[str, Any], folder: str | Path) -> Path:
+    """Write ``record`` as ``folder / machine_file_name(...)`` (JSON); returns the path."""
+    path = Path(folder) / machine_file_name(record["environment"])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    metrics = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in record["metrics"].items()}
+    path.write_text(json.dumps({**record, "metrics": metrics}, indent=1, sort_keys=True, allow_nan=False) + "\n")
+    return path
+
+
+def load_machine_records(folder: str | Path, suite: str, fingerprints: Sequence[str],
+                         exclude: str | None = None) -> tuple[dict[str, dict[str, float]], list[str]]:
+    """Other machines' figures of ``suite`` in ``folder`` (``*.json`` of :func:`machine_record`) that were made
+    from runs with exactly these ``fingerprints``: ({"machine:<file stem>": figures}, [why each other record was
+    left out]). ``exclude``: a file name to skip (this machine's own record)."""
+    usable: dict[str, dict[str, float]] = {}
+    left_out: list[str] = []
+    wanted = sorted(fingerprints)
+    for path in sorted(Path(folder).glob("*.json")) if Path(folder).is_dir() else []:
+        if path.name == exclude:
+            continue
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            left_out.append(f"{path.name}: unreadable ({exc})")
+            continue
+        if record.get("suite") != suite:
+            left_out.append(f"{path.name}: suite {record.get('suite')!r}, not {suite!r}")
+        elif sorted(record.get("fingerprints", [])) != wanted:
+            left_out.append(f"{path.name}: made from other runs (revision {record.get('revision') or '?'}); "
+                            f"run cnnslam bench {suite} --calibrate on that machine again")
+        else:
+            usable[f"machine:{path.stem}"] = {k: math.nan if v is None else float(v)
+                                             for k, v in record["metrics"].items()}
+    return usable, left_out
+
+
 def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[Mapping[str, Any]]], description: str,
-                        matrix: Sequence[Perturbation] = MATRIX, k: float = CALIBRATION_K) -> Baseline:
+                        matrix: Sequence[Perturbation] = MATRIX, k: float = CALIBRATION_K,
+                        machines: Mapping[str, Mapping[str, float]] | None = None) -> Baseline:
     """The baseline of the configurations' run records (:func:`measure`): the reference configuration's gated
-    figures, tolerances from how far the medians and the single runs moved over the matrix."""
+    figures, tolerances from how far the medians and the single runs moved over the matrix and, where given, how
+    far other machines' reference figures (``machines``, :func:`load_machine_records`) lie from them."""
+    machines = dict(machines or {})
     how = (
         f"cnnslam bench {suite.name} --calibrate: {len(suite.seeds)} runs per cell (seeds "
         f"{', '.join(map(str, suite.seeds))}), gated figure = median over the runs; spread = the larger of the range "
         "of each gated figure and the largest range of one seed's value over the configurations: "
         + "; ".join(f"{c.name}: {c.description}" for c in matrix)
+        + "".join(f"; {name}: its reference figures, measured there" for name in sorted(machines))
         + f"; allowed change = max({k:g} x spread, the rule's floor)"
     )
     figures = {name: gate_metrics(rs) for name, rs in records.items()}
+    clash = set(machines) & set(figures)
+    if clash:
+        raise ValueError(f"machine records named like configurations of the matrix: {sorted(clash)}")
+    figures.update(machines)
     runs = {name: seed_figures(rs) for name, rs in records.items()}
     return calibrate(figures, matrix[0].name, k=k, description=description, how=how, runs=runs)

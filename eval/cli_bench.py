@@ -338,8 +338,17 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
 
 def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
     """``--calibrate``: the suite under every configuration of the matrix, then its baseline (see eval.calibrate)."""
-    from eval.calibrate import MATRIX, calibrated_baseline, measure
+    from eval.calibrate import (
+        MATRIX,
+        calibrated_baseline,
+        load_machine_records,
+        machine_record,
+        measure,
+        run_fingerprints,
+        save_machine_record,
+    )
     from eval.regress import save_baseline
+    from eval.runner import git_revision
 
     failed: list[str] = []
 
@@ -355,13 +364,21 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
     if failed:
         print("not writing a baseline: runs failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
-    path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
-    baseline = calibrated_baseline(suite, records, _baseline_description(suite), MATRIX)
+    path = Path(args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json")
+    reference = records[MATRIX[0].name]
+    own = save_machine_record(machine_record(suite, reference, git_revision() or ""),
+                              path.parent / "machines" / suite.name)
+    print(f"wrote {own}: this machine's reference figures")
+    machines, left_out = load_machine_records(own.parent, suite.name, run_fingerprints(reference), exclude=own.name)
+    for why in left_out:
+        print(f"left out of the calibration: {why}")
+    baseline = calibrated_baseline(suite, records, _baseline_description(suite), MATRIX, machines=machines)
     save_baseline(baseline, path)
     holdout = baseline.calibration["holdout"]
     print(f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "
           f"false alarms {holdout['alarms']} of {holdout['comparisons']} comparisons "
-          f"({holdout['runs_with_alarm']} of {holdout['held_out']} held-out configurations would fail)")
+          f"({holdout['runs_with_alarm']} of {holdout['held_out']} held-out configurations would fail); other "
+          f"machines folded in: {', '.join(sorted(machines)) or 'none'}")
     return 0
 
 

@@ -1,0 +1,90 @@
+"""The calibration's view of other machines: the matrix's "another-isa" configuration really moves each library to
+an older code path (checked in a fresh interpreter, as the suite's workers are spawned with the variables set), and
+other machines' records join the calibration only when they were made from the same runs."""
+
+import json
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+from eval.calibrate import (
+    MATRIX,
+    OLDER_ISA,
+    calibrated_baseline,
+    load_machine_records,
+    machine_file_name,
+    save_machine_record,
+)
+from eval.regress import calibrate, compare
+from eval.suites import get_suite
+
+PROBE = """
+import json
+import cv2, numba, numpy, torch
+from numpy._core._multiarray_umath import __cpu_features__
+print(json.dumps({
+    "numpy_x86_v3": bool(__cpu_features__.get("X86_V3", False)),
+    "opencv": cv2.getCPUFeaturesLine(),
+    "numba_cpu": numba.config.CPU_NAME,
+    "torch": torch.backends.cpu.get_cpu_capability(),
+}))
+"""
+
+
+def _probe(env: dict[str, str]) -> dict:
+    out = subprocess.run([sys.executable, "-c", PROBE], env={**os.environ, **env}, capture_output=True, text=True,
+                         check=True, timeout=300)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_another_isa_is_in_the_matrix_with_the_older_code_paths():
+    (config,) = [c for c in MATRIX if c.name == "another-isa"]
+    assert config.env == OLDER_ISA
+    assert config.jobs == MATRIX[0].jobs  # only the instruction set differs from the reference
+
+
+def test_the_variables_select_older_code_paths_in_each_library():
+    older = _probe(OLDER_ISA)
+    assert older["numpy_x86_v3"] is False  # numpy's AVX2/FMA3 (x86-64-v3) kernels off
+    assert "AVX2?" in older["opencv"] or "AVX2" not in older["opencv"]  # OpenCV: AVX2 disabled or absent
+    assert older["numba_cpu"] == "generic"
+    assert older["torch"] == "DEFAULT"  # ATen without vectorised kernels
+
+
+
+def _record(suite: str, fingerprints: list[str], metrics: dict, cpu: str) -> dict:
+    return {"schema": "cnnslam-machine-figures/1", "suite": suite, "revision": "abc",
+            "environment": {"cpu": cpu, "isa": ["avx2"], "cores": 2}, "fingerprints": fingerprints,
+            "metrics": metrics}
+
+
+def test_machine_records_of_the_same_runs_join_the_calibration_and_others_are_left_out(tmp_path):
+    same = save_machine_record(_record("quick", ["b", "a"], {"x/ate_rmse": 0.2, "x/depth": math.nan}, "Other CPU"),
+                               tmp_path)
+    save_machine_record(_record("quick", ["a", "c"], {"x/ate_rmse": 9.0}, "Stale CPU"), tmp_path)
+    save_machine_record(_record("table1", ["a", "b"], {"x/ate_rmse": 9.0}, "Table CPU"), tmp_path)
+    own = save_machine_record(_record("quick", ["a", "b"], {"x/ate_rmse": 0.1}, "This CPU"), tmp_path)
+    usable, left_out = load_machine_records(tmp_path, "quick", ["a", "b"], exclude=own.name)
+    assert list(usable) == [f"machine:{same.stem}"]
+    assert usable[f"machine:{same.stem}"]["x/ate_rmse"] == 0.2
+    assert math.isnan(usable[f"machine:{same.stem}"]["x/depth"])  # NaN is stored as null and read back
+    assert len(left_out) == 2 and any("other runs" in w for w in left_out) and any("table1" in w for w in left_out)
+    assert machine_file_name({"cpu": "Intel(R) Xeon(R)", "isa": ["avx512f"], "cores": 2}) == \
+        "intel-r-xeon-r-avx512f-2cores.json"
+
+
+def test_another_machine_widens_the_tolerance_to_cover_its_figures():
+    figures = {"reference": {"m/ate_rmse": 0.100}, "threads2": {"m/ate_rmse": 0.100}}
+    runs = {"reference": {0: {"m/ate_rmse": 0.100}}, "threads2": {0: {"m/ate_rmse": 0.100}}}
+    suite = get_suite("quick")
+    records = {"reference": [], "threads2": []}
+    with pytest.raises(ValueError, match="named like configurations"):
+        calibrated_baseline(suite, records, "d", MATRIX[:2], machines={"threads2": {"m/ate_rmse": 0.2}})
+    alone = calibrate(figures, "reference", runs=runs)
+    both = calibrate({**figures, "machine:other": {"m/ate_rmse": 0.120}}, "reference", runs=runs)
+    assert compare(alone, {"m/ate_rmse": 0.120}).passed is False
+    assert compare(both, {"m/ate_rmse": 0.120}).passed
+    assert both.calibrated["m/ate_rmse"]["spread"] == pytest.approx(0.020)
