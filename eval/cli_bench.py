@@ -125,8 +125,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the suite's gated figures as its baseline (keeping its calibrated tolerances)")
     parser.add_argument("--calibrate", action="store_true",
                         help="run the suite under the perturbation matrix (eval/calibrate.py: thread counts, oneDNN "
-                             "off, the network's last bits perturbed) and write its baseline with tolerances from "
-                             "the measured spread")  # fmt: skip
+                             "off, the network's last bits perturbed, an older instruction set), record this "
+                             "machine's figures in <baseline dir>/machines/<suite>/ and write the baseline with "
+                             "tolerances from the spread measured over the matrix and the other machines' records "
+                             "of the same runs")  # fmt: skip
     parser.add_argument("--no-gate", action="store_true", help="do not compare with the baseline")
     parser.add_argument("--list", action="store_true", help="list the suites and the method table, run nothing")
 
