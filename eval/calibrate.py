@@ -49,6 +49,7 @@ from typing import Any
 from eval.environment import machine_description
 from eval.executors import LocalExecutor
 from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
+from eval.results import json_ready
 from eval.runner import SuiteRun, run_suite
 from eval.suites import Suite
 
@@ -130,7 +131,7 @@ def measure(
 def run_fingerprints(records: Sequence[Mapping[str, Any]]) -> list[str]:
     """The sorted fingerprints of a configuration's runs: what two machines must share for their figures to be
     compared (the same agents, inputs, sequences, seeds and frames)."""
-    return sorted({str((r.get("metadata") or r).get("fingerprint")) for r in records})
+    return sorted({str(r["metadata"]["fingerprint"]) for r in records})
 
 
 def machine_record(suite: Suite, records: Sequence[Mapping[str, Any]], revision: str = "") -> dict[str, Any]:
@@ -155,11 +156,10 @@ def machine_file_name(environment: Mapping[str, Any]) -> str:
 
 
 def save_machine_record(record: Mapping[str, Any], folder: str | Path) -> Path:
-    """Write ``record`` as ``folder / machine_file_name(...)`` (JSON); returns the path."""
+    """Write ``record`` as ``folder / machine_file_name(...)`` (strict JSON: NaN as null); returns the path."""
     path = Path(folder) / machine_file_name(record["environment"])
     path.parent.mkdir(parents=True, exist_ok=True)
-    metrics = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in record["metrics"].items()}
-    path.write_text(json.dumps({**record, "metrics": metrics}, indent=1, sort_keys=True, allow_nan=False) + "\n")
+    path.write_text(json.dumps(json_ready(record), indent=1, sort_keys=True, allow_nan=False) + "\n")
     return path
 
 

@@ -7,6 +7,7 @@ import math
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -18,7 +19,7 @@ from eval.calibrate import (
     machine_file_name,
     save_machine_record,
 )
-from eval.regress import calibrate, compare
+from eval.regress import calibrate, compare, load_baseline
 from eval.suites import get_suite
 
 PROBE = """
@@ -54,7 +55,6 @@ def test_the_variables_select_older_code_paths_in_each_library():
     assert older["torch"] == "DEFAULT"  # ATen without vectorised kernels
 
 
-
 def _record(suite: str, fingerprints: list[str], metrics: dict, cpu: str) -> dict:
     return {"schema": "cnnslam-machine-figures/1", "suite": suite, "revision": "abc",
             "environment": {"cpu": cpu, "isa": ["avx2"], "cores": 2}, "fingerprints": fingerprints,
@@ -88,3 +88,14 @@ def test_another_machine_widens_the_tolerance_to_cover_its_figures():
     assert compare(alone, {"m/ate_rmse": 0.120}).passed is False
     assert compare(both, {"m/ate_rmse": 0.120}).passed
     assert both.calibrated["m/ate_rmse"]["spread"] == pytest.approx(0.020)
+
+
+def test_every_committed_machine_record_passes_the_committed_baseline():
+    root = Path(__file__).resolve().parents[2] / "results" / "baselines"
+    baseline = load_baseline(root / "quick.json")
+    records = sorted((root / "machines" / "quick").glob("*.json"))
+    assert len(records) >= 2  # the machines the gate was measured on
+    for path in records:
+        figures = {k: math.nan if v is None else v for k, v in json.loads(path.read_text())["metrics"].items()}
+        report = compare(baseline, figures)
+        assert report.passed, path.name
