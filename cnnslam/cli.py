@@ -24,6 +24,7 @@ def register(name: str, module: str, help_text: str) -> None:
 register("eval", "eval.cli_ape", "score an estimated trajectory against ground truth (like evo_ape)")
 register("regress", "eval.cli_regress", "compare a run's metrics with a committed baseline (regression gate)")
 register("export", "eval.cli_export", "write a registered sequence as a TUM RGB-D folder")
+register("reference", "eval.cli_reference", "an SfM reference (COLMAP, self-calibrated camera) for a real RGB-D folder")
 register("contact-sheet", "sim_envs.cli_contact_sheet", "render RGB / depth / labels of named sequences to a PNG")
 register("bench-render", "sim_envs.bench_render", "render throughput of the MuJoCo and pyrender renderers (fps)")
 register("train", "cnnslam.depthnet.cli_train", "depth network: generate data, train, validate, export")

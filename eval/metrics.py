@@ -166,6 +166,30 @@ def relative_pose_errors(
     return np.linalg.norm(tp - tq, axis=1), np.degrees(so3_angle(np.swapaxes(R_q, 1, 2) @ R_p))
 
 
+def rotation_angle_ratio(
+    gt: PoseTrajectory, est: PoseTrajectory, delta_s: float = 0.5, min_angle_deg: float = 2.0
+) -> tuple[float, int]:
+    """How far the estimate turns per turn of the reference: sum of angle(P_i^-1 P_j) / sum of angle(Q_i^-1 Q_j)
+    over pairs (i, j) about ``delta_s`` seconds apart (:func:`rpe_pair_indices` on ``gt``'s timestamps) whose
+    reference rotation exceeds ``min_angle_deg``. ``gt`` and ``est`` are already associated (same length).
+    Returns (ratio, pairs used); ratio NaN when no pair turns enough.
+
+    A ratio below 1 that every method shares (feature-based and direct) points at the camera model or at the
+    reference, not at a tracker: an angle read through a too-long focal length comes out too small.
+    """
+    if len(gt) != len(est):
+        raise EvalError(f"associated trajectories must have the same length, got {len(gt)} and {len(est)}")
+    i, j = rpe_pair_indices(gt.timestamps, delta_s)
+    Rg, Re = gt.rotations, est.rotations
+    angle_gt = np.degrees(so3_angle(np.swapaxes(Rg[i], 1, 2) @ Rg[j]))
+    angle_est = np.degrees(so3_angle(np.swapaxes(Re[i], 1, 2) @ Re[j]))
+    turning = angle_gt > min_angle_deg
+    n = int(turning.sum())
+    if n == 0:
+        return math.nan, 0
+    return float(angle_est[turning].sum() / angle_gt[turning].sum()), n
+
+
 def scale_error(scale: float) -> float:
     """|1/s - 1| for the Sim(3) scale s that maps the estimate onto the truth (NaN if s is not positive)."""
     return abs(1.0 / scale - 1.0) if scale > 0 and np.isfinite(scale) else math.nan

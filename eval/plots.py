@@ -143,13 +143,20 @@ def save_trajectory_figure(
     title: str = "",
     plane: str = "xy",
     dpi: int = 120,
+    labels: tuple[str, str] | None = None,
 ) -> Path:
-    """Top view, x/y/z over time and (if given) the ATE per pose over time, in one figure written to ``path``."""
+    """Top view, x/y/z over time and (if given) the ATE per pose over time, in one figure written to ``path``.
+    ``labels``: legend names of the two trajectories instead of "ground truth" and "estimate"."""
     fig = Figure(figsize=(12, 6.5), layout="constrained")
     grid = fig.add_gridspec(4, 2)
-    plot_trajectory_top(fig.add_subplot(grid[:3, 0]), gt_positions, est_positions, plane)
+    top = plot_trajectory_top(fig.add_subplot(grid[:3, 0]), gt_positions, est_positions, plane)
     axes = [fig.add_subplot(grid[k, 1]) for k in range(3)]
     plot_trajectory_axes(axes, timestamps, gt_positions, est_positions)
+    if labels is not None:
+        for ax in (top, axes[0]):
+            for line, label in zip(ax.lines[:2], labels, strict=True):
+                line.set_label(label)
+            ax.legend(loc="best", fontsize="small")
     if errors is not None:
         plot_error_over_time(fig.add_subplot(grid[3, :]), timestamps, errors)
     if title:

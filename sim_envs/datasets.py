@@ -587,6 +587,11 @@ class RgbdFolder:
     def __len__(self) -> int:
         return int(self.timestamps.shape[0])
 
+    @property
+    def rgb_paths(self) -> list[Path]:
+        """The colour image files as they are on disk (before undistortion and resizing), one per frame."""
+        return list(self._rgb_files)
+
     def frame(self, index: int) -> Frame:
         """Frame ``index`` as delivered: RGB (H, W, 3) uint8, depth (H, W) float32 planar z metres (0 = none; all 0
         without depth), pose, and labels / instances where the side file names them."""

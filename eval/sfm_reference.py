@@ -1,0 +1,295 @@
+"""A second reference for real sequences: the camera self-calibrated from the images, and camera poses from
+structure from motion (COLMAP, through pycolmap), beside the folder's own ground truth.
+
+Why: a real sequence's "ground truth" is another algorithm's output. 7-Scenes' poses come from KinectFusion on the
+depth camera, and Brachmann et al. ("On the Limits of Pseudo Ground Truth in Visual Camera Re-localisation", ICCV
+2021) showed that rankings on 7-Scenes change when its KinectFusion poses are replaced by an SfM reconstruction of
+the colour images. A verdict should hold against both. This module makes the SfM one from the images alone, and says
+how far the two references disagree; that disagreement is the floor below which no method's error against either
+can be read.
+
+What it computes:
+
+- :func:`reconstruct`: COLMAP's incremental SfM on the given images (SIFT, sequential matching, one shared camera
+  whose focal length and radial distortion are refined in the bundle adjustment; the initial focal length is
+  COLMAP's own guess, 1.2 x the image width, so nothing from the folder's stated camera goes in). Returns the largest
+  model.
+- :func:`colmap_to_opencv_camera`: that camera in OpenCV's convention (pixel centres at integers: COLMAP puts them at
+  +0.5, so ``cx = cx_colmap - 0.5``), radial ``k1 k2`` in OpenCV's order ``k1 k2 p1 p2 k3``.
+- :func:`metric_scale`: SfM has no scale; the median over all observations of sensor depth / SfM depth of the
+  observed 3D point (planar z in the camera), when the folder has depth. This uses the depth images only, not the
+  folder's poses, so the scaled reference is independent of them.
+- :func:`reference_trajectory`: camera poses ``T_world_cam`` (OpenCV camera frame, metres once scaled), one per
+  registered image, with the images' timestamps.
+
+Numeric cores (:func:`metric_scale`, :func:`colmap_to_opencv_camera`) do no I/O; :func:`reconstruct` writes
+COLMAP's database and model under a work folder.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eval.errors import EvalError
+
+# COLMAP camera models with a single radial polynomial we can hand to OpenCV (k1, k2 in OpenCV's meaning)
+CAMERA_MODELS: tuple[str, ...] = ("SIMPLE_RADIAL", "RADIAL", "OPENCV")
+DEFAULT_CAMERA_MODEL = "RADIAL"
+DEFAULT_OVERLAP = 10  # sequential matching: each image against its next 10
+DISTORTION_NAMES: tuple[str, ...] = ("k1", "k2", "p1", "p2", "k3")
+COLMAP_PIXEL_OFFSET = 0.5  # COLMAP's pixel centres are at +0.5 (image corner at 0), OpenCV's at integers
+
+
+class SfmError(EvalError):
+    """Structure from motion could not make a reference (pycolmap missing, too few images registered, ...)."""
+
+
+@dataclass(frozen=True)
+class SelfCalibration:
+    """A camera recovered from images: pinhole ``fx fy cx cy`` (pixels, OpenCV convention) at ``width`` x ``height``
+    and OpenCV distortion ``k1 k2 p1 p2 k3``; ``model`` is the COLMAP model it was fitted as."""
+
+    model: str
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def camera_toml(self, comment: str = "") -> str:
+        """The camera as a camera file (``sim_envs.datasets.read_camera_file``; ``--camera`` of the bench)."""
+        lines = [f"# {line}" for line in comment.splitlines()] if comment else []
+        lines += [f"width = {self.width}", f"height = {self.height}"]
+        lines += [f"{k} = {getattr(self, k)!r}" for k in ("fx", "fy", "cx", "cy")]
+        lines += [f"{k} = {v!r}" for k, v in zip(DISTORTION_NAMES, self.distortion, strict=True)]
+        return "\n".join(lines) + "\n"
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain fields for JSON."""
+        d = {k: getattr(self, k) for k in ("model", "width", "height", "fx", "fy", "cx", "cy")}
+        d.update(zip(DISTORTION_NAMES, self.distortion, strict=True))
+        return d
+
+
+@dataclass
+class SfmReference:
+    """Camera poses from structure from motion.
+
+    ``frame_indices`` (n,) int: which of the given images were registered (sorted); ``timestamps`` (n,) seconds;
+    ``T_world_cam`` (n, 4, 4): OpenCV camera frame, in metres when ``scale_source`` says so (else SfM units);
+    ``camera``: the self-calibrated camera; ``images``: how many were given; ``points``: 3D points of the model;
+    ``reprojection_px``: COLMAP's mean reprojection error; ``scale``: the factor applied to the SfM units.
+    """
+
+    frame_indices: np.ndarray
+    timestamps: np.ndarray
+    T_world_cam: np.ndarray
+    camera: SelfCalibration
+    images: int
+    points: int
+    reprojection_px: float
+    scale: float = 1.0
+    scale_source: str = "none (SfM units)"
+    details: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def registered_share(self) -> float:
+        """Share of the given images that the model registered."""
+        return len(self.frame_indices) / self.images if self.images else 0.0
+
+
+def colmap_to_opencv_camera(model: str, params: Sequence[float], width: int, height: int) -> SelfCalibration:
+    """A COLMAP camera (``model``, its ``params``) as a :class:`SelfCalibration` in OpenCV's pixel convention.
+
+    SIMPLE_RADIAL ``f cx cy k``, RADIAL ``f cx cy k1 k2``, OPENCV ``fx fy cx cy k1 k2 p1 p2``; COLMAP's radial and
+    tangential terms are OpenCV's (same normalised-coordinate polynomial), its pixel centres are 0.5 further.
+    """
+    p = [float(x) for x in params]
+    if model == "SIMPLE_RADIAL" and len(p) == 4:
+        fx = fy = p[0]
+        cx, cy, dist = p[1], p[2], (p[3], 0.0, 0.0, 0.0, 0.0)
+    elif model == "RADIAL" and len(p) == 5:
+        fx = fy = p[0]
+        cx, cy, dist = p[1], p[2], (p[3], p[4], 0.0, 0.0, 0.0)
+    elif model == "OPENCV" and len(p) == 8:
+        fx, fy, cx, cy = p[:4]
+        dist = (p[4], p[5], p[6], p[7], 0.0)
+    else:
+        raise SfmError(f"COLMAP camera {model} with {len(p)} parameters: valid models {', '.join(CAMERA_MODELS)}")
+    return SelfCalibration(
+        model, int(width), int(height), fx, fy, cx - COLMAP_PIXEL_OFFSET, cy - COLMAP_PIXEL_OFFSET, dist
+    )  # type: ignore[arg-type]
+
+
+def metric_scale(sfm_depth: np.ndarray, sensor_depth: np.ndarray, min_observations: int = 50) -> tuple[float, int]:
+    """Metres per SfM unit: the median of ``sensor_depth / sfm_depth`` over the observations where both are
+    positive and finite (planar z of the same 3D point in the same camera). Returns (scale, observations used).
+
+    The median makes it robust to the depth-to-colour misregistration at depth edges and to SfM outliers.
+    """
+    a = np.asarray(sfm_depth, dtype=np.float64).reshape(-1)
+    b = np.asarray(sensor_depth, dtype=np.float64).reshape(-1)
+    if a.shape != b.shape:
+        raise SfmError(f"sfm_depth and sensor_depth differ in length: {a.size} and {b.size}")
+    ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+    n = int(ok.sum())
+    if n < min_observations:
+        raise SfmError(f"only {n} observations have both an SfM depth and a sensor depth (need {min_observations})")
+    return float(np.median(b[ok] / a[ok])), n
+
+
+def _pycolmap() -> Any:
+    try:
+        import pycolmap
+    except ImportError as exc:  # an optional dependency: only this reference needs it
+        raise SfmError("the SfM reference needs pycolmap: pip install 'cnnslam[sfm]' (or pycolmap>=3.12)") from exc
+    return pycolmap
+
+
+def reconstruct(
+    image_paths: Sequence[str | Path],
+    workdir: str | Path,
+    *,
+    camera_model: str = DEFAULT_CAMERA_MODEL,
+    overlap: int = DEFAULT_OVERLAP,
+    threads: int = 2,
+    seed: int = 0,
+    fixed_camera: Sequence[float] | None = None,
+    verbose: bool = False,
+    on_stage: Callable[[str], None] | None = None,
+    on_image: Callable[[], None] | None = None,
+) -> Any:
+    """COLMAP's incremental SfM on ``image_paths`` (in sequence order), one shared camera of ``camera_model`` whose
+    focal length and distortion are refined; SIFT features, sequential matching over ``overlap`` neighbours.
+
+    Writes ``workdir/images`` (links to the images), ``workdir/database.db`` and ``workdir/sparse``. Returns the
+    model (a ``pycolmap.Reconstruction``) with the most registered images. ``fixed_camera``: COLMAP parameters of
+    ``camera_model`` (COLMAP's pixel convention) to hold fixed instead of self-calibrating. ``on_stage`` is called
+    with each stage's name as it finishes, ``on_image`` each time the mapper registers an image (for a progress
+    bar).
+    """
+    pycolmap = _pycolmap()
+    if camera_model not in CAMERA_MODELS:
+        raise SfmError(f"camera model {camera_model!r}: valid {', '.join(CAMERA_MODELS)}")
+    paths = [Path(p).resolve() for p in image_paths]
+    if len(paths) < 3:
+        raise SfmError(f"structure from motion needs at least 3 images, got {len(paths)}")
+    missing = [str(p) for p in paths if not p.is_file()]
+    if missing:
+        raise SfmError(f"{len(missing)} image(s) not found, first: {missing[0]}")
+    work = Path(workdir)
+    images = work / "images"
+    images.mkdir(parents=True, exist_ok=True)
+    for i, p in enumerate(paths):  # numbered links: COLMAP sorts by name, and names must be unique
+        link = images / f"{i:06d}{p.suffix.lower()}"
+        if link.is_symlink() or link.exists():
+            link.unlink()
+        os.symlink(p, link)
+    database = work / "database.db"
+    if database.exists():
+        database.unlink()
+    pycolmap.logging.minloglevel = 0 if verbose else 2
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = camera_model
+    if fixed_camera is not None:
+        reader.camera_params = ",".join(repr(float(v)) for v in fixed_camera)
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = threads
+    pycolmap.extract_features(
+        database, images, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+        extraction_options=extraction, device=pycolmap.Device.cpu,
+    )  # fmt: skip
+    if on_stage:
+        on_stage("features")
+    pairing = pycolmap.SequentialPairingOptions()
+    pairing.overlap = overlap
+    pycolmap.match_sequential(database, pairing_options=pairing, device=pycolmap.Device.cpu)
+    if on_stage:
+        on_stage("matches")
+    options = pycolmap.IncrementalPipelineOptions()
+    options.num_threads = threads
+    options.random_seed = seed
+    if fixed_camera is not None:
+        options.ba_refine_focal_length = False
+        options.ba_refine_extra_params = False
+    models = pycolmap.incremental_mapping(
+        database, images, work / "sparse", options=options, next_image_callback=on_image
+    )
+    if on_stage:
+        on_stage("mapping")
+    if not models:
+        raise SfmError(f"COLMAP registered no model from {len(paths)} images (too little texture or overlap?)")
+    return max(models.values(), key=lambda r: r.num_reg_images())
+
+
+def reference_trajectory(
+    model: Any,
+    timestamps: Sequence[float],
+    depth_at: Callable[[int, np.ndarray], np.ndarray] | None = None,
+) -> SfmReference:
+    """The poses of a COLMAP model made by :func:`reconstruct` as an :class:`SfmReference`.
+
+    ``timestamps``: of the images in the order given to :func:`reconstruct`. ``depth_at(i, uv)``: the sensor's
+    planar depth in metres (0 = none) of image ``i`` at the (m, 2) OpenCV pixel coordinates ``uv`` of that image's
+    resolution; when given, the poses are scaled to metres by :func:`metric_scale`.
+    """
+    stamps = np.asarray(timestamps, dtype=np.float64)
+    rows = []
+    for image in model.images.values():
+        index = int(Path(image.name).stem)
+        pose = image.cam_from_world() if callable(image.cam_from_world) else image.cam_from_world
+        T_cam_world = np.eye(4)
+        T_cam_world[:3] = pose.matrix()
+        rows.append((index, image, np.linalg.inv(T_cam_world)))
+    rows.sort(key=lambda r: r[0])
+    if len(rows) < 3:
+        raise SfmError(f"COLMAP registered {len(rows)} of {len(stamps)} images; a reference needs at least 3")
+    camera = next(iter(model.cameras.values()))
+    calibration = colmap_to_opencv_camera(camera.model.name, camera.params, camera.width, camera.height)
+    T = np.stack([r[2] for r in rows])
+    reference = SfmReference(
+        frame_indices=np.array([r[0] for r in rows]),
+        timestamps=stamps[[r[0] for r in rows]],
+        T_world_cam=T,
+        camera=calibration,
+        images=len(stamps),
+        points=int(model.num_points3D()),
+        reprojection_px=float(model.compute_mean_reprojection_error()),
+    )
+    if depth_at is not None:
+        sfm_z, sensor_z = [], []
+        for index, image, T_world_cam in rows:
+            observed = [p for p in image.points2D if p.has_point3D()]
+            if not observed:
+                continue
+            xyz = np.array([model.points3D[p.point3D_id].xyz for p in observed])
+            uv = np.array([p.xy for p in observed]) - COLMAP_PIXEL_OFFSET
+            z = (xyz - T_world_cam[:3, 3]) @ T_world_cam[:3, 2]  # planar depth: along the camera's z axis
+            sfm_z.append(z)
+            sensor_z.append(np.asarray(depth_at(index, uv), dtype=np.float64))
+        scale, used = metric_scale(np.concatenate(sfm_z), np.concatenate(sensor_z))
+        reference.T_world_cam = T.copy()
+        reference.T_world_cam[:, :3, 3] *= scale
+        reference.scale = scale
+        reference.scale_source = f"sensor depth (median ratio over {used} observations)"
+        reference.details["depth_observations"] = used
+    return reference
+
+
+def nearest_depth(depth: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Depth (H, W) at the nearest pixel of each OpenCV pixel coordinate in ``uv`` (m, 2); 0 outside the image."""
+    h, w = depth.shape
+    u = np.rint(uv[:, 0]).astype(np.int64)
+    v = np.rint(uv[:, 1]).astype(np.int64)
+    inside = (u >= 0) & (u < w) & (v >= 0) & (v < h)
+    out = np.zeros(len(uv), dtype=np.float64)
+    out[inside] = depth[v[inside], u[inside]]
+    return out
