@@ -197,6 +197,12 @@ class DepthConfig:
     # 26 to 19 % on living0 but from 5 to 19 % on living2: the CNN's scale jitter between key-frames (about 10 %)
     # then enters the map directly.
     scale_anchoring: float = 0.0
+    # Ours, not in the paper: prediction scale alignment, the other direction. Before eq. 6-9, the new key-frame's
+    # CNN depth is rescaled towards the map by exp(-gain * r), r as above. Over key-frames the map's scale becomes
+    # a running (exponentially weighted) mean of the CNN's per-frame scales instead of the last one's: the CNN
+    # still sets the absolute scale, its per-frame scale jitter is averaged. 0 = the paper, 1 = the map's scale
+    # (monocular: the absolute scale is the first key-frame's).
+    prediction_scale_alignment: float = 0.0
     # Depth of the "constant" source (m) for the first key-frame; LSD-like inverse-depth variance below.
     constant_depth: float = 1.0
     # LSD initializeRandomly: inverse depth uniform in [0.5, 1.5] 1/m ...
@@ -211,8 +217,9 @@ class DepthConfig:
         for name in ("first_keyframe_relative_sigma", "unmatched_relative_sigma", "constant_depth",
                      "random_inverse_depth_variance", "ground_truth_inverse_depth_variance"):
             _positive("depth", name, getattr(self, name))
-        if not 0.0 <= self.scale_anchoring <= 1.0:
-            raise CnnSlamError(f"depth.scale_anchoring must be in [0, 1], got {self.scale_anchoring!r}")
+        for name in ("scale_anchoring", "prediction_scale_alignment"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise CnnSlamError(f"depth.{name} must be in [0, 1], got {getattr(self, name)!r}")
         for name in ("propagation_noise_variance", "min_relative_sigma", "occlusion_diff_factor"):
             _positive("depth", name, getattr(self, name), allow_zero=True)
         lo, hi = self.random_inverse_depth_range

@@ -123,7 +123,8 @@ class KeyframeInit:
     depth: (H, W) float32 metres (0 = none); variance: (H, W) float32 m^2 (inf where no depth); matched_share:
     share of pixels that eq. 6-9 could evaluate against the neighbour (0 for the first key-frame);
     mean_abs_change: mean |fused - initial| depth over those pixels (m), a diagnostic of eq. 8; anchor_scale: the
-    factor the neighbour's map was rescaled by (:func:`scale_anchor`, 1 without anchoring).
+    factor the neighbour's map was rescaled by (:func:`scale_anchor`, 1 without anchoring); prediction_scale: the
+    factor the CNN depth was rescaled by (``depth.prediction_scale_alignment``, 1 without).
     """
 
     depth: np.ndarray
@@ -131,6 +132,7 @@ class KeyframeInit:
     matched_share: float
     mean_abs_change: float
     anchor_scale: float = 1.0
+    prediction_scale: float = 1.0
 
 
 def relative_prior(depth: np.ndarray, relative_sigma: float) -> np.ndarray:
@@ -162,10 +164,14 @@ def init_cnn_keyframe(
         return KeyframeInit(d_new.astype(np.float32), var.astype(np.float32), 0.0, 0.0)
     if neighbour_variance is None or T_neighbour_new is None:
         raise CnnSlamError("a neighbour key-frame needs its variance map and the relative pose T_neighbour_new")
-    d_j_in_i, d_j_at_v, matched = depth_of_neighbour_in(d_new, neighbour_depth, intrinsics, T_neighbour_new)
-    uv, _ = warp_keyframe_pixels(d_new, intrinsics, T_neighbour_new)
-    u_j_at_v, _ = sample_nearest(np.asarray(neighbour_variance, dtype=np.float64), uv)
-    matched &= np.isfinite(u_j_at_v) & (d_new > 0)
+    d_j_in_i, d_j_at_v, u_j_at_v, matched = _neighbour_seen_from(d_new, neighbour_depth, neighbour_variance,
+                                                                 intrinsics, T_neighbour_new)
+    a = scale_anchor(d_new, d_j_in_i, matched, config.prediction_scale_alignment)
+    if a != 1.0:  # the CNN's scale moved towards the map's; correspondences follow the rescaled depth
+        d_new = d_new / a
+        floor = relative_prior(d_new, config.min_relative_sigma)
+        d_j_in_i, d_j_at_v, u_j_at_v, matched = _neighbour_seen_from(d_new, neighbour_depth, neighbour_variance,
+                                                                     intrinsics, T_neighbour_new)
     k = scale_anchor(d_new, d_j_in_i, matched, config.scale_anchoring)
     if k != 1.0:  # the whole carried-over map scaled by k: depths by k, variances by k^2
         d_j_in_i, d_j_at_v, u_j_at_v = d_j_in_i * k, d_j_at_v * k, u_j_at_v * (k * k)
@@ -187,7 +193,19 @@ def init_cnn_keyframe(
     var = np.where(matched, np.maximum(fused_u, 1e-12), prior)
     share = float(matched.mean())
     change = float(np.abs(depth - d_new)[matched].mean()) if matched.any() else 0.0
-    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k)
+    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k, 1.0 / a)
+
+
+def _neighbour_seen_from(d_new: np.ndarray, neighbour_depth: np.ndarray, neighbour_variance: np.ndarray,
+                         intrinsics: np.ndarray, T_neighbour_new: np.ndarray,
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The nearest key-frame's depth seen from the new one (metres), its own depth and variance at the warped
+    positions v, and where both exist: the inputs of eq. 6-9."""
+    d_j_in_i, d_j_at_v, matched = depth_of_neighbour_in(d_new, neighbour_depth, intrinsics, T_neighbour_new)
+    uv, _ = warp_keyframe_pixels(d_new, intrinsics, T_neighbour_new)
+    u_j_at_v, _ = sample_nearest(np.asarray(neighbour_variance, dtype=np.float64), uv)
+    matched &= np.isfinite(u_j_at_v) & (d_new > 0)
+    return d_j_in_i, d_j_at_v, u_j_at_v, matched
 
 
 # ------------------------------------------------------------------------------------ without a CNN (LSD baselines)

@@ -119,6 +119,27 @@ def test_scale_anchoring_rescales_the_carried_over_map_towards_the_cnn() -> None
         DepthConfig(scale_anchoring=1.5).validate()
 
 
+def test_prediction_scale_alignment_rescales_the_cnn_towards_the_map() -> None:
+    """The same wall: the map says 2.7 m where the CNN says 2.97 m (10 % deeper); the CNN moves, the map stays."""
+    T_j_i = relative_pose(np.eye(4), se3_exp(np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])))
+    d_j = np.full((240, 320), 3.0, np.float32)
+    u_j = np.full((240, 320), 0.01, np.float32)
+    d_cnn = np.full((240, 320), 2.97, np.float32)
+    centre = (slice(100, 140), slice(140, 180))
+    paper = init_cnn_keyframe(d_cnn, K, DepthConfig(), d_j, u_j, T_j_i)
+    assert paper.prediction_scale == 1.0
+    full = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=1.0), d_j, u_j, T_j_i)
+    assert full.prediction_scale == pytest.approx(1 / 1.1, rel=1e-4) and full.anchor_scale == 1.0
+    np.testing.assert_allclose(full.depth, 2.7, rtol=1e-4)  # the map's scale
+    half = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=0.5), d_j, u_j, T_j_i)
+    assert half.prediction_scale == pytest.approx(1.1**-0.5, rel=1e-4)
+    assert np.all((2.7 < half.depth[centre]) & (half.depth[centre] < 2.97))
+    first = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=1.0))  # no neighbour: the CNN's
+    assert first.prediction_scale == 1.0 and np.all(first.depth == d_cnn)
+    with pytest.raises(CnnSlamError, match="prediction_scale_alignment"):
+        DepthConfig(prediction_scale_alignment=-0.1).validate()
+
+
 def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:
     cfg = DepthConfig()
     d = np.full((240, 320), 2.0, np.float32)
