@@ -591,12 +591,94 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
 
 
 def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
-    """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``."""
+    """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``; for sequences
+    with a second reference in the dataset list, a section scoring every run against it too."""
     results_dir = Path(results_dir)
     table, spread = _suite_table(run, QUICK_BLOCKS)
     paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}", spread=spread)
     text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table, spread=spread)]
-    return _write_report(run, results_dir, run.suite.name, text, paths)
+    second = second_reference_markdown(run)
+    return _write_report(run, results_dir, run.suite.name, [*text, *([second] if second else [])], paths)
+
+
+SECOND_REFERENCE_METRICS: tuple[tuple[str, str, float], ...] = (  # (metric, heading, factor)
+    ("ate_se3_rmse", "SE(3) ATE [m]", 1.0),
+    ("ate_sim3_rmse", "Sim(3) ATE [m]", 1.0),
+    ("scale_error", "scale error [%]", 100.0),
+    ("rot_deg_orient_rmse", "rotation, orientation-aligned [deg]", 1.0),
+)
+GROUND_TRUTH_ROW = "(the folder's ground truth)"
+
+
+def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None = None) -> str:
+    """Every finished run of a sequence that has a second reference (``references``: sequence name -> TUM file;
+    default: the dataset list's ``reference`` entries) scored against it as against ground truth (SE(3) alignment,
+    TUM association), beside the folder's own ground truth scored against it: how far the two references disagree
+    is the floor below which no error can be read. Cells: median [min, max] over runs. Empty when no sequence of
+    the suite has one."""
+    from eval.errors import EvalError
+    from eval.metrics import evaluate_trajectory
+    from eval.suites import SuiteError, load_dataset_list
+    from eval.trajectory import PoseTrajectory
+    from sim_envs.formats import read_tum_trajectory
+
+    if references is None:
+        try:
+            references = {n: e.reference for n, e in load_dataset_list().items() if e.reference is not None}
+        except SuiteError:
+            return ""
+    names = [s.name for s in run.suite.sequences if s.name in references]
+    if not names:
+        return ""
+
+    def trajectory(path: Path) -> PoseTrajectory:
+        stamps, T = read_tum_trajectory(path)
+        return PoseTrajectory(stamps, T)
+
+    lines = ["## Against a second reference", "",
+             "Each run scored against the sequence's second reference (its dataset-list `reference`, e.g. the "
+             "structure-from-motion trajectory of `cnnslam reference`) as against ground truth; the first row scores "
+             "the folder's own ground truth against it: the two references' disagreement, below which no error can "
+             "be read. Median [min, max] over runs.", ""]  # fmt: skip
+    heads = [h for _, h, _ in SECOND_REFERENCE_METRICS]
+    for name in names:
+        path = Path(references[name])
+        lines += [f"**{name}** against `{path}`:", ""]
+        try:
+            reference = trajectory(path)
+        except (OSError, EvalError, ValueError) as exc:
+            lines += [f"(not scored: {exc})", ""]
+            continue
+        rows: dict[str, list[dict[str, float]]] = {}
+        problems = []
+        for record in run.records:
+            if record.get("sequence") != name:
+                continue
+            folder = run.outcomes[record["run"]].folder
+            try:
+                if GROUND_TRUTH_ROW not in rows:
+                    rows[GROUND_TRUTH_ROW] = [evaluate_trajectory(reference, trajectory(folder / "groundtruth.tum"))
+                                              .flat_metrics()]  # fmt: skip
+                flat = evaluate_trajectory(reference, trajectory(folder / "trajectory.tum")).flat_metrics()
+            except (OSError, EvalError, ValueError) as exc:
+                problems.append(f"{record['method']} ({record['run']}): {exc}")
+                continue
+            rows.setdefault(str(record["method"]), []).append(flat)
+        lines += ["| method | runs | " + " | ".join(heads) + " |", "|---|---:|" + "---:|" * len(heads)]
+        for method, flats in rows.items():
+            cells = []
+            for metric, _, factor in SECOND_REFERENCE_METRICS:
+                v = np.array([f.get(metric, math.nan) for f in flats], dtype=float) * factor
+                v = v[np.isfinite(v)]
+                if v.size == 0:
+                    cells.append("-")
+                    continue
+                lo, hi = v.min(), v.max()
+                cells.append(f"{np.median(v):.3f}" + ("" if lo == hi else f" [{lo:.3f}, {hi:.3f}]"))
+            runs = "-" if method == GROUND_TRUTH_ROW else str(len(flats))
+            lines.append(f"| {method} | {runs} | " + " | ".join(cells) + " |")
+        lines += [*(f"- not scored: {p}" for p in problems), ""]
+    return "\n".join(lines)
 
 
 REPORTS = {

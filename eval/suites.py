@@ -378,13 +378,17 @@ def _unique(refs: Sequence[SequenceRef]) -> tuple[SequenceRef, ...]:
 @dataclass(frozen=True)
 class DatasetEntry:
     """A folder of the dataset list: ``name`` (its sequence name), ``path`` (absolute), and the optional
-    ``camera`` (preset name or absolute camera file path), ``size`` and ``depth_scale`` of :class:`SequenceRef`."""
+    ``camera`` (preset name or absolute camera file path), ``size`` and ``depth_scale`` of :class:`SequenceRef`;
+    ``reference``: the absolute path of a second reference trajectory (TUM format, e.g. ``cnnslam reference``'s
+    SfM one) that reports score the runs against too. It is a scoring input, not a run input: changing it reruns
+    nothing."""
 
     name: str
     path: Path
     camera: str | None = None
     size: FolderSize = PROCESSING_SIZE
     depth_scale: float | None = None
+    reference: Path | None = None
 
     def ref(self) -> SequenceRef:
         return SequenceRef(
@@ -403,7 +407,8 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
 
     Format: a ``[datasets]`` table whose entries are ``name = "path"`` or ``[datasets.<name>]`` tables with
     ``path`` and optionally ``camera`` (preset name or camera file), ``size`` (``[width, height]`` or
-    ``"native"``) and ``depth_scale``. Relative paths are relative to the list file's folder; ``~`` is expanded.
+    ``"native"``), ``depth_scale`` and ``reference`` (a second reference trajectory). Relative paths are
+    relative to the list file's folder; ``~`` is expanded.
     A missing default list is an empty list; a missing list named by ``$CNNSLAM_DATASETS`` is an error.
     """
     explicit = path is not None or bool(os.environ.get(DATASETS_ENV))
@@ -423,10 +428,10 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
     entries = {}
     for name, value in table.items():
         entry = value if isinstance(value, dict) else {"path": value}
-        unknown = sorted(set(entry) - {"path", "camera", "size", "depth_scale"})
+        unknown = sorted(set(entry) - {"path", "camera", "size", "depth_scale", "reference"})
         if unknown or not isinstance(entry.get("path"), str):
             raise SuiteError(
-                f"{file}: dataset {name!r} needs path = \"FOLDER\" (optional: camera, size, depth_scale)"
+                f"{file}: dataset {name!r} needs path = \"FOLDER\" (optional: camera, size, depth_scale, reference)"
                 + (f"; unknown key(s) {', '.join(unknown)}" if unknown else "")
             )
         if _SAFE_NAME.search(name) or name.startswith(".") or name in list_sequences("all"):
@@ -440,6 +445,7 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
             camera,
             _folder_size(entry.get("size", PROCESSING_SIZE)),
             float(entry["depth_scale"]) if entry.get("depth_scale") is not None else None,
+            (base / Path(str(entry["reference"])).expanduser()).resolve() if entry.get("reference") else None,
         )
     return entries
 

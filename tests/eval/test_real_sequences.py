@@ -208,3 +208,34 @@ def test_bench_real_reports_missing_folders(folders, tmp_path, monkeypatch, caps
     assert bench(tmp_path, *args, "--allow-skips") == 0
     assert main(["bench", "--list"]) == 0
     assert "missing here: gone" in capsys.readouterr().out
+
+
+def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, monkeypatch):
+    """Known answer: the reference is the ground truth with every translation doubled (a similarity), so against
+    it the oracle and the ground truth both have Sim(3) ATE 0 and a scale error of |1/2 - 1| = 50 %."""
+    from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
+
+    listing = tmp_path / "datasets.toml"
+    listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')
+    monkeypatch.setenv(DATASETS_ENV, str(listing))
+    assert load_dataset_list()["seven"].reference == (tmp_path / "refs" / "seven.tum").resolve()
+    args = ["real", "--methods", "oracle", *SMALL]
+    assert bench(tmp_path, *args) == 0
+    report = (tmp_path / "results" / "real.md").read_text()
+    assert "**seven** against" in report and "(not scored:" in report  # listed, not made yet: said, not fatal
+    stamps, T = read_tum_trajectory(tmp_path / "runs" / "real" / "seven" / "oracle" / "seed0-frames5" /
+                                    "groundtruth.tum")  # fmt: skip
+    T = T.copy()
+    T[:, :3, 3] *= 2.0
+    (tmp_path / "refs").mkdir()
+    write_tum_trajectory(tmp_path / "refs" / "seven.tum", stamps, T)
+    assert bench(tmp_path, *args) == 0  # the runs are reused: a reference is a scoring input, not a run input
+    report = (tmp_path / "results" / "real.md").read_text()
+    section = report.split("## Against a second reference")[1].split("![every run")[0]
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in section.splitlines() if line.startswith("| ") and "---" not in line}  # fmt: skip
+    for name, runs in (("(the folder's ground truth)", "-"), ("oracle", "1")):
+        assert rows[name][0] == runs
+        assert float(rows[name][2]) == pytest.approx(0.0, abs=1e-6)  # Sim(3) ATE
+        assert float(rows[name][3]) == pytest.approx(50.0, abs=1e-3)  # scale error [%]
+    assert float(rows["oracle"][1]) > 0.01  # SE(3) ATE: the doubled path does not fit without scale
