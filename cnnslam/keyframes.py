@@ -99,9 +99,10 @@ def fuse_keyframe_uncertainty(uncertainty_new: np.ndarray, uncertainty_propagate
 
 def scale_anchor(cnn_depth: np.ndarray, neighbour_depth_in_new: np.ndarray, valid: np.ndarray, gain: float,
                  min_pixels: int = 100) -> float:
-    """Ours (not in the paper): the factor k = exp(gain * r) by which the map carried over from the nearest key-frame
-    is rescaled before eq. 6-9, r = median over ``valid`` pixels of log(D_cnn / D_kj), the CNN's scale relative to
-    the map. k = 1 with gain 0 or fewer than ``min_pixels`` valid pixels.
+    """Ours (not in the paper): k = exp(gain * r), r = median over ``valid`` pixels of log(D_cnn / D_kj), the CNN's
+    scale relative to the map. Scale anchoring rescales the map carried over from the nearest key-frame by k before
+    eq. 6-9 (``depth.scale_anchoring``); prediction scale alignment divides the CNN depth by it instead
+    (``depth.prediction_scale_alignment``). k = 1 with gain 0 or fewer than ``min_pixels`` valid pixels.
 
     cnn_depth: the new key-frame's CNN depth D_cnn (H, W) metres; neighbour_depth_in_new: the neighbour's depth seen
     from the new key-frame (:func:`cnnslam.geometry.depth_of_neighbour_in`), (H, W) metres; valid: (H, W) bool.
