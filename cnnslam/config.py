@@ -207,6 +207,10 @@ class DepthConfig:
     # where the network's per-key-frame scale swings from 0.67 to 1.24 of the sensor's, SE(3) ATE went from 0.239
     # to 0.149 m (docs/benchmarks.md, "A second reference for real sequences").
     prediction_scale_alignment: float = 0.0
+    # What the CNN is aligned towards: "map", the nearest key-frame's scale; or "running_median", the median of the
+    # CNN's scales at every key-frame so far (in the first key-frame's units), so that the absolute scale follows
+    # the network's long-run median rather than the first key-frame's (ours).
+    prediction_scale_reference: str = "map"
     # Depth of the "constant" source (m) for the first key-frame; LSD-like inverse-depth variance below.
     constant_depth: float = 1.0
     # LSD initializeRandomly: inverse depth uniform in [0.5, 1.5] 1/m ...
@@ -221,6 +225,7 @@ class DepthConfig:
         for name in ("first_keyframe_relative_sigma", "unmatched_relative_sigma", "constant_depth",
                      "random_inverse_depth_variance", "ground_truth_inverse_depth_variance"):
             _positive("depth", name, getattr(self, name))
+        _choice("depth", "prediction_scale_reference", self.prediction_scale_reference, ("map", "running_median"))
         for name in ("scale_anchoring", "prediction_scale_alignment"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise CnnSlamError(f"depth.{name} must be in [0, 1], got {getattr(self, name)!r}")

@@ -27,6 +27,8 @@ difference), (H, W) float32 maps, 0 depth = no estimate.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,7 +127,8 @@ class KeyframeInit:
     share of pixels that eq. 6-9 could evaluate against the neighbour (0 for the first key-frame);
     mean_abs_change: mean |fused - initial| depth over those pixels (m), a diagnostic of eq. 8; anchor_scale: the
     factor the neighbour's map was rescaled by (:func:`scale_anchor`, 1 without anchoring); prediction_scale: the
-    factor the CNN depth was rescaled by (``depth.prediction_scale_alignment``, 1 without).
+    factor the CNN depth was rescaled by (``depth.prediction_scale_alignment``, 1 without); cnn_log_scale and
+    log_scale: log of the CNN's scale and of the key-frame's, in the first key-frame's units (0 unless aligning).
     """
 
     depth: np.ndarray
@@ -134,6 +137,8 @@ class KeyframeInit:
     mean_abs_change: float
     anchor_scale: float = 1.0
     prediction_scale: float = 1.0
+    cnn_log_scale: float = 0.0
+    log_scale: float = 0.0
 
 
 def relative_prior(depth: np.ndarray, relative_sigma: float) -> np.ndarray:
@@ -149,12 +154,16 @@ def init_cnn_keyframe(
     neighbour_depth: np.ndarray | None = None,
     neighbour_variance: np.ndarray | None = None,
     T_neighbour_new: np.ndarray | None = None,
+    neighbour_log_scale: float = 0.0,
+    scale_history: Sequence[float] = (),
 ) -> KeyframeInit:
     """A CNN key-frame's depth and uncertainty: eq. 6, then eq. 7-9 against the nearest key-frame.
 
     cnn_depth: (H, W) metres (after eq. 5 or raw, as configured); neighbour_depth / neighbour_variance: the nearest
     key-frame's refined maps (metres, m^2), None for the first key-frame; T_neighbour_new: (4, 4) maps the new
-    key-frame's coordinates into the neighbour's (T_kj_ki of the paper).
+    key-frame's coordinates into the neighbour's (T_kj_ki of the paper). neighbour_log_scale: the neighbour's
+    ``log_scale``; scale_history: the ``cnn_log_scale`` of every earlier key-frame (both only for
+    ``depth.prediction_scale_alignment``).
     """
     d_new = np.asarray(cnn_depth, dtype=np.float64)
     if d_new.ndim != 2 or not (d_new > 0).any():
@@ -167,7 +176,12 @@ def init_cnn_keyframe(
         raise CnnSlamError("a neighbour key-frame needs its variance map and the relative pose T_neighbour_new")
     d_j_in_i, d_j_at_v, u_j_at_v, matched = _neighbour_seen_from(d_new, neighbour_depth, neighbour_variance,
                                                                  intrinsics, T_neighbour_new)
-    a = scale_anchor(d_new, d_j_in_i, matched, config.prediction_scale_alignment)
+    a, q = 1.0, neighbour_log_scale
+    if config.prediction_scale_alignment > 0:
+        q += math.log(scale_anchor(d_new, d_j_in_i, matched, 1.0))  # the CNN's log scale, first key-frame units
+        median = config.prediction_scale_reference == "running_median"
+        target = float(np.median([*scale_history, q])) if median else neighbour_log_scale
+        a = math.exp(config.prediction_scale_alignment * (q - target))
     if a != 1.0:  # the CNN's scale moved towards the map's; correspondences follow the rescaled depth
         d_new = d_new / a
         floor = relative_prior(d_new, config.min_relative_sigma)
@@ -194,7 +208,8 @@ def init_cnn_keyframe(
     var = np.where(matched, np.maximum(fused_u, 1e-12), prior)
     share = float(matched.mean())
     change = float(np.abs(depth - d_new)[matched].mean()) if matched.any() else 0.0
-    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k, 1.0 / a)
+    return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k, 1.0 / a, q,
+                        q - math.log(a))
 
 
 def _neighbour_seen_from(d_new: np.ndarray, neighbour_depth: np.ndarray, neighbour_variance: np.ndarray,

@@ -225,6 +225,10 @@ class CnnSlam:
         self._worker = _KeyframeWorker(config.system.threads)
         self._graph = PoseGraph()  # owned by the key-frame thread
         self._keyframes: list[Keyframe] = []  # appended by the key-frame thread, read by both (under the lock)
+        # depth.prediction_scale_alignment's state, key-frame thread only: each key-frame's log scale and the CNN's
+        # log scale at every key-frame, in the first key-frame's units
+        self._kf_log_scale: dict[int, float] = {}
+        self._cnn_log_scales: list[float] = []
         self._kf_lock = threading.Lock()
         self._graph_futures: list[Future] = []
         # frame-thread state
@@ -425,7 +429,9 @@ class CnnSlam:
             else:
                 parent_maps = parent.maps
                 init = init_cnn_keyframe(pred.depth, self.intrinsics, cfg.depth, parent_maps.depth,
-                                         parent_maps.variance, T_parent_new)
+                                         parent_maps.variance, T_parent_new,
+                                         self._kf_log_scale.get(parent.index, 0.0), self._cnn_log_scales)
+            self._cnn_log_scales.append(init.cnn_log_scale)
         elif parent is None:
             mask = None
             if cfg.refinement.density == "semi_dense":
@@ -438,6 +444,7 @@ class CnnSlam:
             init = propagate_keyframe(parent_maps.depth, parent_maps.variance, self.intrinsics,
                                       se3_inverse(T_parent_new), cfg.depth)
         keyframe = self._publish(init, rgb, pyramid, timestamp, label_probs, cnn_depth, parent, T_parent_new)
+        self._kf_log_scale[keyframe.index] = init.log_scale
         self._seconds["keyframe_init"] += time.perf_counter() - t0
         return keyframe
 

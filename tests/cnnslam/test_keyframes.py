@@ -140,6 +140,29 @@ def test_prediction_scale_alignment_rescales_the_cnn_towards_the_map() -> None:
         DepthConfig(prediction_scale_alignment=-0.1).validate()
 
 
+def test_prediction_scale_alignment_towards_the_running_median_of_the_cnn() -> None:
+    """The map (the neighbour, at log scale 0) says 2.7 m, the CNN 2.97 m: the CNN's log scale is log 1.1. With
+    earlier CNN scales log 1.1 and log 1.1 the median is log 1.1: the new key-frame keeps the CNN's depth; with
+    0 and 0 the median is 0: it takes the map's."""
+    T_j_i = relative_pose(np.eye(4), se3_exp(np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])))
+    d_j = np.full((240, 320), 3.0, np.float32)
+    u_j = np.full((240, 320), 0.01, np.float32)
+    d_cnn = np.full((240, 320), 2.97, np.float32)
+    cfg = DepthConfig(prediction_scale_alignment=1.0, prediction_scale_reference="running_median")
+    r = np.log(1.1)
+    follows = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, T_j_i, 0.0, [r, r])
+    assert follows.prediction_scale == pytest.approx(1.0) and follows.cnn_log_scale == pytest.approx(r, abs=1e-4)
+    assert follows.log_scale == pytest.approx(r, abs=1e-4)  # this key-frame now sits at the CNN's scale
+    holds = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, T_j_i, 0.0, [0.0, 0.0])
+    assert holds.prediction_scale == pytest.approx(1 / 1.1, rel=1e-4) and holds.log_scale == pytest.approx(0.0)
+    np.testing.assert_allclose(holds.depth, 2.7, rtol=1e-4)
+    # in a neighbour's units: a neighbour at log scale s makes the CNN's log scale s + r
+    shifted = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, T_j_i, 0.5, [0.5 + r])
+    assert shifted.cnn_log_scale == pytest.approx(0.5 + r, abs=1e-4) and shifted.prediction_scale == pytest.approx(1)
+    with pytest.raises(CnnSlamError, match="prediction_scale_reference"):
+        DepthConfig(prediction_scale_reference="cnn").validate()
+
+
 def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:
     cfg = DepthConfig()
     d = np.full((240, 320), 2.0, np.float32)
