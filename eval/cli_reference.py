@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from eval.errors import EvalError
-from eval.metrics import evaluate_trajectory, rotation_angle_ratio
+from eval.metrics import TrajectoryMetrics, evaluate_trajectory, rotation_angle_ratio
 from eval.results import json_ready
 from eval.sfm_reference import (
     CAMERA_MODELS,
@@ -69,11 +69,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
 
 
-def compare_with_ground_truth(gt: PoseTrajectory, reference: SfmReference, rpe_delta: float = 1.0) -> dict[str, Any]:
+def compare_with_ground_truth(gt: PoseTrajectory, reference: SfmReference,
+                              rpe_delta: float = 1.0) -> tuple[dict[str, Any], TrajectoryMetrics]:  # fmt: skip
     """The folder's ground truth ``gt`` scored against the SfM reference (the reference plays the ground truth's
-    role: errors are in the reference's metres). Keys: ``ate_se3_rmse``, ``ate_sim3_rmse``, ``scale`` (Sim(3) scale
-    mapping the ground truth onto the reference), ``rot_deg_orient_rmse``, ``rpe_trans_rmse``, ``rpe_rot_deg_rmse``,
-    ``rotation_ratio`` (ground-truth angle / reference angle over 0.5 s), ``pairs``."""
+    role: errors are in the reference's metres). Returns the figures, keys ``ate_se3_rmse``, ``ate_sim3_rmse``,
+    ``scale`` (Sim(3) scale mapping the ground truth onto the reference), ``rot_deg_orient_rmse``,
+    ``rpe_trans_rmse``, ``rpe_rot_deg_rmse``, ``rotation_ratio`` (ground-truth angle / reference angle over 0.5 s),
+    ``pairs``; and the metrics behind them (SE(3)-aligned ground truth and ATE per pose, for the plot)."""
     ref = PoseTrajectory(reference.timestamps, reference.T_world_cam)
     metrics = evaluate_trajectory(ref, gt, rpe_delta=rpe_delta)
     flat = metrics.flat_metrics()
@@ -82,7 +84,7 @@ def compare_with_ground_truth(gt: PoseTrajectory, reference: SfmReference, rpe_d
             "rpe_rot_deg_rmse")  # fmt: skip
     out = {k: float(flat[k]) for k in keys if k in flat}
     out.update(rotation_ratio=ratio, rotation_ratio_pairs=ratio_pairs, pairs=len(metrics.gt))
-    return out
+    return out, metrics
 
 
 def _markdown(name: str, summary: dict[str, Any]) -> str:
@@ -168,9 +170,9 @@ def run(args: argparse.Namespace) -> int:
         return 1
     reference.frame_indices = selected[reference.frame_indices]
     seconds = time.monotonic() - started
-    _write_reference(out, folder, reference)  # first: the costly part is kept whatever fails after it
-    summary = _summary(args, folder, reference, seconds)
-    _write_report(out, seq.name, folder, reference, summary, plot=not args.no_plot)
+    _write_reference(out, folder, reference, args.fixed_camera)  # first: kept whatever fails after it
+    summary, metrics = _summary(args, folder, reference, seconds)
+    _write_report(out, seq.name, summary, metrics if not args.no_plot else None)
     print(_markdown(seq.name, summary))
     written = "reference.tum, camera.toml, reference.json, reference.md" + ("" if args.no_plot else ", reference.png")
     print(f"wrote {written} to {out}")
@@ -206,10 +208,11 @@ def _depth_lookup(folder: Any, selected: np.ndarray) -> Any:
     return depth_at
 
 
-def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference, seconds: float) -> dict[str, Any]:
+def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
+             seconds: float) -> tuple[dict[str, Any], TrajectoryMetrics]:  # fmt: skip
     import pycolmap
 
-    from eval.sfm_reference import DISTORTION_NAMES
+    from sim_envs.camera import DISTORTION_NAMES
 
     stated = folder.camera
     summary: dict[str, Any] = {
@@ -236,37 +239,35 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference, sec
         },
     }
     gt = PoseTrajectory(folder.timestamps, folder.poses)
-    summary["ground_truth_vs_reference"] = compare_with_ground_truth(gt, reference, args.rpe_delta)
-    return summary
+    summary["ground_truth_vs_reference"], metrics = compare_with_ground_truth(gt, reference, args.rpe_delta)
+    return summary, metrics
 
 
-def _write_reference(out: Path, folder: Any, reference: SfmReference) -> None:
+def _write_reference(out: Path, folder: Any, reference: SfmReference, fixed: bool) -> None:
     import pycolmap
 
     from sim_envs.formats import write_tum_trajectory
 
+    how = "held fixed" if fixed else "self-calibrated"
     header = (
-        f"SfM reference of {folder.folder} (pycolmap {pycolmap.__version__}, self-calibrated "
+        f"SfM reference of {folder.folder} (pycolmap {pycolmap.__version__}, camera {how}, "
         f"{reference.camera.model}); T_world_cam colour camera, OpenCV axes; {reference.scale_source}"
     )
     write_tum_trajectory(out / "reference.tum", reference.timestamps, reference.T_world_cam, header=header)
     (out / "camera.toml").write_text(reference.camera.camera_toml(
-        f"self-calibrated by COLMAP from the images of {folder.folder} (cnnslam reference)"))  # fmt: skip
+        f"{how} by COLMAP from the images of {folder.folder} (cnnslam reference)"))  # fmt: skip
 
 
-def _write_report(out: Path, name: str, folder: Any, reference: SfmReference, summary: dict[str, Any],
-                  plot: bool) -> None:  # fmt: skip
+def _write_report(out: Path, name: str, summary: dict[str, Any], metrics: TrajectoryMetrics | None) -> None:
+    """reference.json, reference.md and (given the comparison's ``metrics``) reference.png: the SE(3)-aligned
+    ground truth over the reference, with its ATE per pose."""
     (out / "reference.json").write_text(json.dumps(json_ready(summary), indent=2) + "\n")
     (out / "reference.md").write_text(_markdown(name, summary))
-    if plot:
-        from eval.alignment import umeyama_alignment
+    if metrics is not None:
         from eval.plots import save_trajectory_figure
 
-        idx = reference.frame_indices
-        gt = folder.poses[idx, :3, 3]
-        R, t, _ = umeyama_alignment(gt, reference.T_world_cam[:, :3, 3], with_scale=False)
-        gt_aligned = (R @ gt.T).T + t
-        errors = np.linalg.norm(gt_aligned - reference.T_world_cam[:, :3, 3], axis=1)
-        save_trajectory_figure(out / "reference.png", reference.timestamps, reference.T_world_cam[:, :3, 3],
-                               gt_aligned, errors, title=f"{name}: the folder's ground truth against the SfM reference",
+        # compare_with_ground_truth aligns with SE(3) (evaluate_trajectory's default): est_aligned is that fit
+        save_trajectory_figure(out / "reference.png", metrics.gt.timestamps, metrics.gt.positions,
+                               metrics.est_aligned.positions, metrics.ate_errors,
+                               title=f"{name}: the folder's ground truth against the SfM reference",
                                labels=("SfM reference", "ground truth, SE(3)-aligned"))  # fmt: skip

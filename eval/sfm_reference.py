@@ -37,12 +37,12 @@ from typing import Any
 import numpy as np
 
 from eval.errors import EvalError
+from sim_envs.camera import DISTORTION_NAMES
 
 # COLMAP camera models with a single radial polynomial we can hand to OpenCV (k1, k2 in OpenCV's meaning)
 CAMERA_MODELS: tuple[str, ...] = ("SIMPLE_RADIAL", "RADIAL", "OPENCV")
 DEFAULT_CAMERA_MODEL = "RADIAL"
 DEFAULT_OVERLAP = 10  # sequential matching: each image against its next 10
-DISTORTION_NAMES: tuple[str, ...] = ("k1", "k2", "p1", "p2", "k3")
 COLMAP_PIXEL_OFFSET = 0.5  # COLMAP's pixel centres are at +0.5 (image corner at 0), OpenCV's at integers
 
 
