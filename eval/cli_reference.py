@@ -212,7 +212,7 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
              seconds: float) -> tuple[dict[str, Any], TrajectoryMetrics]:  # fmt: skip
     import pycolmap
 
-    from sim_envs.camera import DISTORTION_NAMES
+    from sim_envs.datasets import camera_fields
 
     stated = folder.camera
     summary: dict[str, Any] = {
@@ -223,12 +223,8 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
         "first": args.first,
         "camera_fixed": bool(args.fixed_camera),
         "seconds": seconds,
-        "camera": reference.camera.as_dict(),
-        "stated_camera": {
-            "source": folder.camera_source,
-            **{k: getattr(stated.intrinsics, k) for k in ("fx", "fy", "cx", "cy", "width", "height")},
-            **dict(zip(DISTORTION_NAMES, stated.distortion, strict=True)),
-        },
+        "camera": {"model": reference.camera_model, **camera_fields(reference.camera)},
+        "stated_camera": {"source": folder.camera_source, **camera_fields(stated)},
         "reference": {
             "images": reference.images,
             "registered": len(reference.frame_indices),
@@ -246,16 +242,17 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
 def _write_reference(out: Path, folder: Any, reference: SfmReference, fixed: bool) -> None:
     import pycolmap
 
+    from sim_envs.datasets import camera_file_text
     from sim_envs.formats import write_tum_trajectory
 
     how = "held fixed" if fixed else "self-calibrated"
     header = (
         f"SfM reference of {folder.folder} (pycolmap {pycolmap.__version__}, camera {how}, "
-        f"{reference.camera.model}); T_world_cam colour camera, OpenCV axes; {reference.scale_source}"
+        f"{reference.camera_model}); T_world_cam colour camera, OpenCV axes; {reference.scale_source}"
     )
     write_tum_trajectory(out / "reference.tum", reference.timestamps, reference.T_world_cam, header=header)
-    (out / "camera.toml").write_text(reference.camera.camera_toml(
-        f"{how} by COLMAP from the images of {folder.folder} (cnnslam reference)"))  # fmt: skip
+    (out / "camera.toml").write_text(camera_file_text(
+        reference.camera, f"{how} by COLMAP from the images of {folder.folder} (cnnslam reference)"))  # fmt: skip
 
 
 def _write_report(out: Path, name: str, summary: dict[str, Any], metrics: TrajectoryMetrics | None) -> None:

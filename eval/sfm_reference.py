@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from eval.errors import EvalError
-from sim_envs.camera import DISTORTION_NAMES
+from sim_envs.camera import CameraModel, Intrinsics
 
 # COLMAP camera models with a single radial polynomial we can hand to OpenCV (k1, k2 in OpenCV's meaning)
 CAMERA_MODELS: tuple[str, ...] = ("SIMPLE_RADIAL", "RADIAL", "OPENCV")
@@ -50,49 +50,22 @@ class SfmError(EvalError):
     """Structure from motion could not make a reference (pycolmap missing, too few images registered, ...)."""
 
 
-@dataclass(frozen=True)
-class SelfCalibration:
-    """A camera recovered from images: pinhole ``fx fy cx cy`` (pixels, OpenCV convention) at ``width`` x ``height``
-    and OpenCV distortion ``k1 k2 p1 p2 k3``; ``model`` is the COLMAP model it was fitted as."""
-
-    model: str
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def camera_toml(self, comment: str = "") -> str:
-        """The camera as a camera file (``sim_envs.datasets.read_camera_file``; ``--camera`` of the bench)."""
-        lines = [f"# {line}" for line in comment.splitlines()] if comment else []
-        lines += [f"width = {self.width}", f"height = {self.height}"]
-        lines += [f"{k} = {getattr(self, k)!r}" for k in ("fx", "fy", "cx", "cy")]
-        lines += [f"{k} = {v!r}" for k, v in zip(DISTORTION_NAMES, self.distortion, strict=True)]
-        return "\n".join(lines) + "\n"
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain fields for JSON."""
-        d = {k: getattr(self, k) for k in ("model", "width", "height", "fx", "fy", "cx", "cy")}
-        d.update(zip(DISTORTION_NAMES, self.distortion, strict=True))
-        return d
-
-
 @dataclass
 class SfmReference:
     """Camera poses from structure from motion.
 
     ``frame_indices`` (n,) int: which of the given images were registered (sorted); ``timestamps`` (n,) seconds;
     ``T_world_cam`` (n, 4, 4): OpenCV camera frame, in metres when ``scale_source`` says so (else SfM units);
-    ``camera``: the self-calibrated camera; ``images``: how many were given; ``points``: 3D points of the model;
-    ``reprojection_px``: COLMAP's mean reprojection error; ``scale``: the factor applied to the SfM units.
+    ``camera``: the self-calibrated camera, fitted as COLMAP's ``camera_model``; ``images``: how many were given;
+    ``points``: 3D points of the model; ``reprojection_px``: COLMAP's mean reprojection error; ``scale``: the factor
+    applied to the SfM units.
     """
 
     frame_indices: np.ndarray
     timestamps: np.ndarray
     T_world_cam: np.ndarray
-    camera: SelfCalibration
+    camera: CameraModel
+    camera_model: str
     images: int
     points: int
     reprojection_px: float
@@ -106,8 +79,9 @@ class SfmReference:
         return len(self.frame_indices) / self.images if self.images else 0.0
 
 
-def colmap_to_opencv_camera(model: str, params: Sequence[float], width: int, height: int) -> SelfCalibration:
-    """A COLMAP camera (``model``, its ``params``) as a :class:`SelfCalibration` in OpenCV's pixel convention.
+def colmap_to_opencv_camera(model: str, params: Sequence[float], width: int, height: int) -> CameraModel:
+    """A COLMAP camera (``model``, its ``params``) as a :class:`~sim_envs.camera.CameraModel` in OpenCV's pixel
+    convention.
 
     SIMPLE_RADIAL ``f cx cy k``, RADIAL ``f cx cy k1 k2``, OPENCV ``fx fy cx cy k1 k2 p1 p2``; COLMAP's radial and
     tangential terms are OpenCV's (same normalised-coordinate polynomial), its pixel centres are 0.5 further.
@@ -124,9 +98,8 @@ def colmap_to_opencv_camera(model: str, params: Sequence[float], width: int, hei
         dist = (p[4], p[5], p[6], p[7], 0.0)
     else:
         raise SfmError(f"COLMAP camera {model} with {len(p)} parameters: valid models {', '.join(CAMERA_MODELS)}")
-    return SelfCalibration(
-        model, int(width), int(height), fx, fy, cx - COLMAP_PIXEL_OFFSET, cy - COLMAP_PIXEL_OFFSET, dist
-    )  # type: ignore[arg-type]
+    K = Intrinsics(fx, fy, cx - COLMAP_PIXEL_OFFSET, cy - COLMAP_PIXEL_OFFSET, int(width), int(height))
+    return CameraModel(K, dist)  # type: ignore[arg-type]
 
 
 def metric_scale(sfm_depth: np.ndarray, sensor_depth: np.ndarray, min_observations: int = 50) -> tuple[float, int]:
@@ -260,6 +233,7 @@ def reference_trajectory(
         timestamps=stamps[[r[0] for r in rows]],
         T_world_cam=T,
         camera=calibration,
+        camera_model=camera.model.name,
         images=len(stamps),
         points=int(model.num_points3D()),
         reprojection_px=float(model.compute_mean_reprojection_error()),

@@ -310,17 +310,10 @@ def export_photometric_calibration(source: Any, folder: str | Path, *, max_frame
     V = geometry.vignette if geometry.vignette is not None else np.ones((K.height, K.width), np.float32)
     V = undistort_image(V, geometry)
     _write_png(folder / "vignette.png", np.rint(np.clip(V, 0.0, 1.0) * 65535).astype(np.uint16))
-    pinhole = "".join(f"{k} = {v!r}\n" for k, v in _intrinsics_dict(source.intrinsics).items())
-    (folder / "camera.toml").write_text(
-        "# the exported rgb/ images: pinhole (undistorted; OpenCV convention, pixel centres at integers)\n" + pinhole
-    )
-    raw = "".join(f"{k} = {v!r}\n" for k, v in _intrinsics_dict(K).items())
-    lens = "".join(f"{k} = {float(v)!r}\n" for k, v in zip(DISTORTION_NAMES, effects.distortion, strict=True))
-    (folder / "camera_raw.toml").write_text(
-        "# the raw sensor images (SimulatedSequence.raw_rgb): OpenCV radial-tangential distortion k1 k2 p1 p2 k3\n"
-        + raw
-        + lens
-    )
+    pinhole = "the exported rgb/ images: pinhole (undistorted; OpenCV convention, pixel centres at integers)"
+    (folder / "camera.toml").write_text(camera_file_text(source.intrinsics, pinhole))
+    raw = "the raw sensor images (SimulatedSequence.raw_rgb): OpenCV radial-tangential distortion k1 k2 p1 p2 k3"
+    (folder / "camera_raw.toml").write_text(camera_file_text(CameraModel(K, effects.distortion), raw))
     return list(PHOTOMETRIC_FILES)
 
 
@@ -668,8 +661,7 @@ class RgbdFolder:
             "original_size": list(self.original_size),
             "size": list(self.size),
             "camera_source": self.camera_source,
-            "camera": {**_intrinsics_dict(self.camera.intrinsics),
-                       **dict(zip(DISTORTION_NAMES, self.camera.distortion, strict=True))},  # fmt: skip
+            "camera": camera_fields(self.camera),
             "depth_registration": None if self.depth_rig is None else {
                 "depth_intrinsics": _intrinsics_dict(self.depth_rig.depth_intrinsics),
                 "T_colour_depth": np.asarray(self.depth_rig.T_colour_depth).tolist(),
@@ -967,6 +959,22 @@ def read_pose_matrix(path: str | Path) -> np.ndarray:
     T[:3, :3] = R
     T[:3, 3] = M[:3, 3]
     return T
+
+
+def camera_fields(camera: CameraModel | Intrinsics) -> dict[str, float | int]:
+    """A camera's fields as a camera file and run records name them: ``fx fy cx cy width height`` (pixels, OpenCV
+    convention) and, for a :class:`CameraModel`, its distortion ``k1 k2 p1 p2 k3``."""
+    if isinstance(camera, Intrinsics):
+        return _intrinsics_dict(camera)
+    return {**_intrinsics_dict(camera.intrinsics), **dict(zip(DISTORTION_NAMES, camera.distortion, strict=True))}
+
+
+def camera_file_text(camera: CameraModel | Intrinsics, comment: str = "") -> str:
+    """The text of a camera file (TOML) for ``camera``, which :func:`read_camera_file` reads back exactly;
+    ``comment``: lines written first, as ``#`` comments."""
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"{k} = {int(v) if k in ('width', 'height') else float(v)!r}" for k, v in camera_fields(camera).items()]
+    return "\n".join(lines) + "\n"
 
 
 def read_camera_file(path: str | Path, width: int | None = None, height: int | None = None) -> CameraModel:

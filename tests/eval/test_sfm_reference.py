@@ -13,18 +13,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from eval.metrics import rotation_angle_ratio
-from eval.sfm_reference import SelfCalibration, SfmError, colmap_to_opencv_camera, metric_scale, nearest_depth
+from eval.sfm_reference import SfmError, colmap_to_opencv_camera, metric_scale, nearest_depth
 from eval.trajectory import PoseTrajectory
 
 
 def test_colmap_cameras_become_opencv_cameras():
     cam = colmap_to_opencv_camera("RADIAL", [500.0, 320.0, 240.0, 0.1, -0.05], 640, 480)
-    assert (cam.fx, cam.fy, cam.cx, cam.cy) == (500.0, 500.0, 319.5, 239.5)  # COLMAP's pixel centres are at +0.5
+    K = cam.intrinsics
+    assert (K.fx, K.fy, K.cx, K.cy, K.width) == (500.0, 500.0, 319.5, 239.5, 640)  # COLMAP's pixel centres: +0.5
     assert cam.distortion == (0.1, -0.05, 0.0, 0.0, 0.0)
     simple = colmap_to_opencv_camera("SIMPLE_RADIAL", [400.0, 160.0, 120.0, 0.02], 320, 240)
-    assert simple.distortion == (0.02, 0.0, 0.0, 0.0, 0.0) and simple.cx == 159.5
+    assert simple.distortion == (0.02, 0.0, 0.0, 0.0, 0.0) and simple.intrinsics.cx == 159.5
     opencv = colmap_to_opencv_camera("OPENCV", [500, 505, 320, 240, 0.1, -0.2, 0.001, 0.002], 640, 480)
-    assert (opencv.fy, opencv.distortion) == (505.0, (0.1, -0.2, 0.001, 0.002, 0.0))
+    assert (opencv.intrinsics.fy, opencv.distortion) == (505.0, (0.1, -0.2, 0.001, 0.002, 0.0))
     with pytest.raises(SfmError, match="valid models"):
         colmap_to_opencv_camera("FOV", [500, 320, 240, 0.5], 640, 480)
     with pytest.raises(SfmError, match="5 parameters"):
@@ -32,11 +33,12 @@ def test_colmap_cameras_become_opencv_cameras():
 
 
 def test_the_camera_file_reads_back(tmp_path):
-    from sim_envs.datasets import read_camera_file
-
-    cam = SelfCalibration("RADIAL", 640, 480, 526.5, 526.5, 319.5, 239.5, (0.01, -0.05, 0.0, 0.0, 0.0))
-    (tmp_path / "camera.toml").write_text(cam.camera_toml("self-calibrated\nsecond line"))
     from sim_envs.camera import Intrinsics
+    from sim_envs.datasets import camera_file_text, read_camera_file
+
+    cam = colmap_to_opencv_camera("RADIAL", [526.5, 320.0, 240.0, 0.01, -0.05], 640, 480)
+    (tmp_path / "camera.toml").write_text(camera_file_text(cam, "self-calibrated\nsecond line"))
+    assert read_camera_file(tmp_path / "camera.toml") == cam  # exactly, at its own size
 
     model = read_camera_file(tmp_path / "camera.toml", 320, 240)
     assert model.intrinsics == Intrinsics(526.5, 526.5, 319.5, 239.5, 640, 480).scaled(320, 240)
@@ -119,7 +121,7 @@ def test_self_calibration_recovers_a_rendered_lens(tmp_path):
     finally:
         seq.close()
     assert ref.registered_share == 1.0 and ref.reprojection_px < 1.0
-    assert ref.camera.fx == pytest.approx(truth.fx, rel=0.02)
+    assert ref.camera.intrinsics.fx == pytest.approx(truth.fx, rel=0.02)
     assert ref.camera.distortion[0] == pytest.approx(LENS[0], abs=0.05)
     est = PoseTrajectory(ref.timestamps, ref.T_world_cam)
     assert rotation_angle_ratio(gt, est)[0] == pytest.approx(1.0, abs=0.04)
