@@ -355,7 +355,9 @@ class SystemConfig:
     # Paper Sec. 4: a frame thread (tracking + refinement) and a key-frame thread (CNN, key-frame initialisation
     # and fusion, pose graph). False: everything in the caller's thread, in a fixed order (deterministic; tests).
     threads: bool = True
-    # Seeds the numpy Generator of the "random" depth source (the only randomness of the system).
+    # Seeds the numpy Generator of the "random" depth source (the only randomness of the system). With the
+    # "ground_truth_first" source (LSD-BS), a seed > 0 perturbs the bootstrapped depth in its last float32 bits (2 ulp):
+    # the spread another CPU shows, for a method that is otherwise deterministic given the images.
     seed: int = 0
 
     def validate(self) -> None:

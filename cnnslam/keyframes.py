@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from cnnslam.config import DepthConfig, KeyframeConfig
+from cnnslam.depth_prediction import perturb_last_bits
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import depth_of_neighbour_in, sample_nearest, warp_keyframe_pixels
 from cnnslam.tracking import ImagePyramid, TrackingReference
@@ -282,10 +283,13 @@ def propagate_keyframe(
 
 def init_first_keyframe_without_cnn(
     shape: tuple[int, int], config: DepthConfig, rng: np.random.Generator, mask: np.ndarray | None = None,
-    ground_truth_depth: np.ndarray | None = None,
+    ground_truth_depth: np.ndarray | None = None, perturb_last_bits_of_ground_truth: bool = False,
 ) -> KeyframeInit:
     """The first key-frame's depth when there is no CNN: "constant", "random" (LSD-SLAM initializeRandomly) or
     "ground_truth_first" (LSD-BS), on the pixels of ``mask`` ((H, W) bool, all when None).
+
+    ``perturb_last_bits_of_ground_truth``: "ground_truth_first" takes the depth perturbed in its last float32 bits with
+    draws from ``rng`` (:func:`cnnslam.depth_prediction.perturb_last_bits`; the benchmark's seeds > 0).
 
     Inverse-depth variances are LSD-SLAM's (VAR_RANDOM_INIT_INITIAL for constant/random, VAR_GT_INIT_INITIAL for
     ground truth), converted to depth variance var_D = var_id D^4.
@@ -306,6 +310,8 @@ def init_first_keyframe_without_cnn(
                 "cnnslam.agent:GroundTruthAidedAgent, which receives it"
             )
         gt = np.asarray(ground_truth_depth, dtype=np.float64)
+        if perturb_last_bits_of_ground_truth:
+            gt = perturb_last_bits(gt, rng).astype(np.float64)
         mask = mask & (gt > 0)
         idepth = np.where(gt > 0, 1.0 / np.where(gt > 0, gt, 1.0), 0.0)
         id_var = config.ground_truth_inverse_depth_variance

@@ -438,7 +438,8 @@ class CnnSlam:
                 gx, gy = pyramid.grad_x[0], pyramid.grad_y[0]
                 mask = np.sqrt(gx * gx + gy * gy) >= cfg.refinement.min_gradient_create
             gt_depth = None if ground_truth is None else ground_truth.measured_depth  # LSD-BS: the sensor's depth
-            init = init_first_keyframe_without_cnn(self.image_size, cfg.depth, self._rng, mask, gt_depth)
+            init = init_first_keyframe_without_cnn(self.image_size, cfg.depth, self._rng, mask, gt_depth,
+                                                   perturb_last_bits_of_ground_truth=cfg.system.seed > 0)
         else:
             parent_maps = parent.maps
             init = propagate_keyframe(parent_maps.depth, parent_maps.variance, self.intrinsics,

@@ -29,12 +29,11 @@ import cv2
 import numpy as np
 import torch
 
-from cnnslam.depth_prediction import focal_length_adjustment
+from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
 from cnnslam.depthnet.model import DepthSemanticNet, normalize_rgb
 from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
 from cnnslam.errors import CnnSlamError
 
-JITTER_STD_ULPS = 2.0  # std of the output jitter in float32 ulps (oneDNN on/off: median 0.9, p99 3.6, max 7.4 ulps)
 JITTER_VARIABLE = "CNNSLAM_NET_JITTER"  # a jitter seed for predictors built without one
 ONEDNN_VARIABLE = "CNNSLAM_ONEDNN"  # "0": torch's oneDNN kernels off in this process (a second math back-end)
 
@@ -110,16 +109,11 @@ class DepthNetPredictor:
         depth_np = depth[0, 0].numpy().astype(np.float32)
         probs_np = probs[0].permute(1, 2, 0).numpy().astype(np.float32)
         if self._jitter is not None:
-            depth_np, probs_np = self._jittered(depth_np), self._jittered(probs_np)
+            depth_np = perturb_last_bits(depth_np, self._jitter, JITTER_STD_ULPS)
+            probs_np = perturb_last_bits(probs_np, self._jitter, JITTER_STD_ULPS)
         if self.output_scale != 1.0:
             depth_np = (depth_np * np.float32(self.output_scale)).astype(np.float32)
         return depth_np, probs_np
-
-    def _jittered(self, values: np.ndarray) -> np.ndarray:
-        """``values`` x (1 + e), e ~ N(0, (JITTER_STD_ULPS ulp)^2) per element, float32."""
-        ulp = float(np.finfo(np.float32).eps)
-        noise = self._jitter.standard_normal(values.shape) * (JITTER_STD_ULPS * ulp)  # type: ignore[union-attr]
-        return (values * (1.0 + noise)).astype(np.float32)
 
     def predict_raw(self, rgb: np.ndarray) -> Prediction:
         """The network's output for ``rgb`` ((H, W, 3) uint8, any size), at (H, W), WITHOUT focal adjustment.

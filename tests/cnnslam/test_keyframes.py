@@ -199,6 +199,22 @@ def test_first_keyframe_without_cnn_sources() -> None:
         init_first_keyframe_without_cnn((4, 5), DepthConfig(source="ground_truth_first"), rng)
 
 
+def test_lsd_bs_seeded_bootstrap_differs_from_the_ground_truth_in_its_last_bits_only() -> None:
+    gt = np.random.default_rng(5).uniform(0.5, 6.0, (24, 32)).astype(np.float32)
+    gt[0, :4] = 0.0  # no depth stays no depth
+    cfg = DepthConfig(source="ground_truth_first")
+    plain = init_first_keyframe_without_cnn((24, 32), cfg, np.random.default_rng(1), None, gt)
+    np.testing.assert_array_equal(plain.depth, gt)  # seed 0: the sensor's depth as it is
+    runs = [init_first_keyframe_without_cnn((24, 32), cfg, np.random.default_rng(s), None, gt,
+                                            perturb_last_bits_of_ground_truth=True) for s in (1, 1, 2)]
+    np.testing.assert_array_equal(runs[0].depth, runs[1].depth)  # same seed, same bytes
+    assert not np.array_equal(runs[0].depth, runs[2].depth)
+    has = gt > 0
+    assert np.all(runs[0].depth[~has] == 0) and np.all(np.isinf(runs[0].variance[~has]))
+    ulps = np.abs(runs[0].depth[has].astype(np.float64) / gt[has] - 1.0) / np.finfo(np.float32).eps
+    assert (ulps > 0).mean() > 0.5 and np.median(ulps) < 3.0 and ulps.max() < 20.0  # N(0, 2 ulp): a few ulps
+
+
 def test_occlusion_test_keeps_the_cnn_where_the_neighbour_saw_another_surface() -> None:
     cfg = DepthConfig()
     d_cnn = np.full((240, 320), 3.0, np.float32)

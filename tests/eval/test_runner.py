@@ -236,10 +236,13 @@ def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
     assert "not run" in again.failed[0].error and [r["method"] for r in again.records] == ["oracle"]
 
 
+METHODS_SEEN = ("oracle", "LSD-BS", "CNN-SLAM")
+
+
 def test_a_method_without_a_seed_runs_once_per_cell():
     suite = replace(get_suite("quick"), seeds=(0, 1, 2))
     specs = plan_runs(suite, [ORACLE, METHODS["LSD-BS"], METHODS["CNN-SLAM"]])
-    per_method = {name: sorted({s.seed for s in specs if s.method.name == name}) for name in ("oracle", "LSD-BS")}
-    assert per_method == {"oracle": [0], "LSD-BS": [0]}  # deterministic: their other runs would be copies
-    assert sorted({s.seed for s in specs if s.method.name == "CNN-SLAM"}) == [0, 1, 2]
-    assert len(specs) == len(suite.sequences) * (1 + 1 + 3)
+    per_method = {name: sorted({s.seed for s in specs if s.method.name == name}) for name in METHODS_SEEN}
+    # the oracle is exact: its other runs would be copies; LSD-BS's seeds perturb its bootstrap in the last bits
+    assert per_method == {"oracle": [0], "LSD-BS": [0, 1, 2], "CNN-SLAM": [0, 1, 2]}
+    assert len(specs) == len(suite.sequences) * (1 + 3 + 3)
