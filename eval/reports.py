@@ -128,7 +128,7 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
         f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
         f"Made by `{command}`: {frames}, {len(suite.seeds)} run(s) per cell (seeds "
         f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`; a method that "
-        "takes no seed is deterministic and runs once), ATE after "
+        "takes no seed is exact given its inputs and runs once), ATE after "
         f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
         f"{camera_sentence(suite)}Each cell: the **median** of its runs and their range **[min, max]** where the "
         "runs differ. Per-run "

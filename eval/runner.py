@@ -561,8 +561,8 @@ def plan_runs(
     """Every run of the suite: sequences x methods x seeds, in that nesting order; a method's own ``align`` wins
     over the suite's alignment.
 
-    A method that takes no seed (no ``seed`` in its table: deterministic given the images, such as LSD-BS, the
-    oracle or a scored external folder) runs once per cell, with the suite's first seed: its other runs would be
+    A method that takes no seed (no ``seed`` in its table: exact given its inputs, such as the oracle, constant-pose
+    or a scored external folder) runs once per cell, with the suite's first seed: its other runs would be
     byte-for-byte copies (``tests/eval/test_runner.py`` checks that they are), and its cell is that one run.
     """
     return [
