@@ -643,7 +643,8 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
     heads = [h for _, h, _ in SECOND_REFERENCE_METRICS]
     for name in names:
         path = Path(references[name])
-        lines += [f"**{name}** against `{path}`:", ""]
+        shown = path.resolve().relative_to(Path.cwd()) if path.resolve().is_relative_to(Path.cwd()) else path
+        lines += [f"**{name}** against `{shown}`:", ""]
         try:
             reference = trajectory(path)
         except (OSError, EvalError, ValueError) as exc:
@@ -655,10 +656,13 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
             if record.get("sequence") != name:
                 continue
             folder = run.outcomes[record["run"]].folder
+            own_trajectory = "ate_rmse" in (record.get("metrics") or {})  # REMODE: LSD-BS's poses, not its own
             try:
                 if GROUND_TRUTH_ROW not in rows:
                     rows[GROUND_TRUTH_ROW] = [evaluate_trajectory(reference, trajectory(folder / "groundtruth.tum"))
                                               .flat_metrics()]  # fmt: skip
+                if not own_trajectory:
+                    continue
                 flat = evaluate_trajectory(reference, trajectory(folder / "trajectory.tum")).flat_metrics()
             except (OSError, EvalError, ValueError) as exc:
                 problems.append(f"{record['method']} ({record['run']}): {exc}")

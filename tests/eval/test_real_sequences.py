@@ -239,3 +239,12 @@ def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, mo
         assert float(rows[name][2]) == pytest.approx(0.0, abs=1e-6)  # Sim(3) ATE
         assert float(rows[name][3]) == pytest.approx(50.0, abs=1e-3)  # scale error [%]
     assert float(rows["oracle"][1]) > 0.01  # SE(3) ATE: the doubled path does not fit without scale
+    # a method scored without a trajectory of its own (REMODE, on LSD-BS's poses) gets no row of its own
+    scored = tmp_path / "runs" / "real" / "seven" / "oracle" / "seed0-frames5" / "metrics.json"
+    record = json.loads(scored.read_text())
+    record["metrics"].pop("ate_rmse")
+    scored.write_text(json.dumps(record))
+    assert bench(tmp_path, *args, "--report-only") == 0
+    section = (tmp_path / "results" / "real.md").read_text().split("## Against a second reference")[1]
+    section = section.split("\n## ")[0].split("![every run")[0]
+    assert "(the folder's ground truth)" in section and "| oracle |" not in section
