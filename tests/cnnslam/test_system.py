@@ -88,10 +88,13 @@ def test_lsd_configuration_runs_without_a_cnn(room, room_sequence) -> None:
     first = result.keyframes[0]
     assert first.label_probs is None and first.cnn_depth is None
     assert 0.05 < np.mean(first.depth > 0) < 1.0  # semi-dense: depth only on high-gradient pixels
-    # LSD-BS draws nothing: another system seed gives the same bytes, which is why its method-table entry takes no
-    # seed and the suites run it once per cell (eval/runner.py plan_runs)
+    # LSD-BS draws nothing but its seed's last-bit perturbation of the bootstrapped depth: seed 0 repeats its bytes,
+    # another seed gives other bytes on the same path (what another CPU does; the suites' runs per cell show it)
+    _, again = _run(room_sequence, cfg, room.intrinsics)
+    assert again.T_world_cam.tobytes() == result.T_world_cam.tobytes()
     _, other = _run(room_sequence, cfg.with_overrides({"system.seed": 11}), room.intrinsics)
-    assert other.T_world_cam.tobytes() == result.T_world_cam.tobytes()
+    assert other.T_world_cam.tobytes() != result.T_world_cam.tobytes()
+    assert np.abs(other.T_world_cam[:, :3, 3] - result.T_world_cam[:, :3, 3]).max() < 0.01
 
 
 def test_bad_inputs_are_named(room) -> None:
