@@ -7,8 +7,8 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
 # bench size of the Table-1 suite: the first BENCH_FRAMES frames of each of the 9 sequences x 7 methods x 3 runs
-# (one for LSD-BS and the oracle, which take no seed), JOBS runs at a time: 153 runs, 2708 s of run time, 24 min 26 s
-# on 2 cores (see docs/benchmarks.md). Finished runs under runs/ are
+# (one for the oracle, which takes no seed), JOBS runs at a time: 171 runs, about 3600 s of run time, 33 min on 2 cores
+# (see docs/benchmarks.md). Finished runs under runs/ are
 # reused.
 BENCH_FRAMES ?= 200
 

@@ -559,8 +559,8 @@ ROTATION_SPEEDS: tuple[float, ...] = (15.0, 30.0, 60.0)
 SWEEP_BASE = "office1"
 DEFAULT_RUNS = 3  # runs per cell (seeds 0, 1, 2): a median and a spread, as the field reports (DPVO: median of 5)
 BENCH_FRAMES = 200  # table1 and ablation: the first 200 frames (6.7 s) of each sequence; with 3 runs per cell
-# `make bench` is 153 runs (LSD-BS and the oracle take no seed: one run per cell), 1970 s of run time, 18 min 44 s on 2
-# cores (ORB, Laina and REMODE take 491, 476 and 430 s of it)
+# `make bench` is 171 runs (the oracle takes no seed: one run per cell), about 3600 s of run time, 33 min on 2 cores
+# (docs/benchmarks.md)
 TEXTURE_DENSITIES: tuple[float, ...] = (1.0, 0.6, 0.3, 0.1)
 ADDED_PAN_SPEEDS: tuple[float, ...] = (0.0, 15.0, 30.0, 60.0)
 FOCAL_RATIOS: tuple[float, ...] = (0.7, 0.85, 1.0, 1.2, 1.4)
