@@ -62,6 +62,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--workers", type=int, default=2, help="render processes (0: in this process)")
     g.add_argument("--focal-scale", type=float, nargs=2, default=list(GenerationConfig.focal_scale),
                    metavar=("LO", "HI"), help="per-room focal-length factor range (log-uniform); depth read as D / s")
+    g.add_argument("--camera-effects", nargs="+", default=list(GenerationConfig.camera_effects), metavar="PRESET",
+                   help="the world's camera, one preset drawn per room (clean, kinect, hard, EFFECT:S): images as "
+                        "that camera delivers them, moving hand-held (default: clean, the renderer's bytes)")
 
     f = sub.add_parser("fit", help="train (or resume) and write weights + manifest")
     d = TrainConfig()
@@ -98,6 +101,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     v = sub.add_parser("validate", help="score weights on the test sequences; write results/depthnet.*")
     v.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
     v.add_argument("--frames", type=int, default=40, help="frames per test sequence")
+    v.add_argument("--camera", default="clean", metavar="PRESET",
+                   help="the world's camera the test sequences are seen through (clean, kinect, hard; default clean)")
     v.add_argument("--results", type=Path, default=Path("results"))
     v.add_argument("--threads", type=int, default=2)
     v.add_argument("--update-manifest", action="store_true",
@@ -123,7 +128,7 @@ def _progress(desc: str) -> Any:
 
 def _generate(args: argparse.Namespace) -> int:
     cfg = GenerationConfig(n_scenes=args.scenes, views_per_scene=args.views, data_seed=args.seed,
-                           focal_scale=tuple(args.focal_scale))
+                           focal_scale=tuple(args.focal_scale), camera_effects=tuple(args.camera_effects))
     args.root.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     train_dirs = generate_dataset(args.root, "train", cfg, args.workers, _progress("train shards"))
@@ -230,7 +235,7 @@ def _validate(args: argparse.Namespace) -> int:
     manifest_path = DEFAULT_MANIFEST if args.weights == DEFAULT_WEIGHTS else args.weights.parent / "manifest.json"
     manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else None
     report = validate_sequences(predictor, frames_per_sequence=args.frames, sample_every=2,
-                                progress=_progress("validate"))
+                                progress=_progress("validate"), camera_effects=args.camera)
     bench = asdict(benchmark(predictor, weights_label=str(args.weights)))
     try:
         weights_label = str(args.weights.resolve().relative_to(Path.cwd()))

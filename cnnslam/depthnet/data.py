@@ -168,11 +168,28 @@ class GenerationConfig:
     # depth the nominal camera would report for the same image, which is eq. 5's premise (an image seen at a focal
     # length s f_tr must predict D / s). (1, 1): every room with the nominal camera (the first stage's data).
     focal_scale: tuple[float, float] = (1.0, 1.0)
+    # Ours: the world's camera (sim_envs.camera_effects presets or "EFFECT:S"), one drawn per room: each view is then
+    # the sensor image a moving camera of that preset would deliver (exposure, vignetting, noise, response, motion
+    # blur and rolling shutter; :func:`camera_view`). ("clean",): the renderer's bytes (the shipped stages' data).
+    camera_effects: tuple[str, ...] = ("clean",)
+    # Camera motion during a view's exposure (camera_effects other than clean): speed and angular speed drawn
+    # uniformly up to these, in random directions; sim_envs.trajectories.handheld's limits (0.6 m/s, 35 deg/s).
+    max_speed: float = 0.6
+    max_angular_speed_deg: float = 35.0
 
     def __post_init__(self) -> None:
         lo, hi = (float(v) for v in self.focal_scale)
         if not (0 < lo <= hi):
             raise CnnSlamError(f"focal_scale must be a range 0 < lo <= hi, got {self.focal_scale!r}")
+        if not self.camera_effects:
+            raise CnnSlamError("camera_effects must name at least one camera preset (e.g. 'clean')")
+        from sim_envs.camera_effects import camera_effects_preset
+
+        for name in self.camera_effects:
+            camera_effects_preset(name)  # one clear error for an unknown preset, before any rendering
+        if not (self.max_speed >= 0 and self.max_angular_speed_deg >= 0):
+            raise CnnSlamError(f"max_speed and max_angular_speed_deg must be >= 0, got {self.max_speed}, "
+                               f"{self.max_angular_speed_deg}")  # fmt: skip
 
     def intrinsics(self) -> Intrinsics:
         """The training camera at ``width`` x ``height``."""
@@ -184,6 +201,61 @@ class GenerationConfig:
         if lo == hi == 1.0:
             return 1.0
         return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+    def draw_camera_effects(self, data_seed: int, scene_seed: int) -> str:
+        """One room's camera preset, from its own generator (so the views drawn are those of a clean room)."""
+        if len(self.camera_effects) == 1:
+            return self.camera_effects[0]
+        rng = np.random.default_rng((data_seed, scene_seed, 1))
+        return self.camera_effects[int(rng.integers(len(self.camera_effects)))]
+
+
+def camera_velocity(rng: np.random.Generator, max_speed: float, max_angular_speed_deg: float) -> np.ndarray:
+    """(6,) camera-frame twist (v [m/s], omega [rad/s]): speed and angular speed uniform up to the limits, each
+    along a uniformly random direction (OpenCV camera axes)."""
+    dirs = rng.normal(size=(2, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    v = dirs[0] * rng.uniform(0.0, max_speed)
+    w = dirs[1] * np.radians(rng.uniform(0.0, max_angular_speed_deg))
+    return np.concatenate([v, w])
+
+
+def camera_view(
+    render_rgb: Callable[[np.ndarray], np.ndarray],
+    T_world_cam: np.ndarray,
+    own_render: np.ndarray,
+    effects: Any,
+    intrinsics: Intrinsics,
+    rng: np.random.Generator,
+    max_speed: float,
+    max_angular_speed_deg: float,
+) -> np.ndarray:
+    """The (H, W, 3) uint8 image the world's camera ``effects`` (a :class:`sim_envs.camera_effects.CameraEffects`
+    without lens distortion) delivers of a view whose centre of exposure is ``T_world_cam``, the camera moving at a
+    constant twist drawn by :func:`camera_velocity` (motion blur, rolling shutter). The exposure is what the camera's
+    auto-exposure settles at for this view, times its per-frame jitter (the exposure otherwise).
+
+    render_rgb: a pinhole render of ``intrinsics`` at a ``T_world_cam`` (4, 4); own_render: the render at
+    ``T_world_cam``. Ground truth (depth, labels) stays the render's at ``T_world_cam``.
+    """
+    from scipy.spatial.transform import Rotation
+
+    from sim_envs.camera_effects import auto_exposure, mean_brightness, sensor_geometry, sensor_image
+
+    geometry = sensor_geometry(intrinsics, effects)
+    twist = camera_velocity(rng, max_speed, max_angular_speed_deg)
+
+    def pose_at(times: np.ndarray) -> np.ndarray:
+        times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        delta = np.tile(np.eye(4), (len(times), 1, 1))
+        delta[:, :3, :3] = Rotation.from_rotvec(times[:, None] * twist[None, 3:]).as_matrix()
+        delta[:, :3, 3] = times[:, None] * twist[None, :3]
+        return T_world_cam[None] @ delta
+
+    brightness = np.array([mean_brightness(own_render, effects, geometry.vignette)])
+    exposure, gain = auto_exposure(brightness, effects, rng.standard_normal(1))
+    return sensor_image(render_rgb, pose_at, 0.0, effects, intrinsics, rng, exposure_s=float(exposure[0]),
+                        gain=float(gain[0]), geometry=geometry, own_render=own_render)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -220,12 +292,17 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
 
     Deterministic: texture density and views are drawn from ``default_rng((cfg.data_seed, job.scene_seed))``.
     """
+    from sim_envs.camera_effects import camera_effects_preset
     from sim_envs.render import make_renderer
     from sim_envs.scenegen import generate_scene
 
     rng = np.random.default_rng((cfg.data_seed, job.scene_seed))
     density = float(rng.uniform(*cfg.texture_density))
     focal_scale = cfg.draw_focal_scale(rng)
+    camera_name = cfg.draw_camera_effects(cfg.data_seed, job.scene_seed)
+    # The network sees the agent's undistorted images; a lens's resampling is left out (ours).
+    effects = replace(camera_effects_preset(camera_name), distortion=(0.0,) * 5)
+    camera_rng = np.random.default_rng((cfg.data_seed, job.scene_seed, 2))
     scene = generate_scene(job.style, job.scene_seed, texture_density=density)
     nominal = cfg.intrinsics()
     intr = replace(nominal, fx=nominal.fx * focal_scale, fy=nominal.fy * focal_scale)
@@ -246,7 +323,12 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
                 if rejected > 20 * n:
                     raise CnnSlamError(f"room {job.style}/{job.scene_seed}: too many unusable views ({rejected})")
                 continue
-            rgb[i], labels[i], poses[i] = out.rgb, out.labels, T
+            if effects.any:
+                out_rgb = camera_view(lambda P: renderer.render(P, outputs=("rgb",)).rgb, T, out.rgb, effects,
+                                      intr, camera_rng, cfg.max_speed, cfg.max_angular_speed_deg)  # fmt: skip
+            else:
+                out_rgb = out.rgb
+            rgb[i], labels[i], poses[i] = out_rgb, out.labels, T
             depth[i] = np.clip(np.round(out.depth * DEPTH_SCALE), 0, np.iinfo(np.uint16).max).astype(np.uint16)
             modes.append(mode)
             i += 1
@@ -261,6 +343,7 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
         "camera": cfg.camera,
         "intrinsics": [nominal.fx, nominal.fy, nominal.cx, nominal.cy],
         "focal_scale": focal_scale,  # rendered with fx, fy = focal_scale x the above
+        "camera_effects": camera_name,
         "width": w,
         "height": h,
         "depth_scale": DEPTH_SCALE,

@@ -77,6 +77,7 @@ class ValidationReport:
     overall: SequenceResult
     frames_per_sequence: int
     samples: tuple[SampleFrame, ...] = field(default=(), repr=False)
+    camera_effects: str = "clean"  # the world's camera the frames were seen through
 
     def targets_met(self) -> dict[str, bool]:
         """Each target of :data:`TARGETS` on the overall adjusted depth / labels."""
@@ -101,6 +102,7 @@ class ValidationReport:
 
         return {
             "frames_per_sequence": self.frames_per_sequence,
+            "camera_effects": self.camera_effects,
             "overall": one(self.overall),
             "groups": {k: one(v) for k, v in self.groups.items()},
             "sequences": [one(r) for r in self.sequences],
@@ -145,13 +147,16 @@ def validate_sequences(
     frames_per_sequence: int = 40,
     sample_every: int = 0,
     progress: Callable[[Iterable[Any], int], Iterator[Any]] | None = None,
+    camera_effects: str = "clean",
 ) -> ValidationReport:
-    """Score ``predictor`` on ``frames_per_sequence`` frames of each registered sequence in ``names``.
+    """Score ``predictor`` on ``frames_per_sequence`` frames of each registered sequence in ``names``, seen
+    through the world's camera ``camera_effects`` (a :mod:`sim_envs.camera_effects` preset; "clean": the renderer's
+    bytes).
 
     sample_every: keep one sample frame (the middle one) of every ``sample_every``-th sequence for the figure
     (0 = none). progress: wraps the iterator over (sequence, frame index) jobs, e.g. a tqdm bar.
     """
-    from sim_envs.sequences import get_sequence
+    from sim_envs.sequences import get_sequence, with_camera
     from sim_envs.simsource import SimulatedSequence
 
     num_classes = predictor.model.config.num_classes
@@ -159,7 +164,7 @@ def validate_sequences(
     sources = {}
     for name in names:
         spec = get_sequence(name)
-        sources[name] = SimulatedSequence(spec)
+        sources[name] = SimulatedSequence(with_camera(spec, camera_effects) if camera_effects != "clean" else spec)
         jobs.extend((name, i) for i in frame_indices(spec.n_frames, frames_per_sequence))
     tallies: dict[str, _Tally] = {name: _Tally(confusion=np.zeros((num_classes,) * 2, np.int64)) for name in names}
     focal: dict[str, float] = {}
@@ -205,7 +210,7 @@ def validate_sequences(
     all_f = float(np.mean([focal[n] for n in names]))
     return ValidationReport(
         tuple(per_seq), group_results, overall.result("all", "mixed", all_f, f_tr), frames_per_sequence,
-        tuple(samples),
+        tuple(samples), camera_effects,
     )
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from cnnslam.depthnet.data import (
     ViewConfig,
     augment,
     camera_rotation,
+    camera_velocity,
     downsample_ground_truth,
     downsample_rgb,
     generate_dataset,
@@ -125,6 +127,35 @@ def test_focal_scaled_rooms_read_as_the_nominal_camera(tmp_path: Path) -> None:
     assert GenerationConfig().draw_focal_scale(np.random.default_rng(0)) == 1.0
     with pytest.raises(CnnSlamError, match="focal_scale"):
         GenerationConfig(focal_scale=(1.2, 0.8))
+
+
+def test_camera_rooms_keep_views_and_ground_truth_and_change_the_images(tmp_path: Path) -> None:
+    clean = GenerationConfig(n_scenes=1, views_per_scene=2, width=64, height=48, data_seed=3)
+    (shard_c,) = generate_dataset(tmp_path / "c", "train", clean, workers=0)
+    kinect = replace(clean, camera_effects=("kinect",))
+    (shard_k,) = generate_dataset(tmp_path / "k", "train", kinect, workers=0)
+    (shard_k2,) = generate_dataset(tmp_path / "k2", "train", kinect, workers=0)
+    assert json.loads((shard_k / "meta.json").read_text())["camera_effects"] == "kinect"
+    for name in ("depth", "labels", "poses"):  # the same views: the camera draws from its own generator
+        assert (shard_c / f"{name}.npy").read_bytes() == (shard_k / f"{name}.npy").read_bytes(), name
+    assert (shard_k / "rgb.npy").read_bytes() == (shard_k2 / "rgb.npy").read_bytes()  # deterministic
+    a = np.load(shard_c / "rgb.npy").astype(np.float32)
+    b = np.load(shard_k / "rgb.npy").astype(np.float32)
+    diff = np.abs(a - b)
+    assert diff.mean() > 1.0  # noise, exposure, vignetting, blur
+    assert 0.5 < b.mean() / a.mean() < 2.0  # auto-exposure keeps the brightness in range
+    with pytest.raises(Exception, match="unknown camera-effects preset"):
+        GenerationConfig(camera_effects=("nonsense",))
+    with pytest.raises(CnnSlamError, match="at least one"):
+        GenerationConfig(camera_effects=())
+
+
+def test_camera_velocity_within_limits() -> None:
+    rng = np.random.default_rng(0)
+    twists = np.array([camera_velocity(rng, 0.6, 35.0) for _ in range(200)])
+    speed, ang = np.linalg.norm(twists[:, :3], axis=1), np.degrees(np.linalg.norm(twists[:, 3:], axis=1))
+    assert speed.max() <= 0.6 and ang.max() <= 35.0 and speed.mean() == pytest.approx(0.3, abs=0.05)
+    assert np.abs(twists[:, :3].mean(0)).max() < 0.06  # no preferred direction
 
 
 def _sample(h: int = 24, w: int = 32) -> Sample:

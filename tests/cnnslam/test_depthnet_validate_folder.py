@@ -47,3 +47,34 @@ def test_depth_metrics_and_scale_on_a_folder(folder, factor):
     assert result.adjusted.within_10pct == (1.0 if factor == 1.0 else 0.0)
     assert result.to_dict()["scale_error"] == pytest.approx(abs(1.0 / factor - 1.0), rel=1e-5)
     assert "| tiny_7scenes (real) | 3 |" in folder_validation_markdown([result])
+
+
+class RecordingPredictor(StubPredictor):
+    """The stub, remembering every image it was given; ``model.config.num_classes`` as the network's."""
+
+    class model:  # noqa: N801 - mirrors DepthNetPredictor.model.config
+        class config:  # noqa: N801
+            num_classes = 4
+
+    def __init__(self) -> None:
+        super().__init__(1.0)
+        self.images: list[np.ndarray] = []
+
+    def predict_raw(self, rgb):
+        self.images.append(rgb.copy())
+        return super().predict_raw(rgb)
+
+
+def test_simulated_validation_through_a_camera_preset():
+    from cnnslam.depthnet.report import report_markdown
+    from cnnslam.depthnet.validate import validate_sequences
+
+    seen = {}
+    for camera in ("clean", "kinect"):
+        stub = RecordingPredictor()
+        report = validate_sequences(stub, names=("office0",), frames_per_sequence=1, camera_effects=camera)
+        assert report.camera_effects == camera and report.to_dict()["camera_effects"] == camera
+        assert report.overall.frames == 1
+        seen[camera] = stub.images[0].astype(np.float32)
+    assert np.abs(seen["clean"] - seen["kinect"]).mean() > 1.0  # the kinect camera's noise, exposure, vignetting
+    assert "seen through the world's `kinect` camera" in report_markdown(report, None, None, "stub")
