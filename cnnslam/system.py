@@ -78,6 +78,7 @@ from cnnslam.refinement import refine_keyframe, stereo_observation
 from cnnslam.tracking import (
     ImagePyramid,
     TrackingResult,
+    affine_brightness,
     build_image_pyramid,
     build_tracking_reference,
     gradient_masks,
@@ -236,6 +237,8 @@ class CnnSlam:
         self._prev: tuple[Keyframe, np.ndarray] | None = None  # (key-frame, T_kf_prev) of the last frame
         self._last_good: tuple[Keyframe, np.ndarray] | None = None  # (key-frame, T_kf) of the last tracked frame
         self._velocity = np.eye(4)  # T_prev_cur of the last tracked motion
+        # the last tracked frame's affine brightness (log gain, offset) against its key-frame, and that key-frame
+        self._affine: tuple[Keyframe | None, tuple[float, float]] = (None, (0.0, 0.0))
         self._frames: list[tuple[float, Keyframe, np.ndarray, bool]] = []  # (timestamp, kf, T_kf_cur, tracked)
         self._online: list[np.ndarray] = []
         self._counters = {"lost": 0, "recovered": 0, "refined_pixels": 0, "observed_pixels": 0,
@@ -289,6 +292,7 @@ class CnnSlam:
         self._velocity = orthonormalize(se3_inverse(T_world_prev) @ T_world_cur)
         keyframe.frames_tracked += 1
         self._last_good = (keyframe, T_kf_cur)
+        self._affine = (keyframe, result.affine)
 
         if self.config.refinement.enabled:
             t0 = time.perf_counter()
@@ -352,8 +356,11 @@ class CnnSlam:
         # LSD-SLAM's initialisation phase (no CNN): only divergence counts as lost
         lenient = (not self.config.depth.uses_cnn) and len(self._keyframes) <= cfg.initialization_keyframes
         best: TrackingResult | None = None
+        # a frame's brightness is close to the last one's: start from its affine brightness against the same key-frame
+        affine = self._affine[1] if self._affine[0] is active else (0.0, 0.0)
         for T_world_start in starts:
-            res = track_frame(active.maps.reference, pyramid, se3_inverse(active.T_world_kf) @ T_world_start, cfg)
+            res = track_frame(active.maps.reference, pyramid, se3_inverse(active.T_world_kf) @ T_world_start, cfg,
+                              affine_init=affine)
             if res.tracked or (lenient and not res.diverged):
                 best = res
                 break
@@ -386,9 +393,12 @@ class CnnSlam:
         """Eq. 10-11 on the active key-frame with this frame, then publish the new maps (one atomic swap)."""
         cfg = self.config
         maps = keyframe.maps
+        image = pyramid.images[0]
+        if result.affine != (0.0, 0.0):  # the frame in the key-frame's brightness, as tracking compared it
+            image = affine_brightness(image, *result.affine)
         obs = stereo_observation(
             keyframe.pyramid.images[0], keyframe.pyramid.grad_x[0], keyframe.pyramid.grad_y[0], maps.depth,
-            maps.variance, pyramid.images[0], T_kf_cur, self.intrinsics, cfg.refinement,
+            maps.variance, image, T_kf_cur, self.intrinsics, cfg.refinement,
             tracking_residual=2.0 * result.mean_energy,
         )
         keep = cfg.depth.uses_cnn or cfg.refinement.density == "dense"

@@ -336,6 +336,9 @@ def _normal_equations(
     huber_k: float,
     max_diff_constant: float,
     max_diff_grad_mult: float,
+    gain: float = 1.0,
+    offset: float = 0.0,
+    n_params: int = 6,
 ) -> tuple[np.ndarray, np.ndarray, float, int, int, int, float]:
     """Eq. 1-4 fused: warp every reference point, compute its residual (eq. 2), its LSD-SLAM variance, its Huber
     weight, and accumulate the Gauss-Newton system H = sum w J^T J, b = sum w J^T r of eq. 1 for a left-multiplied
@@ -347,14 +350,18 @@ def _normal_equations(
     and the minimum would be biased; with it fixed, eq. 1 is a fixed function of the pose within a level, as the
     iteratively re-weighted scheme of LSD-SLAM assumes.
 
-    Returns (H (6, 6), b (6,), energy = sum rho(r / sigma) (eq. 1), points used, good, bad, usage); usage sums
+    Brightness (ours, DSO's affine model, :func:`affine_brightness`): the current image is compared as
+    ``gain * I_cur + offset``; with ``n_params`` 8 the system also holds the derivatives by log gain and offset
+    (``gain * I_cur`` and 1), with 6 (gain 1, offset 0: plain eq. 2) it is the pose's alone.
+
+    Returns (H (n, n), b (n,), energy = sum rho(r / sigma) (eq. 1), points used, good, bad, usage); usage sums
     min(z_kf / z_cur, 1) over the used points (LSD-SLAM's pointUsage numerator).
     """
     fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
     h, w = stacked.shape[0], stacked.shape[1]
-    H = np.zeros((6, 6))
-    b = np.zeros(6)
-    J = np.zeros(6)
+    H = np.zeros((n_params, n_params))
+    b = np.zeros(n_params)
+    J = np.zeros(8)
     energy = 0.0
     n_used = 0
     n_good = 0
@@ -386,11 +393,11 @@ def _normal_equations(
         w11 = au * av
         i_cur = (w00 * stacked[iv, iu, 0] + w01 * stacked[iv, iu + 1, 0] + w10 * stacked[iv + 1, iu, 0]
                  + w11 * stacked[iv + 1, iu + 1, 0])
-        gx = (w00 * stacked[iv, iu, 1] + w01 * stacked[iv, iu + 1, 1] + w10 * stacked[iv + 1, iu, 1]
-              + w11 * stacked[iv + 1, iu + 1, 1])
-        gy = (w00 * stacked[iv, iu, 2] + w01 * stacked[iv, iu + 1, 2] + w10 * stacked[iv + 1, iu, 2]
-              + w11 * stacked[iv + 1, iu + 1, 2])
-        r = ref_intensity[i] - i_cur  # eq. 2
+        gx = gain * (w00 * stacked[iv, iu, 1] + w01 * stacked[iv, iu + 1, 1] + w10 * stacked[iv + 1, iu, 1]
+                     + w11 * stacked[iv + 1, iu + 1, 1])
+        gy = gain * (w00 * stacked[iv, iu, 2] + w01 * stacked[iv, iu + 1, 2] + w10 * stacked[iv + 1, iu, 2]
+                     + w11 * stacked[iv + 1, iu + 1, 2])
+        r = ref_intensity[i] - (gain * i_cur + offset)  # eq. 2 (with the frame's affine brightness)
         n_used += 1
         ratio = pz * iz
         usage += ratio if ratio < 1.0 else 1.0
@@ -418,12 +425,14 @@ def _normal_equations(
         J[3] = -(gxf * x * y * iz * iz + gyf * (1.0 + y * y * iz * iz))
         J[4] = gxf * (1.0 + x * x * iz * iz) + gyf * x * y * iz * iz
         J[5] = (-gxf * y + gyf * x) * iz
-        for a in range(6):
+        J[6] = gain * i_cur
+        J[7] = 1.0
+        for a in range(n_params):
             wa = weight * J[a]
             b[a] += wa * r
-            for c in range(a, 6):
+            for c in range(a, n_params):
                 H[a, c] += wa * J[c]
-    for a in range(6):
+    for a in range(n_params):
         for c in range(a):
             H[a, c] = H[c, a]
     return H, b, energy, n_used, n_good, n_bad, usage
@@ -442,7 +451,8 @@ class TrackingResult:
     still seen, weighted by depth change); mean_energy: eq. 1's energy per used point at the finest level (the
     "tracking residual" of LSD-SLAM's stereo error model); hessian: (6, 6) float64 Gauss-Newton H at the solution
     (information of T_cur_kf under left perturbation, used by the pose graph); iterations: LM iterations per level
-    (finest last); diverged: a level had too few points in the image.
+    (finest last); diverged: a level had too few points in the image; affine: the frame's (log gain, offset)
+    against the key-frame (:func:`affine_brightness`; (0, 0) when not estimated).
     """
 
     T_kf_cur: np.ndarray
@@ -455,15 +465,46 @@ class TrackingResult:
     hessian: np.ndarray
     iterations: tuple[int, ...]
     diverged: bool
+    affine: tuple[float, float] = (0.0, 0.0)
 
 
 def _evaluate(ref: ReferenceLevel, frame: ImagePyramid, level: int, T_cur_kf: np.ndarray, t_weight: np.ndarray,
-              cfg: TrackingConfig):
+              cfg: TrackingConfig, affine: tuple[float, float] | None = None):
+    if affine is None:  # eq. 2 as written: the pose alone
+        return _normal_equations(
+            ref.points, ref.intensity, ref.depth_variance, frame.stacked[level], T_cur_kf, t_weight,
+            frame.intrinsics[level], cfg.photometric_variance,
+            cfg.depth_variance_weight, cfg.huber_threshold, cfg.max_diff_constant, cfg.max_diff_grad_mult,
+        )
     return _normal_equations(
         ref.points, ref.intensity, ref.depth_variance, frame.stacked[level], T_cur_kf, t_weight,
         frame.intrinsics[level], cfg.photometric_variance,
         cfg.depth_variance_weight, cfg.huber_threshold, cfg.max_diff_constant, cfg.max_diff_grad_mult,
+        float(np.exp(affine[0])), float(affine[1]), 8,
     )
+
+
+def affine_brightness(image: np.ndarray, log_gain: float, offset: float) -> np.ndarray:
+    """A frame's intensities in its key-frame's brightness: ``exp(log_gain) * I + offset`` (float32).
+
+    Ours, after DSO's affine brightness model (Engel et al. 2018, eq. 4, without exposure times): between a
+    key-frame and a frame an auto-exposure camera changes its gain and offset; eq. 2 then compares
+    I_kf(u) with exp(a) I_cur(w(u)) + b, (a, b) estimated with the pose (:func:`track_frame`).
+    """
+    return (np.float32(np.exp(log_gain)) * np.asarray(image, dtype=np.float32) + np.float32(offset)).astype(np.float32)
+
+
+def pose_information(H: np.ndarray) -> np.ndarray:
+    """The (6, 6) information of the pose from an (n, n) Gauss-Newton H whose last n - 6 parameters are nuisance
+    (the affine brightness): the Schur complement H_pp - H_pa H_aa^-1 H_ap (H itself when n = 6)."""
+    H = np.asarray(H, dtype=np.float64)
+    if H.shape[0] == 6:
+        return H
+    Hpp, Hpa, Haa = H[:6, :6], H[:6, 6:], H[6:, 6:]
+    try:
+        return Hpp - Hpa @ np.linalg.solve(Haa, Hpa.T)
+    except np.linalg.LinAlgError:
+        return Hpp
 
 
 def track_frame(
@@ -472,24 +513,28 @@ def track_frame(
     T_kf_cur_init: np.ndarray,
     config: TrackingConfig,
     finest_level: int | None = None,
+    affine_init: tuple[float, float] = (0.0, 0.0),
 ) -> TrackingResult:
     """Estimate ``T_kf_cur`` by minimising eq. 1 coarse to fine with Levenberg-Marquardt (LSD-SLAM's schedule).
 
     reference: the key-frame's :class:`TrackingReference`; frame: the current :class:`ImagePyramid`;
     T_kf_cur_init: (4, 4) initial guess; finest_level: stop at this level (default ``config.finest_level``; the
-    pose graph's key-frame alignment stops earlier). Never raises on bad data: a frame that cannot be tracked comes
-    back with ``tracked=False``.
+    pose graph's key-frame alignment stops earlier); affine_init: (log gain, offset) to start from when
+    ``config.affine_brightness`` estimates them with the pose (:func:`affine_brightness`). Never raises on bad
+    data: a frame that cannot be tracked comes back with ``tracked=False``.
     """
     finest = config.finest_level if finest_level is None else int(finest_level)
     T = se3_inverse(orthonormalize(T_kf_cur_init))  # T_cur_kf, LSD's referenceToFrame
+    affine = (float(affine_init[0]), float(affine_init[1])) if config.affine_brightness else None
+    n = 6 if affine is None else 8
     iterations: list[int] = []
     diverged = False
-    stats = (np.zeros((6, 6)), np.zeros(6), np.inf, 0, 0, 0, 0.0)
+    stats = (np.zeros((n, n)), np.zeros(n), np.inf, 0, 0, 0, 0.0)
     for level in range(len(reference.levels) - 1, finest - 1, -1):
         ref = reference.levels[level]
         min_points = max(6, int(config.min_points_per_all * ref.n_pixels))
         t_weight = T[:3, 3].copy()
-        stats = _evaluate(ref, frame, level, T, t_weight, config)
+        stats = _evaluate(ref, frame, level, T, t_weight, config, affine)
         if stats[3] < min_points:
             diverged = True
             iterations.append(0)
@@ -502,19 +547,21 @@ def track_frame(
             its += 1
             while True:
                 A = H.copy()
-                A[np.diag_indices(6)] *= 1.0 + lam
+                A[np.diag_indices(n)] *= 1.0 + lam
                 try:
                     inc = np.linalg.solve(A, b)
                 except np.linalg.LinAlgError:
                     converged = True
                     break
-                T_new = se3_exp(inc) @ T
-                new_stats = _evaluate(ref, frame, level, T_new, t_weight, config)
+                T_new = se3_exp(inc[:6]) @ T
+                affine_new = None if affine is None else (affine[0] + float(inc[6]), affine[1] + float(inc[7]))
+                new_stats = _evaluate(ref, frame, level, T_new, t_weight, config, affine_new)
                 n_new = new_stats[3]
                 new_energy = new_stats[2] / n_new if n_new >= min_points else np.inf
                 if new_energy < energy:
                     ratio = new_energy / energy
                     T, stats, H, b, energy, n_used = T_new, new_stats, new_stats[0], new_stats[1], new_energy, n_new
+                    affine = affine_new
                     lam = 0.0 if lam <= config.lambda_first_fail else lam * config.lambda_success_factor
                     if ratio > config.convergence_eps:
                         converged = True
@@ -542,7 +589,8 @@ def track_frame(
         bad_count=int(n_bad),
         usage=float(usage / max(finest_ref.points.shape[0], 1)),
         mean_energy=float(energy_sum / max(n_used, 1)),
-        hessian=np.array(stats[0]),
+        hessian=pose_information(stats[0]),
         iterations=tuple(iterations),
         diverged=bool(diverged),
+        affine=(0.0, 0.0) if affine is None else affine,
     )

@@ -74,6 +74,9 @@ def test_baselines_are_configurations() -> None:
     assert not lsd.depth.uses_cnn and lsd.depth.source == "random" and lsd.refinement.density == "semi_dense"
     assert lsd_bs.depth.source == "ground_truth_first"
     assert baseline_config("cnn_slam") == CnnSlamConfig()
+    # brightness: CNN-SLAM (ours) estimates each frame's affine brightness, the LSD baselines track as published
+    assert CnnSlamConfig().tracking.affine_brightness
+    assert not lsd.tracking.affine_brightness and not lsd_bs.tracking.affine_brightness
 
 
 def test_to_dict_is_json() -> None:

@@ -11,10 +11,12 @@ from cnnslam.config import TrackingConfig
 from cnnslam.geometry import relative_pose, rotation_angle_deg, se3_exp, se3_inverse, se3_log
 from cnnslam.tracking import (
     _normal_equations,
+    affine_brightness,
     build_image_pyramid,
     build_tracking_reference,
     central_gradients,
     photometric_residual,
+    pose_information,
     residual_variance,
     to_gray,
     track_frame,
@@ -64,6 +66,47 @@ def test_known_motion_analytic_room(room, start: str) -> None:
     assert res.tracked and mm < 1.0 and deg < 0.1, (mm, deg)
     assert 0.5 < res.usage <= 1.0
     assert res.iterations[-1] >= 1 and len(res.iterations) == 4
+
+
+def test_known_motion_under_a_brightness_change(room) -> None:
+    """The frame's exposure changed (I_cur = 0.8 I + 12 about the key-frame's brightness): with the affine model the
+    pose is found as without the change and the gain and offset come back (I_kf = exp(a) I_cur + b: a = -log 0.8,
+    b = -12 / 0.8); eq. 2 as written is pulled off by the change."""
+    from dataclasses import replace
+
+    T_world_kf = room.pose((0.1, 0.0, 0.2))
+    T_world_cur = room.pose((0.15, -0.03, 0.24), (1.0, -2.0, 0.5))
+    rgb0, d0 = room.render(T_world_kf)
+    rgb1, _ = room.render(T_world_cur)
+    K = room.intrinsics
+    ref = build_tracking_reference(build_image_pyramid(to_gray(rgb0), K, 4), d0, np.full(d0.shape, 1e-6, np.float32),
+                                   CFG)
+    truth = relative_pose(T_world_kf, T_world_cur)
+    changed = np.clip(0.8 * to_gray(rgb1) + 12.0, 0, 255).astype(np.float32)
+    assert 0 < changed.min() and changed.max() < 255  # no clipping: the change is exactly affine
+    assert CFG.affine_brightness  # the default
+    res = track_frame(ref, build_image_pyramid(changed, K, 4), np.eye(4), CFG)
+    mm, deg = _errors(res.T_kf_cur, truth)
+    assert res.tracked and mm < 1.0 and deg < 0.1, (mm, deg)
+    # gain and offset trade against each other over the used pixels' intensity range: check both loosely and the
+    # mapped image closely
+    assert res.affine[0] == pytest.approx(-np.log(0.8), abs=0.02)
+    assert res.affine[1] == pytest.approx(-12.0 / 0.8, abs=3.0)
+    assert np.abs(affine_brightness(changed, *res.affine) - to_gray(rgb1)).mean() < 1.0
+    assert res.hessian.shape == (6, 6) and np.all(np.linalg.eigvalsh(res.hessian) > 0)
+    plain = track_frame(ref, build_image_pyramid(changed, K, 4), np.eye(4), replace(CFG, affine_brightness=False))
+    assert plain.affine == (0.0, 0.0)
+    assert _errors(plain.T_kf_cur, truth)[0] > 2 * mm + 0.1 or not plain.tracked
+
+
+def test_pose_information_is_the_schur_complement() -> None:
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(20, 8))
+    H = A.T @ A
+    info = pose_information(H)
+    # the marginal covariance of the pose is the pose block of H^-1
+    np.testing.assert_allclose(np.linalg.inv(info), np.linalg.inv(H)[:6, :6], rtol=1e-9)
+    np.testing.assert_array_equal(pose_information(H[:6, :6]), H[:6, :6])
 
 
 def test_kernel_matches_the_equations(room) -> None:
