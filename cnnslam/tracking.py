@@ -470,17 +470,13 @@ class TrackingResult:
 
 def _evaluate(ref: ReferenceLevel, frame: ImagePyramid, level: int, T_cur_kf: np.ndarray, t_weight: np.ndarray,
               cfg: TrackingConfig, affine: tuple[float, float] | None = None):
-    if affine is None:  # eq. 2 as written: the pose alone
-        return _normal_equations(
-            ref.points, ref.intensity, ref.depth_variance, frame.stacked[level], T_cur_kf, t_weight,
-            frame.intrinsics[level], cfg.photometric_variance,
-            cfg.depth_variance_weight, cfg.huber_threshold, cfg.max_diff_constant, cfg.max_diff_grad_mult,
-        )
+    # None: eq. 2 as written, the pose alone (gain 1, offset 0, 6 parameters)
+    gain, offset, n_params = (1.0, 0.0, 6) if affine is None else (float(np.exp(affine[0])), float(affine[1]), 8)
     return _normal_equations(
         ref.points, ref.intensity, ref.depth_variance, frame.stacked[level], T_cur_kf, t_weight,
         frame.intrinsics[level], cfg.photometric_variance,
         cfg.depth_variance_weight, cfg.huber_threshold, cfg.max_diff_constant, cfg.max_diff_grad_mult,
-        float(np.exp(affine[0])), float(affine[1]), 8,
+        gain, offset, n_params,
     )
 
 
@@ -491,7 +487,7 @@ def affine_brightness(image: np.ndarray, log_gain: float, offset: float) -> np.n
     key-frame and a frame an auto-exposure camera changes its gain and offset; eq. 2 then compares
     I_kf(u) with exp(a) I_cur(w(u)) + b, (a, b) estimated with the pose (:func:`track_frame`).
     """
-    return (np.float32(np.exp(log_gain)) * np.asarray(image, dtype=np.float32) + np.float32(offset)).astype(np.float32)
+    return np.float32(np.exp(log_gain)) * np.asarray(image, dtype=np.float32) + np.float32(offset)
 
 
 def pose_information(H: np.ndarray) -> np.ndarray:

@@ -202,11 +202,11 @@ class GenerationConfig:
             return 1.0
         return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
 
-    def draw_camera_effects(self, data_seed: int, scene_seed: int) -> str:
+    def draw_camera_effects(self, scene_seed: int) -> str:
         """One room's camera preset, from its own generator (so the views drawn are those of a clean room)."""
         if len(self.camera_effects) == 1:
             return self.camera_effects[0]
-        rng = np.random.default_rng((data_seed, scene_seed, 1))
+        rng = np.random.default_rng((self.data_seed, scene_seed, 1))
         return self.camera_effects[int(rng.integers(len(self.camera_effects)))]
 
 
@@ -226,6 +226,7 @@ def camera_view(
     own_render: np.ndarray,
     effects: Any,
     intrinsics: Intrinsics,
+    geometry: Any,
     rng: np.random.Generator,
     max_speed: float,
     max_angular_speed_deg: float,
@@ -236,13 +237,13 @@ def camera_view(
     auto-exposure settles at for this view, times its per-frame jitter (the exposure otherwise).
 
     render_rgb: a pinhole render of ``intrinsics`` at a ``T_world_cam`` (4, 4); own_render: the render at
-    ``T_world_cam``. Ground truth (depth, labels) stays the render's at ``T_world_cam``.
+    ``T_world_cam``; geometry: :func:`sim_envs.camera_effects.sensor_geometry` of ``intrinsics`` and ``effects``
+    (one per room). Ground truth (depth, labels) stays the render's at ``T_world_cam``.
     """
     from scipy.spatial.transform import Rotation
 
-    from sim_envs.camera_effects import auto_exposure, mean_brightness, sensor_geometry, sensor_image
+    from sim_envs.camera_effects import auto_exposure, mean_brightness, sensor_image
 
-    geometry = sensor_geometry(intrinsics, effects)
     twist = camera_velocity(rng, max_speed, max_angular_speed_deg)
 
     def pose_at(times: np.ndarray) -> np.ndarray:
@@ -292,20 +293,21 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
 
     Deterministic: texture density and views are drawn from ``default_rng((cfg.data_seed, job.scene_seed))``.
     """
-    from sim_envs.camera_effects import camera_effects_preset
+    from sim_envs.camera_effects import camera_effects_preset, sensor_geometry
     from sim_envs.render import make_renderer
     from sim_envs.scenegen import generate_scene
 
     rng = np.random.default_rng((cfg.data_seed, job.scene_seed))
     density = float(rng.uniform(*cfg.texture_density))
     focal_scale = cfg.draw_focal_scale(rng)
-    camera_name = cfg.draw_camera_effects(cfg.data_seed, job.scene_seed)
+    camera_name = cfg.draw_camera_effects(job.scene_seed)
     # The network sees the agent's undistorted images; a lens's resampling is left out (ours).
     effects = replace(camera_effects_preset(camera_name), distortion=(0.0,) * 5)
     camera_rng = np.random.default_rng((cfg.data_seed, job.scene_seed, 2))
     scene = generate_scene(job.style, job.scene_seed, texture_density=density)
     nominal = cfg.intrinsics()
     intr = replace(nominal, fx=nominal.fx * focal_scale, fy=nominal.fy * focal_scale)
+    geometry = sensor_geometry(intr, effects) if effects.any else None
     n, h, w = cfg.views_per_scene, cfg.height, cfg.width
     rgb = np.zeros((n, h, w, 3), np.uint8)
     depth = np.zeros((n, h, w), np.uint16)
@@ -325,7 +327,8 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
                 continue
             if effects.any:
                 out_rgb = camera_view(lambda P: renderer.render(P, outputs=("rgb",)).rgb, T, out.rgb, effects,
-                                      intr, camera_rng, cfg.max_speed, cfg.max_angular_speed_deg)  # fmt: skip
+                                      intr, geometry, camera_rng, cfg.max_speed,
+                                      cfg.max_angular_speed_deg)  # fmt: skip
             else:
                 out_rgb = out.rgb
             rgb[i], labels[i], poses[i] = out_rgb, out.labels, T

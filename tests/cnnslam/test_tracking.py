@@ -50,8 +50,9 @@ def test_known_motion_between_rendered_frames() -> None:
     assert mm < 1.0 and deg < 0.1, (mm, deg)
 
 
-@pytest.mark.parametrize("start", ["identity", "perturbed"])
-def test_known_motion_analytic_room(room, start: str) -> None:
+def _analytic_pair(room):
+    """A key-frame and a moved frame of the analytic room: (tracking reference with exact depth, the frame's RGB,
+    K, the true T_kf_cur)."""
     T_world_kf = room.pose((0.1, 0.0, 0.2))
     T_world_cur = room.pose((0.15, -0.03, 0.24), (1.0, -2.0, 0.5))
     rgb0, d0 = room.render(T_world_kf)
@@ -59,7 +60,12 @@ def test_known_motion_analytic_room(room, start: str) -> None:
     K = room.intrinsics
     ref = build_tracking_reference(build_image_pyramid(to_gray(rgb0), K, 4), d0, np.full(d0.shape, 1e-6, np.float32),
                                    CFG)
-    truth = relative_pose(T_world_kf, T_world_cur)
+    return ref, rgb1, K, relative_pose(T_world_kf, T_world_cur)
+
+
+@pytest.mark.parametrize("start", ["identity", "perturbed"])
+def test_known_motion_analytic_room(room, start: str) -> None:
+    ref, rgb1, K, truth = _analytic_pair(room)
     init = np.eye(4) if start == "identity" else truth @ se3_exp(np.array([0.03, -0.02, 0.02, 0.02, -0.03, 0.01]))
     res = track_frame(ref, build_image_pyramid(to_gray(rgb1), K, 4), init, CFG)
     mm, deg = _errors(res.T_kf_cur, truth)
@@ -74,14 +80,7 @@ def test_known_motion_under_a_brightness_change(room) -> None:
     b = -12 / 0.8); eq. 2 as written is pulled off by the change."""
     from dataclasses import replace
 
-    T_world_kf = room.pose((0.1, 0.0, 0.2))
-    T_world_cur = room.pose((0.15, -0.03, 0.24), (1.0, -2.0, 0.5))
-    rgb0, d0 = room.render(T_world_kf)
-    rgb1, _ = room.render(T_world_cur)
-    K = room.intrinsics
-    ref = build_tracking_reference(build_image_pyramid(to_gray(rgb0), K, 4), d0, np.full(d0.shape, 1e-6, np.float32),
-                                   CFG)
-    truth = relative_pose(T_world_kf, T_world_cur)
+    ref, rgb1, K, truth = _analytic_pair(room)
     changed = np.clip(0.8 * to_gray(rgb1) + 12.0, 0, 255).astype(np.float32)
     assert 0 < changed.min() and changed.max() < 255  # no clipping: the change is exactly affine
     assert CFG.affine_brightness  # the default
