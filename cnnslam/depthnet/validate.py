@@ -24,6 +24,8 @@ from cnnslam.depthnet.metrics import (
     SemanticMetrics,
     confusion_matrix,
     depth_sums,
+    gradient_pixel_scale,
+    log_depth_slope,
     semantic_metrics,
 )
 from cnnslam.depthnet.predict import DepthNetPredictor
@@ -218,7 +220,10 @@ def validate_sequences(
 class FolderValidation:
     """The network on a real RGB-D folder's frames: depth metrics raw and after eq. 5 (pooled over pixels), and the
     scale of the adjusted depth: per frame ``median(gt / pred)`` over the valid pixels, summarised over the frames
-    by its median and quartiles (1 = the right metric scale). f_cur, f_tr: pixels at the network's resolution."""
+    by its median and quartiles (1 = the right metric scale). gradient_scale_*: the same over each frame's 20 % of
+    pixels with the strongest image gradient (:func:`~cnnslam.depthnet.metrics.gradient_pixel_scale`); slope_*: each
+    frame's log-depth slope (:func:`~cnnslam.depthnet.metrics.log_depth_slope`, 1 = the right depth range, below 1
+    compressed). All on the adjusted depth. f_cur, f_tr: pixels at the network's resolution."""
 
     name: str
     frames: int
@@ -228,6 +233,10 @@ class FolderValidation:
     adjusted: DepthMetrics
     scale_median: float
     scale_quartiles: tuple[float, float]
+    gradient_scale_median: float = float("nan")
+    gradient_scale_quartiles: tuple[float, float] = (float("nan"), float("nan"))
+    slope_median: float = float("nan")
+    slope_quartiles: tuple[float, float] = (float("nan"), float("nan"))
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -251,7 +260,7 @@ def validate_folder(
     """
     idx = frame_indices(len(source), frames)
     raw_sums, adj_sums = DepthSums(), DepthSums()
-    scales = []
+    scales, gradient_scales, slopes = [], [], []
     f_cur = predictor.current_focal(source.intrinsics.as_array(), (source.intrinsics.height, source.intrinsics.width))
     wrap = progress or (lambda it, total: it)
     for i in wrap(iter(idx), len(idx)):
@@ -265,12 +274,23 @@ def validate_folder(
         valid = (frame.depth > 0) & (adjusted > 0)
         if valid.sum() >= 100:
             scales.append(float(np.median(frame.depth[valid] / adjusted[valid])))
-    s = np.asarray(scales) if scales else np.full(1, np.nan)
+            gray = np.asarray(frame.rgb, dtype=np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
+            gradient_scales.append(gradient_pixel_scale(gray, adjusted, frame.depth))
+            slopes.append(log_depth_slope(adjusted, frame.depth))
+    s, gs, sl = (_median_quartiles(v) for v in (scales, gradient_scales, slopes))
     return FolderValidation(
         name=str(getattr(source, "name", "folder")), frames=len(scales), f_cur=f_cur, f_tr=predictor.train_focal,
-        raw=raw_sums.metrics(), adjusted=adj_sums.metrics(), scale_median=float(np.median(s)),
-        scale_quartiles=(float(np.quantile(s, 0.25)), float(np.quantile(s, 0.75))),
+        raw=raw_sums.metrics(), adjusted=adj_sums.metrics(), scale_median=s[0], scale_quartiles=s[1],
+        gradient_scale_median=gs[0], gradient_scale_quartiles=gs[1], slope_median=sl[0], slope_quartiles=sl[1],
     )
+
+
+def _median_quartiles(values: Sequence[float]) -> tuple[float, tuple[float, float]]:
+    """Median and (25 %, 75 %) quantiles of the finite values; nan without any."""
+    v = np.asarray([x for x in values if np.isfinite(x)], dtype=np.float64)
+    if v.size == 0:
+        return float("nan"), (float("nan"), float("nan"))
+    return float(np.median(v)), (float(np.quantile(v, 0.25)), float(np.quantile(v, 0.75)))
 
 
 def folder_validation_markdown(results: Sequence[FolderValidation], simulated: dict[str, Any] | None = None) -> str:
@@ -281,20 +301,25 @@ def folder_validation_markdown(results: Sequence[FolderValidation], simulated: d
         "The shipped network (trained on rendered rooms only; real data is test data) on evenly spaced frames of real "
         "RGB-D folders at 320x240, scored against the sensor's depth. Raw = the network's output, eq. 5 = after the "
         "focal-length adjustment. Scale = per frame median(sensor depth / eq. 5 depth), median [quartiles] over the "
-        "frames: 1 is the right metric scale. 7-Scenes folders are read as their colour camera (525 px), their "
+        "frames: 1 is the right metric scale; at high-gradient pixels: the same over each frame's 20 % of pixels "
+        "with the strongest image gradient, those direct tracking weighs most. Depth slope = per frame the "
+        "least-squares slope of log(eq. 5 depth) on log(sensor depth), median [quartiles]: 1 is the right depth "
+        "range, below 1 the network compresses it (near surfaces too far, far ones too near). "
+        "7-Scenes folders are read as their colour camera (525 px), their "
         "depth registered to it from the depth camera (585 px) by the Kinect's 2.6 cm baseline "
         "(`docs/benchmarks.md`); the registration is not exact at depth edges. Made by "
         "`cnnslam train validate-folder`.\n",
         "| data | frames | f_cur/f_tr | AbsRel raw | AbsRel eq. 5 | RMSE eq. 5 [m] | δ<1.25 eq. 5 [%] | "
-        "within 10 % raw [%] | within 10 % eq. 5 [%] | scale (sensor / eq. 5) |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        "within 10 % raw [%] | within 10 % eq. 5 [%] | scale (sensor / eq. 5) | scale at high-gradient pixels | "
+        "depth slope |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|",
     ]
     for r in results:
         lines.append(
             f"| {r.name} (real) | {r.frames} | {r.f_cur / r.f_tr:.3f} | {r.raw.abs_rel:.3f} | {r.adjusted.abs_rel:.3f} "
             f"| {r.adjusted.rmse:.3f} | {100 * r.adjusted.delta_1_25:.1f} | {100 * r.raw.within_10pct:.1f} | "
-            f"{100 * r.adjusted.within_10pct:.1f} | {r.scale_median:.3f} [{r.scale_quartiles[0]:.3f}, "
-            f"{r.scale_quartiles[1]:.3f}] |"
+            f"{100 * r.adjusted.within_10pct:.1f} | {_mq(r.scale_median, r.scale_quartiles)} | "
+            f"{_mq(r.gradient_scale_median, r.gradient_scale_quartiles)} | {_mq(r.slope_median, r.slope_quartiles)} |"
         )
     if simulated:
         raw, adj = simulated.get("raw", {}), simulated.get("adjusted", {})
@@ -303,6 +328,10 @@ def folder_validation_markdown(results: Sequence[FolderValidation], simulated: d
             f"{simulated.get('focal_ratio', float('nan')):.3f} | {raw.get('abs_rel', float('nan')):.3f} | "
             f"{adj.get('abs_rel', float('nan')):.3f} | {adj.get('rmse', float('nan')):.3f} | "
             f"{100 * adj.get('delta_1_25', float('nan')):.1f} | {100 * raw.get('within_10pct', float('nan')):.1f} | "
-            f"{100 * adj.get('within_10pct', float('nan')):.1f} | - |"
+            f"{100 * adj.get('within_10pct', float('nan')):.1f} | - | - | - |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _mq(median: float, quartiles: tuple[float, float]) -> str:
+    return f"{median:.3f} [{quartiles[0]:.3f}, {quartiles[1]:.3f}]"

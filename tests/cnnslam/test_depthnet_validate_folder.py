@@ -46,6 +46,8 @@ def test_depth_metrics_and_scale_on_a_folder(folder, factor):
     assert result.scale_median == pytest.approx(1.0 / factor, rel=1e-5)
     assert result.adjusted.within_10pct == (1.0 if factor == 1.0 else 0.0)
     assert result.to_dict()["scale_error"] == pytest.approx(abs(1.0 / factor - 1.0), rel=1e-5)
+    assert result.gradient_scale_median == pytest.approx(1.0 / factor, rel=1e-5)  # a uniform error: the same there
+    assert np.isnan(result.slope_median)  # the fixture's depth is flat: no range to compress
     assert "| tiny_7scenes (real) | 3 |" in folder_validation_markdown([result])
 
 
