@@ -2,6 +2,7 @@
 
     cnnslam train generate-data [--root data/depthnet] [--scenes 1200] [--views 20] [--val-scenes 20] [--workers 2]
                                 [--focal-scale LO HI] [--camera-effects PRESET...]   # through the world's camera
+                                [--lighting flat lit]   # rooms with lamps, shadows, highlights (one drawn per room)
     cnnslam train fit [--data data/depthnet] [--out data/depthnet/run] [--steps 16000] [--batch 16] ... [--export]
     cnnslam train validate [--weights W] [--frames 40] [--camera PRESET] [--results results] [--update-manifest]
     cnnslam train validate-folder FOLDER... [--frames 100]   # real RGB-D frames -> results/depthnet_real.md
@@ -70,6 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--camera-effects", nargs="+", default=list(GenerationConfig.camera_effects), metavar="PRESET",
                    help="the world's camera, one preset drawn per room (clean, kinect, hard, EFFECT:S): images as "
                         "that camera delivers them, moving hand-held (default: clean, the renderer's bytes)")
+    g.add_argument("--lighting", nargs="+", default=list(GenerationConfig.lighting), metavar="LIGHTING",
+                   help="the rooms' lighting, one drawn per room: flat (default) or lit (lamps, shadows, bright "
+                        "windows, highlights; mujoco renderer)")
 
     f = sub.add_parser("fit", help="train (or resume) and write weights + manifest")
     d = TrainConfig()
@@ -133,7 +137,8 @@ def _progress(desc: str) -> Any:
 
 def _generate(args: argparse.Namespace) -> int:
     cfg = GenerationConfig(n_scenes=args.scenes, views_per_scene=args.views, data_seed=args.seed,
-                           focal_scale=tuple(args.focal_scale), camera_effects=tuple(args.camera_effects))
+                           focal_scale=tuple(args.focal_scale), camera_effects=tuple(args.camera_effects),
+                           lighting=tuple(args.lighting))
     args.root.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     train_dirs = generate_dataset(args.root, "train", cfg, args.workers, _progress("train shards"))

@@ -176,6 +176,10 @@ class GenerationConfig:
     # uniformly up to these, in random directions; sim_envs.trajectories.handheld's limits (0.6 m/s, 35 deg/s).
     max_speed: float = 0.6
     max_angular_speed_deg: float = 35.0
+    # Ours: the rooms' lighting (sim_envs.scene.LIGHTINGS), one drawn per room: "flat" (the same colour from every
+    # view; the shipped stages' data) or "lit" (lamps with shadows, bright windows, highlights; sim_envs.lighting,
+    # MuJoCo renderer only). The room's geometry, textures and labels are the same either way.
+    lighting: tuple[str, ...] = ("flat",)
 
     def __post_init__(self) -> None:
         lo, hi = (float(v) for v in self.focal_scale)
@@ -187,6 +191,12 @@ class GenerationConfig:
 
         for name in self.camera_effects:
             camera_effects_preset(name)  # one clear error for an unknown preset, before any rendering
+        from sim_envs.scene import LIGHTINGS
+
+        if not self.lighting or not set(self.lighting) <= set(LIGHTINGS):
+            raise CnnSlamError(f"lighting must name one or more of {', '.join(LIGHTINGS)}, got {self.lighting!r}")
+        if "lit" in self.lighting and self.backend != "mujoco":
+            raise CnnSlamError(f"lit rooms are drawn by the mujoco renderer only, not {self.backend!r}")
         if not (self.max_speed >= 0 and self.max_angular_speed_deg >= 0):
             raise CnnSlamError(f"max_speed and max_angular_speed_deg must be >= 0, got {self.max_speed}, "
                                f"{self.max_angular_speed_deg}")  # fmt: skip
@@ -208,6 +218,13 @@ class GenerationConfig:
             return self.camera_effects[0]
         rng = np.random.default_rng((self.data_seed, scene_seed, 1))
         return self.camera_effects[int(rng.integers(len(self.camera_effects)))]
+
+    def draw_lighting(self, scene_seed: int) -> str:
+        """One room's lighting, from its own generator (so the views and camera drawn are those of a flat room)."""
+        if len(self.lighting) == 1:
+            return self.lighting[0]
+        rng = np.random.default_rng((self.data_seed, scene_seed, 3))
+        return self.lighting[int(rng.integers(len(self.lighting)))]
 
 
 def camera_velocity(rng: np.random.Generator, max_speed: float, max_angular_speed_deg: float) -> np.ndarray:
@@ -304,7 +321,8 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
     # The network sees the agent's undistorted images; a lens's resampling is left out (ours).
     effects = replace(camera_effects_preset(camera_name), distortion=(0.0,) * 5)
     camera_rng = np.random.default_rng((cfg.data_seed, job.scene_seed, 2))
-    scene = generate_scene(job.style, job.scene_seed, texture_density=density)
+    lighting = cfg.draw_lighting(job.scene_seed)
+    scene = generate_scene(job.style, job.scene_seed, texture_density=density, lighting=lighting)
     nominal = cfg.intrinsics()
     intr = replace(nominal, fx=nominal.fx * focal_scale, fy=nominal.fy * focal_scale)
     geometry = sensor_geometry(intr, effects) if effects.any else None
@@ -347,6 +365,7 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
         "intrinsics": [nominal.fx, nominal.fy, nominal.cx, nominal.cy],
         "focal_scale": focal_scale,  # rendered with fx, fy = focal_scale x the above
         "camera_effects": camera_name,
+        "lighting": lighting,
         "width": w,
         "height": h,
         "depth_scale": DEPTH_SCALE,

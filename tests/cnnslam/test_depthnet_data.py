@@ -150,6 +150,25 @@ def test_camera_rooms_keep_views_and_ground_truth_and_change_the_images(tmp_path
         GenerationConfig(camera_effects=())
 
 
+def test_lit_rooms_keep_views_and_ground_truth_and_change_the_images(tmp_path: Path) -> None:
+    flat = GenerationConfig(n_scenes=1, views_per_scene=2, width=64, height=48, data_seed=3)
+    (shard_f,) = generate_dataset(tmp_path / "f", "train", flat, workers=0)
+    (shard_l,) = generate_dataset(tmp_path / "l", "train", replace(flat, lighting=("lit",)), workers=0)
+    assert json.loads((shard_l / "meta.json").read_text())["lighting"] == "lit"
+    assert json.loads((shard_f / "meta.json").read_text())["lighting"] == "flat"
+    for name in ("depth", "labels", "poses"):  # lamps change the light, not the room or the views drawn
+        assert (shard_f / f"{name}.npy").read_bytes() == (shard_l / f"{name}.npy").read_bytes(), name
+    a = np.load(shard_f / "rgb.npy").astype(np.float32)
+    b = np.load(shard_l / "rgb.npy").astype(np.float32)
+    assert np.abs(a - b).mean() > 2.0  # shadows, lamps, highlights
+    mixed = replace(flat, lighting=("flat", "lit"))
+    assert {mixed.draw_lighting(seed) for seed in range(40)} == {"flat", "lit"}  # one drawn per room
+    with pytest.raises(CnnSlamError, match="lighting must name"):
+        GenerationConfig(lighting=("candle",))
+    with pytest.raises(CnnSlamError, match="mujoco renderer only"):
+        GenerationConfig(lighting=("lit",), backend="pyrender")
+
+
 def test_camera_velocity_within_limits() -> None:
     rng = np.random.default_rng(0)
     twists = np.array([camera_velocity(rng, 0.6, 35.0) for _ in range(200)])
