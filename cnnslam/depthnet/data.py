@@ -214,17 +214,19 @@ class GenerationConfig:
 
     def draw_camera_effects(self, scene_seed: int) -> str:
         """One room's camera preset, from its own generator (so the views drawn are those of a clean room)."""
-        if len(self.camera_effects) == 1:
-            return self.camera_effects[0]
-        rng = np.random.default_rng((self.data_seed, scene_seed, 1))
-        return self.camera_effects[int(rng.integers(len(self.camera_effects)))]
+        return self._draw_per_room(self.camera_effects, scene_seed, stream=1)
 
     def draw_lighting(self, scene_seed: int) -> str:
         """One room's lighting, from its own generator (so the views and camera drawn are those of a flat room)."""
-        if len(self.lighting) == 1:
-            return self.lighting[0]
-        rng = np.random.default_rng((self.data_seed, scene_seed, 3))
-        return self.lighting[int(rng.integers(len(self.lighting)))]
+        return self._draw_per_room(self.lighting, scene_seed, stream=3)
+
+    def _draw_per_room(self, options: tuple[str, ...], scene_seed: int, stream: int) -> str:
+        """One of ``options`` for a room, uniformly from ``default_rng((data_seed, scene_seed, stream))``; a single
+        option draws nothing."""
+        if len(options) == 1:
+            return options[0]
+        rng = np.random.default_rng((self.data_seed, scene_seed, stream))
+        return options[int(rng.integers(len(options)))]
 
 
 def camera_velocity(rng: np.random.Generator, max_speed: float, max_angular_speed_deg: float) -> np.ndarray:

@@ -29,6 +29,7 @@ from cnnslam.depthnet.metrics import (
     semantic_metrics,
 )
 from cnnslam.depthnet.predict import DepthNetPredictor
+from cnnslam.tracking import to_gray
 from sim_envs.sequences import TABLE1_SEQUENCES
 
 # The test sequences of CNN-SLAM's Table 1 (ICL-NUIM office 0-2 / living 0-2 analogues, ICL intrinsics; TUM fr3
@@ -274,8 +275,7 @@ def validate_folder(
         valid = (frame.depth > 0) & (adjusted > 0)
         if valid.sum() >= 100:
             scales.append(float(np.median(frame.depth[valid] / adjusted[valid])))
-            gray = np.asarray(frame.rgb, dtype=np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-            gradient_scales.append(gradient_pixel_scale(gray, adjusted, frame.depth))
+            gradient_scales.append(gradient_pixel_scale(to_gray(frame.rgb), adjusted, frame.depth))
             slopes.append(log_depth_slope(adjusted, frame.depth))
     s, gs, sl = (_median_quartiles(v) for v in (scales, gradient_scales, slopes))
     return FolderValidation(
