@@ -599,7 +599,9 @@ def track_frame(
                     if ratio > config.convergence_eps:
                         converged = True
                     break
-                if float(inc @ inc) < config.step_size_min:
+                # LSD-SLAM's stepSizeMin bounds the pose's update (rad, m); the affine offset is in intensity
+                # levels, and in the norm it kept a converged frame rejecting steps until lambda grew ~2^9
+                if float(inc[:6] @ inc[:6]) < config.step_size_min:
                     converged = True
                     break
                 lam = config.lambda_first_fail if lam == 0.0 else lam * config.lambda_fail_factor
