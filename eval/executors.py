@@ -5,8 +5,14 @@ in completion order; ``result`` is the function's return value, or the exception
 process that died, a Ray task error). Executors never raise for one bad item: the others go on.
 
 - ``serial``: in this process, one item after another (debugging; per-run progress bars).
-- ``local`` (default): :class:`concurrent.futures.ProcessPoolExecutor` with the ``spawn`` start method (a process
-  that made an EGL context must not fork; ``spawn`` starts clean interpreters that build their renderers lazily).
+- ``local`` (default): :class:`concurrent.futures.ProcessPoolExecutor` whose workers are clean interpreters (a
+  process that made an EGL context must not fork). By default they are forked from a *fork server* that has
+  imported the run function's module and the ``preload`` modules (numpy, torch, the agents: 2-3 s a run otherwise)
+  and done nothing else: no renderer, no thread, no math; each run still gets a worker of its own, in the state a
+  fresh interpreter has after those imports, so its bytes are those of a ``spawn`` worker
+  (``tests/eval/test_executors.py`` compares a CNN-SLAM run both ways). The server starts with the environment
+  the pool's workers get (the thread limits below, and whatever else the caller set): a pool whose environment or
+  preload differs from the running server's restarts it. ``start_method="spawn"`` starts each worker from scratch.
   Each worker limits its math libraries (OpenMP, MKL, OpenBLAS, numba, OpenCV, torch through ``OMP_NUM_THREADS``) to
   ``threads`` threads, so ``jobs`` workers share the cores instead of oversubscribing them. By default every run
   gets a fresh worker process (``fresh_workers``): a run's result then never depends on which runs its worker did
@@ -146,15 +152,64 @@ def die_with_parent(parent: int, kernel: bool = True, poll_s: float = PARENT_POL
     threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
 
 
-def init_worker(threads: int, parent: int) -> None:
+def init_worker(threads: int, parent: int | None) -> None:
     """Set up a local pool worker: die with ``parent``, leave Ctrl-C to it, limit math threads to ``threads``.
 
-    Ignoring SIGINT keeps a terminal's Ctrl-C (sent to the whole process group) from printing one traceback per
-    worker; the parent kills its workers itself.
+    ``parent`` None: the worker's parent is the fork server, which exits when the process that started it does,
+    so dying with the fork server is dying with the pool's owner. Ignoring SIGINT keeps a terminal's Ctrl-C (sent
+    to the whole process group) from printing one traceback per worker; the parent kills its workers itself.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is None:
+        # A forked child inherits the server's "alive" pipe, which keeps the server running while any child holds
+        # it; a worker starts no process of its own, so it lets go: the server then exits with the pool's owner.
+        from multiprocessing import forkserver
+
+        alive = forkserver._forkserver._forkserver_alive_fd
+        if alive is not None:
+            with contextlib.suppress(OSError):
+                os.close(alive)
+            forkserver._forkserver._forkserver_alive_fd = None
+        parent = os.getppid()
     die_with_parent(parent)
     limit_threads(threads)
+
+
+_FORK_SERVER_STATE: list[Any] = [None]  # (thread limit, preload, environment) the running fork server started with
+
+
+def _function_modules(fn: Callable[..., Any] | None) -> tuple[str, ...]:
+    """The module that defines ``fn`` (through ``functools.partial``), when it is an importable one."""
+    fn = getattr(fn, "func", fn)
+    module = getattr(fn, "__module__", None)
+    return (module,) if module and module not in ("__main__", "builtins") else ()
+
+
+def ensure_fork_server(threads: int, preload: Iterable[str]) -> None:
+    """Have multiprocessing's fork server running with ``preload`` imported, under this process's environment with
+    the math libraries limited to ``threads`` threads (the environment its children inherit). A server started
+    with another environment or preload is stopped and started anew; this process's own environment is left as
+    it was."""
+    from multiprocessing import forkserver
+
+    env = dict(os.environ)
+    env.update({name: str(int(threads)) for name in THREAD_VARIABLES})
+    state = (int(threads), tuple(dict.fromkeys(preload)), env)
+    server = forkserver._forkserver
+    if _FORK_SERVER_STATE[0] == state and server._forkserver_pid is not None:
+        server.ensure_running()  # starts it again, with the same preload, if it died
+        return
+    server._stop()
+    server.set_forkserver_preload(list(state[1]))
+    saved = dict(os.environ)
+    try:
+        os.environ.clear()
+        os.environ.update(env)
+        server.ensure_running()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    _FORK_SERVER_STATE[0] = state
 
 
 def kill_pool(pool: ProcessPoolExecutor) -> None:
@@ -201,8 +256,10 @@ class SerialExecutor:
 
 
 class LocalExecutor:
-    """A local process pool (``spawn``) of ``jobs`` workers with ``threads`` math threads each; ``fresh_workers``:
-    one worker process per item; ``timeout_s``: the time limit of a run (see the module docstring)."""
+    """A local process pool of ``jobs`` workers with ``threads`` math threads each; ``fresh_workers``: one worker
+    process per item; ``timeout_s``: the time limit of a run; ``start_method``: ``forkserver`` (default where the
+    platform has it: workers forked from a server that imported ``fn``'s module and ``preload``) or ``spawn`` (see
+    the module docstring)."""
 
     name = "local"
 
@@ -210,24 +267,32 @@ class LocalExecutor:
         self,
         jobs: int = 2,
         threads: int | None = None,
-        start_method: str = "spawn",
+        start_method: str | None = None,
         fresh_workers: bool = True,
         timeout_s: float | None = None,
+        preload: Iterable[str] = (),
     ) -> None:
         if int(jobs) < 1:
             raise ExecutorError(f"jobs must be >= 1, got {jobs}")
         self.jobs = int(jobs)
         self.threads = int(threads) if threads is not None else threads_per_job(self.jobs)
+        if start_method is None:
+            start_method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+        if start_method not in ("forkserver", "spawn"):
+            raise ExecutorError(f"start_method must be forkserver or spawn (clean interpreters), got {start_method!r}")
         self.start_method = start_method
+        self.preload = tuple(preload)
         self.fresh_workers = bool(fresh_workers)
         self.timeout_s = check_timeout(timeout_s)
 
-    def _pool(self) -> ProcessPoolExecutor:
+    def _pool(self, fn: Callable[..., Any] | None = None) -> ProcessPoolExecutor:
+        if self.start_method == "forkserver":
+            ensure_fork_server(self.threads, (*_function_modules(fn), *self.preload))
         return ProcessPoolExecutor(
             max_workers=self.jobs,
             mp_context=multiprocessing.get_context(self.start_method),
             initializer=init_worker,
-            initargs=(self.threads, os.getpid()),
+            initargs=(self.threads, None if self.start_method == "forkserver" else os.getpid()),
             max_tasks_per_child=1 if self.fresh_workers else None,
         )
 
@@ -236,7 +301,7 @@ class LocalExecutor:
         breaks = [0] * len(todo)
         waiting = deque(range(len(todo)))  # runs not handed to a pool yet, by index, in order
         while waiting:
-            pool = self._pool()
+            pool = self._pool(fn)
             complete = False
             try:
                 yield from self._run_in(pool, fn, todo, waiting, breaks)
@@ -415,10 +480,11 @@ def make_executor(
     address: str | None = None,
     fresh_workers: bool = True,
     timeout_s: float | None = None,
+    preload: Iterable[str] = (),
 ) -> Executor:
-    """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers`` only
-    for ``local``; ``timeout_s``, the time limit of a run, for ``local`` and ``ray`` (``serial`` cannot stop a run
-    in its own process)."""
+    """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers`` and
+    ``preload`` (modules the fork server imports for its workers) only for ``local``; ``timeout_s``, the time limit
+    of a run, for ``local`` and ``ray`` (``serial`` cannot stop a run in its own process)."""
     if name not in EXECUTORS:
         raise ExecutorError(f"unknown executor {name!r}; valid executors: {', '.join(EXECUTORS)}")
     if address and name != "ray":
@@ -432,6 +498,6 @@ def make_executor(
             )
         return SerialExecutor()
     if name == "local":
-        return LocalExecutor(jobs, fresh_workers=fresh_workers, timeout_s=timeout_s)
+        return LocalExecutor(jobs, fresh_workers=fresh_workers, timeout_s=timeout_s, preload=preload)
     import_ray()  # fail now, with the install hint, not after the suite is planned
     return RayExecutor(address, jobs, timeout_s=timeout_s)

@@ -50,18 +50,26 @@ def nap_work(tmp_path, monkeypatch):
     return nap_work
 
 
-def pool_workers(parent: int) -> set[int]:
-    """The live (not zombie) spawn workers of process ``parent``, read from /proc."""
-    pids = set()
+def _processes() -> list[tuple[int, int, str, bytes]]:
+    """(pid, parent pid, state, command line) of every process, read from /proc."""
+    rows = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
-            command = (stat.parent / "cmdline").read_bytes()
+            rows.append((int(stat.parent.name), int(fields[1]), fields[0], (stat.parent / "cmdline").read_bytes()))
         except (OSError, IndexError):  # ended meanwhile
             continue
-        if int(fields[1]) == parent and fields[0] != "Z" and b"spawn_main" in command:
-            pids.add(int(stat.parent.name))
-    return pids
+    return rows
+
+
+def pool_workers(parent: int) -> set[int]:
+    """The live (not zombie) pool workers of process ``parent``, read from /proc: its spawned children, or the
+    children of its fork server (a worker forked there has the server's command line, the server is the parent's
+    child)."""
+    rows = _processes()
+    servers = {pid for pid, ppid, _, command in rows if ppid == parent and b"forkserver" in command}
+    return {pid for pid, ppid, state, command in rows
+            if state != "Z" and ((ppid == parent and b"spawn_main" in command) or ppid in servers)}
 
 
 def alive(pid: int) -> bool:
@@ -299,3 +307,36 @@ def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
     metrics = [tmp_path / where / "quick/office0/oracle/seed0-frames5/metrics.json" for where in ("ray", "local")]
     assert metrics[0].read_bytes() == metrics[1].read_bytes() == serial.files["metrics.json"]
     assert json.loads(serial.files["metrics.json"])["metrics"]["ate_rmse"] < 1e-9  # the oracle: exact poses
+
+
+def test_fork_server_workers_give_the_bytes_of_spawned_ones():
+    """A run in a worker forked from the preloaded fork server (after that server served other runs) writes the
+    same bytes as in a freshly spawned interpreter: CNN-SLAM (network, numba kernels, threads) and LSD-BS."""
+    methods = load_methods()
+    ref = SequenceRef("office0", base="office0")
+
+    def spec(name: str, seed: int = 0) -> RunSpec:
+        return RunSpec("quick", ref, methods[name], seed=seed, frames=30, plots=False, git_revision="r")
+
+    order = [spec("LSD-BS"), spec("CNN-SLAM", 1), spec("CNN-SLAM"), spec("LSD-BS", 1)]
+    preload = ("cnnslam.agent", "cnnslam.baselines")
+    forked = {s.key: r for s, r in LocalExecutor(jobs=1, start_method="forkserver", preload=preload).map(execute_run,
+                                                                                                          order)}
+    spawned = {s.key: r for s, r in LocalExecutor(jobs=1, start_method="spawn").map(execute_run, order[2:])}
+    for item in order[2:]:
+        a, b = forked[item.key], spawned[item.key]
+        assert a.status == b.status == "done", (a.error, b.error)
+        compared = sorted(set(a.files) - {"timing.json", "agent_extras.json"})  # these two hold wall times
+        assert "trajectory.tum" in compared and "metrics.json" in compared and "keyframes.npz" in compared
+        assert {k: a.files[k] for k in compared} == {k: b.files[k] for k in compared}, item.key
+        extras = [_without_times(json.loads(r.files["agent_extras.json"])) for r in (a, b)]
+        assert extras[0] == extras[1]
+
+
+def _without_times(value):
+    """A JSON value without its wall-time entries (keys naming seconds or ms)."""
+    if isinstance(value, dict):
+        return {k: _without_times(v) for k, v in value.items() if "seconds" not in k and not k.endswith("_ms")}
+    if isinstance(value, list):
+        return [_without_times(v) for v in value]
+    return value
