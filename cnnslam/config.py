@@ -65,7 +65,7 @@ class TrackingConfig:
     max_iterations: tuple[int, ...] = (20, 50, 100, 100)
     # LSD convergenceEps: stop a level when E_new / E_old > 0.999.
     convergence_eps: float = 0.999
-    # LSD stepSizeMin: stop when the squared update norm is below this.
+    # LSD stepSizeMin: stop when the squared norm of the pose update (rad, m) is below this.
     step_size_min: float = 1e-8
     # LSD lambdaSuccessFac / lambdaFailFac; lambda starts at 0 and jumps to 0.2 on the first failure (LSD).
     lambda_success_factor: float = 0.5
@@ -366,10 +366,16 @@ class SystemConfig:
     # "ground_truth_first" source (LSD-BS), a seed > 0 perturbs the bootstrapped depth in its last float32 bits (2 ulp):
     # the spread another CPU shows, for a method that is otherwise deterministic given the images.
     seed: int = 0
+    # Ours (memory): besides the active key-frame, this many of the newest key-frames keep their tracking working
+    # set (image pyramid, gradient masks, tracking points: 2.7 MB at 320x240); older ones drop it and make it again,
+    # with the same bytes, when recovery or a pose-graph alignment uses them. Bounds a long sequence's memory.
+    working_keyframes: int = 3
 
     def validate(self) -> None:
         if self.seed < 0:
             raise CnnSlamError(f"system.seed must be >= 0, got {self.seed}")
+        if self.working_keyframes < 0:
+            raise CnnSlamError(f"system.working_keyframes must be >= 0, got {self.working_keyframes}")
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,7 @@ from cnnslam.keyframes import (
     Keyframe,
     KeyframeInit,
     KeyframeMaps,
+    WorkingSetBuilder,
     init_cnn_keyframe,
     init_first_keyframe_without_cnn,
     keyframe_score,
@@ -223,6 +224,7 @@ class CnnSlam:
         self.predictor = predictor
         self._rng = np.random.default_rng(config.system.seed)
         self._fov = field_of_view(self.intrinsics, self.image_size)
+        self._builder = WorkingSetBuilder(self.intrinsics, config.tracking)
         self._worker = _KeyframeWorker(config.system.threads)
         self._graph = PoseGraph()  # owned by the key-frame thread
         self._keyframes: list[Keyframe] = []  # appended by the key-frame thread, read by both (under the lock)
@@ -312,6 +314,7 @@ class CnnSlam:
             self._graph_futures.append(self._worker.submit(1, self._update_graph, new, keyframe, T_kf_cur,
                                                            result.hessian))
             self._active = new
+            self._release_working_sets()
             keyframe, T_kf_cur = new, np.eye(4)
             self._last_good = (new, T_kf_cur)
         self._record(float(timestamp), keyframe, T_kf_cur, True)
@@ -359,7 +362,7 @@ class CnnSlam:
         # a frame's brightness is close to the last one's: start from its affine brightness against the same key-frame
         affine = self._affine[1] if self._affine[0] is active else (0.0, 0.0)
         for T_world_start in starts:
-            res = track_frame(active.maps.reference, pyramid, se3_inverse(active.T_world_kf) @ T_world_start, cfg,
+            res = track_frame(active.reference, pyramid, se3_inverse(active.T_world_kf) @ T_world_start, cfg,
                               affine_init=affine)
             if res.tracked or (lenient and not res.diverged):
                 best = res
@@ -368,7 +371,7 @@ class CnnSlam:
             return best, active, False
         for cand in self._recovery_candidates(active, T_world_pred):
             for T_world_start in starts:
-                res = track_frame(cand.maps.reference, pyramid, se3_inverse(cand.T_world_kf) @ T_world_start, cfg)
+                res = track_frame(cand.reference, pyramid, se3_inverse(cand.T_world_kf) @ T_world_start, cfg)
                 if res.tracked:
                     return res, cand, True
         return None, None, False
@@ -407,7 +410,18 @@ class CnnSlam:
         self._counters["observed_pixels"] += stats.observed
         self._counters["refined_pixels"] += stats.fused + stats.created
         reference = build_tracking_reference(keyframe.pyramid, depth, variance, cfg.tracking, keyframe.gradient_masks)
-        keyframe.maps = KeyframeMaps(depth, variance, reference)
+        keyframe.set_maps(KeyframeMaps(depth, variance, reference))
+
+    def _release_working_sets(self) -> None:
+        """Keep the tracking working sets (pyramid, masks, tracking points) of the active key-frame and the
+        ``system.working_keyframes`` newest others; the older ones drop theirs, to be made again (same bytes) when
+        recovery or an alignment uses them. Frame thread, at a key-frame switch."""
+        keep = self.config.system.working_keyframes
+        with self._kf_lock:
+            old = self._keyframes[: max(0, len(self._keyframes) - 1 - keep)]
+        for k in old:
+            if k is not self._active and k.working_set_held:
+                k.release_working_set()
 
     def _record(self, timestamp: float, keyframe: Keyframe, T_kf_cur: np.ndarray, tracked: bool) -> None:
         self._frames.append((timestamp, keyframe, np.array(T_kf_cur), tracked))
@@ -468,7 +482,7 @@ class CnnSlam:
         with self._kf_lock:
             keyframe = Keyframe(len(self._keyframes), timestamp, rgb, pyramid,
                                 KeyframeMaps(init.depth, init.variance, reference), T_world_kf, label_probs,
-                                cnn_depth, None if parent is None else parent.index, masks)
+                                cnn_depth, None if parent is None else parent.index, masks, self._builder)
             self._keyframes.append(keyframe)
         return keyframe
 
@@ -502,12 +516,12 @@ class CnnSlam:
         cfg = self.config
         graph = self._graph
         cand = self._keyframes[idx]
-        cand_maps, new_maps = cand.maps, keyframe.maps
+        cand_reference = cand.reference
         kind = "loop" if keyframe.index - idx >= cfg.pose_graph.loop_min_index_gap else "neighbour"
         self._counters["alignments"] += 1
         res = align_keyframes(
-            idx, cand_maps.reference, cand.pyramid, 1.0 / cand_maps.reference.mean_inverse_depth,
-            keyframe.index, new_maps.reference, keyframe.pyramid,
+            idx, cand_reference, cand.pyramid, 1.0 / cand_reference.mean_inverse_depth,
+            keyframe.index, keyframe.reference, keyframe.pyramid,
             se3_inverse(graph.poses[idx]) @ graph.poses[keyframe.index], cfg.tracking, cfg.pose_graph, kind,
         )
         if res.edge is None:

@@ -128,3 +128,32 @@ def test_prediction_scale_alignment_keeps_the_key_frames_at_one_scale(room, room
     aligned = CFG.with_overrides({"depth.prediction_scale_alignment": 1.0,
                                   "depth.prediction_scale_reference": "running_median"})
     assert spread(aligned) < 0.7 * spread(CFG)  # 0.004 against 0.019 here
+
+
+def test_released_working_sets_are_made_again_with_the_same_bytes(room, room_sequence) -> None:
+    """Key-frames older than the newest ``system.working_keyframes`` drop their pyramid and tracking points and make
+    them again on use (alignments, recovery after the lost frame): the run's bytes are those of a run that keeps
+    every working set."""
+    kept_answers, kept = _run(room_sequence, CFG.with_overrides({"system.working_keyframes": 1000}),
+                              room.intrinsics, noise_at=20)
+    slam_answers, released = _run(room_sequence, CFG.with_overrides({"system.working_keyframes": 0}),
+                                  room.intrinsics, noise_at=20)
+    assert released.stats["alignments"] > 0 and len(released.keyframes) >= 3
+    assert released.T_world_cam.tobytes() == kept.T_world_cam.tobytes()
+    assert [x.T_world_cam.tobytes() for x in slam_answers] == [x.T_world_cam.tobytes() for x in kept_answers]
+    for a, b in zip(released.keyframes, kept.keyframes, strict=True):
+        assert a.depth.tobytes() == b.depth.tobytes() and a.variance.tobytes() == b.variance.tobytes()
+
+
+def test_old_key_frames_hold_no_working_set(room, room_sequence) -> None:
+    slam = CnnSlam(CFG.with_overrides({"system.working_keyframes": 0}), room.intrinsics, (240, 320),
+                   DegradedGroundTruthPredictor(train_focal=259.58, seed=7))
+    for k, (rgb, depth, _) in enumerate(room_sequence):
+        slam.process(rgb, k / 30.0, GroundTruthHint(depth))
+    keyframes = slam.keyframes
+    assert len(keyframes) >= 3
+    held = [k.working_set_held for k in keyframes]
+    assert not any(held[:-1]) and held[-1]  # only the active key-frame holds its working set
+    reference = keyframes[0].reference  # made again on use, with the maps it was made from
+    assert keyframes[0].working_set_held and reference.levels[0].points.shape[0] > 0
+    slam.finish()
