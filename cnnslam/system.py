@@ -116,6 +116,7 @@ class KeyframeOutput:
     depth: (H, W) float32 metres refined (0 = none); variance: (H, W) float32 m^2 (inf = none); T_world_kf: (4, 4)
     float64 pose-graph-optimised pose; label_probs: (H, W, C) float32 CNN class probabilities or None; cnn_depth:
     (H, W) float32 the CNN depth it was initialised with (None without a CNN); rgb: (H, W, 3) uint8 its image.
+    depth, variance, cnn_depth and rgb are read-only views of the system's final arrays, not copies.
     """
 
     index: int
@@ -146,6 +147,13 @@ class SlamResult:
     keyframes: list[KeyframeOutput]
     edges: list[tuple[int, int, str]]
     stats: dict[str, Any] = field(default_factory=dict)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only view of ``array`` (its data shared, not copied)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 class _KeyframeWorker:
@@ -564,13 +572,17 @@ class CnnSlam:
         final = np.stack([f[1].T_world_kf @ f[2] for f in self._frames]) if n else np.zeros((0, 4, 4))
         online = np.stack(self._online) if n else np.zeros((0, 4, 4))
         tracked = np.array([f[3] for f in self._frames], dtype=bool)
+        # the maps are final now: the outputs are read-only views of them, not copies (a long sequence's key-frames
+        # would otherwise be held twice at the end); the working sets are no longer needed
+        for k in self.keyframes:
+            k.release_working_set()
         keyframes = [
             KeyframeOutput(
-                index=k.index, timestamp=k.timestamp, rgb=k.rgb, depth=k.maps.depth.copy(),
-                variance=k.maps.variance.copy(),
+                index=k.index, timestamp=k.timestamp, rgb=_read_only(k.rgb), depth=_read_only(k.maps.depth),
+                variance=_read_only(k.maps.variance),
                 T_world_kf=k.T_world_kf.copy(),
                 label_probs=None if k.label_probs is None else k.label_probs.astype(np.float32),
-                cnn_depth=None if k.cnn_depth is None else k.cnn_depth.copy(), parent=k.parent,
+                cnn_depth=None if k.cnn_depth is None else _read_only(k.cnn_depth), parent=k.parent,
             )
             for k in self.keyframes
         ]
