@@ -13,5 +13,6 @@ Never imports ``cnnslam``: agents are named by ``"module:Class"`` strings, envir
   ``python -m eval.bench_metrics`` times the metrics on 100k poses.
 
 File formats (TUM, KITTI) and dataset folders live in ``sim_envs.formats`` / ``sim_envs.datasets``: the world reads
-and writes them and must not import the judge.
+and writes them and must not import the judge. :mod:`eval.tum_reader` reads TUM trajectories for the judge with the
+same results and errors, faster and without importing the world (``cnnslam eval`` loads numpy and the judge only).
 """

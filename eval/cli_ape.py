@@ -27,15 +27,25 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+
+# Set before numpy loads its BLAS, so only where this module brings numpy in (the ``cnnslam eval`` process; a process
+# that imported numpy first keeps its own setting) and only where the caller set nothing: every product here is 3x3
+# or (N, 3) x (3, 3), where BLAS threads only wait on each other (on a busy 2-core machine an (N, 3) x (3, 3)
+# product took 36 ms of CPU threaded and 1 ms on one thread, with the same bits). The pool's workers do the same
+# (:data:`eval.executors.THREAD_VARIABLES`).
+if "numpy" not in sys.modules:
+    for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS"):
+        os.environ.setdefault(_name, "1")
 
 from eval.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from eval.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.errors import EvalError
 from eval.metrics import ErrorStatistics, RpeUnit, TrajectoryMetrics, evaluate_trajectory
-from eval.results import json_ready
+from eval.strict_json import json_ready
 from eval.trajectory import PoseTrajectory
-from sim_envs.formats import DUPLICATE_POLICIES
+from eval.tum_reader import DUPLICATE_POLICIES
 
 EVAL_SCHEMA = "cnnslam-eval/1"
 

@@ -55,6 +55,7 @@ from eval.depth_metrics import (
 from eval.errors import EvalError
 from eval.metrics import RpeUnit, evaluate_trajectory
 from eval.semantic_metrics import confusion_matrix, metrics_from_confusion
+from eval.strict_json import json_ready
 from eval.trajectory import PoseTrajectory
 from sim_envs.frames import NUM_CLASSES
 
@@ -190,21 +191,6 @@ def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[st
 
 
 # ------------------------------------------------------------------------------------------------------ files
-def json_ready(obj: Any) -> Any:
-    """Replace NaN/inf by None and numpy scalars/arrays by Python values, recursively (strict JSON)."""
-    if isinstance(obj, Mapping):
-        return {str(k): json_ready(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [json_ready(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return json_ready(obj.tolist())
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
 def save_run(record: Mapping[str, Any], path: str | Path) -> Path:
     """Write a run record as strict JSON (NaN -> null)."""
     path = Path(path)

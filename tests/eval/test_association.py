@@ -3,8 +3,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eval.association import AssociationError, AssociationRule, associate, associated_pair, matching_nearest
+import eval.association as association
+from eval.association import (
+    AssociationError,
+    AssociationRule,
+    associate,
+    associated_pair,
+    greedy_candidates,
+    locally_first,
+    matching_greedy,
+    matching_nearest,
+)
 from eval.trajectory import PoseTrajectory
+from sim_envs.formats import associate_greedy
 
 TUM = Path("/work/shared/data/tum")
 
@@ -66,3 +77,66 @@ def test_reference_pair_counts_on_real_files():
     est = PoseTrajectory.from_tum_file(TUM / "fr2_desk_ORB.txt")
     assert len(associate(gt, est, "tum")) == 2223
     assert len(associate(gt, est, "nearest")) == 2225  # evo's rule reuses ground-truth poses
+
+
+def brute_force_tum(first, second, max_difference, offset=0.0):
+    """The TUM tools' associate.py, literally: every pair within max_difference, sorted by (difference, a, b), taken
+    greedily one to one; returned sorted by the first stamp's index."""
+    candidates = sorted(
+        (abs(a - (b + offset)), a, b, i, j)
+        for i, a in enumerate(first)
+        for j, b in enumerate(second)
+        if abs(a - (b + offset)) < max_difference
+    )
+    used_i, used_j, pairs = set(), set(), []
+    for _, _, _, i, j in candidates:
+        if i not in used_i and j not in used_j:
+            used_i.add(i)
+            used_j.add(j)
+            pairs.append((i, j))
+    pairs.sort()
+    return [i for i, _ in pairs], [j for _, j in pairs]
+
+
+def random_stamps(rng, n, rate, jitter):
+    t = np.cumsum(rng.uniform(1.0 / rate - jitter, 1.0 / rate + jitter, n))
+    return np.round(t, int(rng.integers(2, 5)))  # rounded: equal differences (ties) happen
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_greedy_matching_gives_the_brute_force_pairs(seed):
+    rng = np.random.default_rng(seed)
+    first = np.unique(random_stamps(rng, int(rng.integers(1, 80)), 30.0, 0.02))
+    second = np.unique(random_stamps(rng, int(rng.integers(1, 80)), float(rng.choice([10.0, 30.0, 100.0])), 0.005))
+    max_difference = float(rng.choice([0.005, 0.01, 0.02, 0.05, 0.2]))
+    offset = float(rng.choice([0.0, 0.01, -0.013]))
+    gi, ei = matching_greedy(first, second, max_difference, offset)
+    assert (gi.tolist(), ei.tolist()) == brute_force_tum(first.tolist(), second.tolist(), max_difference, offset)
+    ri, rj = associate_greedy(first, second, max_difference, offset)  # the world's (sequential) implementation
+    assert np.array_equal(gi, ri) and np.array_equal(ei, rj) and gi.dtype == ei.dtype == np.int64
+
+
+def test_greedy_matching_on_a_chain_of_equal_differences_finishes_in_order(monkeypatch):
+    """b = a + 0.5: every stamp has two candidates exactly 0.5 away and only the chain's start is first for both of
+    its stamps, so a round takes one pair and the rest are taken one by one in the TUM order."""
+    calls = []
+    in_order = association._greedy_in_order
+    monkeypatch.setattr(association, "_greedy_in_order", lambda *a: calls.append(len(a[2])) or in_order(*a))
+    first = np.arange(60.0)
+    second = first + 0.5
+    gi, ei = matching_greedy(first, second, 0.6)
+    assert calls == [117]  # of 119 candidates: (0, 0) taken in the first round, (1, 0) dropped with it
+    assert (gi.tolist(), ei.tolist()) == brute_force_tum(first.tolist(), second.tolist(), 0.6)
+    assert gi.tolist() == ei.tolist() == list(range(60))  # ties go to the smaller stamps: (0.5, a, b) order
+    assert matching_greedy(first, np.zeros(0), 0.6)[0].size == 0  # no candidates
+
+
+def test_candidates_and_locally_first():
+    i, j, d = greedy_candidates(np.array([0.0, 1.0, 2.0]), np.array([0.125, 0.9375, 1.25, 1.875]), 0.3)
+    assert i.tolist() == [0, 1, 1, 2] and j.tolist() == [0, 1, 2, 3] and d.tolist() == [0.125, 0.0625, 0.25, 0.125]
+    assert locally_first(i, j, d, 3, 4).tolist() == [True, True, False, True]
+    # equal differences: the smaller stamp of the other list comes first, on either side
+    i, j, d = greedy_candidates(np.array([1.0]), np.array([0.75, 1.25]), 0.3)
+    assert locally_first(i, j, d, 1, 2).tolist() == [True, False]
+    i, j, d = greedy_candidates(np.array([0.75, 1.25]), np.array([1.0]), 0.3)
+    assert locally_first(i, j, d, 2, 1).tolist() == [True, False]
