@@ -11,6 +11,11 @@ compiled and the network is warmed up on a short run first. Three runs over the 
   ``process`` over the sequence (key-frame initialisation waits included, pose-graph work overlapping);
 - the frame thread's worst step.
 
+Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``): fps times
+the seconds of a frozen reference workload (:func:`machine_unit_seconds`) timed in the same process just before
+and just after that run, so that figures from machines of other speeds and under other loads compare; the speed
+gate (``eval.perf.speed_regressions``) compares them with ``results/baselines/perf.json``.
+
 Figures print as a table and come back from :func:`benchmark` as a dict. Speed is measured, never asserted.
 """
 
@@ -19,14 +24,82 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import threading
 import time
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from cnnslam.config import CnnSlamConfig
 from cnnslam.depth_prediction import GroundTruthHint, make_predictor
 from cnnslam.system import CnnSlam
+
+# ------------------------------------------------------------------------------------------- the machine-speed unit
+# A fixed workload timed in the same process as the figures, so that fps from machines of other speeds, or under
+# other loads, can be compared: a figure times the unit's seconds is frames per unit (the speed gate's currency,
+# eval.perf.speed_regressions). The workload is frozen: it calls nothing of the project (a change to tracking must
+# not move the unit), and editing it invalidates results/baselines/perf.json (bump UNIT_VERSION, remake the baseline).
+# Its mix is tracking's: a rigid warp, bilinear samples of an interleaved float32 image, divisions, a square root and
+# the 21 products of a 6x6 normal equation per point, in a numba loop.
+
+UNIT_VERSION = "warp-bilinear-6x6/1"
+_UNIT_POINTS = 20000
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _unit_kernel(image: np.ndarray, points: np.ndarray, rounds: int) -> float:  # pragma: no cover - numba
+    h, w = image.shape[0], image.shape[1]
+    total = 0.0
+    for k in range(rounds):
+        c, s = np.cos(0.01 * k), np.sin(0.01 * k)
+        H = np.zeros((6, 6))
+        g = np.zeros(3)
+        J = np.zeros(6)
+        for i in range(points.shape[0]):
+            x = c * points[i, 0] - s * points[i, 2] + 0.01 * k
+            y = points[i, 1]
+            z = s * points[i, 0] + c * points[i, 2]
+            iz = 1.0 / z
+            u = 250.0 * x * iz + 160.0
+            v = 250.0 * y * iz + 120.0
+            if not (u > 1.0 and v > 1.0 and u < w - 2.0 and v < h - 2.0):
+                continue
+            iu, iv = int(u), int(v)
+            au, av = u - iu, v - iv
+            for ch in range(3):
+                g[ch] = ((1.0 - au) * (1.0 - av) * image[iv, iu, ch] + au * (1.0 - av) * image[iv, iu + 1, ch]
+                         + (1.0 - au) * av * image[iv + 1, iu, ch] + au * av * image[iv + 1, iu + 1, ch])
+            wgt = 1.0 / np.sqrt(16.0 + g[0] * g[0] * 1e-3)
+            J[0], J[1], J[2] = g[1] * iz, g[2] * iz, -(g[1] * x + g[2] * y) * iz * iz
+            J[3], J[4], J[5] = g[1] * y, g[2] * x, g[0] * iz
+            for a in range(6):
+                for b in range(a, 6):
+                    H[a, b] += wgt * J[a] * J[b]
+        total += H[0, 0] + H[5, 5]
+    return total
+
+
+_UNIT_DATA: tuple[np.ndarray, np.ndarray] | None = None
+
+
+def machine_unit_seconds(repeats: int = 5) -> float:
+    """Median wall seconds of the frozen reference workload (one unit: 20 000 points warped, sampled and
+    accumulated once), timed in this process; compiled and warmed on first use."""
+    global _UNIT_DATA
+    if _UNIT_DATA is None:
+        rng = np.random.default_rng(0)
+        image = rng.uniform(0.0, 255.0, (240, 320, 3)).astype(np.float32)
+        points = np.column_stack([rng.uniform(-1.2, 1.2, _UNIT_POINTS), rng.uniform(-0.9, 0.9, _UNIT_POINTS),
+                                  rng.uniform(1.0, 4.0, _UNIT_POINTS)]).astype(np.float32)
+        _UNIT_DATA = (image, points)
+        _unit_kernel(image, points, 1)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        _unit_kernel(*_UNIT_DATA, 1)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
 
 
 def _available_cores() -> int:
@@ -59,6 +132,52 @@ def _make_predictor(kind: str) -> tuple[str, Any]:
     return kind, make_predictor(kind)
 
 
+class _KernelTimer:
+    """Times the tracking kernel (``cnnslam.tracking._normal_equations``) while frame tracking calls it (not the
+    pose graph's alignments): seconds, calls and reference points, for the stage table. A context manager that
+    wraps the two module functions and restores them."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.calls = 0
+        self.points = 0
+        self._inside = threading.local()
+
+    def __enter__(self) -> _KernelTimer:
+        import cnnslam.system
+        import cnnslam.tracking
+
+        self._saved = (cnnslam.tracking._normal_equations, cnnslam.system.track_frame)
+        kernel, track = self._saved
+
+        def timed_kernel(points: np.ndarray, *args: Any) -> Any:
+            if not getattr(self._inside, "on", False):
+                return kernel(points, *args)
+            t0 = time.perf_counter()
+            out = kernel(points, *args)
+            self.seconds += time.perf_counter() - t0
+            self.calls += 1
+            self.points += points.shape[0]
+            return out
+
+        def tracked(*args: Any, **kwargs: Any) -> Any:
+            self._inside.on = True
+            try:
+                return track(*args, **kwargs)
+            finally:
+                self._inside.on = False
+
+        cnnslam.tracking._normal_equations = timed_kernel
+        cnnslam.system.track_frame = tracked
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import cnnslam.system
+        import cnnslam.tracking
+
+        cnnslam.tracking._normal_equations, cnnslam.system.track_frame = self._saved
+
+
 def _run(config: CnnSlamConfig, intrinsics: np.ndarray, frames: list, predictor: Any,
          ) -> tuple[float, list[float], dict[str, Any]]:
     slam = CnnSlam(config, intrinsics, frames[0][0].shape[:2], predictor)
@@ -73,6 +192,16 @@ def _run(config: CnnSlamConfig, intrinsics: np.ndarray, frames: list, predictor:
     return wall, steps, result.stats
 
 
+def _units_around(run: Any, repeats: int = 60) -> tuple[Any, float]:
+    """``run()``'s value and the mean machine unit over ``repeats`` back-to-back timings just before it and as many
+    just after (about 0.1 s in all: a mean over that long sees the share of the cores this process got, as the run
+    did, where a median of short timings would pick the ones no other process interrupted)."""
+    before = [machine_unit_seconds(1) for _ in range(repeats)]
+    value = run()
+    after = [machine_unit_seconds(1) for _ in range(repeats)]
+    return value, float(np.mean(before + after))
+
+
 def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "auto") -> dict[str, Any]:
     """Time the system on the first ``n_frames`` of ``sequence``; returns the figures (see the module docstring).
 
@@ -83,8 +212,11 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
     name, pred = _make_predictor(predictor)
     base = CnnSlamConfig()
     _run(base.with_overrides({"system.threads": False}), intrinsics, frames[: min(40, len(frames))], pred)  # warm-up
-    wall_1, steps_1, stats_1 = _run(base.with_overrides({"system.threads": False}), intrinsics, frames, pred)
-    wall_2, steps_2, stats_2 = _run(base.with_overrides({"system.threads": True}), intrinsics, frames, pred)
+    single = base.with_overrides({"system.threads": False})
+    with _KernelTimer() as kernel:
+        (wall_1, steps_1, stats_1), unit_1 = _units_around(lambda: _run(single, intrinsics, frames, pred))
+    two = base.with_overrides({"system.threads": True})
+    (wall_2, steps_2, stats_2), unit_2 = _units_around(lambda: _run(two, intrinsics, frames, pred))
     n = len(frames)
     sec = stats_1["seconds"]
     h, w = frames[0][0].shape[:2]
@@ -97,6 +229,12 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         "keyframes": stats_1["keyframes"],
         "tracking_fps": n / max(sec["tracking"], 1e-9),
         "tracking_ms_per_frame": 1000 * sec["tracking"] / n,
+        # the stages of tracking: the fused kernel of eq. 2-4 (warp, residuals, Jacobians, normal equations) and
+        # the rest (Levenberg-Marquardt solves, pose updates, the Python around them)
+        "tracking_kernel_ms_per_frame": 1000 * kernel.seconds / n,
+        "tracking_solve_ms_per_frame": 1000 * (sec["tracking"] - kernel.seconds) / n,
+        "tracking_kernel_calls_per_frame": kernel.calls / n,
+        "tracking_kernel_ns_per_point": 1e9 * kernel.seconds / max(kernel.points, 1),
         "refinement_ms_per_frame": 1000 * sec["refinement"] / n,
         "pyramid_ms_per_frame": 1000 * sec["pyramid"] / n,
         "keyframe_init_ms_per_keyframe": 1000 * sec["keyframe_init"] / max(stats_1["keyframes"], 1),
@@ -107,7 +245,59 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         "frame_thread_median_ms": 1000 * float(np.median(steps_2)),
         "frame_thread_max_ms": 1000 * float(np.max(steps_2)),
         "tracked_share": stats_2["tracked_share"],
+        # machine-speed units (frozen reference workload, this process): fps x unit seconds = frames per unit
+        "unit_version": UNIT_VERSION,
+        "unit_ms": 1000 * unit_1,
+        "unit_ms_whole_system": 1000 * unit_2,
+        "tracking_frames_per_unit": n / max(sec["tracking"], 1e-9) * unit_1,
+        "whole_system_frames_per_unit": n / wall_2 * unit_2,
     }
+
+
+def _peak_rss_mib() -> float:
+    """This process's peak resident memory so far, MiB (``getrusage``; Linux reports KiB, macOS bytes)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
+
+
+def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoints: tuple[int, ...] = (1000, 3000),
+                     predictor: str = "auto", camera: str = "kinect") -> dict[str, Any]:
+    """Peak resident memory of a long episode, rendering included: ``sequence``'s room and hand-held path stretched
+    to ``n_frames`` frames through ``camera``, rendered one frame at a time and handed to the two-thread system as
+    an agent would. Figures: peak RSS (MiB) after each checkpoint's frame and after ``finish``; key-frames made;
+    MiB per 1000 frames between the first checkpoint and the end."""
+    from dataclasses import replace
+
+    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.simsource import SimulatedSequence
+
+    spec = replace(with_camera(get_sequence(sequence), camera), n_frames=int(n_frames),
+                   name=f"{sequence}-{n_frames}")
+    name, pred = _make_predictor(predictor)
+    figures: dict[str, Any] = {"sequence": spec.name, "camera": camera, "frames": int(n_frames), "predictor": name,
+                               "peak_rss_mib_start": _peak_rss_mib()}
+    marks = sorted({int(c) for c in checkpoints if 0 < int(c) < n_frames} | {int(n_frames)})
+    start = time.perf_counter()
+    with SimulatedSequence(spec) as source:
+        slam = CnnSlam(CnnSlamConfig(), source.intrinsics.as_array(), (spec.height, spec.width), pred)
+        for i in range(int(n_frames)):
+            frame = source.frame(i)
+            slam.process(frame.rgb, float(frame.timestamp))
+            if i + 1 in marks:
+                figures[f"peak_rss_mib_at_{i + 1}"] = _peak_rss_mib()
+                figures[f"keyframes_at_{i + 1}"] = len(slam.keyframes)
+        result = slam.finish()
+    figures["peak_rss_mib_after_finish"] = _peak_rss_mib()
+    figures["tracked_share"] = result.stats["tracked_share"]
+    figures["wall_s"] = time.perf_counter() - start
+    first, last = marks[0], marks[-1]
+    if last > first:
+        figures["mib_per_1000_frames"] = 1000 * (figures[f"peak_rss_mib_at_{last}"]
+                                                 - figures[f"peak_rss_mib_at_{first}"]) / (last - first)
+    return figures
 
 
 def format_figures(figures: dict[str, Any]) -> str:
@@ -127,10 +317,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="depth predictor; auto = the trained network if its weights exist, else the "
                              "development predictor")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    parser.add_argument("--memory", action="store_true",
+                        help="instead: peak memory of a --frames-long episode (rendering included, the kinect "
+                             "camera), with checkpoints at 1000 and 3000 frames")
 
 
 def run(args: argparse.Namespace) -> int:
-    figures = benchmark(args.sequence, args.frames, args.predictor)
+    if args.memory:
+        figures = memory_benchmark(args.sequence, args.frames, predictor=args.predictor)
+    else:
+        figures = benchmark(args.sequence, args.frames, args.predictor)
     print(json.dumps(figures, indent=2) if args.json else format_figures(figures))
     return 0
 

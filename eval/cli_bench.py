@@ -122,7 +122,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="compare the suite's metrics with this baseline (default for quick: "
                              "results/baselines/quick.json)")  # fmt: skip
     parser.add_argument("--update-baseline", action="store_true",
-                        help="write the suite's gated figures as its baseline (keeping its calibrated tolerances)")
+                        help="write the suite's gated figures as its baseline (keeping its calibrated tolerances); "
+                             "perf: the median frames per machine unit of 3 slam probes, results/baselines/perf.json")
     parser.add_argument("--calibrate", action="store_true",
                         help="run the suite under the perturbation matrix (eval/calibrate.py: thread counts, oneDNN "
                              "off, the network's last bits perturbed, an older instruction set), record this "
@@ -224,8 +225,14 @@ def run(args: argparse.Namespace) -> int:
 
             results = args.results or Path("results")
             frames = None if args.frames == "all" else args.frames
-            report = run_perf(results, frames=frames, progress=not args.no_progress)
+            report = run_perf(results, frames=frames, progress=not args.no_progress,
+                              update_speed_baseline=args.update_baseline)
             print(f"wrote {results / 'perf.md'} and {results / 'perf.json'}")
+            gate = report.speed_gate or {}
+            if gate.get("error"):
+                print(f"speed gate not judged: {gate['error']}")
+            else:
+                print("speed gate: " + ("; ".join(gate["failures"]) if gate["failures"] else "passed"))
             return 0 if report.ok else 1
         chosen = _names(args.methods) or list(suite.methods)
         unknown = [name for name in chosen if name not in methods]
@@ -243,8 +250,10 @@ def run(args: argparse.Namespace) -> int:
         if args.timeout is not None and not args.timeout > 0:
             raise MethodError(f"--timeout must be a number of seconds > 0, got {args.timeout}")
         options = {"timeout_s": args.timeout} if args.timeout is not None else {}
+        # the fork server imports the agents' modules once; each run still gets a fresh worker forked from it
+        preload = [methods[m].entry_point.partition(":")[0] for m in chosen if methods[m].entry_point]
         executor = make_executor(args.executor, args.jobs, args.address, fresh_workers=not args.reuse_workers,
-                                 **options)  # fmt: skip
+                                 preload=preload, **options)  # fmt: skip
     except EvalError as exc:
         print(f"cnnslam bench: error: {exc}", file=sys.stderr)
         return 2

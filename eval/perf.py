@@ -20,6 +20,7 @@ import math
 import os
 import platform
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -86,10 +87,11 @@ class PerfReport:
     probes: list[ProbeResult]
     machine: dict[str, Any]
     git_revision: str | None
+    speed_gate: dict[str, Any] | None = None
 
     @property
     def ok(self) -> bool:
-        return all(p.ok for p in self.probes)
+        return all(p.ok for p in self.probes) and not (self.speed_gate or {}).get("failures")
 
     def to_dict(self) -> dict[str, Any]:
         return json_ready(
@@ -98,6 +100,7 @@ class PerfReport:
                 "machine": self.machine,
                 "git_revision": self.git_revision,
                 "probes": {p.name: asdict(p) for p in self.probes},
+                "speed_gate": self.speed_gate,
             }
         )
 
@@ -241,6 +244,17 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
             text = f"{value:.2f}" if isinstance(value, float) else str(value)
             lines.append(f"| {key} | {text} |")
         lines.append("")
+    gate = report.speed_gate
+    if gate is not None:
+        lines.append(f"## speed gate: frames per machine unit against `{gate['baseline']}`\n")
+        if gate.get("error"):
+            lines.append(f"not judged: {gate['error']}\n")
+        else:
+            lines += ["| figure | this run | baseline | baseline / this run | allowed |", "|---|---:|---:|---:|---:|"]
+            for key, row in gate["figures"].items():
+                lines.append(f"| {key} | {row['value']:.4f} | {row['baseline']:.4f} | {row['slowdown']:.2f} | "
+                             f"{gate['max_slowdown']:g} |")
+            lines.append("\n" + ("**failed**: " + "; ".join(gate["failures"]) if gate["failures"] else "passed") + "\n")
     return "\n".join(lines) + "\n"
 
 
@@ -251,9 +265,15 @@ def run_perf(
     probes: Sequence[Probe] | None = None,
     progress: bool = True,
     command: str = "cnnslam bench perf",
+    update_speed_baseline: bool = False,
+    speed_baseline: str | Path | None = None,
 ) -> PerfReport:
     """Run the probes one after another (they measure speed: never two at once) and write
-    ``results_dir/perf.{json,md}``."""
+    ``results_dir/perf.{json,md}``, with the speed gate's verdict on the ``slam`` probe (:func:`speed_regressions`).
+
+    update_speed_baseline: run the ``slam`` probe twice more and write the median of the three as the speed
+    baseline (``speed_baseline``, default :data:`SPEED_BASELINE`) before judging.
+    """
     from eval.runner import git_revision
 
     default_probes, default_frames = load_probes() if probes is None else ([], 100)
@@ -262,9 +282,124 @@ def run_perf(
     results = []
     for probe in tqdm(chosen, desc="perf probes", unit="probe", disable=not progress):
         results.append(run_probe(probe, n))
-    report = PerfReport(results, machine_info(), git_revision())
+    revision = git_revision()
+    slam = next((r for r in results if r.name == "slam" and r.ok), None)
+    baseline_path = Path(speed_baseline) if speed_baseline is not None else SPEED_BASELINE
+    if update_speed_baseline:
+        if slam is None:
+            raise PerfError("no speed baseline written: the slam probe failed or was not run")
+        probe = next(p for p in chosen if p.name == "slam")
+        runs = [slam.figures] + [run_probe(probe, n).figures for _ in tqdm(range(2), desc="speed baseline runs",
+                                                                           disable=not progress)]
+        baseline = speed_baseline_from_runs(runs, sequence=str(slam.figures.get("sequence")), frames=n,
+                                            predictor=str(slam.figures.get("predictor")), git_revision=revision)
+        baseline_path.parent.mkdir(parents=True, exist_ok=True)
+        baseline_path.write_text(json.dumps(baseline.to_dict(), indent=2, allow_nan=False) + "\n")
+    report = PerfReport(results, machine_info(), revision, speed_gate(slam.figures if slam else None, baseline_path))
     out = Path(results_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "perf.json").write_text(json.dumps(report.to_dict(), indent=2, allow_nan=False) + "\n")
     (out / "perf.md").write_text(format_perf_markdown(report, command))
     return report
+
+
+# ----------------------------------------------------------------------------------------------------- speed gate
+SPEED_BASELINE: Path = Path(__file__).resolve().parents[1] / "results" / "baselines" / "perf.json"
+SPEED_SCHEMA = "cnnslam-speed-baseline/1"
+SPEED_GATED: tuple[str, ...] = ("tracking_frames_per_unit", "whole_system_frames_per_unit")
+MAX_SLOWDOWN = 1.5
+
+
+@dataclass(frozen=True)
+class SpeedBaseline:
+    """What the speed gate compares with: the median frames per machine unit of ``SPEED_GATED`` over several runs
+    of ``python -m cnnslam.bench_slam --sequence SEQUENCE --frames FRAMES --predictor PREDICTOR``, with the unit's
+    version (a figure in another unit compares with nothing), the runs themselves, the machine and revision."""
+
+    sequence: str
+    frames: int
+    predictor: str
+    unit_version: str
+    figures: dict[str, float]
+    max_slowdown: float = MAX_SLOWDOWN
+    runs: tuple[dict[str, Any], ...] = ()
+    machine: dict[str, Any] = field(default_factory=dict)
+    git_revision: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return json_ready({"schema": SPEED_SCHEMA, **asdict(self), "runs": list(self.runs)})
+
+
+def speed_baseline_from_runs(runs: Sequence[Mapping[str, Any]], *, sequence: str, frames: int, predictor: str,
+                             git_revision: str | None = None) -> SpeedBaseline:
+    """The median of each gated figure over ``runs`` (``cnnslam.bench_slam`` figure dicts, one unit version)."""
+    if not runs:
+        raise PerfError("a speed baseline needs at least one run")
+    versions = {r.get("unit_version") for r in runs}
+    if len(versions) != 1 or None in versions:
+        raise PerfError(f"the runs were timed in different or missing machine units: {sorted(map(str, versions))}")
+    missing = [k for k in SPEED_GATED for r in runs if not isinstance(r.get(k), (int, float))]
+    if missing:
+        raise PerfError(f"runs without the gated figures {sorted(set(missing))}")
+    figures = {k: float(statistics.median(r[k] for r in runs)) for k in SPEED_GATED}
+    return SpeedBaseline(sequence, int(frames), predictor, str(versions.pop()), figures,
+                         runs=tuple(dict(r) for r in runs), machine=machine_info(), git_revision=git_revision)
+
+
+def load_speed_baseline(path: str | Path | None = None) -> SpeedBaseline:
+    """Read a speed baseline (default :data:`SPEED_BASELINE`); one clear error when it cannot be used."""
+    path = Path(path) if path is not None else SPEED_BASELINE
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise PerfError(f"{path}: cannot read the speed baseline: {exc}") from exc
+    if data.get("schema") != SPEED_SCHEMA:
+        raise PerfError(f"{path}: schema {data.get('schema')!r}, expected {SPEED_SCHEMA!r}")
+    data.pop("schema")
+    try:
+        data["runs"] = tuple(data.get("runs", ()))
+        return SpeedBaseline(**data)
+    except TypeError as exc:
+        raise PerfError(f"{path}: {exc}") from exc
+
+
+def speed_regressions(figures: Mapping[str, Any], baseline: SpeedBaseline) -> list[str]:
+    """One line per gated figure that is more than ``baseline.max_slowdown`` times slower than the baseline, in
+    frames per machine unit (empty: the gate passes). Figures in another unit version fail with that reason."""
+    if figures.get("unit_version") != baseline.unit_version:
+        return [f"figures timed in machine unit {figures.get('unit_version')!r}, the baseline in "
+                f"{baseline.unit_version!r}: remake the baseline (cnnslam bench perf --update-baseline)"]
+    failures = []
+    for key in SPEED_GATED:
+        value, reference = figures.get(key), baseline.figures[key]
+        if not isinstance(value, (int, float)) or value <= 0:
+            failures.append(f"{key}: no figure ({value!r})")
+        elif value * baseline.max_slowdown < reference:
+            failures.append(f"{key} {value:.4g} is {reference / value:.2f}x slower than the baseline's {reference:.4g} "
+                            f"(allowed {baseline.max_slowdown:g}x)")
+    return failures
+
+
+def speed_gate(figures: Mapping[str, Any] | None, baseline_path: str | Path | None = None) -> dict[str, Any]:
+    """The speed gate's verdict on a ``cnnslam.bench_slam`` figure dict, as a record for perf.{json,md}: per gated
+    figure this run's value, the baseline's and their ratio; the failures (:func:`speed_regressions`); or the reason
+    it could not judge (no figures, no baseline, another sequence, frame count or predictor)."""
+    path = Path(baseline_path) if baseline_path is not None else SPEED_BASELINE
+    record: dict[str, Any] = {"baseline": str(path), "figures": {}, "failures": []}
+    try:
+        baseline = load_speed_baseline(path)
+    except PerfError as exc:
+        return {**record, "error": str(exc)}
+    record["max_slowdown"] = baseline.max_slowdown
+    if figures is None:
+        return {**record, "error": "the slam probe gave no figures"}
+    setup = (figures.get("sequence"), figures.get("frames"), figures.get("predictor"))
+    if setup != (baseline.sequence, baseline.frames, baseline.predictor):
+        return {**record, "error": f"the run's (sequence, frames, predictor) {setup} differ from the baseline's "
+                                   f"{(baseline.sequence, baseline.frames, baseline.predictor)}"}
+    for key in SPEED_GATED:
+        value = float(figures.get(key) or 0.0)
+        record["figures"][key] = {"value": value, "baseline": baseline.figures[key],
+                                  "slowdown": baseline.figures[key] / value if value > 0 else math.inf}
+    record["failures"] = speed_regressions(figures, baseline)
+    return record

@@ -82,3 +82,24 @@ def test_run_perf_keeps_the_good_probes_and_reports_the_bad(tmp_path):
     md = (tmp_path / "results" / "perf.md").read_text()
     assert "## metrics on 2000 poses" in md and "| poses | 2000 |" in md
     assert "**failed**: no figures found in the output (metrics_text)" in md
+
+
+def test_speed_baseline_is_the_median_of_its_runs_and_the_gate_judges_against_it(tmp_path):
+    from eval.perf import PerfError, load_speed_baseline, speed_baseline_from_runs, speed_gate
+
+    runs = [{"unit_version": "u/1", "tracking_frames_per_unit": t, "whole_system_frames_per_unit": w,
+             "sequence": "office0", "frames": 100, "predictor": "network"}
+            for t, w in ((0.03, 0.02), (0.05, 0.01), (0.04, 0.03))]
+    baseline = speed_baseline_from_runs(runs, sequence="office0", frames=100, predictor="network")
+    assert baseline.figures == {"tracking_frames_per_unit": 0.04, "whole_system_frames_per_unit": 0.02}
+    path = tmp_path / "perf.json"
+    path.write_text(json.dumps(baseline.to_dict()))
+    assert load_speed_baseline(path) == baseline
+    slow = {**runs[0], "tracking_frames_per_unit": 0.02}  # 2x slower tracking
+    record = speed_gate(slow, path)
+    assert record["figures"]["tracking_frames_per_unit"]["slowdown"] == 2.0
+    assert len(record["failures"]) == 1 and record["failures"][0].startswith("tracking_frames_per_unit")
+    assert "differ from the baseline" in speed_gate({**runs[0], "frames": 50}, path)["error"]
+    assert "cannot read" in speed_gate(runs[0], tmp_path / "none.json")["error"]
+    with pytest.raises(PerfError, match="different or missing machine units"):
+        speed_baseline_from_runs([runs[0], {**runs[1], "unit_version": "u/2"}], sequence="s", frames=1, predictor="p")

@@ -1,0 +1,50 @@
+"""The speed gate in CI: tracking and the whole system, in frames per machine unit, against
+results/baselines/perf.json (eval.perf.speed_regressions, allowed 1.5x slower).
+
+The figures are measured here, in this process, exactly as ``cnnslam bench perf``'s slam probe measures them; the
+unit (a frozen reference workload timed in the same process) carries the machine's speed and load, so the baseline
+made on one machine judges another. The second test slows tracking down on purpose and the gate must catch it.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+import cnnslam.system
+from cnnslam.bench_slam import benchmark
+from eval.perf import SPEED_GATED, load_speed_baseline, speed_regressions
+
+
+@pytest.fixture(scope="module")
+def baseline():
+    return load_speed_baseline()
+
+
+def test_this_tree_is_not_slower_than_the_baseline(baseline) -> None:
+    figures = benchmark(baseline.sequence, baseline.frames, baseline.predictor)
+    assert figures["tracked_share"] == 1.0
+    assert speed_regressions(figures, baseline) == []
+
+
+def test_a_slowed_tracking_step_fails_the_gate(baseline, monkeypatch) -> None:
+    real = cnnslam.system.track_frame
+
+    def three_times_slower(*args, **kwargs):
+        real(*args, **kwargs)
+        real(*args, **kwargs)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cnnslam.system, "track_frame", three_times_slower)
+    figures = benchmark(baseline.sequence, baseline.frames, baseline.predictor)
+    failures = speed_regressions(figures, baseline)
+    assert any(f.startswith("tracking_frames_per_unit") for f in failures), failures
+
+
+def test_the_gate_reads_units_and_ratios(baseline) -> None:
+    """Known answers: exactly the allowed slowdown passes, just past it fails, another unit never compares."""
+    at_limit = {k: baseline.figures[k] / baseline.max_slowdown for k in SPEED_GATED}
+    assert speed_regressions({**at_limit, "unit_version": baseline.unit_version}, baseline) == []
+    past = {k: v * 0.99 for k, v in at_limit.items()}
+    assert len(speed_regressions({**past, "unit_version": baseline.unit_version}, baseline)) == len(SPEED_GATED)
+    other = speed_regressions({**baseline.figures, "unit_version": "other/0"}, baseline)
+    assert len(other) == 1 and "remake the baseline" in other[0]
