@@ -401,9 +401,8 @@ def _baseline_description(suite) -> str:
 
 def _gate(args: argparse.Namespace, result) -> int:
     """Update or compare with the suite's baseline; the exit status of the gate (0 pass, 1 fail)."""
-    from dataclasses import replace
 
-    from eval.regress import Baseline, compare, format_report, gate_metrics, load_baseline, save_baseline
+    from eval.regress import compare, format_report, gate_metrics, load_baseline, update_baseline
 
     suite = result.suite
     path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
@@ -413,9 +412,7 @@ def _gate(args: argparse.Namespace, result) -> int:
             print(f"not updating {path}: {len(result.failed)} run(s) failed, {len(result.skipped_methods)} method(s) "
                   "skipped", file=sys.stderr)  # fmt: skip
             return 1
-        old = load_baseline(path) if path.exists() else Baseline({})
-        new = replace(old, metrics=metrics, description=_baseline_description(suite))
-        save_baseline(new, path)
+        new = update_baseline(path, metrics, description=_baseline_description(suite))
         print(f"updated {path}: {len(metrics)} gated figures ({len(new.calibrated)} with calibrated tolerances; "
               f"recalibrate with --calibrate after a change of the methods' spread)")
         return 0

@@ -361,17 +361,21 @@ def save_baseline(baseline: Baseline, path: str | Path) -> Path:
 
 
 def update_baseline(
-    path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None
+    path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None,
+    description: str | None = None,
 ) -> Baseline:
-    """Replace the baseline's metrics by the run's (keeping its tolerances, or ``tolerances``); write and return it.
-
-    A missing baseline file is created with the default tolerances.
+    """Replace the baseline's metrics by the run's, keeping everything else it holds (tolerances, policy,
+    calibrated tolerances and their record), or ``tolerances`` / ``description`` where given; write and return it.
+    The one way a baseline's figures are rewritten (``cnnslam regress --update``, ``cnnslam bench
+    --update-baseline``). A missing baseline file is created with the default tolerances.
     """
     path = Path(path)
-    old = load_baseline(path) if path.exists() else None
-    rules = tuple(tolerances) if tolerances is not None else (old.tolerances if old else DEFAULT_TOLERANCES)
-    new = Baseline(dict(run_metrics), rules, old.description if old else "",
-                   old.calibrated if old else {}, old.calibration if old else {})  # fmt: skip
+    old = load_baseline(path) if path.exists() else Baseline({})
+    new = replace(old, metrics=dict(run_metrics))
+    if tolerances is not None:
+        new = replace(new, tolerances=tuple(tolerances))
+    if description is not None:
+        new = replace(new, description=description)
     save_baseline(new, path)
     return new
 

@@ -95,6 +95,16 @@ def test_files_and_suite_flattening(tmp_path):
     (tmp_path / "results" / "base.json").write_text(json.dumps(custom))
     kept = update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.4})
     assert kept.tolerances == (Tolerance("*", "higher"),) and kept.metrics == {"x/ate_rmse": 0.4}
+    # a two-sided, calibrated baseline keeps its policy and calibration through an update (the gate cannot be
+    # loosened by accident)
+    custom = json.loads((tmp_path / "results" / "base.json").read_text())
+    custom.update(policy="two-sided", calibrated={"x/ate_rmse": {"spread": 0.01, "allowed": 0.02}},
+                  calibration={"how": "test"})
+    (tmp_path / "results" / "base.json").write_text(json.dumps(custom))
+    update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.3})
+    again = load_baseline(tmp_path / "results" / "base.json")
+    assert again.policy == "two-sided" and again.calibrated == {"x/ate_rmse": {"spread": 0.01, "allowed": 0.02}}
+    assert again.calibration == {"how": "test"} and again.metrics == {"x/ate_rmse": 0.3}
 
 
 def test_command_line_exit_codes(tmp_path, capsys):
