@@ -234,8 +234,8 @@ def runs_frame(records: Iterable[Mapping[str, Any]], run_ids: Iterable[str] | No
         meta = {k: v for k, v in (rec.get("metadata") or {}).items() if isinstance(v, str | int | float | bool)}
         for metric, value in rec["metrics"].items():
             rows.append({**base, **meta, "metric": metric, "value": math.nan if value is None else float(value)})
-    if not rows:
-        return pd.DataFrame(columns=[*LONG_COLUMNS, "run"])
+    if not rows:  # no run scored (all failed): the same columns, a numeric value column
+        return pd.DataFrame({c: pd.Series(dtype=float if c == "value" else object) for c in [*LONG_COLUMNS, "run"]})
     frame = pd.DataFrame(rows)
     first = [*LONG_COLUMNS, "run"]
     return frame[first + [c for c in frame.columns if c not in first]]

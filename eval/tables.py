@@ -35,6 +35,7 @@ _QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 def cell_statistics(frame: pd.DataFrame) -> pd.DataFrame:
     """Per (sequence, method, metric): ``runs`` (finite values), ``median``, ``q1``, ``q3`` (quartiles, linear
     interpolation), ``min``, ``max`` over its runs; NaN values (a metric a run could not compute) are left out."""
+    frame = frame.assign(value=pd.to_numeric(frame["value"], errors="coerce"))  # an empty frame's may be object
     values = frame.dropna(subset=["value"]).groupby(["sequence", "method", "metric"], sort=False)["value"]
     stats = values.agg(runs="count", median="median", min="min", max="max")
     stats["q1"] = values.quantile(0.25)

@@ -96,3 +96,17 @@ def test_cells_are_medians_with_their_range_and_the_average_is_per_seed():
     assert t.at["Avg.", col] == 2.5 and (lo.at["Avg.", col], hi.at["Avg.", col]) == (2.0, 6.0)
     md = table_to_markdown(t, spread=(lo, hi))
     assert "| a | 2.000 [1.000, 9.000] |" in md and "| b | 3.000 |" in md  # runs that agree: a bare number
+
+
+def test_a_suite_whose_runs_all_failed_gives_empty_tables_not_an_error():
+    """No run scored (every run of a crashing agent failed): the long frame is empty with a numeric value column,
+    and the statistics and Table 1 come out empty instead of pandas' quantile error on an object column."""
+    from eval.results import runs_frame
+    from eval.tables import cell_statistics
+
+    frame = runs_frame([])
+    assert frame.empty and frame["value"].dtype == float
+    assert cell_statistics(frame).empty
+    as_objects = pd.DataFrame({c: pd.Series(dtype=object) for c in ("sequence", "method", "metric", "value")})
+    assert cell_statistics(as_objects).empty
+    assert table1(frame).empty or table1(frame).isna().all().all()
