@@ -11,6 +11,7 @@ import argparse
 import sys
 from typing import Any
 
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import export_tum_rgbd
 from sim_envs.errors import SimEnvError
 
@@ -20,10 +21,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("folder", help="output folder (must not exist or be empty, unless --overwrite)")
     parser.add_argument("--renderer", default="mujoco", help="renderer backend (default: mujoco)")
     parser.add_argument("--frames", type=int, default=None, help="export only the first N frames")
-    parser.add_argument("--camera-effects", default="clean", metavar="PRESET",
-                        help="simulated camera (sim_envs.camera_effects): clean (default, the renderer's images), "
-                             "kinect or hard; a non-clean camera also writes its photometric calibration "
-                             "(times.txt, pcalib.txt, vignette.png) and camera files")  # fmt: skip
+    parser.add_argument("--camera-effects", default=DEFAULT_CAMERA_EFFECTS, metavar="PRESET",
+                        help=f"simulated camera (sim_envs.camera_effects): {DEFAULT_CAMERA_EFFECTS} (default, the "
+                             "one the suites score), clean (the renderer's images) or hard; a non-clean camera also "
+                             "writes its photometric calibration (times.txt, pcalib.txt, vignette.png) and camera "
+                             "files")  # fmt: skip
     parser.add_argument("--lighting", default="flat", metavar="LIGHTING",
                         help="flat (default) or lit: the room with lamps, shadows and highlights "
                              "(sim_envs/lighting.py; mujoco renderer only)")  # fmt: skip
@@ -31,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def open_sequence(name: str, renderer: str, camera_effects: str = "clean", lighting: str = "flat") -> Any:
+def open_sequence(name: str, renderer: str, camera_effects: str = DEFAULT_CAMERA_EFFECTS, lighting: str = "flat",
+                  ) -> Any:
     """A registered sequence, seen through the ``camera_effects`` preset in its room lit ``lighting``, as a frame
     source (lazy imports: the registry pulls in scenes and renderers)."""
     from dataclasses import replace

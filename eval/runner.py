@@ -53,7 +53,7 @@ from eval.errors import EvalError
 from eval.executors import Executor, SerialExecutor
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
 from eval.results import evaluate_episode, json_ready, load_run
-from eval.suites import SequenceRef, Suite, rotation_share
+from eval.suites import DEFAULT_SIM_CAMERA, SequenceRef, Suite, rotation_share
 from eval.trajectory import PoseTrajectory
 
 RUN_FILES: tuple[str, ...] = (
@@ -258,13 +258,17 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
 
     ref, method = spec.sequence, spec.method
     folder = Path(method.folder or "")
-    candidates = [folder / ref.name / "trajectory.txt", folder / f"{ref.name}.txt"]
+    names = [ref.name]
+    if ref.base is not None and dict(ref.overrides) == {"camera_effects": DEFAULT_SIM_CAMERA}:
+        names.append(ref.base)  # `cnnslam export office0 data/office0` exports office0 through the default camera
+    candidates = [p for name in names for p in (folder / name / "trajectory.txt", folder / f"{name}.txt")]
     path = next((p for p in candidates if p.is_file()), None)
     if path is None:
         raise RunnerError(
             f"external method {method.name!r}: no trajectory for {ref.name!r}; looked for "
             f"{', '.join(str(p) for p in candidates)}"
         )
+    sequence_dir = path.parent if path.name == "trajectory.txt" else folder / ref.name  # its depth/, run.toml
     source = ref.make_source(spec.renderer)
     source_info = _source_info(source)
     try:
@@ -276,7 +280,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
         T_est = est.T_world_cam[assoc.est_indices]
         stamps = gt.timestamps[assoc.gt_indices]
         keyframes, keyframe_gt = [], []
-        depth_dir = folder / ref.name / "depth"
+        depth_dir = sequence_dir / "depth"
         files = sorted(depth_dir.glob("*.png")) + sorted(depth_dir.glob("*.npy")) if depth_dir.is_dir() else []
         for file in files:
             t = float(file.stem)
@@ -301,7 +305,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
         step_seconds=np.zeros(0),
         extras={"trajectory_file": str(path), "depth_files": len(files), "association": assoc.describe(),
                 "duplicate_timestamps": dropped,
-                "own_wall_s": _declared_wall_s(folder / ref.name / RUN_SIDE_FILE)},
+                "own_wall_s": _declared_wall_s(sequence_dir / RUN_SIDE_FILE)},
     )
     return episode, n, source_info
 

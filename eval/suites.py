@@ -52,6 +52,7 @@ from scipy.spatial.transform import Rotation
 
 from eval.errors import EvalError
 from sim_envs.camera import camera_presets, preset
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import (
     LOADER_VERSION,
     PROCESSING_SIZE,
@@ -539,9 +540,8 @@ TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", 
 TRANSFER_METHODS: tuple[str, ...] = tuple(m for m in TABLE1_METHODS if m != "oracle")
 # camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
 SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
-# the camera every suite sees its simulated sequences through unless --camera says otherwise (a hand-held RGB-D
-# camera calibrated on real Kinect frames: results/camera_calibration.md)
-DEFAULT_SIM_CAMERA = "kinect"
+# the camera every suite sees its simulated sequences through unless --camera says otherwise (the world's default)
+DEFAULT_SIM_CAMERA = DEFAULT_CAMERA_EFFECTS
 
 
 def sim_camera_presets() -> list[str]:

@@ -194,6 +194,10 @@ class CameraEffects:
 
 
 # --------------------------------------------------------------------------------------------------------- presets
+# The camera every command that renders a simulated sequence sees it through unless told otherwise (bench, generate,
+# export, train validate): a hand-held RGB-D camera calibrated on real Kinect frames (results/camera_calibration.md).
+DEFAULT_CAMERA_EFFECTS = "kinect"
+
 _PRESETS: dict[str, CameraEffects] = {
     # The renderer's image, byte for byte (what every sequence gave before camera effects existed).
     "clean": CameraEffects(name="clean"),

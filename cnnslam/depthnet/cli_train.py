@@ -55,6 +55,7 @@ from cnnslam.depthnet.data import AugmentConfig, GenerationConfig, generate_data
 from cnnslam.depthnet.model import ModelConfig
 from cnnslam.depthnet.train import TrainConfig, train
 from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -112,8 +113,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     v = sub.add_parser("validate", help="score weights on the test sequences; write results/depthnet.*")
     v.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
     v.add_argument("--frames", type=int, default=40, help="frames per test sequence")
-    v.add_argument("--camera", default="clean", metavar="PRESET",
-                   help="the world's camera the test sequences are seen through (clean, kinect, hard; default clean)")
+    v.add_argument("--camera", default=DEFAULT_CAMERA_EFFECTS, metavar="PRESET",
+                   help="the world's camera the test sequences are seen through (clean, kinect, hard; default "
+                        f"{DEFAULT_CAMERA_EFFECTS}, the one the suites score)")
     v.add_argument("--results", type=Path, default=Path("results"))
     v.add_argument("--threads", type=int, default=2)
     v.add_argument("--update-manifest", action="store_true",

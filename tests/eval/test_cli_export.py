@@ -67,3 +67,29 @@ def test_export_command_lighting(tmp_path, capsys):
                  "pyrender"]) == 1  # fmt: skip
     assert "mujoco renderer only" in capsys.readouterr().err
     assert cli_export.open_sequence("office0", "mujoco", "kinect", "lit").spec.lighting == "lit"
+
+
+def test_the_readmes_through_files_recipe_works_as_written(tmp_path, monkeypatch, capsys):
+    """README, "Through files": ``cnnslam export office0 data/office0``, a system writes OUT/office0/trajectory.txt
+    from the exported images, ``cnnslam bench table1 --external MySLAM=OUT`` scores it (here at 12 frames, one
+    sequence, the external method alone). The export shows the images the suite scores (the default camera)."""
+    from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.simsource import SimulatedSequence
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["export", "office0", "data/office0", "--frames", "12", "--no-progress"]) == 0
+    folder = RgbdFolder(tmp_path / "data" / "office0")
+    with SimulatedSequence(with_camera(get_sequence("office0"), DEFAULT_CAMERA_EFFECTS)) as scored:
+        assert np.array_equal(folder.frame(0).rgb, scored.frame(0).rgb)
+    # "run your system": a perfect one, answering the exported ground truth at the exported time stamps
+    (tmp_path / "OUT" / "office0").mkdir(parents=True)
+    (tmp_path / "OUT" / "office0" / "trajectory.txt").write_text(
+        (tmp_path / "data" / "office0" / "groundtruth.txt").read_text())
+    capsys.readouterr()
+    code = main(["bench", "table1", "--external", "MySLAM=OUT", "--methods", "MySLAM", "--sequences", "office0",
+                 "--frames", "12", "--runs", "1", "--no-plots", "--no-progress", "--results", "res"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    table = (tmp_path / "res" / "table1.md").read_text()
+    assert "0 failed" in out and "| office0@kinect (ICL/office0) | 0.000 |" in table
