@@ -641,9 +641,12 @@ class Suite:
             camera = None
         if camera is not None or size is not None:
             if not any(r.folder is not None for r in refs):
-                raise SuiteError("--camera (a calibration) and --image-size apply to folder sequences, and none is "
-                                 f"selected; simulated sequences take a camera preset: "
-                                 f"{', '.join(sim_camera_presets())}")  # fmt: skip
+                if camera is not None:  # most likely a misspelt preset
+                    raise SuiteError(f"unknown camera preset {camera!r} for simulated sequences; valid presets: "
+                                     f"{', '.join(sim_camera_presets())} (a calibration preset or camera file applies "
+                                     "to folder sequences only)")  # fmt: skip
+                raise SuiteError("--image-size applies to folder sequences, and none is selected (simulated sequences "
+                                 "render at their own size)")  # fmt: skip
             refs = tuple(r.with_folder_options(camera, size) if r.folder is not None else r for r in refs)
         if frames is not None and frames != "all" and int(frames) < 2:
             raise SuiteError(f"--frames must be >= 2, got {frames}")

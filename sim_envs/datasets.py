@@ -195,7 +195,8 @@ def export_tum_rgbd(
     """
     folder = Path(folder)
     if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or pass overwrite=True")
+        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
+                           "(overwrite=True; --overwrite on the command line)")
     n = len(source) if max_frames is None else min(int(max_frames), len(source))
     if n <= 0:
         raise SimEnvError(f"nothing to export: the source {source.name!r} has no frames (max_frames={max_frames})")
@@ -351,7 +352,8 @@ def write_folder(
         raise SimEnvError(f"image_format must be png or jpg, got {image_format!r}")
     folder = Path(folder)
     if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or pass overwrite=True")
+        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
+                           "(overwrite=True; --overwrite on the command line)")
     n = len(source) if max_frames is None else min(int(max_frames), len(source))
     if n <= 0:
         raise SimEnvError(f"nothing to write: the source {source.name!r} has no frames (max_frames={max_frames})")

@@ -187,7 +187,10 @@ def test_bench_with_a_folder_path(folders, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "is not a folder" in err and len(err.strip().splitlines()) == 1
     assert bench(tmp_path, "table1", "--sequences", "office0", "--camera", "tum_fr1", *SMALL) == 2
-    assert "apply to folder sequences" in capsys.readouterr().err
+    assert "applies to folder sequences only" in capsys.readouterr().err
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--camera", "kinectt", *SMALL) == 2
+    err = capsys.readouterr().err
+    assert "unknown camera preset 'kinectt'" in err and "kinect" in err and len(err.strip().splitlines()) == 1
     assert bench(tmp_path, "table1", "--sequences", path, "--image-size", "big", *SMALL) == 2
     assert "--image-size must be WIDTHxHEIGHT" in capsys.readouterr().err
 
