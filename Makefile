@@ -1,6 +1,8 @@
 # The two commands a newcomer needs (see README.md):
 #   make bench   create .venv, install, run the main job (the Table-1 suite at bench size)
-#   make test    create .venv if needed, lint, run the tests
+#   make test    create .venv if needed, lint, run the tests (all of them: what CI runs)
+# and the inner loop's lane:
+#   make check   lint and the tests not marked slow (the agent-run gates, the speed gate, whole-suite runs)
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -12,7 +14,7 @@ JOBS   ?= 2
 # reused.
 BENCH_FRAMES ?= 200
 
-.PHONY: bench test venv lint clean
+.PHONY: bench test check venv lint clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -26,6 +28,9 @@ lint: venv
 
 test: venv lint
 	$(BIN)/python -m pytest -n $(JOBS) --dist loadfile -q
+
+check: venv lint
+	$(BIN)/python -m pytest -n $(JOBS) --dist loadfile -q -m "not slow"
 
 bench: venv
 	$(BIN)/cnnslam bench table1 --frames $(BENCH_FRAMES) --jobs $(JOBS)

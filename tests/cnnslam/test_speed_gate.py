@@ -14,6 +14,8 @@ import cnnslam.system
 from cnnslam.bench_slam import benchmark
 from eval.perf import SPEED_GATED, load_speed_baseline, speed_regressions
 
+pytestmark = pytest.mark.slow  # agent runs timed against a baseline: the full lane (make test), not make check
+
 
 @pytest.fixture(scope="module")
 def baseline():
