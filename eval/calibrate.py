@@ -102,10 +102,12 @@ def environment(env: Mapping[str, str]) -> Iterator[None]:
 
 
 def run_configuration(suite: Suite, methods: Mapping[str, Any], out_root: Path, config: Perturbation,
-                      progress: bool = True) -> SuiteRun:
-    """The suite's runs under one configuration of the matrix, in ``out_root / config.name``."""
+                      progress: bool = True, renderer: str = "mujoco", timeout_s: float | None = None) -> SuiteRun:
+    """The suite's runs under one configuration of the matrix, in ``out_root / config.name``, rendered with
+    ``renderer``, each stopped after ``timeout_s`` seconds (None: no limit)."""
     with environment(config.env):
-        return run_suite(suite, methods, Path(out_root) / config.name, executor=LocalExecutor(jobs=config.jobs),
+        return run_suite(suite, methods, Path(out_root) / config.name,
+                         executor=LocalExecutor(jobs=config.jobs, timeout_s=timeout_s), renderer=renderer,
                          plots=False, progress=progress)  # fmt: skip
 
 
@@ -116,12 +118,15 @@ def measure(
     matrix: Sequence[Perturbation] = MATRIX,
     progress: bool = True,
     on_config: Callable[[Perturbation, SuiteRun], None] | None = None,
+    renderer: str = "mujoco",
+    timeout_s: float | None = None,
 ) -> dict[str, list[dict[str, Any]]]:
     """The run records of ``suite`` under every configuration of ``matrix`` (configuration name -> records); runs
-    already finished in a configuration's folder are reused."""
+    already finished in a configuration's folder are reused. ``renderer`` and ``timeout_s``: as for every run of
+    the suite; the pools are the configurations' own (their job counts are part of the matrix)."""
     records: dict[str, list[dict[str, Any]]] = {}
     for config in matrix:
-        run = run_configuration(suite, methods, Path(out_root) / "calibrate", config, progress)
+        run = run_configuration(suite, methods, Path(out_root) / "calibrate", config, progress, renderer, timeout_s)
         if on_config is not None:
             on_config(config, run)
         records[config.name] = list(run.records)

@@ -50,6 +50,7 @@ from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_ca
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
 GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
+DEFAULT_JOBS = 2  # runs in parallel: one per core of the 2-core machines the suites are sized for
 
 
 def _names(values: list[str] | None) -> list[str] | None:
@@ -85,7 +86,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, default=None, metavar="N",
                         help="runs per cell, seeds 0..N-1 (default: 3); eval/methods.toml says what a seed changes")
     parser.add_argument("--seeds", nargs="+", type=int, metavar="N", help="these seeds instead of --runs")
-    parser.add_argument("--jobs", type=int, default=2, help="runs in parallel (default: 2)")
+    parser.add_argument("--jobs", type=int, default=DEFAULT_JOBS, help=f"runs in parallel (default: {DEFAULT_JOBS})")
     parser.add_argument("--executor", choices=EXECUTORS, default="local",
                         help="local process pool (spawn, default), serial (in this process) or ray")  # fmt: skip
     parser.add_argument("--address", default=None, help="Ray cluster address (auto, ray://host:10001, local)")
@@ -268,7 +269,7 @@ def run(args: argparse.Namespace) -> int:
               f"dataset list is {dataset_list_file()})", file=sys.stderr)  # fmt: skip
         return 0 if args.allow_skips and suite.skipped else 1
     if args.calibrate:
-        return _calibrate(args, suite, methods)
+        return _calibrate(args, suite, methods, command)
     try:
         result = _run_suite(args, suite, methods, executor)
     except KeyboardInterrupt:
@@ -347,8 +348,9 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
     return status
 
 
-def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
-    """``--calibrate``: the suite under every configuration of the matrix, then its baseline (see eval.calibrate)."""
+def _calibrate(args: argparse.Namespace, suite, methods: dict, command: str) -> int:
+    """``--calibrate``: the suite under every configuration of the matrix, then its baseline (see eval.calibrate)
+    and the suite's report from the reference configuration's runs."""
     from eval.calibrate import (
         MATRIX,
         calibrated_baseline,
@@ -359,16 +361,24 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
         save_machine_record,
     )
     from eval.regress import save_baseline
+    from eval.reports import write_report
     from eval.runner import git_revision
 
+    if args.executor != "local" or args.jobs != DEFAULT_JOBS or args.reuse_workers:
+        print("cnnslam bench: error: --calibrate runs its matrix's own local pools (2 runs at a time, then 1 with 2 "
+              "threads; eval/calibrate.py): --executor, --jobs and --reuse-workers do not apply", file=sys.stderr)
+        return 2
     failed: list[str] = []
+    runs: dict[str, object] = {}
 
     def note(config, run) -> None:
         print(f"{config.name}: {len(run.specs)} runs, {len(run.failed)} failed ({config.description})")
         failed.extend(f"{config.name}: {o.key}: {o.error}" for o in run.failed)
+        runs[config.name] = run
 
     try:
-        records = measure(suite, methods, args.out, progress=not args.no_progress, on_config=note)
+        records = measure(suite, methods, args.out, progress=not args.no_progress, on_config=note,
+                          renderer=args.renderer, timeout_s=args.timeout)
     except KeyboardInterrupt:
         print("cnnslam bench: calibration interrupted; finished runs are kept", file=sys.stderr)
         return 130
@@ -385,6 +395,8 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict) -> int:
         print(f"left out of the calibration: {why}")
     baseline = calibrated_baseline(suite, records, _baseline_description(suite), MATRIX, machines=machines)
     save_baseline(baseline, path)
+    paths = write_report(runs[MATRIX[0].name], results_folder(args, suite, command), command)
+    print("wrote " + ", ".join(str(p) for p in paths) + f" (the {MATRIX[0].name} configuration's runs)")
     holdout = baseline.calibration["holdout"]
     print(f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "
           f"false alarms {holdout['alarms']} of {holdout['comparisons']} comparisons "

@@ -145,3 +145,20 @@ def test_align_chooses_the_headline_ate(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:  # argparse rejects an unknown alignment, listing the valid ones
         bench(tmp_path, *args, "--align", "affine")
     assert exit_info.value.code == 2 and "invalid choice: 'affine'" in capsys.readouterr().err
+
+
+def test_calibrate_writes_the_baseline_and_the_report_with_the_runs_options(tmp_path, capsys):
+    """``--calibrate`` on a tiny selection: every configuration of the matrix runs (with --timeout and --renderer
+    passed on), the baseline is written two-sided with its calibration, and the suite's report from the reference
+    configuration's runs; options the matrix's own pools cannot honour are refused with one line."""
+    baseline = tmp_path / "baselines" / "quick.json"
+    args = ["quick", "--sequences", "office0", "--methods", "oracle", "--frames", "5", "--runs", "1", "--no-plots",
+            "--no-progress", "--baseline", str(baseline), "--calibrate"]
+    assert bench(tmp_path, *args, "--executor", "serial") == 2
+    err = capsys.readouterr().err
+    assert "--executor, --jobs and --reuse-workers do not apply" in err and len(err.strip().splitlines()) == 1
+    assert bench(tmp_path, *args, "--timeout", "600", "--renderer", "mujoco") == 0, capsys.readouterr()
+    stored = json.loads(baseline.read_text())
+    assert stored["policy"] == "two-sided" and stored["calibration"]["reference"] == "reference"
+    assert (tmp_path / "results" / "quick.md").is_file()
+    assert "(the reference configuration's runs)" in capsys.readouterr().out

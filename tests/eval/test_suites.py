@@ -153,7 +153,8 @@ def test_a_camera_preset_applies_to_simulated_sequences_and_a_calibration_to_fol
     assert rot.name == "rot_yaw_30@hard" and rot.spec().camera_effects == "hard"
     with pytest.raises(SuiteError, match="camera-effects presets of simulated sequences: clean, hard, kinect"):
         SequenceRef("office0", base="office0").with_camera_effects("kinnect")
-    with pytest.raises(SuiteError, match="simulated sequences take a camera preset"):
+    with pytest.raises(SuiteError, match="unknown camera preset 'tum_fr1' for simulated sequences; valid presets: "
+                                         "clean, hard, kinect"):
         get_suite("table1").select(["office0"], camera="tum_fr1")  # a folder calibration on a simulated sequence
 
 
