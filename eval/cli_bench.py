@@ -45,7 +45,17 @@ from pathlib import Path
 
 from eval.errors import EvalError
 from eval.executors import EXECUTORS, make_executor
-from eval.methods import ALIGNMENTS, EXTERNAL_LAYOUT, MethodError, load_methods, merge_methods, parse_external
+from eval.methods import (
+    ALIGNMENTS,
+    EXTERNAL_LAYOUT,
+    MethodError,
+    load_methods,
+    merge_methods,
+    parse_external,
+    parse_setting,
+    takes_config,
+    with_settings,
+)
 from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_camera_presets
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
@@ -108,6 +118,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "them (each run records its revision)")  # fmt: skip
     parser.add_argument("--allow-skips", action="store_true",
                         help="exit 0 even when a requested method or external folder was skipped")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one configuration field of every chosen agent that takes one (repeatable; "
+                             "e.g. refinement.enabled=false); the runs' fingerprints carry it")  # fmt: skip
     parser.add_argument("--override", action="store_true",
                         help="let --method-file redefine a built-in method of the same name")
     parser.add_argument("--external", action="append", default=[], metavar="NAME=FOLDER",
@@ -240,6 +253,14 @@ def run(args: argparse.Namespace) -> int:
         if unknown:
             raise MethodError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(methods)}")
         chosen += [m.name for m in externals if m.name not in chosen]
+        if args.set:  # into every chosen agent that takes a configuration; its runs' fingerprints carry them
+            settings = [parse_setting(text) for text in args.set]
+            configurable = [name for name in chosen if takes_config(methods[name])]
+            if not configurable:
+                raise MethodError(f"--set: none of the chosen methods ({', '.join(chosen)}) takes a configuration")
+            methods = {**methods, **{name: with_settings(methods[name], settings) for name in configurable}}
+            print(f"--set {' '.join(args.set)}: applied to {', '.join(configurable)} (cnnslam config METHOD --set ... "
+                  "prints the result)")
         camera, presets = args.camera, None
         sim_domains = {p for c in sim_camera_presets() for p in (c, f"{c}+lit")}
         if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= sim_domains:

@@ -23,10 +23,11 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
+import inspect
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, get_args
 
@@ -458,3 +459,45 @@ def check_methods(methods: Sequence[Method], build: bool = True) -> MethodCheck:
         else:
             skipped[method.name] = reason
     return MethodCheck(tuple(ok), skipped)
+
+
+# ------------------------------------------------------------------------------------------------------- settings
+def parse_setting(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` (``--set``; CNN-SLAM's keys are ``SECTION.FIELD``, ORB's plain field names) as ``(key,
+    value)``: the value read as a TOML value (``true``, ``0.5``, ``"name"``, ``[1, 2]``), else kept as the bare
+    string. One clear error for text without ``=`` or a key; the agent itself names an unknown key."""
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key or not all(part.strip() for part in key.split(".")):
+        raise MethodError(f"--set takes KEY=VALUE (e.g. refinement.enabled=false), got {text!r}")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key, value
+
+
+def takes_config(method: Method) -> bool:
+    """Whether the method's agent takes a ``config`` keyword (a dotted-key override dict, as CNN-SLAM's agents)."""
+    if method.kind != "agent" or not method.entry_point:
+        return False
+    module_name, _, attr = method.entry_point.partition(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attr)
+        return "config" in inspect.signature(factory).parameters
+    except (ImportError, AttributeError, TypeError, ValueError):
+        return False
+
+
+def with_settings(method: Method, settings: Sequence[tuple[str, Any]]) -> Method:
+    """``method`` with ``settings`` (``(dotted key, value)``, later ones win) merged into its agent's ``config``
+    keyword: a new method whose keyword arguments, and so whose run fingerprints, carry them. :class:`MethodError`
+    when the agent takes no configuration."""
+    if not settings:
+        return method
+    if not takes_config(method):
+        raise MethodError(f"method {method.name!r} ({method.entry_point or method.kind}) takes no configuration to "
+                          "--set")
+    kwargs = {k: _thaw(v) for k, v in method.kwargs}
+    kwargs["config"] = {**(kwargs.get("config") or {}), **dict(settings)}
+    return replace(method, kwargs=kwargs)

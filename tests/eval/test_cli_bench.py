@@ -162,3 +162,24 @@ def test_calibrate_writes_the_baseline_and_the_report_with_the_runs_options(tmp_
     assert stored["policy"] == "two-sided" and stored["calibration"]["reference"] == "reference"
     assert (tmp_path / "results" / "quick.md").is_file()
     assert "(the reference configuration's runs)" in capsys.readouterr().out
+
+
+def test_set_overrides_a_configuration_in_bench_and_config(tmp_path, capsys):
+    """``--set`` puts a field into the agents' configuration: ``cnnslam config`` prints it, ``bench`` runs with it
+    (another fingerprint: the runs are made again, not reused), and a method without a configuration refuses."""
+    assert main(["config", "CNN-SLAM", "--set", "refinement.enabled=false", "--set", "tracking.min_gradient=7"]) == 0
+    text = capsys.readouterr().out
+    refinement = text.split("[refinement]\n", 1)[1]
+    assert refinement.startswith("enabled = false") and "min_gradient = 7" in text.split("[tracking]", 1)[1]
+    assert main(["config", "CNN-SLAM", "--set", "refinement.bogus=1"]) == 2
+    assert "unknown config field 'refinement.bogus'" in capsys.readouterr().err
+    args = ["table1", "--sequences", "office0", "--methods", "LSD-BS", *SMALL]
+    assert bench(tmp_path, *args) == 0
+    assert bench(tmp_path, *args, "--set", "refinement.enabled=false") == 0
+    out = capsys.readouterr().out
+    assert "applied to LSD-BS" in out and "1 run now, 0 reused" in out
+    record = json.loads((tmp_path / "runs" / "table1" / "office0@kinect" / "LSD-BS" / "seed0-frames6" /
+                         "metrics.json").read_text())
+    assert '"refinement.enabled": false' in record["metadata"]["agent_kwargs"]
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", "--set", "a.b=1", *SMALL) == 2
+    assert "none of the chosen methods (oracle) takes a configuration" in capsys.readouterr().err
