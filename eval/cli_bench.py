@@ -118,6 +118,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "them (each run records its revision)")  # fmt: skip
     parser.add_argument("--allow-skips", action="store_true",
                         help="exit 0 even when a requested method or external folder was skipped")
+    parser.add_argument("--no-frame-cache", action="store_true",
+                        help="render every run's frames anew (default: a simulated sequence is rendered once and its "
+                             "frames read back by the suite's other runs from <out>/.frames/: the same bytes)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one configuration field of every chosen agent that takes one (repeatable; "
                              "e.g. refinement.enabled=false); the runs' fingerprints carry it")  # fmt: skip
@@ -329,7 +332,8 @@ def _run_suite(args: argparse.Namespace, suite, methods: dict, executor):
 
     return run_suite(suite, methods, args.out, executor=executor, renderer=args.renderer,
                      plots=not args.no_plots, progress=not args.no_progress, check=not args.no_check,
-                     rerun=args.rerun, report_only=args.report_only)  # fmt: skip
+                     rerun=args.rerun, report_only=args.report_only,
+                     frame_cache=not args.no_frame_cache)  # fmt: skip
 
 
 def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str,

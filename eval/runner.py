@@ -39,7 +39,7 @@ import time
 import traceback
 import uuid
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any, Literal
@@ -68,6 +68,7 @@ RUN_FILES: tuple[str, ...] = (
 )
 DONE_FILE = "metrics.json"
 FAILED_FILE = "failed.json"
+FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames rendered once, read by its other runs
 RunStatus = Literal["done", "cached", "failed"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
@@ -90,6 +91,7 @@ class RunSpec:
     renderer: str = "mujoco"
     plots: bool = True
     git_revision: str | None = None
+    frame_cache: str | None = None  # where simulated frames are kept once rendered (same bytes; not fingerprinted)
 
     @property
     def relpath(self) -> Path:
@@ -235,7 +237,7 @@ def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] |
     from sim_envs.driver import run_episode
 
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
-    env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer)
+    env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
     try:
         return run_episode(env, agent, progress=progress), _source_info(env.unwrapped.source)
     finally:
@@ -269,7 +271,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
             f"{', '.join(str(p) for p in candidates)}"
         )
     sequence_dir = path.parent if path.name == "trajectory.txt" else folder / ref.name  # its depth/, run.toml
-    source = ref.make_source(spec.renderer)
+    source = ref.make_source(spec.renderer, spec.frame_cache)
     source_info = _source_info(source)
     try:
         n = len(source) if spec.frames is None else min(len(source), int(spec.frames))
@@ -592,6 +594,7 @@ def run_suite(
     on_result: Callable[[RunOutcome], None] | None = None,
     rerun: bool = False,
     report_only: bool = False,
+    frame_cache: bool = True,
 ) -> SuiteRun:
     """Run every unfinished run of ``suite`` (its methods looked up in ``methods``) and gather the records.
 
@@ -602,7 +605,8 @@ def run_suite(
     a ``metrics.json``, whatever code made it (each record names its git revision), and report the others failed
     ("not run"): for rewriting tables after a change of the report code, without rerunning. Ctrl-C
     (KeyboardInterrupt) stops the executor and propagates;
-    the runs finished before it are stored.
+    the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence and read
+    back by the suite's other runs, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes).
     """
     unknown = [m for m in suite.methods if m not in methods]
     if unknown:
@@ -626,7 +630,7 @@ def run_suite(
         elif not rerun and is_finished(out_root, spec):
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
-            todo.append(spec)
+            todo.append(replace(spec, frame_cache=str(out_root / FRAME_CACHE_DIR)) if frame_cache else spec)
     serial = isinstance(executor, SerialExecutor)
     fn = partial(execute_run, progress=progress and serial)
     with tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar:

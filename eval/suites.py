@@ -62,6 +62,7 @@ from sim_envs.datasets import (
     folder_fingerprint,
 )
 from sim_envs.errors import SimEnvError
+from sim_envs.frame_cache import CachedFrames, cache_key
 from sim_envs.scene import LIGHTINGS
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
@@ -206,28 +207,33 @@ class SequenceRef:
             spec = rotation_stress_spec(axes, float(speed))
         return replace(spec, name=self.name, **dict(self.overrides)) if not self.registered else spec
 
-    def make_source(self, renderer: str = "mujoco") -> Any:
+    def make_source(self, renderer: str = "mujoco", frame_cache: str | Path | None = None) -> Any:
         """The frame source (lazy: nothing is rendered or generated until used; a folder's frames are read from
-        disk when asked for). ``renderer`` does not apply to a folder."""
+        disk when asked for). ``renderer`` does not apply to a folder. ``frame_cache``: a folder under which a
+        simulated source keeps the frames it rendered (:class:`sim_envs.frame_cache.CachedFrames`; same bytes)."""
         if self.folder is not None:
             size = None if self.size == "native" else self.size
             return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name)
         if self.focal_ratio is None and self.added_pan_deg_s == 0.0:
-            return SimulatedSequence(self.spec(), renderer=renderer)
-        return VariantSequence(
-            self.spec(), renderer, name=self.name, focal_ratio=self.focal_ratio, added_pan_deg_s=self.added_pan_deg_s
-        )
+            source = SimulatedSequence(self.spec(), renderer=renderer)
+        else:
+            source = VariantSequence(self.spec(), renderer, name=self.name, focal_ratio=self.focal_ratio,
+                                     added_pan_deg_s=self.added_pan_deg_s)  # fmt: skip
+        if frame_cache is None:
+            return source
+        return CachedFrames(source, Path(frame_cache) / cache_key(self.describe(), renderer))
 
-    def make_env(self, max_frames: int | None = None, renderer: str = "mujoco") -> Any:
-        """The Gymnasium environment: ``sim_envs/<name>-v0`` when registered as is, else ``sim_envs/Replay-v0``
-        replaying :meth:`make_source`."""
+    def make_env(self, max_frames: int | None = None, renderer: str = "mujoco",
+                 frame_cache: str | Path | None = None) -> Any:
+        """The Gymnasium environment: ``sim_envs/<name>-v0`` when registered as is (never cached), else
+        ``sim_envs/Replay-v0`` replaying :meth:`make_source` (with ``frame_cache``)."""
         import gymnasium
 
         import sim_envs  # noqa: F401 - registers the environments
 
         if self.registered:
             return gymnasium.make(self.env_id, renderer=renderer, max_frames=max_frames)
-        return gymnasium.make(REPLAY_ENV_ID, source=self.make_source(renderer), max_frames=max_frames)
+        return gymnasium.make(REPLAY_ENV_ID, source=self.make_source(renderer, frame_cache), max_frames=max_frames)
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready definition (run metadata; part of a run's fingerprint). A folder's includes its resolved path

@@ -1,0 +1,48 @@
+"""The frame cache: a frame read back is the frame rendered, field for field and byte for byte; the folder's name
+changes with the source, the renderer and the numeric environment."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim_envs.frame_cache import CachedFrames, cache_key, world_source_hash
+from sim_envs.sequences import get_sequence, with_camera
+from sim_envs.simsource import SimulatedSequence
+
+
+def _same(a, b) -> bool:
+    fields = ("index", "timestamp", "rgb", "depth", "T_world_cam", "labels", "instances", "sensor_depth")
+    for name in fields:
+        x, y = getattr(a, name), getattr(b, name)
+        if x is None or y is None:
+            if x is not y:
+                return False
+        elif not (np.asarray(x).dtype == np.asarray(y).dtype and np.array_equal(x, y)):
+            return False
+    return True
+
+
+def test_frames_read_back_are_the_rendered_ones(tmp_path) -> None:
+    spec = with_camera(get_sequence("office0"), "kinect")  # noise, sensor depth: every field filled
+    with SimulatedSequence(spec) as plain:
+        expected = [plain.frame(i) for i in (0, 7)]
+    cached = CachedFrames(SimulatedSequence(spec), tmp_path / "office0")
+    try:
+        first = [cached.frame(i) for i in (0, 7)]  # rendered and stored
+        again = [cached.frame(i) for i in (0, 7)]  # read back
+        assert len(cached) == spec.n_frames and cached.name == spec.name
+        assert sorted(p.name for p in (tmp_path / "office0").iterdir()) == ["000000.npz", "000007.npz"]
+        for e, f, a in zip(expected, first, again, strict=True):
+            assert _same(e, f) and _same(e, a) and a.sensor_depth is not None
+        (tmp_path / "office0" / "000007.npz").write_bytes(b"broken")  # an interrupted copy is rendered again
+        assert _same(cached.frame(7), expected[1])
+    finally:
+        cached.close()
+
+
+def test_the_key_follows_source_renderer_and_environment(monkeypatch) -> None:
+    a = cache_key({"name": "office0"}, "mujoco")
+    assert a == cache_key({"name": "office0"}, "mujoco") and len(world_source_hash()) == 16
+    assert a != cache_key({"name": "office1"}, "mujoco") and a != cache_key({"name": "office0"}, "pyrender")
+    monkeypatch.setenv("NPY_DISABLE_CPU_FEATURES", "AVX512F")
+    assert cache_key({"name": "office0"}, "mujoco") != a
