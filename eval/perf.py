@@ -38,6 +38,8 @@ from eval.executors import available_cores
 from eval.results import json_ready
 
 PROBES_FILE: Path = Path(__file__).with_name("perf.toml")
+# before/after tables measured side by side at named revisions (hand-run, see its text), shown at the end of perf.md
+PERF_HISTORY: Path = Path(__file__).resolve().parents[1] / "results" / "perf_history.md"
 PERF_SCHEMA = "cnnslam-perf/1"
 _RENDER_ROW = re.compile(r"^(?P<style>\S+)\s+(?P<renderer>\S+)\s+(?P<outputs>\S+)\s+(?P<fps>\d+(\.\d*)?)\s*$")
 _METRIC_ROW = re.compile(r"^(?P<label>[^:#]+?):\s+(?P<value>\d+(\.\d*)?)\s*ms\s*$")
@@ -241,12 +243,13 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
             continue
         lines += ["| figure | value |", "|---|---:|"]
         for key, value in probe.figures.items():
-            text = f"{value:.2f}" if isinstance(value, float) else str(value)
+            text = (f"{value:.2f}" if abs(value) >= 1 or value == 0 else f"{value:.4g}") if isinstance(value, float) \
+                else str(value)
             lines.append(f"| {key} | {text} |")
         lines.append("")
     gate = report.speed_gate
     if gate is not None:
-        lines.append(f"## speed gate: frames per machine unit against `{gate['baseline']}`\n")
+        lines.append(f"## speed gate: frames per machine unit against `{_shown_path(gate['baseline'])}`\n")
         if gate.get("error"):
             lines.append(f"not judged: {gate['error']}\n")
         else:
@@ -255,7 +258,17 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
                 lines.append(f"| {key} | {row['value']:.4f} | {row['baseline']:.4f} | {row['slowdown']:.2f} | "
                              f"{gate['max_slowdown']:g} |")
             lines.append("\n" + ("**failed**: " + "; ".join(gate["failures"]) if gate["failures"] else "passed") + "\n")
+    if PERF_HISTORY.is_file():  # measured side by side at the revisions it names, not by this run
+        lines.append(PERF_HISTORY.read_text().rstrip("\n") + "\n")
     return "\n".join(lines) + "\n"
+
+
+def _shown_path(path: str | Path) -> str:
+    """``path`` relative to the repository when inside it (what a reader of results/ can follow)."""
+    try:
+        return Path(path).resolve().relative_to(PERF_HISTORY.parents[1]).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def run_perf(
