@@ -67,6 +67,7 @@ def _worst_errors(poses: np.ndarray, frames) -> tuple[float, float]:
     return t_err, r_err
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_frame_to_model_icp_tracks_exact_depth_and_keyframes_carry_the_adjusted_prediction(room, room_sequence):
     f_cur = float(np.mean(room.intrinsics[:2]))
     predictor = TablePredictor(room_sequence, f_cur)

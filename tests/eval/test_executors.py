@@ -278,6 +278,7 @@ def test_ray_missing_is_a_clear_error(monkeypatch):
         make_executor("ray")
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
     if os.environ.get("CI"):  # make test installs Ray (the dev extra): CI must not skip the distributed path
         import ray
@@ -309,6 +310,7 @@ def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
     assert json.loads(serial.files["metrics.json"])["metrics"]["ate_rmse"] < 1e-9  # the oracle: exact poses
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_fork_server_workers_give_the_bytes_of_spawned_ones():
     """A run in a worker forked from the preloaded fork server (after that server served other runs) writes the
     same bytes as in a freshly spawned interpreter: CNN-SLAM (network, numba kernels, threads) and LSD-BS."""

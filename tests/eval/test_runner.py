@@ -200,6 +200,7 @@ def test_an_external_systems_output_is_scored_like_an_agent(tmp_path):
     assert missing.status == "failed" and "no trajectory for 'office0'" in missing.error
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
     from eval.executors import LocalExecutor
 

@@ -104,6 +104,7 @@ def _rendered(n: int, lens: tuple[float, ...]):
 FRAMES, STEP = 300, 3
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_self_calibration_recovers_a_rendered_lens(tmp_path):
     from eval.metrics import evaluate_trajectory
     from eval.sfm_reference import reconstruct, reference_trajectory
@@ -129,6 +130,7 @@ def test_self_calibration_recovers_a_rendered_lens(tmp_path):
     assert metrics["ate_sim3_rmse"] < 0.02 and metrics["rot_deg_orient_rmse"] < 1.0  # on a 2.6 m path
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_the_reference_command_on_an_exported_folder(tmp_path, capsys):
     from cnnslam.cli import main
     from sim_envs.datasets import export_tum_rgbd, read_camera_file

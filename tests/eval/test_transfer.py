@@ -87,6 +87,7 @@ def test_bad_frames_are_named():
                                                          [ATE]))) is None  # fmt: skip
 
 
+@pytest.mark.slow  # > 5 s: the full lane only
 def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatch):
     """``cnnslam bench transfer`` end to end on tiny data: the simulated part cut to one 5-frame sequence, the real
     part a 6-frame 7-Scenes-layout folder listed in a dataset list; three methods, the identity pose the worst on
