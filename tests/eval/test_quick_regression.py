@@ -9,8 +9,10 @@ Proved here, as the baseline's calibration promises:
 - the network's outputs perturbed in their last bits in every run (what another CPU does) with torch's oneDNN off
   still pass: the gate holds across machines (two are measured in the baseline: its reference machine's figures
   and each record in results/baselines/machines/quick/ pass it, see docs/benchmarks.md);
-- four injected regressions of CNN-SLAM are each caught, and a change without effect does not alarm
-  (test_quick_regression_injected.py, a file of its own so that its runs go beside these on the other test worker);
+- four injected regressions of CNN-SLAM are each caught: refinement off, a 3 % depth scale bias, tracking at half
+  resolution, a 2 deg yaw bias in the answered poses (1 deg is below the gate's resolution for a heading bias: see
+  injected_regressions.toml); halving the tracking iterations changes no byte of any run
+  (the caps are never reached) and must not alarm;
 - a doctored run (a worse ATE, a worse depth, a lost run) fails.
 """
 
@@ -28,6 +30,7 @@ from eval.suites import get_suite
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]
 BASELINE = ROOT / "results" / "baselines" / "quick.json"
+INJECTED = Path(__file__).with_name("injected_regressions.toml")
 NETWORK_METHODS = ("CNN-SLAM", "Laina")  # the only quick-suite methods whose results depend on the network's bits
 
 
@@ -66,6 +69,39 @@ def test_the_gate_holds_with_the_network_perturbed_as_on_another_cpu(quick_run, 
     moved = [k for k, v in gate_metrics(perturbed.records).items() if k.split("/")[1] == "CNN-SLAM"
              and not math.isclose(v, reference[k], rel_tol=0, abs_tol=0)]  # fmt: skip
     assert moved, "the perturbation changed nothing: the switches did not reach the workers"
+
+
+@pytest.fixture(scope="module")
+def injected_runs(tmp_path_factory):
+    methods = load_methods(INJECTED)
+    suite = get_suite("quick").select(methods=list(methods))
+    out = tmp_path_factory.mktemp("injected-runs")
+    return run_configuration(suite, methods, out, MATRIX[0], progress=False)
+
+
+def _as_cnn_slam(run, injected):
+    assert not run.failed, [f"{o.key}: {o.error}" for o in run.failed]
+    records = [dict(r, method="CNN-SLAM") for r in run.records if r["method"] == injected]
+    assert len(records) == 9  # 3 sequences x 3 runs
+    return records
+
+
+@pytest.mark.parametrize(
+    "injected", ["refinement-off", "depth-scale-3pc", "tracking-half-resolution", "yaw-bias-2deg"]
+)
+def test_the_gate_catches_an_injected_regression(quick_run, injected_runs, baseline, injected):
+    figures = {**gate_metrics(quick_run.records), **gate_metrics(_as_cnn_slam(injected_runs, injected))}
+    report = compare(baseline, figures)
+    caught = [r.metric for r in report.rows if r.status in report.failing]
+    assert caught and all(m.split("/")[1] == "CNN-SLAM" for m in caught), format_report(report, True)
+
+
+def test_a_change_without_effect_does_not_alarm(quick_run, injected_runs, baseline):
+    records = _as_cnn_slam(injected_runs, "half-iterations")
+    reference = [r for r in quick_run.records if r["method"] == "CNN-SLAM"]
+    assert [r["metrics"] for r in records] == [r["metrics"] for r in reference]  # the same bytes, run by run
+    report = compare(baseline, {**gate_metrics(quick_run.records), **gate_metrics(records)})
+    assert report.passed, format_report(report, only_changes=True)
 
 
 def test_the_gate_fails_on_a_doctored_run(quick_run, baseline):
