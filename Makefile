@@ -9,9 +9,8 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
 # bench size of the Table-1 suite: the first BENCH_FRAMES frames of each of the 9 sequences x 7 methods x 3 runs
-# (one for the oracle, which takes no seed), JOBS runs at a time: 171 runs, about 3600 s of run time, 33 min on 2 cores
-# (see docs/benchmarks.md). Finished runs under runs/ are
-# reused.
+# (one for the oracle, which takes no seed), JOBS runs at a time: 171 runs, 20 min on a 2-core AMD EPYC
+# (results/perf_history.md). Finished runs under runs/ are reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= 200
 
 .PHONY: bench test check venv lint clean
