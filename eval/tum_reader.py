@@ -130,10 +130,9 @@ def read_tum_file(
     if duplicate_timestamps in DUPLICATE_POLICIES:
         try:
             text = path.read_bytes().decode("utf-8")
-        except (OSError, UnicodeDecodeError):
-            pass  # the reference says why
-        else:
             values = parse_plain_tum_text(text)
+        except (OSError, UnicodeDecodeError):
+            values = None  # unreadable: the reference reader below raises its own error, naming the file
     if values is not None:
         norms = np.linalg.norm(values[:, 4:8], axis=1)  # the reference's test, to the same bits
         steps = np.diff(values[:, 0])
