@@ -29,8 +29,9 @@ from typing import Any
 import numpy as np
 
 from cnnslam.config import ABLATIONS, BASELINES, CnnSlamConfig, ablation_config, baseline_config
-from cnnslam.depth_prediction import GroundTruthHint, make_predictor
+from cnnslam.depth_prediction import GroundTruthHint
 from cnnslam.errors import CnnSlamError
+from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam, SlamResult
 
 PRESETS: tuple[str, ...] = tuple(dict.fromkeys(BASELINES + ABLATIONS))

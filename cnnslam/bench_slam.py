@@ -32,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from cnnslam.config import CnnSlamConfig
-from cnnslam.depth_prediction import GroundTruthHint, make_predictor
+from cnnslam.depth_prediction import GroundTruthHint
+from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam
 
 # ------------------------------------------------------------------------------------------- the machine-speed unit

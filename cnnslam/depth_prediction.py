@@ -2,7 +2,8 @@
 
 - :func:`focal_length_adjustment` is eq. 5.
 - :class:`DepthPredictor` is what the SLAM system needs from a depth network (the trained one is
-  ``cnnslam.depthnet.predict.DepthNetPredictor``, loaded by :func:`make_predictor` ``("network")``).
+  ``cnnslam.depthnet.predict.DepthNetPredictor``, loaded by :func:`cnnslam.predictors.make_predictor`
+  ``("network")``).
 - :func:`predict_keyframe_depth` runs a predictor on a key-frame image and applies eq. 5 or not: the raw/adjusted
   switch of the paper's Fig. 3 (a)/(b) (``DepthConfig.focal_adjustment``).
 - :class:`DegradedGroundTruthPredictor` is a DEVELOPMENT and ABLATION tool, not part of the method: it imitates a
@@ -294,20 +295,3 @@ class DegradedGroundTruthPredictor:
         depth = self.degrade_depth(ground_truth.depth) * np.float32(self.train_focal / f_cur)  # 6.
         return DegradedPrediction(depth=depth.astype(np.float32),
                                   label_probs=self.degrade_labels(ground_truth.labels, (h, w)))
-
-
-PREDICTOR_KINDS: tuple[str, ...] = ("network", "degraded_ground_truth")
-
-
-def make_predictor(kind: str = "network", **kwargs: Any) -> Any:
-    """A depth predictor by name: "network" (the trained network; ``weights``, ``num_threads`` keywords) or
-    "degraded_ground_truth" (:class:`DegradedGroundTruthPredictor`, development only)."""
-    if kind == "network":
-        try:
-            from cnnslam.depthnet.predict import load_predictor
-        except ImportError as exc:  # torch or the network package missing
-            raise CnnSlamError(f"the depth network cannot be imported ({exc})") from exc
-        return load_predictor(**kwargs)
-    if kind == "degraded_ground_truth":
-        return DegradedGroundTruthPredictor(**kwargs)
-    raise CnnSlamError(f"unknown predictor {kind!r}; valid predictors: {', '.join(PREDICTOR_KINDS)}")

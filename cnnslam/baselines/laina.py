@@ -60,11 +60,12 @@ from cnnslam.baselines.laina_kernels import (
     maps_surface_pyramid,
 )
 from cnnslam.config import TrackingConfig
-from cnnslam.depth_prediction import GroundTruthHint, make_predictor, predict_keyframe_depth
+from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, rotation_angle_deg, se3_inverse
 from cnnslam.global_model import GlobalModel, GlobalModelConfig
 from cnnslam.icp import IcpConfig, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
+from cnnslam.predictors import make_predictor
 from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
 
 

@@ -89,7 +89,8 @@ def test_degraded_predictor_imitates_a_cnn() -> None:
 
 
 def test_degraded_predictor_needs_ground_truth() -> None:
-    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, make_predictor, predict_keyframe_depth
+    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, predict_keyframe_depth
+    from cnnslam.predictors import make_predictor
 
     with pytest.raises(CnnSlamError, match="GroundTruthAidedAgent"):
         predict_keyframe_depth(DegradedGroundTruthPredictor(), np.zeros((4, 4, 3), np.uint8),
