@@ -84,9 +84,9 @@ def _unit_kernel(image: np.ndarray, points: np.ndarray, rounds: int) -> float:  
 _UNIT_DATA: tuple[np.ndarray, np.ndarray] | None = None
 
 
-def machine_unit_seconds(repeats: int = 5) -> float:
-    """Median wall seconds of the frozen reference workload (one unit: 20 000 points warped, sampled and
-    accumulated once), timed in this process; compiled and warmed on first use."""
+def machine_unit_seconds() -> float:
+    """Wall seconds of one unit of the frozen reference workload (20 000 points warped, sampled and accumulated),
+    timed in this process; compiled and warmed on first use."""
     global _UNIT_DATA
     if _UNIT_DATA is None:
         rng = np.random.default_rng(0)
@@ -95,12 +95,9 @@ def machine_unit_seconds(repeats: int = 5) -> float:
                                   rng.uniform(1.0, 4.0, _UNIT_POINTS)]).astype(np.float32)
         _UNIT_DATA = (image, points)
         _unit_kernel(image, points, 1)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        _unit_kernel(*_UNIT_DATA, 1)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    t0 = time.perf_counter()
+    _unit_kernel(*_UNIT_DATA, 1)
+    return time.perf_counter() - t0
 
 
 def _available_cores() -> int:
@@ -197,9 +194,9 @@ def _units_around(run: Any, repeats: int = 60) -> tuple[Any, float]:
     """``run()``'s value and the mean machine unit over ``repeats`` back-to-back timings just before it and as many
     just after (about 0.1 s in all: a mean over that long sees the share of the cores this process got, as the run
     did, where a median of short timings would pick the ones no other process interrupted)."""
-    before = [machine_unit_seconds(1) for _ in range(repeats)]
+    before = [machine_unit_seconds() for _ in range(repeats)]
     value = run()
-    after = [machine_unit_seconds(1) for _ in range(repeats)]
+    after = [machine_unit_seconds() for _ in range(repeats)]
     return value, float(np.mean(before + after))
 
 

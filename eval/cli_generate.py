@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from eval.errors import EvalError
-from eval.suites import DEFAULT_SIM_CAMERA, SequenceRef, rotation_ref, sim_camera_presets
+from eval.suites import SequenceRef, rotation_ref, sim_camera_presets
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.errors import SimEnvError
 
 KINDS = ("rotation",)
@@ -58,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=300, help="frames per sequence at 30 Hz (default: 300)")
     parser.add_argument("--export", type=Path, default=None, metavar="DIR",
                         help="render each sequence into DIR/<name>/ as a TUM RGB-D folder")  # fmt: skip
-    parser.add_argument("--camera", choices=sim_camera_presets(), default=DEFAULT_SIM_CAMERA,
+    parser.add_argument("--camera", choices=sim_camera_presets(), default=DEFAULT_CAMERA_EFFECTS,
                         help="what the camera does to the images (sim_envs/camera_effects.py): kinect (default, as "
                              "every suite), clean (the renderer's bytes) or hard; names get its @PRESET suffix as in "
                              "cnnslam bench (none for clean)")  # fmt: skip

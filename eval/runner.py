@@ -53,8 +53,9 @@ from eval.errors import EvalError
 from eval.executors import Executor, SerialExecutor
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
 from eval.results import evaluate_episode, json_ready, load_run
-from eval.suites import DEFAULT_SIM_CAMERA, SequenceRef, Suite, rotation_share
+from eval.suites import SequenceRef, Suite, rotation_share
 from eval.trajectory import PoseTrajectory
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 
 RUN_FILES: tuple[str, ...] = (
     "metrics.json",
@@ -261,7 +262,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
     ref, method = spec.sequence, spec.method
     folder = Path(method.folder or "")
     names = [ref.name]
-    if ref.base is not None and dict(ref.overrides) == {"camera_effects": DEFAULT_SIM_CAMERA}:
+    if ref.base is not None and dict(ref.overrides) == {"camera_effects": DEFAULT_CAMERA_EFFECTS}:
         names.append(ref.base)  # `cnnslam export office0 data/office0` exports office0 through the default camera
     candidates = [p for name in names for p in (folder / name / "trajectory.txt", folder / f"{name}.txt")]
     path = next((p for p in candidates if p.is_file()), None)

@@ -518,7 +518,7 @@ def _with_default_camera(name: str) -> SequenceRef:
     named_camera = name.rpartition("@")[2] in sim_camera_presets()
     if ref.folder is not None or named_camera or "camera_effects" in dict(ref.overrides):
         return ref
-    return ref.with_camera_effects(DEFAULT_SIM_CAMERA)
+    return ref.with_camera_effects(DEFAULT_CAMERA_EFFECTS)
 
 
 def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
@@ -546,8 +546,6 @@ TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", 
 TRANSFER_METHODS: tuple[str, ...] = tuple(m for m in TABLE1_METHODS if m != "oracle")
 # camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
 SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
-# the camera every suite sees its simulated sequences through unless --camera says otherwise (the world's default)
-DEFAULT_SIM_CAMERA = DEFAULT_CAMERA_EFFECTS
 
 
 def sim_camera_presets() -> list[str]:
@@ -688,7 +686,7 @@ def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
     refs += [
         SequenceRef(f"{base}@focal{r:g}", base=base, focal_ratio=r, axis="focal", axis_value=r) for r in FOCAL_RATIOS
     ]
-    refs = [r.with_camera_effects(DEFAULT_SIM_CAMERA) for r in refs]
+    refs = [r.with_camera_effects(DEFAULT_CAMERA_EFFECTS) for r in refs]
     refs += [  # one camera effect alone, on the clean camera
         SequenceRef(f"{base}@{effect}{s:g}", base=base, overrides={"camera_effects": f"{effect}:{s:g}"}, axis=effect,
                     axis_value=s)
@@ -698,8 +696,9 @@ def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
 
 
 def _named(name: str) -> SequenceRef:
-    """A registered sequence as suites run it: through the default camera (:data:`DEFAULT_SIM_CAMERA`)."""
-    return SequenceRef(name, base=name).with_camera_effects(DEFAULT_SIM_CAMERA)
+    """A registered sequence as suites run it: through the world's default camera
+    (:data:`sim_envs.camera_effects.DEFAULT_CAMERA_EFFECTS`)."""
+    return SequenceRef(name, base=name).with_camera_effects(DEFAULT_CAMERA_EFFECTS)
 
 
 def _suites() -> dict[str, Suite]:
@@ -716,7 +715,7 @@ def _suites() -> dict[str, Suite]:
             "rotation",
             "pure-rotation stress sequences (yaw, pitch, roll, all three at 15, 30, 60 deg/s): tracked share, "
             "rotation error, correct depth (the paper's Sec. 4.2)",
-            tuple(rotation_ref(a, s).with_camera_effects(DEFAULT_SIM_CAMERA) for a in ROTATION_AXES
+            tuple(rotation_ref(a, s).with_camera_effects(DEFAULT_CAMERA_EFFECTS) for a in ROTATION_AXES
                   for s in ROTATION_SPEEDS),
             TABLE1_METHODS,
             frames=150,
