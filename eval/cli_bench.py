@@ -16,8 +16,9 @@ Examples::
     cnnslam bench table1 --external MySLAM=out/myslam  # score a third-party system's output too
     cnnslam bench table1 --sequences ~/data/rgbd_dataset_freiburg1_desk   # a downloaded TUM sequence
     cnnslam bench real                              # every folder of datasets.toml (or $CNNSLAM_DATASETS)
-    cnnslam bench transfer --frames 300             # sim rankings vs real ones -> results/transfer.md (sim part:
-                                                    # table1's runs; --frames caps the real sequences)
+    cnnslam bench transfer                          # sim rankings vs real ones, whole against whole and bench
+                                                    # length against real windows -> results/transfer.md
+    cnnslam bench transfer --frames all --camera clean,kinect   # whole sequences only, two simulated cameras
     cnnslam bench quick                             # the CI suite, compared with results/baselines/quick.json
     cnnslam bench quick --update-baseline           # after an intended change: rewrite the baseline
     cnnslam bench table1 --executor ray --address auto
@@ -57,6 +58,7 @@ from eval.methods import (
     with_settings,
 )
 from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_camera_presets
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
 GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
@@ -339,19 +341,20 @@ def _run_suite(args: argparse.Namespace, suite, methods: dict, executor):
 def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command: str,
               presets: tuple[str, ...] | None = None) -> int:
     """The transfer suite: each part (:func:`eval.suites.transfer_parts`; ``presets``: the simulated part's camera
-    presets, default all) run as its own suite (so its runs are shared with ``make bench``, ``cnnslam bench table1
-    --camera P`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
-    from eval.suites import SIM_CAMERA_PRESETS, transfer_parts
+    presets, default the default camera) run as its own suite (so its runs are shared with ``make bench``,
+    ``cnnslam bench table1`` and ``cnnslam bench real``), then ``transfer.{md,csv,png}``."""
+    from eval.suites import transfer_parts
     from eval.transfer_report import report_transfer
 
     parts, status = [], 0
     try:
-        for domain, part in transfer_parts(suite, presets or SIM_CAMERA_PRESETS):
-            if not part.sequences:
+        for part in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,)):
+            if not part.suite.sequences:
                 continue
-            print(f"transfer: part {domain}: suite {part.name}, {len(part.sequences)} sequence(s)")
-            result = _run_suite(args, part, methods, executor)
-            parts.append((domain, result))
+            length = "whole sequences" if part.length is None else f"{part.length} frames"
+            print(f"transfer: suite {part.suite.name}, {len(part.suite.sequences)} sequence(s), {length}")
+            result = _run_suite(args, part.suite, methods, executor)
+            parts.append((part, result))
             for outcome in result.failed:
                 print(f"  FAILED {outcome.key}: {outcome.error}")
             status = max(status, 1 if result.failed else 0)

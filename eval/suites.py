@@ -74,6 +74,7 @@ from sim_envs.sequences import (
     rotation_stress_spec,
 )
 from sim_envs.simsource import SimulatedSequence
+from sim_envs.source import FrameWindow
 from sim_envs.trajectories import Trajectory, parse_axes, sweep_angles
 
 REPLAY_ENV_ID = "sim_envs/Replay-v0"
@@ -148,7 +149,8 @@ class SequenceRef:
     value, for plots. folder (instead of ``base`` or ``rotation``): the absolute path of a real RGB-D folder
     (:class:`sim_envs.datasets.RgbdFolder`), with ``camera`` (a preset name or the path of a camera file; None:
     detected), ``size`` ((width, height) of the delivered frames, default 320x240, or ``"native"``) and
-    ``depth_scale`` (None: detected).
+    ``depth_scale`` (None: detected). start: the sequence's first frame (0: its beginning); a run's ``frames`` count
+    from there: a window of a longer sequence (:func:`window_refs`).
     """
 
     name: str
@@ -163,6 +165,7 @@ class SequenceRef:
     camera: str | None = None
     size: FolderSize = PROCESSING_SIZE
     depth_scale: float | None = None
+    start: int = 0
 
     def __post_init__(self) -> None:
         items = self.overrides.items() if isinstance(self.overrides, Mapping) else self.overrides
@@ -177,6 +180,8 @@ class SequenceRef:
         if not self.name or "/" in self.name or self.name.startswith("."):
             raise SuiteError(f"a sequence name must be non-empty, without '/', not starting with '.': {self.name!r}")
         object.__setattr__(self, "size", _folder_size(self.size))
+        if isinstance(self.start, bool) or not isinstance(self.start, int) or self.start < 0:
+            raise SuiteError(f"sequence {self.name!r}: start must be a frame index >= 0, got {self.start!r}")
         if self.folder is not None and (self.overrides or self.focal_ratio is not None or self.added_pan_deg_s):
             raise SuiteError(f"sequence {self.name!r}: a folder sequence has no spec overrides or variants")
 
@@ -189,6 +194,7 @@ class SequenceRef:
             and not self.overrides
             and self.focal_ratio is None
             and self.added_pan_deg_s == 0.0
+            and self.start == 0
         )
 
     @property
@@ -211,6 +217,9 @@ class SequenceRef:
         """The frame source (lazy: nothing is rendered or generated until used; a folder's frames are read from
         disk when asked for). ``renderer`` does not apply to a folder. ``frame_cache``: a folder under which a
         simulated source keeps the frames it rendered (:class:`sim_envs.frame_cache.CachedFrames`; same bytes)."""
+        if self.start:  # the whole sequence's source (its frames cached as the whole's), windowed
+            whole = replace(self, start=0).make_source(renderer, frame_cache)
+            return FrameWindow(whole, self.start, name=self.name)
         if self.folder is not None:
             size = None if self.size == "native" else self.size
             return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name)
@@ -243,6 +252,7 @@ class SequenceRef:
             return {
                 "name": self.name,
                 "env_id": self.env_id,
+                **({"start": self.start} if self.start else {}),  # absent at 0: earlier runs keep their fingerprint
                 "folder": self.folder,
                 "camera": self.camera,
                 "size": self.size if self.size == "native" else list(self.size),
@@ -260,6 +270,7 @@ class SequenceRef:
             "added_pan_deg_s": self.added_pan_deg_s,
             "axis": self.axis,
             "axis_value": self.axis_value,
+            **({"start": self.start} if self.start else {}),
         }
 
     def with_camera_effects(self, preset: str) -> SequenceRef:
@@ -455,6 +466,25 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
             (base / Path(str(entry["reference"])).expanduser()).resolve() if entry.get("reference") else None,
         )
     return entries
+
+
+def window_refs(ref: SequenceRef, length: int, total: int | None = None) -> tuple[SequenceRef, ...]:
+    """``ref`` cut into non-overlapping windows of ``length`` frames from its first frame (a short remainder is
+    left out): each a sequence of its own, named ``<name>.from<start>``, run on its first ``length`` frames (the
+    suite's ``frames``). ``total``: the sequence's number of frames (default: its source's, read now). A sequence
+    shorter than ``length`` gives no window."""
+    if length < 2:
+        raise SuiteError(f"a window needs >= 2 frames, got {length}")
+    if ref.start:
+        raise SuiteError(f"sequence {ref.name!r} is already a window (from frame {ref.start})")
+    if total is None:
+        source = ref.make_source()
+        try:
+            total = len(source)
+        finally:
+            source.close()
+    return tuple(replace(ref, name=f"{ref.name}.from{start}", start=start)
+                 for start in range(0, int(total) - int(length) + 1, int(length)))  # fmt: skip
 
 
 def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
@@ -756,12 +786,13 @@ def _suites() -> dict[str, Suite]:
         ),
         "transfer": Suite(
             "transfer",
-            "sim-to-real transfer: the paper's methods on the simulated Table-1 analogues (per camera preset, at "
-            "bench size) and on every folder of the local dataset list (whole sequences); per metric, the methods' "
-            "rankings side by side and their rank correlation (Spearman, Kendall)",
+            "sim-to-real transfer, like for like: the paper's methods on the simulated Table-1 analogues through "
+            "the default camera and on every folder of the local dataset list, whole sequence against whole "
+            "sequence and bench length against real windows of the bench length; per metric, the methods' "
+            "rankings side by side, their rank correlation (Spearman, Kendall) and its bootstrap interval",
             (),
             TRANSFER_METHODS,
-            frames=None,
+            frames=BENCH_FRAMES,
             kind="transfer",
         ),
         "quick": Suite(
@@ -802,23 +833,50 @@ def sim_domain(name: str) -> tuple[str, str]:
     return camera, lighting or "flat"
 
 
-def transfer_parts(suite: Suite, presets: Sequence[str] = SIM_CAMERA_PRESETS) -> list[tuple[str, Suite]]:
-    """The suites the ``transfer`` suite is made of, as ``(domain, suite)``: ``sim:<preset>`` for each simulated
-    domain of ``presets`` (a camera preset, or one with ``+lit``, :func:`sim_domain`): the ``table1`` suite at its
-    bench size with the transfer suite's methods and seeds, so its runs are ``make bench``'s own; then ``real``
-    (the transfer suite's folder sequences, frames and seeds, run as the ``real`` suite: its runs are
-    ``cnnslam bench real``'s own). Each real sequence is its own domain ``real:<name>`` in the report."""
+@dataclass(frozen=True)
+class TransferPart:
+    """One suite the ``transfer`` suite runs: ``suite`` (named ``table1`` or ``real``, so its runs are those suites'
+    own), the ``length`` its samples have (frames; None: whole sequences) and the transfer ``domain`` of each of its
+    sequences, as ``(sequence name, domain)`` pairs."""
+
+    length: int | None
+    suite: Suite
+    domains: tuple[tuple[str, str], ...]
+
+    def domain_of(self, sequence: str) -> str:
+        return dict(self.domains)[sequence]
+
+
+def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECTS,),
+                   lengths: Sequence[int | None] | None = None) -> list[TransferPart]:
+    """The suites the ``transfer`` suite is made of, compared like for like: for each length of ``lengths``
+    (default: the transfer suite's ``frames``, the bench length, then whole sequences; ``frames`` None: whole
+    only), the ``table1`` suite on its first ``length`` frames through each simulated domain of ``presets`` (a
+    camera preset, or one with ``+lit``, :func:`sim_domain`; domain ``sim:<preset>``), with the transfer suite's
+    methods and seeds (its runs are ``make bench``'s and ``cnnslam bench table1``'s own); and the ``real`` suite on
+    the transfer suite's folder sequences: whole, or cut into non-overlapping windows of ``length`` frames
+    (:func:`window_refs`), each window a sample of the real sequence's domain ``real:<name>``."""
     if suite.kind != "transfer":
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
+    if lengths is None:
+        lengths = (None,) if suite.frames is None else (suite.frames, None)
     table1 = SUITES["table1"]
     parts = []
-    for p in presets:
-        camera, lighting = sim_domain(p)
-        refs = tuple(r.with_lighting(lighting).with_camera_effects(camera) for r in table1.sequences)
-        parts.append((f"sim:{p}", replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs)))
-    real = replace(SUITES["real"], sequences=suite.sequences, skipped=suite.skipped, methods=suite.methods,
-                   frames=suite.frames, seeds=suite.seeds)  # fmt: skip
-    return [*parts, ("real", real)]
+    for length in lengths:
+        for p in presets:
+            camera, lighting = sim_domain(p)
+            refs = tuple(r.with_lighting(lighting).with_camera_effects(camera) for r in table1.sequences)
+            part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs, frames=length)
+            parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
+        refs, domains = [], []
+        for ref in suite.sequences:
+            windows = (ref,) if length is None else window_refs(ref, length)
+            refs += windows
+            domains += [(w.name, f"real:{ref.name}") for w in windows]
+        real = replace(SUITES["real"], sequences=tuple(refs), skipped=suite.skipped, methods=suite.methods,
+                       frames=length, seeds=suite.seeds)  # fmt: skip
+        parts.append(TransferPart(length, real, tuple(domains)))
+    return parts
 
 
 def real_suite(path: str | Path | None = None) -> Suite:

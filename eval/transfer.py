@@ -133,3 +133,76 @@ def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
         return None
     mean = finite.groupby("sim")["spearman"].mean().sort_values(ascending=False, kind="stable")
     return str(mean.index[0]), float(mean.iloc[0])
+
+
+BOOTSTRAP_DRAWS = 2000  # resamples of a bootstrap interval (percentile method; its 2.5 % tails rest on 50 draws)
+
+
+def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
+                           draws: int = BOOTSTRAP_DRAWS, level: float = 0.95, seed: int = 0) -> pd.DataFrame:
+    """Percentile bootstrap interval of Spearman's rho between each simulated and each real domain, per metric.
+
+    frame: as :func:`domain_scores` takes it. Each draw resamples, with replacement and independently, the
+    sequences of the simulated domain and the samples of the real one (its sequences, or the windows a real
+    sequence was cut into), recomputes both domains' scores (mean of the drawn cells' medians, a cell drawn twice
+    counting twice), ranks the methods both domains score, and takes rho. A domain with one sample is not
+    resampled (its interval is the simulated side's alone). Columns: sim, real, metric, n (methods), sim_samples,
+    real_samples, rho_low, rho_high (NaN when fewer than 3 methods, or no draw defines rho), defined (share of draws
+    where rho is defined: not all ranks tied). ``seed`` fixes the draws: the same frame gives the same interval.
+    """
+    need = {"domain", "sequence", "method", "metric", "value"}
+    if missing := need - set(frame.columns):
+        raise EvalError(f"a transfer frame needs columns {sorted(need)}; missing {sorted(missing)}")
+    if not 0 < level < 1 or draws < 1:
+        raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
+    cells = (frame[frame["metric"].isin([m.name for m in metrics])]
+             .groupby(["metric", "domain", "method", "sequence"])["value"].median().unstack("sequence"))  # fmt: skip
+    rows = []
+    tail = 100.0 * (1.0 - level) / 2.0
+    for metric in metrics:
+        if metric.name not in cells.index.get_level_values("metric"):
+            continue
+        by_domain = {d: t.droplevel("domain").dropna(axis=1, how="all")
+                     for d, t in cells.loc[metric.name].groupby(level="domain")}  # fmt: skip
+        sims = sorted(d for d in by_domain if d.startswith(SIM_PREFIX))
+        reals = sorted(d for d in by_domain if d.startswith(REAL_PREFIX))
+        for sim in sims:
+            for real in reals:
+                a, b = by_domain[sim], by_domain[real]
+                methods = sorted(set(a.index[a.notna().all(axis=1)]) & set(b.index[b.notna().all(axis=1)]))
+                row = {"sim": sim, "real": real, "metric": metric.name, "n": len(methods),
+                       "sim_samples": a.shape[1], "real_samples": b.shape[1], "rho_low": math.nan,
+                       "rho_high": math.nan, "defined": 0.0}  # fmt: skip
+                if len(methods) >= 3:
+                    rng = np.random.default_rng([seed, len(rows)])
+                    sign = -1.0 if metric.higher_is_better else 1.0
+                    ra = stats.rankdata(sign * _resampled_scores(a.loc[methods].to_numpy(), draws, rng), axis=1)
+                    rb = stats.rankdata(sign * _resampled_scores(b.loc[methods].to_numpy(), draws, rng), axis=1)
+                    rho = _rowwise_pearson(ra, rb)
+                    ok = np.isfinite(rho)
+                    row["defined"] = float(ok.mean())
+                    if ok.any():
+                        row["rho_low"], row["rho_high"] = (float(x) for x in np.percentile(rho[ok], [tail, 100 - tail]))
+                rows.append(row)
+    return pd.DataFrame(rows, columns=["sim", "real", "metric", "n", "sim_samples", "real_samples", "rho_low",
+                                       "rho_high", "defined"])  # fmt: skip
+
+
+def _resampled_scores(values: np.ndarray, draws: int, rng: np.random.Generator) -> np.ndarray:
+    """(draws, methods) means over a resample (with replacement) of the columns (samples) of ``values``
+    (methods, samples); one sample: the same scores in every draw."""
+    k = values.shape[1]
+    if k == 1:
+        return np.repeat(values.T, draws, axis=0)
+    counts = rng.multinomial(k, np.full(k, 1.0 / k), size=draws)  # (draws, k): how often each sample is drawn
+    return counts @ values.T / k
+
+
+def _rowwise_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation of each row of ``a`` with the same row of ``b`` (of ranks: Spearman's rho); NaN where a
+    row is constant."""
+    a = a - a.mean(axis=1, keepdims=True)
+    b = b - b.mean(axis=1, keepdims=True)
+    den = np.sqrt((a * a).sum(axis=1) * (b * b).sum(axis=1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, (a * b).sum(axis=1) / np.where(den > 0, den, 1.0), np.nan)

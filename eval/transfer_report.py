@@ -1,11 +1,15 @@
 """``transfer.{md,csv,png}``: the transfer suite's report (the numbers come from :mod:`eval.transfer`).
 
-- ``transfer.md``: per metric, each method's score and rank in every domain side by side; the rank correlations
-  (Spearman, Kendall, n methods, p) of every simulated domain with every real one; which camera preset predicts
-  the real rankings best; how each part was made and the state of its runs;
-- ``transfer.csv``: domain, metric, method, score, rank, sequences, runs;
+Like for like: each length (the bench length, whole sequences) is compared within itself, the simulated sequences
+against the real ones cut into windows of that length (:func:`eval.suites.transfer_parts`).
+
+- ``transfer.md``: per length and metric, each method's score and rank in every domain side by side; the rank
+  correlations (Spearman, Kendall, n methods, p, the samples on each side and a bootstrap interval of rho) of every
+  simulated domain with every real one; which camera preset predicts the real rankings best; how each part was
+  made and the state of its runs;
+- ``transfer.csv``: domain, metric, method, score, rank, sequences, runs, length;
 - ``transfer_correlations.csv``: the correlation table;
-- ``transfer.png``: per metric, each method's rank in every domain (a bump chart).
+- ``transfer.png``: per metric, each method's rank in every domain and length (a bump chart).
 """
 
 from __future__ import annotations
@@ -19,27 +23,35 @@ import pandas as pd
 from eval.plots import save_transfer_figure
 from eval.reports import long_frame, status_markdown
 from eval.runner import SuiteRun
+from eval.suites import TransferPart
 from eval.transfer import (
+    BOOTSTRAP_DRAWS,
     REAL_PREFIX,
     TRANSFER_METRICS,
     best_predictor,
+    bootstrap_correlations,
     domain_scores,
     rank_correlations,
     rank_methods,
 )
 
 
-def transfer_frame(parts: Sequence[tuple[str, SuiteRun]]) -> pd.DataFrame:
-    """The long frames of the parts' runs with a ``domain`` column: the part's domain (``sim:<preset>``), or
-    ``real:<sequence>`` for each sequence of the ``real`` part."""
+def transfer_frame(parts: Sequence[tuple[TransferPart, SuiteRun]]) -> pd.DataFrame:
+    """The long frames of the parts' runs with a ``domain`` column (each sequence's, :class:`TransferPart`) and a
+    ``length`` column (``"whole"`` or the number of frames, as text)."""
     frames = []
-    for domain, run in parts:
+    for part, run in parts:
         frame = long_frame(run)
         if frame.empty:
             continue
-        frame = frame.assign(domain=REAL_PREFIX + frame["sequence"] if domain == "real" else domain)
-        frames.append(frame)
+        domains = dict(part.domains)
+        frame = frame.assign(domain=frame["sequence"].map(domains), length=_length_label(part.length))
+        frames.append(frame[frame["domain"].notna()])
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _length_label(length: int | None) -> str:
+    return "whole" if length is None else str(int(length))
 
 
 def _fmt(value: float) -> str:
@@ -70,68 +82,104 @@ def ranks_markdown(ranks: pd.DataFrame, domains: Sequence[str]) -> str:
 
 
 def correlations_markdown(corr: pd.DataFrame) -> str:
-    """The correlation table, one row per (simulated domain, real domain, metric)."""
+    """The correlation table, one row per (length, simulated domain, real domain, metric): n methods, the samples
+    on each side, Spearman's rho with p and its bootstrap interval, Kendall's tau with p."""
     labels = {m.name: m.label for m in TRANSFER_METRICS}
-    lines = ["| simulated | real | metric | n | Spearman rho (p) | Kendall tau (p) |", "|---|---|---|---:|---:|---:|"]
+    lines = ["| length | simulated | real | metric | n | samples sim / real | Spearman rho (p) | 95 % interval | "
+             "Kendall tau (p) |", "|---|---|---|---|---:|---:|---:|---:|---:|"]  # fmt: skip
     for row in corr.itertuples():
         rho = "-" if not np.isfinite(row.spearman) else f"{row.spearman:+.2f} ({row.spearman_p:.2f})"
         tau = "-" if not np.isfinite(row.kendall) else f"{row.kendall:+.2f} ({row.kendall_p:.2f})"
-        lines.append(f"| {row.sim} | {row.real} | {labels.get(row.metric, row.metric)} | {row.n} | {rho} | {tau} |")
+        ci = "-" if not np.isfinite(row.rho_low) else f"[{row.rho_low:+.2f}, {row.rho_high:+.2f}]"
+        samples = f"{row.sim_samples:.0f} / {row.real_samples:.0f}" if np.isfinite(row.sim_samples) else "-"
+        lines.append(f"| {row.length} | {row.sim} | {row.real} | {labels.get(row.metric, row.metric)} | {row.n} | "
+                     f"{samples} | {rho} | {ci} | {tau} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
-def _part_line(domain: str, run: SuiteRun) -> str:
+def _part_line(part: TransferPart, run: SuiteRun) -> str:
     suite = run.suite
     frames = "whole sequences" if suite.frames is None else f"first {suite.frames} frames"
     revisions = sorted({str((r.get("metadata") or {}).get("git_revision")) for r in run.records}) or ["-"]
-    seqs = ", ".join(s.name for s in suite.sequences) or "none"
-    return (f"- `{domain}`: suite `{suite.name}`, {frames}, {len(suite.seeds)} run(s) per cell (one for a method "
-            f"without a seed), runs under "
-            f"`{run.out_root}/{suite.name}/`, revision {', '.join(revisions)}; sequences: {seqs}")  # fmt: skip
+    domains: dict[str, list[str]] = {}
+    for name, domain in part.domains:
+        domains.setdefault(domain, []).append(name)
+    seqs = "; ".join(f"`{d}`: {', '.join(names)}" for d, names in domains.items()) or "none"
+    return (f"- suite `{suite.name}`, {frames}, {len(suite.seeds)} run(s) per cell (one for a method without a "
+            f"seed), runs under `{run.out_root}/{suite.name}/`, revision {', '.join(revisions)}; {seqs}")
 
 
-def report_transfer(parts: Sequence[tuple[str, SuiteRun]], results_dir: str | Path, command: str) -> list[Path]:
+def correlations_with_intervals(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Per length of ``frame`` (:func:`transfer_frame`): the ranks (:func:`eval.transfer.rank_methods` over that
+    length's domains) and the rank correlations with their bootstrap interval
+    (:func:`eval.transfer.bootstrap_correlations`), each with a ``length`` column."""
+    all_ranks, all_corr = [], []
+    for length, sub in frame.groupby("length", sort=False):
+        scores = domain_scores(sub)
+        if scores.empty:
+            continue
+        domains = list(dict.fromkeys(sub["domain"]))
+        ranks = rank_methods(scores, domains=domains)
+        corr = rank_correlations(ranks).merge(bootstrap_correlations(sub), on=["sim", "real", "metric", "n"],
+                                              how="left")  # fmt: skip
+        all_ranks.append(ranks.assign(length=length))
+        all_corr.append(corr.assign(length=length))
+    ranks = pd.concat(all_ranks, ignore_index=True) if all_ranks else pd.DataFrame(
+        columns=["domain", "metric", "method", "score", "sequences", "runs", "rank", "length"])  # fmt: skip
+    corr = pd.concat(all_corr, ignore_index=True) if all_corr else pd.DataFrame(
+        columns=["sim", "real", "metric", "n", "spearman", "spearman_p", "kendall", "kendall_p", "methods",
+                 "sim_samples", "real_samples", "rho_low", "rho_high", "defined", "length"])  # fmt: skip
+    return ranks, corr
+
+
+def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir: str | Path,
+                    command: str) -> list[Path]:
     """Write the transfer report (module docstring) into ``results_dir``; returns the files written."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
     frame = transfer_frame(parts)
-    scores = domain_scores(frame) if not frame.empty else pd.DataFrame(
-        columns=["domain", "metric", "method", "score", "sequences", "runs"])  # fmt: skip
-    domains = list(dict.fromkeys(frame["domain"])) if not frame.empty else []
-    ranks = rank_methods(scores, domains=domains) if not scores.empty else scores.assign(rank=[])
-    corr = rank_correlations(ranks)
+    ranks, corr = correlations_with_intervals(frame) if not frame.empty else correlations_with_intervals(
+        pd.DataFrame(columns=["domain", "sequence", "method", "metric", "value", "length"]))  # fmt: skip
     best = best_predictor(corr)
     csv = results_dir / "transfer.csv"
     ranks.to_csv(csv, index=False, float_format="%.6g")
     corr_csv = results_dir / "transfer_correlations.csv"
     corr.to_csv(corr_csv, index=False, float_format="%.6g")
-    figure = save_transfer_figure(ranks, results_dir / "transfer.png", domains, TRANSFER_METRICS) \
+    columns = [f"{d} ({length})" for length, d in dict.fromkeys(zip(ranks["length"], ranks["domain"], strict=True))]
+    wide = ranks.assign(domain=ranks["domain"] + " (" + ranks["length"] + ")")
+    figure = save_transfer_figure(wide, results_dir / "transfer.png", columns, TRANSFER_METRICS) \
         if not ranks.empty else None  # fmt: skip
-    reals = [d for d in domains if d.startswith(REAL_PREFIX)]
+    reals = [d for d in ranks["domain"].unique() if str(d).startswith(REAL_PREFIX)] if not ranks.empty else []
     verdict = ("No real sequence was available (list folders in datasets.toml or $CNNSLAM_DATASETS): there is "
                "nothing to compare the simulated rankings with." if not reals else
                "No rank correlation is defined (fewer than 3 methods ranked in both domains)." if best is None else
                f"The simulated domain whose rankings agree best with the real ones: **{best[0]}** (mean Spearman "
-               f"rho {best[1]:+.2f} over the metrics and real sequences).")  # fmt: skip
+               f"rho {best[1]:+.2f} over the metrics, lengths and real sequences).")  # fmt: skip
     text = [
         "# Sim-to-real transfer: do the simulated sequences rank the methods as real ones do?\n",
-        f"Made by `{command}`. Per domain, a method's score is the median over each cell's runs, then the mean "
-        "over the domain's sequences; rank 1 is best; only methods scored in every domain are ranked (the suite's "
-        "default methods leave out the oracle, which is fed ground truth and would win every ranking). "
-        "Spearman's rho and Kendall's tau-b compare each simulated domain's ranking with each real one "
-        "(`eval/transfer.py`): +1 the same order, -1 the reverse. "
-        "With 5 methods a ranking has only 120 orders: read the coefficients as agreement (p, scipy's two-sided, "
-        "is below 0.05 only for rho >= 0.9 at n = 5).\n",
+        f"Made by `{command}`. Like for like: whole simulated sequences against whole real ones, and the bench "
+        "length against real sequences cut into non-overlapping windows of that length (each window a sample). "
+        "Per domain and length, a method's score is the median over each cell's runs, then the mean over the "
+        "domain's sequences (or windows); rank 1 is best; only methods scored in every domain of a length are "
+        "ranked (the suite's default methods leave out the oracle, which is fed ground truth and would win every "
+        "ranking). Spearman's rho and Kendall's tau-b compare each simulated domain's ranking with each real one "
+        "(`eval/transfer.py`): +1 the same order, -1 the reverse; n is the number of methods ranked, and p "
+        "scipy's two-sided value (below 0.05 only for rho >= 0.9 at n = 5). The interval is a 95 % percentile "
+        f"bootstrap over the simulated sequences and the real windows, {BOOTSTRAP_DRAWS} draws, each side "
+        "resampled with replacement (a side with one sample, such as one whole real sequence, is not "
+        "resampled).\n",
         "Parts:\n",
-        *[_part_line(domain, run) for domain, run in parts],
+        *[_part_line(part, run) for part, run in parts],
         "\n## Verdict\n",
         verdict + "\n",
         "## Rank correlation, simulated against real\n",
         correlations_markdown(corr),
         "## Scores and ranks per metric: score (rank)\n",
-        ranks_markdown(ranks, domains),
+        *[f"\n### Length: {length}\n" + ranks_markdown(sub, list(dict.fromkeys(sub["domain"])))
+          for length, sub in ranks.groupby("length", sort=False)],  # fmt: skip
         *([f"![ranks per domain]({figure.name})\n"] if figure is not None else []),
-        *[f"## Runs of `{domain}`\n" + status_markdown(run).removeprefix("## Runs\n") for domain, run in parts],
+        *[f"## Runs of `{run.suite.name}`, {_length_label(part.length)}\n"
+          + status_markdown(run).removeprefix("## Runs\n") for part, run in parts],  # fmt: skip
     ]
     md = results_dir / "transfer.md"
     md.write_text("\n".join(text))

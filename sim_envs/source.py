@@ -1,12 +1,15 @@
-"""The frame-source contract: anything the environment can replay (a simulated sequence, a TUM/ICL folder)."""
+"""The frame-source contract: anything the environment can replay (a simulated sequence, a TUM/ICL folder), and a
+window of one (:class:`FrameWindow`)."""
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from dataclasses import replace
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from sim_envs.camera import Intrinsics
+from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
 
 
@@ -30,3 +33,43 @@ class FrameSource(Protocol):
     def frame(self, index: int) -> Frame: ...
 
     def close(self) -> None: ...
+
+
+class FrameWindow:
+    """Frames ``start .. start + length - 1`` of ``source`` as a source of their own (a window of a sequence: a
+    real sequence cut into samples of a simulated sequence's length).
+
+    Window frame i is source frame ``start + i``, with its own index set to i; timestamps and poses are the source's,
+    sliced (times and world frame unchanged, so a window's trajectory is scored in the source's world frame).
+    ``length`` None: to the end; ``name``: the window's (default the source's). Anything else (``intrinsics``,
+    ``describe``, ...) is the source's.
+    """
+
+    def __init__(self, source: FrameSource, start: int, length: int | None = None, name: str | None = None) -> None:
+        total = len(source)
+        start = int(start)
+        stop = total if length is None else start + int(length)
+        if not (0 <= start < total) or not (start < stop <= total):
+            raise SimEnvError(f"a window of {getattr(source, 'name', 'a source')} must lie within its {total} frames; "
+                              f"got start {start}, length {length}")  # fmt: skip
+        self._source = source
+        self.name = name if name is not None else source.name
+        self.start, self.stop = start, stop
+        self.timestamps = np.asarray(source.timestamps)[start:stop]
+        self.poses = np.asarray(source.poses)[start:stop]
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+    def __getattr__(self, name: str) -> Any:  # name, intrinsics, describe, ...
+        if name.startswith("__") or name == "_source":
+            raise AttributeError(name)
+        return getattr(self._source, name)
+
+    def frame(self, index: int) -> Frame:
+        if not 0 <= int(index) < len(self):
+            raise IndexError(f"frame {index} of a {len(self)}-frame window")
+        return replace(self._source.frame(self.start + int(index)), index=int(index))
+
+    def close(self) -> None:
+        self._source.close()

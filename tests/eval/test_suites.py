@@ -1,6 +1,7 @@
 """Suite definitions, sequence references and their environments, the sweep's variants, the rotation share."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -176,12 +177,55 @@ def test_camera_preset_names_do_not_collide_with_folder_calibrations():
     assert not set(sim_camera_presets()) & set(camera_presets())
 
 
-def test_the_transfer_report_takes_lit_simulated_domains():
-    from eval.suites import transfer_parts
+def test_the_transfer_suite_compares_like_with_like(tmp_path):
+    from eval.suites import BENCH_FRAMES, folder_ref, transfer_parts
+    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.simsource import SimulatedSequence
 
-    parts = transfer_parts(get_suite("transfer"), ("kinect", "kinect+lit"))
-    assert [d for d, _ in parts] == ["sim:kinect", "sim:kinect+lit", "real"]
-    assert [r.name for r in parts[1][1].sequences][:2] == ["office0+lit@kinect", "office1+lit@kinect"]
-    assert parts[0][1].sequences[0].name == "office0@kinect"  # table1's own runs
+    folder = tmp_path / "realish"
+    export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=25)
+    suite = get_suite("transfer").select(sequences=[str(folder)])
+    assert suite.frames == BENCH_FRAMES
+    parts = transfer_parts(replace(suite, frames=10), ("kinect", "kinect+lit"))
+    assert [(p.length, p.suite.name) for p in parts] == [(10, "table1"), (10, "table1"), (10, "real"),
+                                                          (None, "table1"), (None, "table1"), (None, "real")]
+    assert [r.name for r in parts[1].suite.sequences][:2] == ["office0+lit@kinect", "office1+lit@kinect"]
+    assert parts[0].suite.sequences[0].name == "office0@kinect"  # table1's own runs
+    assert parts[0].suite.frames == 10 and parts[3].suite.frames is None
+    assert {d for _, d in parts[0].domains} == {"sim:kinect"} and {d for _, d in parts[1].domains} == {"sim:kinect+lit"}
+    windows = parts[2].suite.sequences  # 25 frames: two windows of 10, the remainder left out
+    assert [(w.name, w.start) for w in windows] == [("realish.from0", 0), ("realish.from10", 10)]
+    assert dict(parts[2].domains) == {"realish.from0": "real:realish", "realish.from10": "real:realish"}
+    assert [r.name for r in parts[5].suite.sequences] == ["realish"] and parts[5].domain_of("realish") == "real:realish"
+    assert folder_ref(folder).describe() == {k: v for k, v in windows[0].describe().items() if k != "name"} | {
+        "name": "realish"}  # the first window differs from the whole by its name only (and a run's frames)
+    assert [p.length for p in transfer_parts(replace(suite, frames=None))] == [None, None]
     with pytest.raises(SuiteError, match="unknown simulated domain 'kinect\\+dark'"):
         transfer_parts(get_suite("transfer"), ("kinect+dark",))
+
+
+def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
+    from eval.suites import folder_ref, window_refs
+    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.simsource import SimulatedSequence
+
+    folder = tmp_path / "seq"
+    export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=12)
+    whole = folder_ref(folder)
+    windows = window_refs(whole, 5)
+    assert [w.start for w in windows] == [0, 5]  # 12 frames: 0-4, 5-9; 10-11 left out
+    src, win = whole.make_source(), windows[1].make_source()
+    assert len(win) == 7 and win.name == "seq.from5"
+    np.testing.assert_array_equal(win.timestamps, src.timestamps[5:])
+    np.testing.assert_array_equal(win.poses, src.poses[5:])
+    a, b = src.frame(7), win.frame(2)
+    assert b.index == 2 and b.timestamp == a.timestamp
+    np.testing.assert_array_equal(a.rgb, b.rgb)
+    np.testing.assert_array_equal(a.depth, b.depth)
+    assert "start" in windows[1].describe() and "start" not in whole.describe()
+    with pytest.raises(SuiteError, match="start must be a frame index >= 0"):
+        replace(whole, start=-1)
+    with pytest.raises(SuiteError, match="already a window"):
+        window_refs(windows[1], 2)
+    sim = window_refs(SequenceRef("office0", base="office0"), 700)
+    assert [w.start for w in sim] == [0, 700] and not sim[1].registered and sim[1].env_id == REPLAY_ENV_ID

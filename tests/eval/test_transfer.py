@@ -89,9 +89,9 @@ def test_bad_frames_are_named():
 
 @pytest.mark.slow  # > 5 s: the full lane only
 def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatch):
-    """``cnnslam bench transfer`` end to end on tiny data: the simulated part cut to one 5-frame sequence, the real
+    """``cnnslam bench transfer`` end to end on tiny data: the simulated part cut to one 8-frame sequence, the real
     part a 6-frame 7-Scenes-layout folder listed in a dataset list; three methods, the identity pose the worst on
-    ATE in both domains."""
+    ATE in both domains; 3 frames against the real folder's two 3-frame windows, whole against whole."""
     from dataclasses import replace
 
     from cnnslam.cli import main
@@ -103,32 +103,103 @@ def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatc
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.tiny]\npath = "{folder}"\n')
     monkeypatch.setenv(suites.DATASETS_ENV, str(listing))
-    small_table1 = replace(suites.SUITES["table1"], sequences=(suites.SequenceRef("office0", base="office0"),),
-                           frames=5)  # fmt: skip
-    monkeypatch.setitem(suites.SUITES, "table1", small_table1)
+    short = suites.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
+    monkeypatch.setitem(suites.SUITES, "table1", replace(suites.SUITES["table1"], sequences=(short,), frames=5))
     methods = tmp_path / "methods.toml"
     methods.write_text('[methods.yawed]\nentry_point = "sim_envs.agents:BiasedPoseAgent"\n'
                        'kwargs = { agent = "sim_envs.agents:OracleAgent", yaw_deg = 3.0 }\n'
                        'metrics = ["trajectory"]\n')  # fmt: skip
     code = main(["bench", "transfer", "--methods", "oracle", "constant-pose", "yawed", "--method-file", str(methods),
-                 "--frames", "5", "--executor", "serial", "--no-plots", "--no-progress", "--no-check",
-                 "--out", str(tmp_path / "runs"), "--results", str(tmp_path / "res")])  # fmt: skip
+                 "--frames", "3", "--camera", "clean,kinect", "--executor", "serial", "--no-plots", "--no-progress",
+                 "--no-check", "--out", str(tmp_path / "runs"), "--results", str(tmp_path / "res")])  # fmt: skip
     assert code == 0
-    assert (tmp_path / "runs" / "table1" / "office0" / "oracle").is_dir()  # the sim part's runs are table1's
-    assert (tmp_path / "runs" / "real" / "tiny" / "yawed").is_dir()  # the real part's are the real suite's
-    ranks = pd.read_csv(tmp_path / "res" / "transfer.csv")
-    assert set(ranks["domain"]) == {"sim:clean", "sim:kinect", "sim:hard", "real:tiny"}  # every camera preset
-    assert (tmp_path / "runs" / "table1" / "office0@kinect" / "constant-pose").is_dir()
-    ate = ranks[ranks["metric"] == "ate_se3_rmse"].set_index(["domain", "method"])["rank"]
-    assert ate["sim:clean", "constant-pose"] == ate["real:tiny", "constant-pose"] == 3  # the worst in both
-    assert ate["sim:clean", "oracle"] == 1.5 or ate["sim:clean", "oracle"] == 1  # exact poses: best (or tied)
-    corr = pd.read_csv(tmp_path / "res" / "transfer_correlations.csv")
-    assert len(corr) == 3 * 4  # every simulated domain against the real one, per metric
-    corr = corr[corr["sim"] == "sim:clean"].set_index("metric")
-    sim_r = ranks[(ranks["metric"] == "ate_se3_rmse") & (ranks["domain"] == "sim:clean")].set_index("method")["rank"]
-    real_r = ranks[(ranks["metric"] == "ate_se3_rmse") & (ranks["domain"] == "real:tiny")].set_index("method")["rank"]
+    assert (tmp_path / "runs" / "table1" / "office0" / "oracle" / "seed0-frames3").is_dir()  # table1's runs
+    assert (tmp_path / "runs" / "table1" / "office0@kinect" / "oracle" / "seed0-framesall").is_dir()
+    assert (tmp_path / "runs" / "real" / "tiny.from3" / "yawed" / "seed0-frames3").is_dir()  # a real window
+    assert (tmp_path / "runs" / "real" / "tiny" / "yawed" / "seed0-framesall").is_dir()  # the whole real sequence
+    ranks = pd.read_csv(tmp_path / "res" / "transfer.csv", dtype={"length": str})
+    assert set(ranks["domain"]) == {"sim:clean", "sim:kinect", "real:tiny"} and set(ranks["length"]) == {"3", "whole"}
+    short_real = ranks[(ranks["domain"] == "real:tiny") & (ranks["length"] == "3")]
+    assert set(short_real["sequences"]) == {2}  # two windows, each a sample of the real domain
+    for length in ("3", "whole"):
+        ate = ranks[(ranks["metric"] == "ate_se3_rmse") & (ranks["length"] == length)].set_index(["domain", "method"])
+        assert ate.loc[("sim:clean", "constant-pose"), "rank"] == ate.loc[("real:tiny", "constant-pose"), "rank"] == 3
+        assert ate.loc[("sim:clean", "oracle"), "rank"] in (1, 1.5)  # exact poses: best (or tied)
+    corr = pd.read_csv(tmp_path / "res" / "transfer_correlations.csv", dtype={"length": str})
+    assert len(corr) == 2 * 2 * 4  # per length, every simulated domain against the real one, per metric
+    corr = corr[(corr["sim"] == "sim:clean") & (corr["length"] == "whole")].set_index("metric")
+    sel = (ranks["metric"] == "ate_se3_rmse") & (ranks["length"] == "whole")
+    sim_r = ranks[sel & (ranks["domain"] == "sim:clean")].set_index("method")["rank"]
+    real_r = ranks[sel & (ranks["domain"] == "real:tiny")].set_index("method")["rank"]
     expected = np.corrcoef(sim_r.sort_index(), real_r.sort_index())[0, 1]  # Spearman = Pearson of the ranks
     assert corr.loc["ate_se3_rmse", "n"] == 3 and corr.loc["ate_se3_rmse", "spearman"] == pytest.approx(expected)
     text = (tmp_path / "res" / "transfer.md").read_text()
-    assert "## Verdict" in text and "| sim:clean | real:tiny |" in text and "| sim:hard | real:tiny |" in text
+    assert "## Verdict" in text and "| whole | sim:clean | real:tiny |" in text
+    assert "| 3 | sim:kinect | real:tiny |" in text
     assert (tmp_path / "res" / "transfer.png").is_file()
+
+
+def test_bootstrap_interval_is_tight_for_agreeing_domains_and_wide_for_noise():
+    from eval.transfer import bootstrap_correlations
+
+    rng = np.random.default_rng(1)
+    rows = []
+    for domain, n_seq in (("sim:kinect", 9), ("real:kitchen", 5)):
+        for s in range(n_seq):
+            for m, base in zip("ABCDE", [1.0, 2.0, 3.0, 4.0, 5.0], strict=True):
+                rows.append({"domain": domain, "sequence": f"{domain}{s}", "method": m, "metric": "ate_se3_rmse",
+                             "value": base + 0.1 * rng.standard_normal()})  # fmt: skip
+                noise = rng.uniform(0, 10)  # no relation between the methods and the value
+                rows.append({"domain": domain, "sequence": f"{domain}{s}", "method": m,
+                             "metric": "depth_percent_correct", "value": noise})  # fmt: skip
+    boot = bootstrap_correlations(pd.DataFrame(rows), [ATE, DEPTH], draws=500).set_index("metric")
+    assert boot.loc["ate_se3_rmse", ["rho_low", "rho_high"]].tolist() == pytest.approx([1.0, 1.0])
+    assert boot.loc["ate_se3_rmse", ["n", "sim_samples", "real_samples"]].tolist() == [5, 9, 5]
+    low, high = boot.loc["depth_percent_correct", ["rho_low", "rho_high"]]
+    assert low < 0 < high and high - low > 1.0  # noise: an interval around 0, wide
+    again = bootstrap_correlations(pd.DataFrame(rows), [ATE, DEPTH], draws=500)
+    assert again.equals(boot.reset_index()[again.columns])  # seeded: the same draws
+
+
+def test_bootstrap_of_a_single_real_sample_resamples_the_simulated_side_only():
+    from eval.transfer import bootstrap_correlations
+
+    sim = _frame({("sim:kinect", m): [v] for m, v in zip("ABCD", [1, 2, 3, 4], strict=True)},
+                 sequences=("s1", "s2", "s3"))  # fmt: skip
+    real = _frame({("real:x", m): [v] for m, v in zip("ABCD", [4, 3, 2, 1], strict=True)}, sequences=("w",))
+    boot = bootstrap_correlations(pd.concat([sim, real]), [ATE], draws=200)
+    assert boot["real_samples"].tolist() == [1] and boot["sim_samples"].tolist() == [3]
+    assert boot[["rho_low", "rho_high"]].iloc[0].tolist() == pytest.approx([-1.0, -1.0])
+
+
+def test_the_report_compares_each_length_within_itself(tmp_path):
+    """Short simulated runs rank as the real windows do, whole ones the reverse of the whole real sequence: the
+    report must give +1 for the first pair and -1 for the second, never mixing the lengths."""
+    from dataclasses import replace
+
+    from eval.suites import SequenceRef, TransferPart, get_suite
+    from eval.transfer_report import report_transfer
+    from tests.eval.test_reports import fake_run
+
+    methods = ("CNN-SLAM", "LSD", "ORB")
+    sims = tuple(SequenceRef(f"{n}@kinect", base=n, overrides={"camera_effects": "kinect"})
+                 for n in ("office0", "office1"))  # fmt: skip
+    real = tuple(SequenceRef(f"kitchen.from{s}", folder="/data/kitchen", start=s) for s in (0, 10, 20))
+    whole_real = (SequenceRef("kitchen", folder="/data/kitchen"),)
+    table1, real_suite = get_suite("table1"), replace(get_suite("real"), methods=methods)
+    parts = []
+    for length, reals, order in ((10, real, (0.1, 0.2, 0.3)), (None, whole_real, (0.3, 0.2, 0.1))):
+        sim = replace(table1, sequences=sims, methods=methods, frames=length)
+        rs = replace(real_suite, sequences=reals, frames=length)
+        sim_values = {(s.name, m): {"ate_se3_rmse": 0.1 * (k + 1)} for s in sims for k, m in enumerate(methods)}
+        real_values = {(r.name, m): {"ate_se3_rmse": order[k]} for r in reals for k, m in enumerate(methods)}
+        parts += [(TransferPart(length, sim, tuple((s.name, "sim:kinect") for s in sims)), fake_run(sim, sim_values)),
+                  (TransferPart(length, rs, tuple((r.name, "real:kitchen") for r in reals)), fake_run(rs, real_values))]
+    paths = report_transfer(parts, tmp_path, "cnnslam bench transfer")
+    corr = pd.read_csv(tmp_path / "transfer_correlations.csv").set_index("length")
+    assert corr.loc["10", "spearman"] == pytest.approx(1.0) and corr.loc["whole", "spearman"] == pytest.approx(-1.0)
+    assert corr.loc["10", ["sim_samples", "real_samples", "n"]].tolist() == [2, 3, 3]
+    assert corr.loc["whole", ["rho_low", "rho_high"]].tolist() == pytest.approx([-1.0, -1.0])
+    md = (tmp_path / "transfer.md").read_text()
+    assert "### Length: 10" in md and "### Length: whole" in md and "| 10 | sim:kinect | real:kitchen |" in md
+    assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png"}
