@@ -78,6 +78,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
     parser.add_argument("--frames", type=_frames, default=None,
                         help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
+    parser.add_argument("--lengths", type=_frames, nargs="+", default=None, metavar="N",
+                        help="the lengths suite's lengths: numbers of frames and/or 'all' (default: 200 400 800 "
+                             "all)")  # fmt: skip
     parser.add_argument("--sequences", nargs="+", metavar="NAME",
                         help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
                              "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
@@ -163,7 +166,7 @@ def _command(args: argparse.Namespace) -> str:
         if value is not None:
             words += [flag, str(value)]
     for flag, values in (("--sequences", _names(args.sequences)), ("--methods", _names(args.methods)),
-                         ("--seeds", args.seeds)):  # fmt: skip
+                         ("--seeds", args.seeds), ("--lengths", getattr(args, "lengths", None))):  # fmt: skip
         if values:
             words += [flag, *map(str, values)]
     for text in args.external:
@@ -288,6 +291,8 @@ def run(args: argparse.Namespace) -> int:
 
     if suite.kind == "transfer":
         return _transfer(args, suite, methods, executor, command, presets)
+    if suite.kind == "lengths":
+        return _lengths(args, suite, methods, executor, command)
     if not suite.sequences:
         for name, reason in suite.skipped:
             print(f"  skipped sequence {name}: {reason}")
@@ -373,6 +378,35 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
               f"exit status 1 (--allow-skips to accept; the dataset list is {dataset_list_file()})",
               file=sys.stderr)  # fmt: skip
         status = 1
+    return status
+
+
+def _lengths(args: argparse.Namespace, suite, methods: dict, executor, command: str) -> int:
+    """The length sweep: the table1 suite at each length (:func:`eval.suites.length_parts`; ``--lengths``), each
+    run as its own suite (its runs are ``make bench``'s and ``cnnslam bench table1``'s), then
+    ``lengths.{md,csv,png}``."""
+    from eval.lengths_report import report_lengths
+    from eval.suites import SWEEP_LENGTHS, length_parts
+
+    lengths = SWEEP_LENGTHS if args.lengths is None else tuple(None if n == "all" else n for n in args.lengths)
+    parts, status = [], 0
+    try:
+        for length, part in length_parts(suite, lengths):
+            print(f"lengths: {'whole sequences' if length is None else f'{length} frames'}, "
+                  f"{len(part.sequences)} sequence(s)")
+            result = _run_suite(args, part, methods, executor)
+            parts.append((length, result))
+            for outcome in result.failed:
+                print(f"  FAILED {outcome.key}: {outcome.error}")
+            status = max(status, 1 if result.failed or (result.skipped_methods and not args.allow_skips) else 0)
+    except KeyboardInterrupt:
+        print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
+              "resume)", file=sys.stderr)  # fmt: skip
+        return 130
+    folder = results_folder(args, suite, command) if set(lengths) == set(SWEEP_LENGTHS) else (
+        args.results or args.out / "reports" / f"lengths-{hashlib.sha256(command.encode()).hexdigest()[:8]}")
+    paths = report_lengths(parts, folder, command)
+    print("wrote " + ", ".join(str(p) for p in paths))
     return status
 
 

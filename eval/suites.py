@@ -569,7 +569,7 @@ def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) ->
 
 
 # --------------------------------------------------------------------------------------------------- the suites
-SuiteKind = Literal["runs", "perf", "transfer"]
+SuiteKind = Literal["runs", "perf", "transfer", "lengths"]
 
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
 # the transfer suite ranks the paper's methods; the oracle is fed ground truth and would win every ranking
@@ -795,6 +795,16 @@ def _suites() -> dict[str, Suite]:
             frames=BENCH_FRAMES,
             kind="transfer",
         ),
+        "lengths": Suite(
+            "lengths",
+            "the length sweep: the Table-1 suite on the first 200, 400 and 800 frames and on whole sequences; per "
+            "metric, each length's ranking of the paper's methods against the whole sequences' (Kendall's tau), "
+            "where each method's rank settles, and the shortest length that ranks as whole sequences do",
+            table1,
+            TRANSFER_METHODS,
+            frames=None,
+            kind="lengths",
+        ),
         "quick": Suite(
             "quick",
             "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
@@ -831,6 +841,24 @@ def sim_domain(name: str) -> tuple[str, str]:
             f"optionally with +lit (kinect+lit: the rooms lit by lamps with shadows)"
         )
     return camera, lighting or "flat"
+
+
+SWEEP_LENGTHS: tuple[int | None, ...] = (200, 400, 800, None)  # the length sweep's lengths (None: whole sequences)
+
+
+def length_parts(suite: Suite, lengths: Sequence[int | None] = SWEEP_LENGTHS) -> list[tuple[int | None, Suite]]:
+    """The suites the ``lengths`` suite is made of: for each of ``lengths`` (frames; None: whole sequences), the
+    ``table1`` suite on the lengths suite's sequences, methods and seeds, on the first ``length`` frames (its runs
+    are ``make bench``'s and ``cnnslam bench table1``'s own)."""
+    if suite.kind != "lengths":
+        raise SuiteError(f"suite {suite.name!r} is not a length sweep")
+    bad = [n for n in lengths if n is not None and int(n) < 2]
+    if bad or not lengths:
+        raise SuiteError(f"lengths must be numbers of frames >= 2 or 'all', got {list(lengths)}")
+    table1 = SUITES["table1"]
+    ordered = sorted(set(lengths), key=lambda n: (n is None, n or 0))
+    return [(n, replace(table1, sequences=suite.sequences, methods=suite.methods, seeds=suite.seeds, frames=n))
+            for n in ordered]  # fmt: skip
 
 
 @dataclass(frozen=True)
