@@ -1,4 +1,5 @@
-"""Camera trajectories at 30 Hz: hand-held, pure rotation, loops, close to a textured plane, far structure, low texture.
+"""Camera trajectories at 30 Hz: hand-held, pure rotation, loops, close to a textured plane, far structure, low texture,
+and recorded real motion replayed in a room (:func:`replay`).
 
 A :class:`Trajectory` is a frozen pair of arrays, ``timestamps`` (N,) float64 seconds and ``T_world_cam`` (N, 4, 4)
 float64 camera-to-world poses (OpenCV camera axes: x right, y down, z forward; world z up, metres), plus a continuous
@@ -734,6 +735,62 @@ def low_texture(
     raise SimEnvError(_gave_up("low_texture", scene))
 
 
+def replay(
+    scene: SceneLike,
+    rng: np.random.Generator,
+    n_frames: int,
+    *,
+    file: str,
+    start_s: float = 0.0,
+    fps: float = FPS,
+    t0: float = 0.0,
+    margin: float = 0.3,
+    height_range: tuple[float, float] = (1.0, 1.8),
+    target_distance: tuple[float, float] = (1.0, 4.0),
+) -> Trajectory:
+    """A recorded camera motion (a TUM trajectory ``file``: real hand-held motion, e.g. a TUM RGB-D ground truth)
+    replayed in this room from ``start_s`` seconds after the recording's first pose.
+
+    The recording is resampled at the frame times (positions linearly, rotations by spherical interpolation:
+    motion-capture poses at 100 Hz are dense enough for both) and taken relative to its first resampled pose, in
+    that camera's axes; the motion is then started from a camera placed in the room: an optical centre drawn in free
+    space at a height within ``height_range`` (m), upright, aimed at an interest point ``target_distance`` (m)
+    away. The relative motion is kept exactly (path, speeds, rotations, hand shake); the recorded camera's tilt to
+    gravity at its first pose is not (the start is upright). A start is accepted when every optical centre keeps
+    ``margin`` m from any surface and stays inside the room; after :data:`MAX_ATTEMPTS` starts
+    :class:`SimEnvError`. The file must cover ``start_s + (n_frames - 1) / fps`` seconds.
+    """
+    from scipy.spatial.transform import Slerp
+
+    from sim_envs.formats import read_tum_trajectory
+
+    stamps, T = read_tum_trajectory(file, duplicate_timestamps="first")
+    times = frame_times(n_frames, fps, t0)
+    src = stamps[0] + float(start_s) + (times - times[0])
+    if start_s < 0 or src[-1] > stamps[-1]:
+        raise SimEnvError(f"{file} covers {stamps[-1] - stamps[0]:.2f} s; {n_frames} frames at {fps:g} fps from "
+                          f"{start_s:g} s need {src[-1] - stamps[0]:.2f} s")  # fmt: skip
+    positions = np.column_stack([np.interp(src, stamps, T[:, k, 3]) for k in range(3)])
+    rotations = Slerp(stamps, Rotation.from_matrix(T[:, :3, :3]))(src)
+    recorded = poses_from(positions, rotations)
+    relative = np.linalg.inv(recorded[0]) @ recorded  # T_first_cam: the motion in the first camera's axes
+    points = _interest(scene)
+    lo, hi = _room_box(scene)
+    for _ in range(MAX_ATTEMPTS):
+        eye = _random_free_point(scene, rng, height_range, margin)
+        if eye is None:
+            continue
+        target = _pick_target(rng, eye, points, target_distance, None, np.pi)
+        if target is None:
+            continue
+        poses = poses_from(eye, look_at(eye, target))[0] @ relative
+        centres = poses[:, :3, 3]
+        inside = bool(np.all((centres > lo + margin) & (centres < hi - margin)))
+        if inside and bool(np.all(scene.free_space(centres, margin=margin))):
+            return Trajectory(times, poses, kind="replay")
+    raise SimEnvError(_gave_up("replay", scene))
+
+
 TrajectoryGenerator = Callable[..., Trajectory]
 
 TRAJECTORY_KINDS: dict[str, TrajectoryGenerator] = {
@@ -743,6 +800,7 @@ TRAJECTORY_KINDS: dict[str, TrajectoryGenerator] = {
     "plane_near": plane_near,
     "far_structure": far_structure,
     "low_texture": low_texture,
+    "replay": replay,
 }
 
 

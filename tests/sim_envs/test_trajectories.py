@@ -216,3 +216,34 @@ def test_low_texture_faces_a_wall_from_close(scene):
     assert first.min() > 0.8 and first.max() < 1.5
     assert (np.argmin(hit, axis=1) < 2).all()  # a wall (x or y), not the floor or ceiling
     assert scene.free_space(p, margin=0.4).all()
+
+
+def _recorded_motion(tmp_path):
+    """A TUM file of a camera moving 0.5 m along its own y axis and panning 20 deg about it in 4 s at 100 Hz,
+    tilted and placed arbitrarily in the recording's world."""
+    t = np.arange(0.0, 4.0, 0.01)
+    start = Rotation.from_euler("xyz", [30, -10, 70], degrees=True)
+    pan = Rotation.from_euler("y", (20.0 * t / 4.0)[:, None], degrees=True)
+    rot = start * pan
+    pos = np.array([2.0, -1.0, 0.5]) + start.apply(np.column_stack([0 * t, 0.5 * t / 4.0, 0 * t]))
+    q = rot.as_quat()  # qx qy qz qw
+    path = tmp_path / "motion.txt"
+    np.savetxt(path, np.column_stack([100.0 + t, pos, q]), fmt="%.9f", header="timestamp tx ty tz qx qy qz qw")
+    return path
+
+
+def test_replay_keeps_the_recorded_motion_in_the_camera_frame(scene, tmp_path):
+    path = _recorded_motion(tmp_path)
+    traj = _gen("replay", scene, n=91, file=str(path), start_s=0.5)  # 3 s from 0.5 s
+    assert traj.kind == "replay" and len(traj) == 91
+    rel = np.linalg.inv(traj.T_world_cam[0]) @ traj.T_world_cam  # motion in the first camera's axes
+    expected_y = 0.5 * (np.arange(91) / FPS) / 4.0
+    np.testing.assert_allclose(rel[:, 1, 3], expected_y, atol=1e-6)  # along the camera's y, at the recorded speed
+    np.testing.assert_allclose(rel[:, [0, 2], 3], 0.0, atol=1e-6)
+    angles = Rotation.from_matrix(rel[:, :3, :3]).as_rotvec(degrees=True)
+    np.testing.assert_allclose(angles[:, 1], 20.0 * (np.arange(91) / FPS) / 4.0, atol=1e-6)
+    assert scene.free_space(traj.positions, margin=0.3).all()
+    first = traj.T_world_cam[0, :3, :3]
+    assert first[:, 0] @ np.array([0.0, 0.0, 1.0]) == pytest.approx(0.0, abs=1e-9)  # the start is upright
+    with pytest.raises(SimEnvError, match="covers 3.99 s"):
+        _gen("replay", scene, n=200, file=str(path))
