@@ -78,6 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
     parser.add_argument("--frames", type=_frames, default=None,
                         help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
+    parser.add_argument("--undistort", choices=["crop", "full", "none"], default=None,
+                        help="how a folder sequence's distorted lens is undistorted: crop (to what the lens saw, the "
+                             "default), full (the whole frame with K, black border), none (the distorted images as "
+                             "they are); a choice other than crop runs as <name>~<choice>")  # fmt: skip
     parser.add_argument("--lengths", type=_frames, nargs="+", default=None, metavar="N",
                         help="the lengths suite's lengths: numbers of frames and/or 'all' (default: 200 400 800 "
                              "all)")  # fmt: skip
@@ -161,7 +165,7 @@ def _command(args: argparse.Namespace) -> str:
     words = ["cnnslam", "bench", args.suite]
     renderer = None if args.renderer == "mujoco" else args.renderer
     for flag, value in (("--frames", args.frames), ("--runs", args.runs), ("--renderer", renderer),
-                        ("--align", args.align), ("--camera", args.camera),
+                        ("--align", args.align), ("--camera", args.camera), ("--undistort", args.undistort),
                         ("--image-size", args.image_size)):  # fmt: skip
         if value is not None:
             words += [flag, str(value)]
@@ -274,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
         if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= sim_domains:
             camera, presets = None, tuple(args.camera.split(","))  # the simulated part's cameras, e.g. clean,kinect
         suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
-                             camera=camera, size=_image_size(args.image_size))  # fmt: skip
+                             camera=camera, size=_image_size(args.image_size), undistort=args.undistort)  # fmt: skip
         if args.align is not None:
             suite = replace(suite, alignment=args.align)
         if args.timeout is not None and not args.timeout > 0:

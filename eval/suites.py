@@ -51,7 +51,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from eval.errors import EvalError
-from sim_envs.camera import camera_presets, preset
+from sim_envs.camera import UNDISTORT_MODES, camera_presets, preset
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import (
     LOADER_VERSION,
@@ -148,9 +148,10 @@ class SequenceRef:
     focal_ratio / added_pan_deg_s: see :class:`VariantSequence`; axis / axis_value: the sweep axis and its nominal
     value, for plots. folder (instead of ``base`` or ``rotation``): the absolute path of a real RGB-D folder
     (:class:`sim_envs.datasets.RgbdFolder`), with ``camera`` (a preset name or the path of a camera file; None:
-    detected), ``size`` ((width, height) of the delivered frames, default 320x240, or ``"native"``) and
-    ``depth_scale`` (None: detected). start: the sequence's first frame (0: its beginning); a run's ``frames`` count
-    from there: a window of a longer sequence (:func:`window_refs`).
+    detected), ``size`` ((width, height) of the delivered frames, default 320x240, or ``"native"``),
+    ``depth_scale`` (None: detected) and ``undistort`` (how a distorted lens is undistorted:
+    :data:`sim_envs.camera.UNDISTORT_MODES`, default ``crop``). start: the sequence's first frame (0: its
+    beginning); a run's ``frames`` count from there: a window of a longer sequence (:func:`window_refs`).
     """
 
     name: str
@@ -166,6 +167,7 @@ class SequenceRef:
     size: FolderSize = PROCESSING_SIZE
     depth_scale: float | None = None
     start: int = 0
+    undistort: str = "crop"
 
     def __post_init__(self) -> None:
         items = self.overrides.items() if isinstance(self.overrides, Mapping) else self.overrides
@@ -184,6 +186,9 @@ class SequenceRef:
             raise SuiteError(f"sequence {self.name!r}: start must be a frame index >= 0, got {self.start!r}")
         if self.folder is not None and (self.overrides or self.focal_ratio is not None or self.added_pan_deg_s):
             raise SuiteError(f"sequence {self.name!r}: a folder sequence has no spec overrides or variants")
+        if self.undistort not in UNDISTORT_MODES or (self.undistort != "crop" and self.folder is None):
+            raise SuiteError(f"sequence {self.name!r}: undistort must be one of {', '.join(UNDISTORT_MODES)}, and "
+                             "other than crop only for a folder sequence")  # fmt: skip
 
     @property
     def registered(self) -> bool:
@@ -222,7 +227,8 @@ class SequenceRef:
             return FrameWindow(whole, self.start, name=self.name)
         if self.folder is not None:
             size = None if self.size == "native" else self.size
-            return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name)
+            return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name,
+                              undistort=self.undistort)  # fmt: skip
         if self.focal_ratio is None and self.added_pan_deg_s == 0.0:
             source = SimulatedSequence(self.spec(), renderer=renderer)
         else:
@@ -257,6 +263,7 @@ class SequenceRef:
                 "camera": self.camera,
                 "size": self.size if self.size == "native" else list(self.size),
                 "depth_scale": self.depth_scale,
+                **({"undistort": self.undistort} if self.undistort != "crop" else {}),  # crop: as before the option
                 "loader": LOADER_VERSION,
                 "content": folder_fingerprint(self.folder, camera_file) if Path(self.folder).is_dir() else None,
             }
@@ -313,14 +320,25 @@ class SequenceRef:
             base = f"{base}+{lighting}"
         return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
 
-    def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None) -> SequenceRef:
-        """This folder sequence with another camera (preset name or camera file) and/or delivered size."""
+    def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None,
+                            undistort: str | None = None) -> SequenceRef:
+        """This folder sequence with another camera (preset name or camera file), delivered size and/or
+        undistortion (:data:`sim_envs.camera.UNDISTORT_MODES`; other than ``crop`` the name gets ``~<mode>``, its
+        own run folders)."""
         if self.folder is None:
-            raise SuiteError(f"sequence {self.name!r} is not a folder: --camera and --image-size do not apply")
+            raise SuiteError(f"sequence {self.name!r} is not a folder: --camera, --image-size and --undistort do not "
+                             "apply")  # fmt: skip
+        if undistort is not None and undistort not in UNDISTORT_MODES:
+            raise SuiteError(f"unknown undistortion {undistort!r}; valid: {', '.join(UNDISTORT_MODES)}")
+        name = self.name
+        if undistort is not None and undistort != self.undistort:
+            name = name.removesuffix(f"~{self.undistort}") + ("" if undistort == "crop" else f"~{undistort}")
         return replace(
             self,
+            name=name,
             camera=_camera_argument(camera) if camera is not None else self.camera,
             size=_folder_size(size) if size is not None else self.size,
+            undistort=undistort if undistort is not None else self.undistort,
         )
 
 
@@ -646,6 +664,7 @@ class Suite:
         runs: int | None = None,
         camera: str | None = None,
         size: FolderSize | None = None,
+        undistort: str | None = None,
     ) -> Suite:
         """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
         name or folder path), ``methods`` (any method names), ``frames`` (a number, or ``"all"``: whole
@@ -673,15 +692,18 @@ class Suite:
                                  "selected (a folder's camera is a calibration preset or file)")  # fmt: skip
             refs = tuple(r.with_camera_effects(camera) if r.folder is None else r for r in refs)
             camera = None
-        if camera is not None or size is not None:
+        if camera is not None or size is not None or undistort is not None:
             if not any(r.folder is not None for r in refs):
+                if undistort is not None:
+                    raise SuiteError("--undistort applies to folder sequences, and none is selected (a simulated "
+                                     "camera's lens is undistorted by its camera preset)")  # fmt: skip
                 if camera is not None:  # most likely a misspelt preset
                     raise SuiteError(f"unknown camera preset {camera!r} for simulated sequences; valid presets: "
                                      f"{', '.join(sim_camera_presets())} (a calibration preset or camera file applies "
                                      "to folder sequences only)")  # fmt: skip
                 raise SuiteError("--image-size applies to folder sequences, and none is selected (simulated sequences "
                                  "render at their own size)")  # fmt: skip
-            refs = tuple(r.with_folder_options(camera, size) if r.folder is not None else r for r in refs)
+            refs = tuple(r.with_folder_options(camera, size, undistort) if r.folder is not None else r for r in refs)
         if frames is not None and frames != "all" and int(frames) < 2:
             raise SuiteError(f"--frames must be >= 2, got {frames}")
         return replace(

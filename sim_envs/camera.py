@@ -123,6 +123,11 @@ def preset_distortion(name: str) -> tuple[float, float, float, float, float]:
     return _DISTORTION.get(name, NO_DISTORTION)
 
 
+# how a distorted camera's images are delivered as pinhole ones (CameraModel.rectified): cropped to what the lens saw
+# (the default, LSD-SLAM's and DSO's choice), the whole frame with K and a black border, or not undistorted at all
+UNDISTORT_MODES: tuple[str, ...] = ("crop", "full", "none")
+
+
 @dataclass(frozen=True)
 class CameraModel:
     """A pinhole camera with OpenCV radial-tangential lens distortion.
@@ -153,13 +158,17 @@ class CameraModel:
         (it acts on normalised coordinates)."""
         return CameraModel(self.intrinsics.scaled(width, height), self.distortion)
 
-    def rectified(self) -> Intrinsics:
-        """The pinhole camera this camera's images are delivered in once undistorted: at the same image size, the
-        new camera matrix of ``cv2.getOptimalNewCameraMatrix`` with alpha = 0, so that every pixel of the undistorted
-        image sees through the lens (a slight zoom: 7 % for TUM fr1's lens), as LSD-SLAM's and DSO's undistorters
-        crop. Keeping K instead would leave a border the lens never saw, black and fixed in the image, whose edge
-        direct tracking reads as a static feature. This camera's own intrinsics when it has no distortion."""
-        if not self.distorted:
+    def rectified(self, mode: str = "crop") -> Intrinsics:
+        """The pinhole camera this camera's images are delivered in once undistorted (``mode`` ``crop``, the
+        default): at the same image size, the new camera matrix of ``cv2.getOptimalNewCameraMatrix`` with alpha = 0,
+        so that every pixel of the undistorted image sees through the lens (a slight zoom: 7 % for TUM fr1's lens),
+        as LSD-SLAM's and DSO's undistorters crop. Keeping K instead (``full``: the whole frame, with a border the
+        lens never saw, black and fixed in the image, whose edge direct tracking may read as a static feature) or not
+        undistorting at all (``none``: the distorted images taken as pinhole ones with K) are the other choices of
+        :data:`UNDISTORT_MODES`; both deliver K. This camera's own intrinsics when it has no distortion."""
+        if mode not in UNDISTORT_MODES:
+            raise SimEnvError(f"unknown undistortion {mode!r}; valid: {', '.join(UNDISTORT_MODES)}")
+        if not self.distorted or mode != "crop":
             return self.intrinsics
         import cv2  # lazily: the camera model itself needs only numpy
 
@@ -168,18 +177,19 @@ class CameraModel:
         new, _ = cv2.getOptimalNewCameraMatrix(K.K, np.asarray(self.distortion, dtype=np.float64), size, 0.0, size)
         return Intrinsics(float(new[0, 0]), float(new[1, 1]), float(new[0, 2]), float(new[1, 2]), K.width, K.height)
 
-    def undistort_maps(self) -> tuple[np.ndarray, np.ndarray]:
-        """Maps for ``cv2.remap`` that turn a distorted image into the pinhole image of :meth:`rectified`.
+    def undistort_maps(self, mode: str = "crop") -> tuple[np.ndarray, np.ndarray]:
+        """Maps for ``cv2.remap`` that turn a distorted image into the pinhole image of :meth:`rectified` (``mode``).
 
         Returns ``(map_u, map_v)``, each (H, W) float32: for pixel (u, v) of the undistorted image, the position in
         the distorted image to read (``cv2.initUndistortRectifyMap`` with no rectification and new camera matrix =
-        :meth:`rectified`; every position lies inside the distorted image). Identity maps when not distorted.
+        :meth:`rectified`; with ``crop`` every position lies inside the distorted image, with ``full`` those of the
+        border fall outside). Identity maps when not distorted.
         """
         import cv2
 
         K = self.intrinsics
         map_u, map_v = cv2.initUndistortRectifyMap(
-            K.K, np.asarray(self.distortion, dtype=np.float64), None, self.rectified().K, (K.width, K.height),
+            K.K, np.asarray(self.distortion, dtype=np.float64), None, self.rectified(mode).K, (K.width, K.height),
             cv2.CV_32FC1,
         )  # fmt: skip
         return map_u, map_v

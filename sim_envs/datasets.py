@@ -112,6 +112,7 @@ from sim_envs.camera import (
     DEFAULT_HEIGHT,
     DEFAULT_WIDTH,
     DISTORTION_NAMES,
+    UNDISTORT_MODES,
     CameraModel,
     Intrinsics,
     camera_model,
@@ -540,7 +541,13 @@ class RgbdFolder:
         depth_is_ray_length: bool = False,
         max_difference: float = MAX_DIFFERENCE,
         name: str | None = None,
+        undistort: str = "crop",
     ) -> None:
+        if undistort not in UNDISTORT_MODES:
+            raise SimEnvError(f"unknown undistortion {undistort!r}; valid: {', '.join(UNDISTORT_MODES)} (crop: to "
+                              "what the lens saw, the default; full: the whole frame with K and a black border; "
+                              "none: the distorted images as they are)")  # fmt: skip
+        self.undistort: str = undistort
         self.folder = Path(folder)
         self.layout: str = detect_layout(self.folder)
         self.name: str = name or self.folder.name
@@ -559,7 +566,7 @@ class RgbdFolder:
         self.original_size: tuple[int, int] = self._image_size()
         self.camera, self.camera_source = self._resolve_camera(camera)
         self.depth_rig: DepthRig | None = self._resolve_depth_rig()
-        self.native_intrinsics: Intrinsics = self.camera.rectified()  # the undistorted images' camera
+        self.native_intrinsics: Intrinsics = self.camera.rectified(undistort)  # the undistorted images' camera
         self.size: tuple[int, int] = check_size(size) if size is not None else self.original_size
         self.intrinsics: Intrinsics = self.native_intrinsics.scaled(*self.size)
         self._maps: tuple[np.ndarray, np.ndarray] | None = None  # undistortion maps, made on first use
@@ -669,6 +676,7 @@ class RgbdFolder:
                 "T_colour_depth": np.asarray(self.depth_rig.T_colour_depth).tolist(),
                 "source": self.depth_rig.source,
             },
+            "undistort": self.undistort,
             "undistorted_intrinsics": _intrinsics_dict(K0),
             "intrinsics": _intrinsics_dict(K),
             "has_depth": self.has_depth,
@@ -703,7 +711,14 @@ class RgbdFolder:
             steps.append(f"timestamps: frame number / {SEVEN_SCENES_FPS:g} s (7-Scenes has none)")
         if self.pose_convention_used == "icl":
             steps.append("poses: ICL-NUIM y-up camera converted to OpenCV, T = S T S, S = diag(1, -1, 1, 1)")
-        if self.camera.distorted:
+        if self.camera.distorted and self.undistort == "none":
+            steps.append("not undistorted (undistort='none'): the distorted images delivered as pinhole ones with K")
+        elif self.camera.distorted and self.undistort == "full":
+            coeffs = " ".join(f"{n}={c:g}" for n, c in zip(DISTORTION_NAMES, self.camera.distortion, strict=True))
+            steps.append(f"undistorted ({coeffs}, OpenCV model) onto the whole frame with K (undistort='full'): "
+                         "cv2.initUndistortRectifyMap + cv2.remap, the border the lens never saw black, no depth, "
+                         "no label; RGB bilinear, depth/labels nearest")  # fmt: skip
+        elif self.camera.distorted:
             K, K0 = self.camera.intrinsics, self.native_intrinsics
             coeffs = " ".join(f"{n}={c:g}" for n, c in zip(DISTORTION_NAMES, self.camera.distortion, strict=True))
             steps.append(
@@ -732,11 +747,15 @@ class RgbdFolder:
     def _deliver(self, image: np.ndarray, kind: Literal["rgb", "depth", "labels", "ids"]) -> np.ndarray:
         """An image at the original resolution -> undistorted (if the camera is distorted) and resized to
         ``size``. RGB: bilinear remap, area-averaged resize; depth, labels, instance ids: nearest neighbour."""
-        if self.camera.distorted:
+        if self.camera.distorted and self.undistort != "none":
             if self._maps is None:
-                self._maps = self.camera.undistort_maps()
+                self._maps = self.camera.undistort_maps(self.undistort)
             interpolation = cv2.INTER_LINEAR if kind == "rgb" else cv2.INTER_NEAREST
-            image = cv2.remap(image, *self._maps, interpolation, borderMode=cv2.BORDER_REPLICATE)  # all inside
+            if self.undistort == "crop":  # every position inside the image
+                image = cv2.remap(image, *self._maps, interpolation, borderMode=cv2.BORDER_REPLICATE)
+            else:  # the border the lens never saw: black, no depth, no label, no instance
+                fill = {"rgb": 0, "depth": 0, "labels": NO_LABEL, "ids": 0}[kind]  # ids: as stored, 0 = none
+                image = cv2.remap(image, *self._maps, interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
         if self.size != self.original_size:
             interpolation = cv2.INTER_AREA if kind == "rgb" else cv2.INTER_NEAREST_EXACT
             image = cv2.resize(image, self.size, interpolation=interpolation)

@@ -229,3 +229,24 @@ def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
         window_refs(windows[1], 2)
     sim = window_refs(SequenceRef("office0", base="office0"), 700)
     assert [w.start for w in sim] == [0, 700] and not sim[1].registered and sim[1].env_id == REPLAY_ENV_ID
+
+
+def test_undistortion_of_folder_sequences_gets_its_own_name_and_fingerprint(tmp_path):
+    from eval.suites import folder_ref
+    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.simsource import SimulatedSequence
+
+    folder = tmp_path / "seq"
+    export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=3)
+    ref = folder_ref(folder)
+    full = ref.with_folder_options(undistort="full")
+    assert full.name == "seq~full" and full.undistort == "full" and full.describe()["undistort"] == "full"
+    assert "undistort" not in ref.describe()  # the default leaves earlier runs' fingerprints as they were
+    assert full.with_folder_options(undistort="none").name == "seq~none"
+    assert full.with_folder_options(undistort="crop") == ref
+    suite = get_suite("table1").select(sequences=[str(folder)], undistort="none")
+    assert [s.name for s in suite.sequences] == ["seq~none"]
+    with pytest.raises(SuiteError, match="--undistort applies to folder sequences"):
+        get_suite("table1").select(undistort="full")
+    with pytest.raises(SuiteError, match="other than crop only for a folder"):
+        SequenceRef("office0", base="office0", undistort="full")

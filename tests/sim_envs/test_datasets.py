@@ -166,6 +166,25 @@ def test_load_a_tum_benchmark_folder(tmp_path):
         RgbdFolder(folder, Intrinsics(517.3, 516.5, 318.6, 255.3, 640, 480))
 
 
+def test_the_three_undistortions_of_a_distorted_folder(tmp_path):
+    source = BoxRoomSource(3, intrinsics=preset("tum_fr1", 64, 48))
+    folder = write_tum_style_folder(tmp_path, source)
+    crop, full, none = (RgbdFolder(folder, undistort=m) for m in ("crop", "full", "none"))
+    K = preset("tum_fr1", 64, 48)
+    assert crop.intrinsics == crop.camera.rectified() and crop.intrinsics.fx > K.fx  # zoomed in: no border
+    assert full.intrinsics == K and none.intrinsics == K
+    np.testing.assert_array_equal(none.frame(1).rgb, source.frame(1).rgb)  # as on disk
+    f = full.frame(1)
+    border = f.depth == 0  # the lens never saw the corners of K's frame: black, no depth
+    assert border[0, 0] and border[-1, -1] and not border[24, 32]
+    assert (f.rgb[0, 0] == 0).all() and (f.rgb[-1, -1] == 0).all()
+    assert crop.frame(1).depth.min() > 0  # the crop sees through the lens everywhere
+    assert any("undistort='full'" in c for c in full.conversions()) and full.describe()["undistort"] == "full"
+    assert any("not undistorted" in c for c in none.conversions())
+    with pytest.raises(SimEnvError, match="unknown undistortion 'half'; valid: crop, full, none"):
+        RgbdFolder(folder, undistort="half")
+
+
 def test_unknown_camera_and_not_a_dataset(tmp_path):
     folder = write_tum_style_folder(tmp_path, BoxRoomSource(3), name="my_recording")
     with pytest.raises(UnknownNameError, match="tum_fr1"):
