@@ -297,6 +297,8 @@ def run(args: argparse.Namespace) -> int:
         return _transfer(args, suite, methods, executor, command, presets)
     if suite.kind == "lengths":
         return _lengths(args, suite, methods, executor, command)
+    if suite.kind == "preprocessing":
+        return _preprocessing(args, suite, methods, executor, command)
     if not suite.sequences:
         for name, reason in suite.skipped:
             print(f"  skipped sequence {name}: {reason}")
@@ -355,24 +357,15 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
     from eval.suites import transfer_parts
     from eval.transfer_report import report_transfer
 
-    parts, status = [], 0
+    plan = [p for p in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,)) if p.suite.sequences]
     try:
-        for part in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,)):
-            if not part.suite.sequences:
-                continue
-            length = "whole sequences" if part.length is None else f"{part.length} frames"
-            print(f"transfer: suite {part.suite.name}, {len(part.suite.sequences)} sequence(s), {length}")
-            result = _run_suite(args, part.suite, methods, executor)
-            parts.append((part, result))
-            for outcome in result.failed:
-                print(f"  FAILED {outcome.key}: {outcome.error}")
-            status = max(status, 1 if result.failed else 0)
-            if result.skipped_methods and not args.allow_skips:
-                status = 1
+        done, status = _run_parts(args, [(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite) for p in plan],
+                                  methods, executor)  # fmt: skip
     except KeyboardInterrupt:
         print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
               "resume)", file=sys.stderr)  # fmt: skip
         return 130
+    parts = [(p, run) for p, (_, run) in zip(plan, done, strict=True)]
     paths = report_transfer(parts, results_folder(args, suite, command), command)
     print("wrote " + ", ".join(str(p) for p in paths))
     for name, reason in suite.skipped:
@@ -385,6 +378,22 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
     return status
 
 
+def _run_parts(args: argparse.Namespace, parts: list, methods: dict, executor) -> tuple[list, int]:
+    """Run each ``(label, suite)`` of a suite made of parts as its own suite (its runs that suite's own); returns
+    the ``(label, SuiteRun)`` pairs and the exit status (1 when a run failed, or a method was skipped without
+    ``--allow-skips``). Ctrl-C propagates; the runs finished before it are stored."""
+    done, status = [], 0
+    for label, part in parts:
+        print(f"{args.suite}: {label}: suite {part.name}, {len(part.sequences)} sequence(s), "
+              f"{'whole sequences' if part.frames is None else f'{part.frames} frames'}")
+        result = _run_suite(args, part, methods, executor)
+        done.append((label, result))
+        for outcome in result.failed:
+            print(f"  FAILED {outcome.key}: {outcome.error}")
+        status = max(status, 1 if result.failed or (result.skipped_methods and not args.allow_skips) else 0)
+    return done, status
+
+
 def _lengths(args: argparse.Namespace, suite, methods: dict, executor, command: str) -> int:
     """The length sweep: the table1 suite at each length (:func:`eval.suites.length_parts`; ``--lengths``), each
     run as its own suite (its runs are ``make bench``'s and ``cnnslam bench table1``'s), then
@@ -393,16 +402,8 @@ def _lengths(args: argparse.Namespace, suite, methods: dict, executor, command: 
     from eval.suites import SWEEP_LENGTHS, length_parts
 
     lengths = SWEEP_LENGTHS if args.lengths is None else tuple(None if n == "all" else n for n in args.lengths)
-    parts, status = [], 0
     try:
-        for length, part in length_parts(suite, lengths):
-            print(f"lengths: {'whole sequences' if length is None else f'{length} frames'}, "
-                  f"{len(part.sequences)} sequence(s)")
-            result = _run_suite(args, part, methods, executor)
-            parts.append((length, result))
-            for outcome in result.failed:
-                print(f"  FAILED {outcome.key}: {outcome.error}")
-            status = max(status, 1 if result.failed or (result.skipped_methods and not args.allow_skips) else 0)
+        parts, status = _run_parts(args, length_parts(suite, lengths), methods, executor)
     except KeyboardInterrupt:
         print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
               "resume)", file=sys.stderr)  # fmt: skip
@@ -411,6 +412,30 @@ def _lengths(args: argparse.Namespace, suite, methods: dict, executor, command: 
         args.results or args.out / "reports" / f"lengths-{hashlib.sha256(command.encode()).hexdigest()[:8]}")
     paths = report_lengths(parts, folder, command)
     print("wrote " + ", ".join(str(p) for p in paths))
+    return status
+
+
+def _preprocessing(args: argparse.Namespace, suite, methods: dict, executor, command: str) -> int:
+    """The preprocessing suite: the real folders under the loader's defaults and each choice that applies
+    (:func:`eval.suites.preprocessing_parts`), each run as the ``real`` suite, then ``preprocessing.{md,csv}``."""
+    from eval.sensitivity_report import report_preprocessing
+    from eval.suites import preprocessing_parts
+
+    triples = preprocessing_parts(suite)
+    try:
+        parts, status = _run_parts(args, [(choice, part) for choice, part, _ in triples], methods, executor)
+    except KeyboardInterrupt:
+        print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
+              "resume)", file=sys.stderr)  # fmt: skip
+        return 130
+    domains = {choice: d for choice, _, d in triples}
+    paths = report_preprocessing([(c, run, domains[c]) for c, run in parts], results_folder(args, suite, command),
+                                 command)  # fmt: skip
+    print("wrote " + ", ".join(str(p) for p in paths))
+    if not suite.sequences or (suite.skipped and not args.allow_skips):
+        print(f"cnnslam bench: {len(suite.skipped)} listed real sequence(s) skipped, {len(suite.sequences)} run "
+              f"(the dataset list is {dataset_list_file()})", file=sys.stderr)  # fmt: skip
+        status = 1
     return status
 
 

@@ -22,12 +22,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
 import pandas as pd
-from scipy import stats
 
 from eval.errors import EvalError
-from eval.transfer import TRANSFER_METRICS, TransferMetric, domain_scores, rank_methods
+from eval.transfer import TRANSFER_METRICS, TransferMetric, domain_scores, rank_methods, ranking_agreement
 
 WHOLE = "whole"
 # the metrics the bench length must rank as whole sequences do: the paper's Table 1 (trajectory and depth)
@@ -59,22 +57,7 @@ def length_agreement(ranks: pd.DataFrame, reference: str = WHOLE) -> pd.DataFram
     """Per (metric, length): n (methods ranked), Kendall's tau-b and Spearman's rho of the length's ranking against
     the ``reference`` length's (NaN where undefined: fewer than 3 methods, or all tied), and ``same``: the two
     rankings are identical. Columns: metric, length, n, kendall, spearman, same."""
-    rows = []
-    for metric, group in ranks.groupby("metric", sort=False):
-        wide = group.pivot_table(index="method", columns="length", values="rank")
-        if reference not in wide:
-            continue
-        for length in length_order(wide.columns):
-            both = wide[[length, reference]].dropna() if length != reference else wide[[reference]].dropna()
-            a = both[length].to_numpy()
-            b = both[reference].to_numpy()
-            tau = rho = np.nan
-            if len(both) >= 3 and np.ptp(a) > 0 and np.ptp(b) > 0:
-                tau = float(stats.kendalltau(a, b)[0])
-                rho = float(stats.spearmanr(a, b)[0])
-            rows.append({"metric": metric, "length": length, "n": len(both), "kendall": tau, "spearman": rho,
-                         "same": bool(len(both) > 0 and np.array_equal(a, b))})  # fmt: skip
-    return pd.DataFrame(rows, columns=["metric", "length", "n", "kendall", "spearman", "same"])
+    return ranking_agreement(ranks, "length", reference, length_order)
 
 
 def settling_lengths(ranks: pd.DataFrame, reference: str = WHOLE) -> pd.DataFrame:

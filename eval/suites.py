@@ -488,9 +488,10 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
 
 def window_refs(ref: SequenceRef, length: int, total: int | None = None) -> tuple[SequenceRef, ...]:
     """``ref`` cut into non-overlapping windows of ``length`` frames from its first frame (a short remainder is
-    left out): each a sequence of its own, named ``<name>.from<start>``, run on its first ``length`` frames (the
-    suite's ``frames``). ``total``: the sequence's number of frames (default: its source's, read now). A sequence
-    shorter than ``length`` gives no window."""
+    left out): each a sequence of its own, named ``<name>.from<start>`` (the first keeps ``ref``'s name: it is
+    ``ref`` on its first ``length`` frames, the same runs), run on its first ``length`` frames (the suite's
+    ``frames``). ``total``: the sequence's number of frames (default: its source's, read now). A sequence shorter
+    than ``length`` gives no window."""
     if length < 2:
         raise SuiteError(f"a window needs >= 2 frames, got {length}")
     if ref.start:
@@ -501,7 +502,7 @@ def window_refs(ref: SequenceRef, length: int, total: int | None = None) -> tupl
             total = len(source)
         finally:
             source.close()
-    return tuple(replace(ref, name=f"{ref.name}.from{start}", start=start)
+    return tuple(replace(ref, name=f"{ref.name}.from{start}", start=start) if start else ref
                  for start in range(0, int(total) - int(length) + 1, int(length)))  # fmt: skip
 
 
@@ -587,7 +588,7 @@ def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) ->
 
 
 # --------------------------------------------------------------------------------------------------- the suites
-SuiteKind = Literal["runs", "perf", "transfer", "lengths"]
+SuiteKind = Literal["runs", "perf", "transfer", "lengths", "preprocessing"]
 
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
 # the transfer suite ranks the paper's methods; the oracle is fed ground truth and would win every ranking
@@ -827,6 +828,17 @@ def _suites() -> dict[str, Suite]:
             frames=None,
             kind="lengths",
         ),
+        "preprocessing": Suite(
+            "preprocessing",
+            "preprocessing that decides nothing unseen: the paper's methods on every folder of the local dataset "
+            "list, first 200 frames, under each preprocessing choice that applies (undistortion cropped / full "
+            "frame / none, the images' own size, depth unregistered); per folder and metric, each choice's ranking "
+            "against the default's, and the verdicts that change",
+            (),
+            TRANSFER_METHODS,
+            frames=BENCH_FRAMES,
+            kind="preprocessing",
+        ),
         "quick": Suite(
             "quick",
             "a few short sequences x all methods: the CI regression baseline (results/baselines/quick.json)",
@@ -845,8 +857,8 @@ def get_suite(name: str) -> Suite:
     listing the valid names otherwise."""
     if name == "real":
         return real_suite()
-    if name == "transfer":
-        return replace(SUITES["transfer"], sequences=(real := real_suite()).sequences, skipped=real.skipped)
+    if name in ("transfer", "preprocessing"):  # the real folders of the dataset list, as the real suite's
+        return replace(SUITES[name], sequences=(real := real_suite()).sequences, skipped=real.skipped)
     try:
         return SUITES[name]
     except KeyError:
@@ -863,6 +875,66 @@ def sim_domain(name: str) -> tuple[str, str]:
             f"optionally with +lit (kinect+lit: the rooms lit by lamps with shadows)"
         )
     return camera, lighting or "flat"
+
+
+@dataclass(frozen=True)
+class PreprocessingChoice:
+    """A way of turning a folder's files into the frames an agent sees, other than the loader's default: ``name``
+    (the report's and the run folders' ``<folder>~<name>``), what it does, and the :class:`SequenceRef` fields it
+    sets; ``applies``: which folders it changes anything for (``distorted``: a camera with lens distortion;
+    ``registered``: depth registered to the colour camera, 7-Scenes; ``resized``: images not already at the
+    processing size)."""
+
+    name: str
+    description: str
+    fields: tuple[tuple[str, Any], ...]
+    applies: Literal["distorted", "registered", "resized"]
+
+
+PREPROCESSING_CHOICES: tuple[PreprocessingChoice, ...] = (
+    PreprocessingChoice("undistort_full", "undistorted onto the whole frame with K, black border",
+                        (("undistort", "full"),), "distorted"),  # fmt: skip
+    PreprocessingChoice("undistort_none", "not undistorted: the distorted images as pinhole ones with K",
+                        (("undistort", "none"),), "distorted"),  # fmt: skip
+    PreprocessingChoice("native_size", "the images' own size instead of 320x240", (("size", "native"),), "resized"),
+    PreprocessingChoice("unregistered_depth", "7-Scenes: the depth camera's intrinsics (585 px) taken as the colour "
+                        "camera's, depth maps and poses as they are (no registration)", (("camera", "7scenes"),),
+                        "registered"),  # fmt: skip
+)
+DEFAULT_PREPROCESSING = "default"  # the loader's defaults: cropped undistortion, 320x240, depth registered
+
+
+def preprocessing_parts(suite: Suite) -> list[tuple[str, Suite, tuple[tuple[str, str], ...]]]:
+    """The suites the ``preprocessing`` suite is made of, as ``(choice, suite, domains)``: the ``real`` suite on the
+    preprocessing suite's folders as the loader delivers them by default (choice ``default``), then, per choice of
+    :data:`PREPROCESSING_CHOICES`, on the folders it applies to, named ``<folder>~<choice>``; ``domains``: each
+    sequence's folder (the name the default gives it). Frames, methods and seeds are the preprocessing suite's."""
+    if suite.kind != "preprocessing":
+        raise SuiteError(f"suite {suite.name!r} is not a preprocessing suite")
+    base = replace(SUITES["real"], methods=suite.methods, frames=suite.frames, seeds=suite.seeds, skipped=suite.skipped)
+    folders = [r for r in suite.sequences if r.folder is not None]
+    parts = [(DEFAULT_PREPROCESSING, replace(base, sequences=tuple(folders)), tuple((r.name, r.name) for r in folders))]
+    traits = {r.name: _folder_traits(r) for r in folders}
+    for choice in PREPROCESSING_CHOICES:
+        chosen = [r for r in folders if choice.applies in traits[r.name]]
+        refs = tuple(replace(r, name=f"{r.name}~{choice.name}", **dict(choice.fields)) for r in chosen)
+        if refs:
+            domains = tuple((c.name, r.name) for c, r in zip(refs, chosen, strict=True))
+            parts.append((choice.name, replace(base, sequences=refs), domains))
+    return parts
+
+
+def _folder_traits(ref: SequenceRef) -> set[str]:
+    """Which preprocessing choices change anything for this folder (see :class:`PreprocessingChoice`)."""
+    source = ref.make_source()
+    traits = set()
+    if source.camera.distorted:
+        traits.add("distorted")
+    if source.depth_rig is not None:
+        traits.add("registered")
+    if ref.size != "native" and tuple(source.original_size) != tuple(ref.size):
+        traits.add("resized")
+    return traits
 
 
 SWEEP_LENGTHS: tuple[int | None, ...] = (200, 400, 800, None)  # the length sweep's lengths (None: whole sequences)

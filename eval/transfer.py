@@ -21,7 +21,7 @@ does no I/O; :mod:`eval.reports` writes ``transfer.{md,csv,png}``.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,6 +123,27 @@ def rank_correlations(ranks: pd.DataFrame) -> pd.DataFrame:
                              "methods": ", ".join(both.index)})  # fmt: skip
     return pd.DataFrame(rows, columns=["sim", "real", "metric", "n", "spearman", "spearman_p", "kendall",
                                        "kendall_p", "methods"])  # fmt: skip
+
+
+def ranking_agreement(ranks: pd.DataFrame, by: str, reference: str,
+                      order: Callable[[Sequence[str]], list[str]] = sorted) -> pd.DataFrame:
+    """How each condition's ranking agrees with the ``reference`` condition's, per metric: ``ranks`` has columns
+    metric, method, rank and ``by`` (the condition: a length, a preprocessing choice, ...). Per (metric, condition,
+    in ``order``): n (methods ranked in both), Kendall's tau-b and Spearman's rho against the reference's ranks (NaN
+    where undefined: fewer than 3 methods, or all tied), and ``same``: identical ranks. Columns: metric, ``by``, n,
+    kendall, spearman, same."""
+    rows = []
+    for metric, group in ranks.groupby("metric", sort=False):
+        wide = group.pivot_table(index="method", columns=by, values="rank")
+        if reference not in wide:
+            continue
+        for condition in order(list(wide.columns)):
+            both = wide[list(dict.fromkeys([condition, reference]))].dropna()
+            a, b = both[condition].to_numpy(), both[reference].to_numpy()
+            _rho, _p, _tau, _q = _correlation(a, b)
+            rows.append({"metric": metric, by: condition, "n": len(both), "kendall": _tau, "spearman": _rho,
+                         "same": bool(len(both) > 0 and np.array_equal(a, b))})  # fmt: skip
+    return pd.DataFrame(rows, columns=["metric", by, "n", "kendall", "spearman", "same"])
 
 
 def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
