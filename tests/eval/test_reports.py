@@ -68,7 +68,7 @@ def test_table1_quotes_the_paper_beside_ours(tmp_path):
     assert "| office0 (ICL/office0) | 0.100 (0.266) |" in md
     assert "| Avg. | 0.600 (0.246) |" in md
     assert "| living1 (ICL/living1) | 1.100 (0.059) | - (0.480) | - | 0.000 |" in md  # failed LSD run: "-"
-    assert "**ORB**: cannot import it" in md and "`table1/living1/LSD/seed0-frames200`: Boom: it broke" in md
+    assert "**ORB**: cannot import it" in md and "`table1/living1/LSD/seed0-framesall`: Boom: it broke" in md
     assert "cnnslam bench table1" in md
     csv = pd.read_csv(tmp_path / "table1.csv", header=[0, 1], index_col=0)
     assert csv.loc["Avg.", ("Perc. Correct Depth [%]", "CNN-SLAM")] == pytest.approx(30.5)
