@@ -75,20 +75,23 @@ def _names(values: list[str] | None) -> list[str] | None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = f"external method folder layout (--external NAME=FOLDER):\n{EXTERNAL_LAYOUT}"
-    parser.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
-    parser.add_argument("--frames", type=_frames, default=None,
-                        help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
-    parser.add_argument("--undistort", choices=["crop", "full", "none"], default=None,
-                        help="how a folder sequence's distorted lens is undistorted: crop (to what the lens saw, the "
-                             "default), full (the whole frame with K, black border), none (the distorted images as "
-                             "they are); a choice other than crop runs as <name>~<choice>")  # fmt: skip
-    parser.add_argument("--lengths", type=_frames, nargs="+", default=None, metavar="N",
-                        help="the lengths suite's lengths: numbers of frames and/or 'all' (default: 200 400 800 "
-                             "all)")  # fmt: skip
-    parser.add_argument("--sequences", nargs="+", metavar="NAME",
+    select = parser.add_argument_group("what to run")
+    select.add_argument("suite", nargs="?", default="table1", choices=list(SUITES), help="suite (default: table1)")
+    select.add_argument("--sequences", nargs="+", metavar="NAME",
                         help="only these sequences (or others by name, dataset-list name, or the path of an RGB-D "
                              "folder: TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only)")  # fmt: skip
-    parser.add_argument("--camera", default=None, metavar="PRESET|FILE",
+    select.add_argument("--methods", nargs="+", metavar="NAME", help="only these methods of the method table")
+    select.add_argument("--frames", type=_frames, default=None,
+                        help="first N frames of each sequence, or 'all' (default: the suite's)")  # fmt: skip
+    select.add_argument("--lengths", type=_frames, nargs="+", default=None, metavar="N",
+                        help="the lengths suite's lengths: numbers of frames and/or 'all' (default: 200 400 800 "
+                             "all)")  # fmt: skip
+    select.add_argument("--runs", type=int, default=None, metavar="N",
+                        help="runs per cell, seeds 0..N-1 (default: 3); eval/methods.toml says what a seed changes")
+    select.add_argument("--seeds", nargs="+", type=int, metavar="N", help="these seeds instead of --runs")
+    select.add_argument("--list", action="store_true", help="list the suites and the method table, run nothing")
+    images = parser.add_argument_group("the sequences' images")
+    images.add_argument("--camera", default=None, metavar="PRESET|FILE",
                         help="simulated sequences: what the camera does to the images, kinect (a hand-held RGB-D "
                              "camera, default), clean (the renderer's bytes) or hard (sim_envs/camera_effects.py; "
                              "a name with @PRESET in --sequences picks one sequence's camera; "
@@ -98,66 +101,69 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the "
                              "folder's "
                              "camera.toml, side file, or its name (freiburg1/2/3)")  # fmt: skip
-    parser.add_argument("--image-size", default=None, metavar="WxH",
+    images.add_argument("--image-size", default=None, metavar="WxH",
                         help="resolution the folder sequences are delivered at (default 320x240, the paper's; "
                              "'native': the images' own)")  # fmt: skip
-    parser.add_argument("--methods", nargs="+", metavar="NAME", help="only these methods of the method table")
-    parser.add_argument("--runs", type=int, default=None, metavar="N",
-                        help="runs per cell, seeds 0..N-1 (default: 3); eval/methods.toml says what a seed changes")
-    parser.add_argument("--seeds", nargs="+", type=int, metavar="N", help="these seeds instead of --runs")
-    parser.add_argument("--jobs", type=int, default=DEFAULT_JOBS, help=f"runs in parallel (default: {DEFAULT_JOBS})")
-    parser.add_argument("--executor", choices=EXECUTORS, default="local",
-                        help="local process pool (spawn, default), serial (in this process) or ray")  # fmt: skip
-    parser.add_argument("--address", default=None, help="Ray cluster address (auto, ray://host:10001, local)")
-    parser.add_argument("--reuse-workers", action="store_true",
-                        help="local executor: run several runs per worker process (faster start; a run's last digits "
-                             "may then depend on what its worker ran before)")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=Path("runs"), help="per-run artifacts (default: runs/)")
-    parser.add_argument("--results", type=Path, default=None,
-                        help="tables and plots (default: results/ for a suite as defined, else "
-                             "<out>/reports/<suite>-<selection>/)")  # fmt: skip
-    parser.add_argument("--align", choices=ALIGNMENTS, default=None,
-                        help="alignment of the headline ATE (default: the suite's, se3 as in the paper; a method's "
-                             "own align wins); every run also records both ate_se3_rmse and ate_sim3_rmse")  # fmt: skip
-    parser.add_argument("--timeout", type=float, default=None, metavar="S",
-                        help="stop a run after S seconds of wall time and record it as failed (timed out)")
-    parser.add_argument("--rerun", action="store_true", help="run every run again, even finished ones")
-    parser.add_argument("--report-only", action="store_true",
-                        help="run nothing: write the tables from the finished runs in --out, whatever revision made "
-                             "them (each run records its revision)")  # fmt: skip
-    parser.add_argument("--allow-skips", action="store_true",
-                        help="exit 0 even when a requested method or external folder was skipped")
-    parser.add_argument("--no-frame-cache", action="store_true",
+    images.add_argument("--undistort", choices=["crop", "full", "none"], default=None,
+                        help="how a folder sequence's distorted lens is undistorted: crop (to what the lens saw, the "
+                             "default), full (the whole frame with K, black border), none (the distorted images as "
+                             "they are); a choice other than crop runs as <name>~<choice>")  # fmt: skip
+    images.add_argument("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
+    images.add_argument("--no-frame-cache", action="store_true",
                         help="render every run's frames anew (default: a simulated sequence is rendered once and its "
                              "frames read back by the suite's other runs from <out>/.frames/: the same bytes)")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="override one configuration field of every chosen agent that takes one (repeatable; "
-                             "e.g. refinement.enabled=false); the runs' fingerprints carry it")  # fmt: skip
-    parser.add_argument("--override", action="store_true",
-                        help="let --method-file redefine a built-in method of the same name")
-    parser.add_argument("--external", action="append", default=[], metavar="NAME=FOLDER",
-                        help="score a third-party system's output in FOLDER as method NAME (repeatable)")  # fmt: skip
-    parser.add_argument("--method-file", type=Path, default=None,
-                        help="a method table (TOML, shaped like eval/methods.toml) added to the default")  # fmt: skip
-    parser.add_argument("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
-    parser.add_argument("--no-plots", action="store_true", help="no per-run plots (faster)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    parser.add_argument("--no-check", action="store_true",
-                        help="check only that each method's agent imports (not that it builds and steps)")  # fmt: skip
-    parser.add_argument("--baseline", type=Path, default=None,
-                        help="compare the suite's metrics with this baseline (default for quick: "
-                             "results/baselines/quick.json)")  # fmt: skip
-    parser.add_argument("--update-baseline", action="store_true",
-                        help="write the suite's gated figures as its baseline (keeping its calibrated tolerances); "
-                             "perf: the median frames per machine unit of 3 slam probes, results/baselines/perf.json")
-    parser.add_argument("--calibrate", action="store_true",
-                        help="run the suite under the perturbation matrix (eval/calibrate.py: thread counts, oneDNN "
-                             "off, the network's last bits perturbed, an older instruction set), record this "
-                             "machine's figures in <baseline dir>/machines/<suite>/ and write the baseline with "
-                             "tolerances from the spread measured over the matrix and the other machines' records "
-                             "of the same runs")  # fmt: skip
-    parser.add_argument("--no-gate", action="store_true", help="do not compare with the baseline")
-    parser.add_argument("--list", action="store_true", help="list the suites and the method table, run nothing")
+    methods = parser.add_argument_group("the methods")
+    methods.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                         help="override one configuration field of every chosen agent that takes one (repeatable; "
+                              "e.g. refinement.enabled=false); the runs' fingerprints carry it")  # fmt: skip
+    methods.add_argument("--method-file", type=Path, default=None,
+                         help="a method table (TOML, shaped like eval/methods.toml) added to the default")  # fmt: skip
+    methods.add_argument("--override", action="store_true",
+                         help="let --method-file redefine a built-in method of the same name")
+    methods.add_argument("--external", action="append", default=[], metavar="NAME=FOLDER",
+                         help="score a third-party system's output in FOLDER as method NAME (repeatable)")  # fmt: skip
+    methods.add_argument("--no-check", action="store_true",
+                         help="check only that each method's agent imports (not that it builds and steps)")  # fmt: skip
+    running = parser.add_argument_group("how runs are run")
+    running.add_argument("--jobs", type=int, default=DEFAULT_JOBS, help=f"runs in parallel (default: {DEFAULT_JOBS})")
+    running.add_argument("--executor", choices=EXECUTORS, default="local",
+                         help="local process pool (spawn, default), serial (in this process) or ray")  # fmt: skip
+    running.add_argument("--address", default=None, help="Ray cluster address (auto, ray://host:10001, local)")
+    running.add_argument("--reuse-workers", action="store_true",
+                         help="local executor: run several runs per worker process (faster start; a run's last digits "
+                              "may then depend on what its worker ran before)")  # fmt: skip
+    running.add_argument("--timeout", type=float, default=None, metavar="S",
+                         help="stop a run after S seconds of wall time and record it as failed (timed out)")
+    running.add_argument("--rerun", action="store_true", help="run every run again, even finished ones")
+    running.add_argument("--report-only", action="store_true",
+                         help="run nothing: write the tables from the finished runs in --out, whatever revision made "
+                              "them (each run records its revision)")  # fmt: skip
+    running.add_argument("--out", type=Path, default=Path("runs"), help="per-run artifacts (default: runs/)")
+    results = parser.add_argument_group("results")
+    results.add_argument("--results", type=Path, default=None,
+                         help="tables and plots (default: results/ for a suite as defined, else "
+                              "<out>/reports/<suite>-<selection>/)")  # fmt: skip
+    results.add_argument("--align", choices=ALIGNMENTS, default=None,
+                         help="alignment of the headline ATE (default: the suite's, se3 as in the paper; a "
+                              "method's own align wins); every run records ate_se3_rmse and ate_sim3_rmse")  # fmt: skip
+    results.add_argument("--no-plots", action="store_true", help="no per-run plots (faster)")
+    results.add_argument("--no-progress", action="store_true", help="no progress bars")
+    results.add_argument("--allow-skips", action="store_true",
+                         help="exit 0 even when a requested method or external folder was skipped")
+    gate = parser.add_argument_group("the regression gate")
+    gate.add_argument("--baseline", type=Path, default=None,
+                      help="compare the suite's metrics with this baseline (default for quick: "
+                           "results/baselines/quick.json)")  # fmt: skip
+    gate.add_argument("--update-baseline", action="store_true",
+                      help="write the suite's gated figures as its baseline (keeping its calibrated tolerances); "
+                           "perf: the median frames per machine unit of 3 slam probes, results/baselines/perf.json")
+    gate.add_argument("--calibrate", action="store_true",
+                      help="run the suite under the perturbation matrix (eval/calibrate.py: thread counts, oneDNN "
+                           "off, the network's last bits perturbed, an older instruction set), record this "
+                           "machine's figures in <baseline dir>/machines/<suite>/ and write the baseline with "
+                           "tolerances from the spread measured over the matrix and the other machines' records "
+                           "of the same runs")  # fmt: skip
+    gate.add_argument("--no-gate", action="store_true", help="do not compare with the baseline")
 
 
 def _command(args: argparse.Namespace) -> str:
