@@ -1,0 +1,66 @@
+"""ORB-SLAM3 as an agent (thirdparty.orbslam3): out of process, our vocabulary, the agent contract's answers.
+Skipped where pyorbslam3 is not installed (the test process never imports it either)."""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("pyorbslam3") is None,
+                                reason="pyorbslam3 is not installed (pip install -e '.[orbslam3]')")
+
+
+def test_settings_file_is_the_episode_camera():
+    from thirdparty.orbslam3 import settings_yaml
+
+    text = settings_yaml(np.array([240.5, 240.0, 159.5, 119.5]), (240, 320))
+    assert text.startswith("%YAML:1.0\n")
+    for line in ("Camera.fx: 240.500000", "Camera.cy: 119.500000", "Camera.width: 320", "Camera.height: 240",
+                 "Camera.k1: 0.0", "Camera.RGB: 1", "ORBextractor.nFeatures: 1000", "ORBextractor.minThFAST: 7"):
+        assert line in text.splitlines()
+
+
+def test_method_is_available_and_runs_out_of_process():
+    from eval.methods import check_available, get_method
+
+    method = get_method("ORB-SLAM3")
+    assert check_available(method) is None  # imports the agent, builds it, one step on a random image, finish
+    assert method.input_hashes()  # our vocabulary enters the runs' fingerprints
+    assert "pyorbslam3" not in sys.modules  # GPL code never ran in this process
+
+
+def test_tracks_office0_with_our_vocabulary():
+    from eval.results import evaluate_episode
+    from eval.suites import resolve_sequence
+    from sim_envs.driver import run_episode
+    from thirdparty.orbslam3 import OrbSlam3Agent
+
+    result = run_episode(resolve_sequence("office0@kinect").make_env(max_frames=40), OrbSlam3Agent())
+    assert "pyorbslam3" not in sys.modules
+    extras = result.extras  # ORB-SLAM3's threads make each run a little different: loose bounds, its counts shown
+    assert extras["maps"] >= 1 and extras["init_frame"] is not None and extras["keyframes"] >= 2, extras
+    assert result.tracked.mean() > 0.5, extras
+    first = extras["init_frame"]
+    assert not result.tracked[:first].any()  # not initialised: not tracked, the identity
+    assert np.allclose(result.T_world_cam_est[:first], np.eye(4))
+    R = result.T_world_cam_est[:, :3, :3]
+    assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+    metrics = evaluate_episode(result)["metrics"]
+    assert metrics["ate_sim3_rmse"] < 0.1, (extras, metrics)  # metres, after a similarity alignment (no metric scale)
+
+
+def test_missing_package_is_a_clear_import_error(monkeypatch):
+    import thirdparty.orbslam3 as module
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "pyorbslam3" else real(name, *a))
+    try:
+        with pytest.raises(ImportError, match=r"pyorbslam3.*\[orbslam3\]"):
+            importlib.reload(module)
+    finally:
+        monkeypatch.undo()
+        sys.modules["thirdparty.orbslam3"] = importlib.reload(module)

@@ -1,0 +1,264 @@
+"""ORB-SLAM3 (Campos et al. 2021), monocular, as a ``sim_envs`` agent: ``"thirdparty.orbslam3:OrbSlam3Agent"``.
+
+ORB-SLAM3 is GPL-3.0 (through the ``pyorbslam3`` wheel, ``pip install -e '.[orbslam3]'``). This module NEVER imports
+it: each episode starts ``thirdparty/orbslam3_driver.py`` as a separate program (the same Python) and exchanges only
+data with it over pipes (RGB images in, poses and tracking states out). Importing this module raises ImportError
+when ``pyorbslam3`` is not installed (found with :func:`importlib.util.find_spec`, without importing it), so the
+benchmark skips the method with that reason.
+
+Configuration (written as an ORB-SLAM3 settings file per episode, :func:`settings_yaml`): the episode's pinhole
+intrinsics, no distortion (the env delivers undistorted images), 30 fps, RGB order; ORB extractor 1000 features,
+scale factor 1.2, 8 levels, FAST thresholds 20 / 7 (ORB-SLAM3's TUM settings); monocular, no viewer, local mapping
+and loop closing in ORB-SLAM3's own threads (so runs are NOT deterministic: the ``seed`` keyword is recorded, and
+changes nothing fed to ORB-SLAM3). The vocabulary is ours (:mod:`thirdparty.orb_vocabulary`, default
+``thirdparty/vocabulary/orbvoc_train_k8l3.txt``: 584 nodes, built from simulated training frames), not ORBvoc.txt.
+
+Answers (the agent contract of :mod:`sim_envs.agent`): ``T_world_cam`` is ORB-SLAM3's ``Twc`` (camera-to-world,
+OpenCV camera axes, the world = the first key-frame of ORB-SLAM3's current map, no metric scale), float64 with its
+rotation re-orthonormalised. ``tracked = 1`` when ORB-SLAM3's state is OK. Otherwise ``tracked = 0`` and: while
+RECENTLY_LOST, ORB-SLAM3's own motion-model pose; while NOT_INITIALIZED or LOST, the last pose answered (the
+identity before the first initialisation). After a loss ORB-SLAM3 starts a new map with its own world frame and
+scale; ``extras["maps"]`` counts the maps. No key-frame depth is returned (the method has the trajectory metrics
+only); ``extras["keyframes"]`` is the number of key-frames ORB-SLAM3 kept.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import select
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thirdparty.orb_vocabulary import DEFAULT_VOCABULARY
+
+if importlib.util.find_spec("pyorbslam3") is None:
+    raise ImportError("ORB-SLAM3 needs the pyorbslam3 package (GPL-3.0), not installed here: "
+                      "pip install -e '.[orbslam3]'")
+
+DRIVER = Path(__file__).with_name("orbslam3_driver.py")
+TRACKED_STATES = ("OK", "OK_KLT")
+
+
+def settings_yaml(intrinsics: np.ndarray, image_size: tuple[int, int], fps: float = 30.0, n_features: int = 1000,
+                  scale_factor: float = 1.2, n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7) -> str:
+    """An ORB-SLAM3 monocular settings file (OpenCV YAML, the ``Camera.*`` format ORB-SLAM3 reads when the file has
+    no ``File.version``) for a pinhole camera without distortion: ``intrinsics`` [fx, fy, cx, cy] pixels (OpenCV
+    convention), ``image_size`` (H, W), RGB images."""
+    fx, fy, cx, cy = (float(v) for v in np.asarray(intrinsics, dtype=np.float64).reshape(4))
+    h, w = (int(v) for v in image_size)
+    return f"""%YAML:1.0
+Camera.type: "PinHole"
+Camera.fx: {fx:.6f}
+Camera.fy: {fy:.6f}
+Camera.cx: {cx:.6f}
+Camera.cy: {cy:.6f}
+Camera.k1: 0.0
+Camera.k2: 0.0
+Camera.p1: 0.0
+Camera.p2: 0.0
+Camera.k3: 0.0
+Camera.width: {w}
+Camera.height: {h}
+Camera.fps: {float(fps):.1f}
+Camera.RGB: 1
+ORBextractor.nFeatures: {int(n_features)}
+ORBextractor.scaleFactor: {float(scale_factor):.4f}
+ORBextractor.nLevels: {int(n_levels)}
+ORBextractor.iniThFAST: {int(ini_th_fast)}
+ORBextractor.minThFAST: {int(min_th_fast)}
+Viewer.KeyFrameSize: 0.05
+Viewer.KeyFrameLineWidth: 1.0
+Viewer.GraphLineWidth: 0.9
+Viewer.PointSize: 2.0
+Viewer.CameraSize: 0.08
+Viewer.CameraLineWidth: 3.0
+Viewer.ViewpointX: 0.0
+Viewer.ViewpointY: -0.7
+Viewer.ViewpointZ: -1.8
+Viewer.ViewpointF: 500.0
+"""
+
+
+def _rigid(values: list[float]) -> np.ndarray:
+    """A (4, 4) float64 pose from 16 row-major values, its rotation made exactly orthonormal (ORB-SLAM3 keeps
+    float32 poses)."""
+    T = np.asarray(values, dtype=np.float64).reshape(4, 4).copy()
+    u, _, vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    T[3] = (0.0, 0.0, 0.0, 1.0)
+    return T
+
+
+class OrbSlam3Agent:
+    """ORB-SLAM3 monocular, out of process (see the module docstring for the configuration and the answers).
+
+    vocabulary: a DBoW2 text vocabulary (default: ours); n_features, scale_factor, n_levels, ini_th_fast,
+    min_th_fast: ORB extractor settings; fps: the camera rate ORB-SLAM3 is told; seed: recorded only (ORB-SLAM3's
+    threads make its runs differ anyway); timeout_s: how long to wait for one answer of the ORB-SLAM3 program.
+    """
+
+    uses_ground_truth = False
+    name = "orb_slam3"
+
+    def __init__(self, vocabulary: str | None = None, n_features: int = 1000, scale_factor: float = 1.2,
+                 n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7, fps: float = 30.0, seed: int = 0,
+                 timeout_s: float = 120.0) -> None:
+        self.vocabulary = Path(vocabulary) if vocabulary else DEFAULT_VOCABULARY
+        if not self.vocabulary.is_file():
+            raise FileNotFoundError(f"ORB vocabulary {self.vocabulary} not found "
+                                    "(build one with python -m thirdparty.orb_vocabulary)")
+        self.options = {"n_features": int(n_features), "scale_factor": float(scale_factor), "n_levels": int(n_levels),
+                        "ini_th_fast": int(ini_th_fast), "min_th_fast": int(min_th_fast), "fps": float(fps)}
+        self.seed = int(seed)
+        self.timeout_s = float(timeout_s)
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+        self._log: Any = None
+        self._clear()
+
+    def _clear(self) -> None:
+        self._pose = np.eye(4)
+        self._tracked: list[bool] = []
+        self._states: dict[str, int] = {}
+        self._seconds: list[float] = []
+        self._maps = 0
+        self._last_state: str | None = None
+        self._init_frame: int | None = None
+        self._load_seconds = 0.0
+
+    # -- the ORB-SLAM3 program ---------------------------------------------------------------------------------------
+    def _request(self, header: dict[str, Any], payload: bytes = b"") -> dict[str, Any]:
+        proc = self._proc
+        if proc is None or proc.stdin is None or proc.stdout is None:
+            raise RuntimeError("ORB-SLAM3 is not running: call reset(intrinsics, image_size) first")
+        if payload:
+            header = {**header, "nbytes": len(payload)}
+        try:
+            proc.stdin.write(json.dumps(header).encode() + b"\n" + payload)
+            proc.stdin.flush()
+            ready, _, _ = select.select([proc.stdout], [], [], self.timeout_s)
+            line = proc.stdout.readline() if ready else b""
+        except (BrokenPipeError, OSError):
+            line = b""
+        if not line:
+            self._stop(kill=True)
+            raise RuntimeError(f"the ORB-SLAM3 program gave no answer to {header['cmd']!r} "
+                               f"({'timed out' if proc.poll() is None else f'exit code {proc.poll()}'}); "
+                               f"its last output: {self._log_tail()}")
+        answer = json.loads(line)
+        if "error" in answer:
+            raise RuntimeError(f"ORB-SLAM3 failed on {header['cmd']!r}: {answer['error']}; its output: "
+                               f"{self._log_tail()}")
+        return answer
+
+    def _log_tail(self, n: int = 600) -> str:
+        if self._dir is None:
+            return ""
+        path = Path(self._dir.name) / "orbslam3.log"
+        return path.read_text(errors="replace")[-n:].strip() if path.is_file() else ""
+
+    def _stop(self, kill: bool = False) -> None:
+        proc, self._proc = self._proc, None
+        if proc is not None:
+            if proc.stdin is not None:
+                try:
+                    proc.stdin.close()
+                except OSError:
+                    pass
+            try:
+                if kill:
+                    proc.kill()
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            if proc.stdout is not None:
+                proc.stdout.close()
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def close(self) -> None:
+        """Stop the ORB-SLAM3 program and remove its files."""
+        self._stop(kill=True)
+        if self._dir is not None:
+            self._dir.cleanup()
+            self._dir = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+    # -- the agent contract ------------------------------------------------------------------------------------------
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        """A new episode: a fresh ORB-SLAM3 program for ``intrinsics`` [fx, fy, cx, cy] (pixels) and ``image_size``
+        (H, W)."""
+        self.close()
+        self._clear()
+        self._dir = tempfile.TemporaryDirectory(prefix="orbslam3_")
+        work = Path(self._dir.name)
+        settings = work / "settings.yaml"
+        settings.write_text(settings_yaml(intrinsics, image_size, **self.options))
+        self._log = open(work / "orbslam3.log", "wb")  # noqa: SIM115 - closed in _stop
+        self._proc = subprocess.Popen([sys.executable, str(DRIVER)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                      stderr=self._log, cwd=work)
+        answer = self._request({"cmd": "init", "vocabulary": str(self.vocabulary.resolve()),
+                                "settings": str(settings)})
+        self._load_seconds = float(answer["seconds"])
+
+    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
+        """Track one RGB frame; ``{"T_world_cam": (4, 4) float64, "tracked": 0 | 1}`` (module docstring)."""
+        rgb = np.ascontiguousarray(observation["rgb"], dtype=np.uint8)
+        h, w = rgb.shape[:2]
+        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
+        ans = self._request({"cmd": "track", "timestamp": stamp, "height": h, "width": w}, rgb.tobytes())
+        state = str(ans["state"])
+        tracked = state in TRACKED_STATES and ans["pose_wc"] is not None
+        if ans["pose_wc"] is not None and (tracked or state == "RECENTLY_LOST"):
+            self._pose = _rigid(ans["pose_wc"])
+        if tracked and self._last_state in (None, "NO_IMAGES_YET", "NOT_INITIALIZED"):  # a map (re)initialised
+            self._maps += 1
+            if self._init_frame is None:
+                self._init_frame = len(self._tracked)
+        self._last_state = state
+        self._states[state] = self._states.get(state, 0) + 1
+        self._tracked.append(tracked)
+        self._seconds.append(float(ans["seconds"]))
+        return {"T_world_cam": self._pose.copy(), "tracked": int(tracked)}
+
+    def finish(self) -> Any:
+        """Stop ORB-SLAM3; an ``AgentOutput`` without key-frame depth, with ORB-SLAM3's counts in ``extras``."""
+        from sim_envs.agent import AgentOutput
+
+        keyframes = 0
+        if self._proc is not None and self._dir is not None:
+            path = Path(self._dir.name) / "keyframes.tum"
+            self._request({"cmd": "finish", "keyframes": str(path)})
+            if path.is_file():
+                keyframes = sum(1 for line in path.read_text().splitlines() if line.strip())
+        self.close()
+        n = len(self._tracked)
+        secs = np.asarray(self._seconds)
+        extras: dict[str, Any] = {
+            "frames": n,
+            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            "states": dict(sorted(self._states.items())),
+            "maps": self._maps,
+            "init_frame": self._init_frame,
+            "keyframes": keyframes,
+            "vocabulary": self.vocabulary.name,
+            "vocabulary_load_seconds": self._load_seconds,
+            "options": dict(self.options),
+            "mean_track_seconds": float(secs.mean()) if n else 0.0,
+            "track_fps": float(n / secs.sum()) if n and secs.sum() > 0 else 0.0,
+            "seed": self.seed,
+        }
+        return AgentOutput(keyframes=[], extras=extras)
