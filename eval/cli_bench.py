@@ -108,6 +108,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how a folder sequence's distorted lens is undistorted: crop (to what the lens saw, the "
                              "default), full (the whole frame with K, black border), none (the distorted images as "
                              "they are); a choice other than crop runs as <name>~<choice>")  # fmt: skip
+    images.add_argument("--motion", action="append", default=[], type=Path, metavar="TUM_FILE",
+                        help="transfer: a recorded camera motion (TUM trajectory file, e.g. a TUM RGB-D ground truth) "
+                             "replayed in the simulated rooms as a simulated domain of its own (repeatable)")
     images.add_argument("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
     images.add_argument("--no-frame-cache", action="store_true",
                         help="render every run's frames anew (default: a simulated sequence is rendered once and its "
@@ -181,6 +184,8 @@ def _command(args: argparse.Namespace) -> str:
             words += [flag, *map(str, values)]
     for text in args.external:
         words += ["--external", text]
+    for path in getattr(args, "motion", []):
+        words += ["--motion", str(path)]
     if args.method_file is not None:
         words += ["--method-file", str(args.method_file)]
     return " ".join(shlex.quote(w) for w in words)
@@ -363,7 +368,8 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
     from eval.suites import transfer_parts
     from eval.transfer_report import report_transfer
 
-    plan = [p for p in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,)) if p.suite.sequences]
+    plan = [p for p in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,), motions=args.motion)
+            if p.suite.sequences]  # fmt: skip
     try:
         done, status = _run_parts(args, [(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite) for p in plan],
                                   methods, executor)  # fmt: skip

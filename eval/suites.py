@@ -320,6 +320,24 @@ class SequenceRef:
             base = f"{base}+{lighting}"
         return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
 
+    def with_motion(self, file: str | Path, label: str | None = None) -> SequenceRef:
+        """This simulated sequence's room with a recorded camera motion replayed in it instead of its own
+        trajectory (the ``replay`` kind of :mod:`sim_envs.trajectories`: a TUM trajectory ``file``, e.g. real
+        hand-held motion), named ``<name>~<label>`` before any ``@<camera preset>`` (label: the file's stem, made
+        file-safe). The room, camera and frame count are the sequence's."""
+        if self.folder is not None:
+            raise SuiteError(f"sequence {self.name!r} is a folder: its motion is the real camera's")
+        path = Path(file).expanduser().resolve()
+        if not path.is_file():
+            raise SuiteError(f"motion file {path} is not a file (a TUM trajectory: timestamp tx ty tz qx qy qz qw)")
+        label = _SAFE_NAME.sub("_", label or path.stem)
+        overrides = dict(self.overrides)
+        base, at, preset = self.name.rpartition("@")
+        if not (at and preset == overrides.get("camera_effects")):
+            base, at, preset = self.name, "", ""
+        overrides.update(trajectory="replay", trajectory_params=(("file", str(path)),))
+        return replace(self, name=f"{base}~{label}{at}{preset}", overrides=tuple(overrides.items()))
+
     def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None,
                             undistort: str | None = None) -> SequenceRef:
         """This folder sequence with another camera (preset name or camera file), delivered size and/or
@@ -974,14 +992,18 @@ class TransferPart:
 
 
 def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECTS,),
-                   lengths: Sequence[int | None] | None = None) -> list[TransferPart]:
+                   lengths: Sequence[int | None] | None = None,
+                   motions: Sequence[str | Path] = ()) -> list[TransferPart]:
     """The suites the ``transfer`` suite is made of, compared like for like: for each length of ``lengths``
     (default: the transfer suite's ``frames``, the bench length, then whole sequences; ``frames`` None: whole
     only), the ``table1`` suite on its first ``length`` frames through each simulated domain of ``presets`` (a
     camera preset, or one with ``+lit``, :func:`sim_domain`; domain ``sim:<preset>``), with the transfer suite's
     methods and seeds (its runs are ``make bench``'s and ``cnnslam bench table1``'s own); and the ``real`` suite on
     the transfer suite's folder sequences: whole, or cut into non-overlapping windows of ``length`` frames
-    (:func:`window_refs`), each window a sample of the real sequence's domain ``real:<name>``."""
+    (:func:`window_refs`), each window a sample of the real sequence's domain ``real:<name>``. ``motions``: TUM
+    trajectory files (real hand-held motion) replayed in the same rooms (:meth:`SequenceRef.with_motion`), each a
+    simulated domain ``sim:<preset>~<file stem>`` of its own beside the preset's, so that the motion's share of the
+    gap to the real rankings can be told from the images'."""
     if suite.kind != "transfer":
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
     if lengths is None:
@@ -994,6 +1016,11 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
             refs = tuple(r.with_lighting(lighting).with_camera_effects(camera) for r in table1.sequences)
             part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs, frames=length)
             parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
+            for motion in motions:
+                moved = tuple(r.with_motion(motion) for r in refs)
+                label = moved[0].name.split("~", 1)[1].split("@", 1)[0]
+                part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=moved, frames=length)
+                parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}~{label}") for r in moved)))
         refs, domains = [], []
         for ref in suite.sequences:
             windows = (ref,) if length is None else window_refs(ref, length)

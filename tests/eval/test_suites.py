@@ -249,3 +249,24 @@ def test_undistortion_of_folder_sequences_gets_its_own_name_and_fingerprint(tmp_
         get_suite("table1").select(undistort="full")
     with pytest.raises(SuiteError, match="other than crop only for a folder"):
         SequenceRef("office0", base="office0", undistort="full")
+
+
+def test_a_recorded_motion_replays_in_the_same_room(tmp_path):
+    from eval.suites import transfer_parts
+
+    t = np.arange(0.0, 10.0, 0.01)
+    motion = tmp_path / "desk motion.txt"  # a slow pan with a small sideways drift, as a TUM file
+    q = Rotation.from_euler("y", (5.0 * t)[:, None], degrees=True).as_quat()
+    np.savetxt(motion, np.column_stack([t, 0.01 * t, 0 * t, 0 * t, q]), fmt="%.9f")
+    ref = get_suite("table1").sequences[0].with_motion(motion)
+    assert ref.name == "office0~desk_motion@kinect" and ref.spec().trajectory == "replay"
+    assert ref.spec().camera_effects == "kinect" and ref.spec().scene_seed == get_sequence("office0").scene_seed
+    short = SequenceRef("office0", base="office0", overrides={"n_frames": 30}).with_motion(motion, "desk")
+    source = short.make_source()
+    rel = np.linalg.inv(source.poses[0]) @ source.poses[-1]
+    assert Rotation.from_matrix(rel[:3, :3]).magnitude() == pytest.approx(np.radians(5.0 * 29 / 30), abs=1e-6)
+    parts = transfer_parts(get_suite("transfer"), lengths=(20,), motions=[motion])
+    assert [sorted({d for _, d in p.domains}) for p in parts] == [["sim:kinect"], ["sim:kinect~desk_motion"],
+                                                                  sorted({d for _, d in parts[-1].domains})]
+    with pytest.raises(SuiteError, match="is not a file"):
+        ref.with_motion(tmp_path / "nope.txt")
