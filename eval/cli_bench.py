@@ -368,7 +368,8 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
     from eval.suites import transfer_parts
     from eval.transfer_report import report_transfer
 
-    plan = [p for p in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,), motions=args.motion)
+    lengths = None if args.lengths is None else tuple(None if n == "all" else n for n in args.lengths)
+    plan = [p for p in transfer_parts(suite, presets or (DEFAULT_CAMERA_EFFECTS,), lengths, motions=args.motion)
             if p.suite.sequences]  # fmt: skip
     try:
         done, status = _run_parts(args, [(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite) for p in plan],
