@@ -257,6 +257,12 @@ def run(args: argparse.Namespace) -> int:
             print(_list(methods))
             return 0
         suite = get_suite(args.suite)
+        if args.motion and suite.kind != "transfer":
+            raise SuiteError("--motion applies to the transfer suite (a recorded motion as a simulated domain)")
+        if args.lengths is not None and suite.kind not in ("lengths", "transfer"):
+            raise SuiteError("--lengths applies to the lengths and transfer suites; other suites take --frames")
+        if args.lengths is not None and args.frames is not None:
+            raise SuiteError("give --lengths or --frames, not both")
         if suite.kind == "perf":
             from eval.perf import run_perf
 
@@ -379,7 +385,10 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
               "resume)", file=sys.stderr)  # fmt: skip
         return 130
     parts = [(p, run) for p, (_, run) in zip(plan, done, strict=True)]
-    paths = report_transfer(parts, results_folder(args, suite, command), command)
+    as_defined = lengths is None and presets is None and not args.motion  # else a variant: never over results/
+    folder = results_folder(args, suite, command) if as_defined else (
+        args.results or args.out / "reports" / f"transfer-{hashlib.sha256(command.encode()).hexdigest()[:8]}")
+    paths = report_transfer(parts, folder, command)
     print("wrote " + ", ".join(str(p) for p in paths))
     for name, reason in suite.skipped:
         print(f"  skipped sequence {name}: {reason}")

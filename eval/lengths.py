@@ -11,8 +11,8 @@ first N frames of every sequence for several N and whole sequences, and per leng
   length's ranking and the whole-sequence one, with n (methods), and whether the two rankings are the same;
 - **where each method's rank settles** (:func:`settling_lengths`): the shortest length from which the method's rank
   equals its whole-sequence rank at every longer length;
-- **the bench length** (:func:`shortest_agreeing_length`): the shortest length whose ranking equals the whole
-  sequences' on the decisive metrics (Table 1's: SE(3) ATE and correct depth).
+- **the bench length** (:func:`shortest_agreeing_length`): the shortest length from which every ranking equals the
+  whole sequences' on the decisive metrics (Table 1's: SE(3) ATE and correct depth).
 
 Methods fed ground truth (the oracle) are left out by the suite's default methods: they win by construction. The
 numeric core does no I/O; :mod:`eval.lengths_report` writes ``lengths.{md,csv,png}``.
@@ -82,10 +82,13 @@ def settling_lengths(ranks: pd.DataFrame, reference: str = WHOLE) -> pd.DataFram
 
 
 def shortest_agreeing_length(agreement: pd.DataFrame, metrics: Sequence[str] = DECISIVE_METRICS) -> str | None:
-    """The shortest length whose ranking is the same as the reference's on every one of ``metrics``; None when no
-    length has all of them (a metric missing from ``agreement`` counts as disagreeing)."""
-    for length in length_order(agreement["length"].unique()):
+    """The shortest length from which the ranking is the same as the reference's on every one of ``metrics`` at
+    that length and every longer one (a length that agrees while a longer one does not is a coincidence, not a
+    settled verdict); None when not even the longest does (a metric missing from ``agreement`` disagrees)."""
+    found = None
+    for length in reversed(length_order(agreement["length"].unique())):
         rows = agreement[agreement["length"] == length].set_index("metric")
-        if all(m in rows.index and bool(rows.loc[m, "same"]) for m in metrics):
-            return length
-    return None
+        if not all(m in rows.index and bool(rows.loc[m, "same"]) for m in metrics):
+            break
+        found = length
+    return found

@@ -62,6 +62,7 @@ from sim_envs.datasets import (
     folder_fingerprint,
 )
 from sim_envs.errors import SimEnvError
+from sim_envs.formats import read_tum_trajectory
 from sim_envs.frame_cache import CachedFrames, cache_key
 from sim_envs.scene import LIGHTINGS
 from sim_envs.sequences import (
@@ -278,6 +279,8 @@ class SequenceRef:
             "axis": self.axis,
             "axis_value": self.axis_value,
             **({"start": self.start} if self.start else {}),
+            **({"motion_sha256": _file_sha256(dict(self.overrides)["trajectory_params"])}
+               if dict(self.overrides).get("trajectory") == "replay" else {}),  # fmt: skip
         }
 
     def with_camera_effects(self, preset: str) -> SequenceRef:
@@ -323,34 +326,44 @@ class SequenceRef:
     def with_motion(self, file: str | Path, label: str | None = None) -> SequenceRef:
         """This simulated sequence's room with a recorded camera motion replayed in it instead of its own
         trajectory (the ``replay`` kind of :mod:`sim_envs.trajectories`: a TUM trajectory ``file``, e.g. real
-        hand-held motion), named ``<name>~<label>`` before any ``@<camera preset>`` (label: the file's stem, made
-        file-safe). The room, camera and frame count are the sequence's."""
+        hand-held motion), named ``<name>~<label>`` before any ``@<camera preset>`` (label: :func:`motion_label`).
+        The room and camera are the sequence's; its length too, cut to what the recording covers. The run's
+        fingerprint holds the file's SHA-256 (:meth:`describe`), so an edited recording reruns."""
         if self.folder is not None:
             raise SuiteError(f"sequence {self.name!r} is a folder: its motion is the real camera's")
         path = Path(file).expanduser().resolve()
         if not path.is_file():
             raise SuiteError(f"motion file {path} is not a file (a TUM trajectory: timestamp tx ty tz qx qy qz qw)")
-        label = _SAFE_NAME.sub("_", label or path.stem)
+        try:
+            stamps, _ = read_tum_trajectory(path, duplicate_timestamps="first")
+        except SimEnvError as exc:
+            raise SuiteError(f"motion file: {exc}") from None
+        spec = self.spec()
+        n_frames = min(spec.n_frames, int(math.floor((stamps[-1] - stamps[0]) * spec.fps + 1e-9)) + 1)
+        if n_frames < 2:
+            raise SuiteError(f"motion file {path} covers {stamps[-1] - stamps[0]:.3f} s: too short to replay")
         overrides = dict(self.overrides)
         base, at, preset = self.name.rpartition("@")
         if not (at and preset == overrides.get("camera_effects")):
             base, at, preset = self.name, "", ""
-        overrides.update(trajectory="replay", trajectory_params=(("file", str(path)),))
-        return replace(self, name=f"{base}~{label}{at}{preset}", overrides=tuple(overrides.items()))
+        overrides.update(trajectory="replay", trajectory_params=(("file", str(path)),), n_frames=n_frames)
+        name = f"{base}~{label or motion_label(path)}{at}{preset}"
+        return replace(self, name=name, overrides=tuple(overrides.items()))
 
     def with_folder_options(self, camera: str | None = None, size: FolderSize | None = None,
                             undistort: str | None = None) -> SequenceRef:
         """This folder sequence with another camera (preset name or camera file), delivered size and/or
-        undistortion (:data:`sim_envs.camera.UNDISTORT_MODES`; other than ``crop`` the name gets ``~<mode>``, its
-        own run folders)."""
+        undistortion (:data:`sim_envs.camera.UNDISTORT_MODES`; other than ``crop`` the name gets
+        ``~undistort_<mode>``, its own run folders, as the preprocessing suite's)."""
         if self.folder is None:
             raise SuiteError(f"sequence {self.name!r} is not a folder: --camera, --image-size and --undistort do not "
                              "apply")  # fmt: skip
         if undistort is not None and undistort not in UNDISTORT_MODES:
             raise SuiteError(f"unknown undistortion {undistort!r}; valid: {', '.join(UNDISTORT_MODES)}")
         name = self.name
-        if undistort is not None and undistort != self.undistort:
-            name = name.removesuffix(f"~{self.undistort}") + ("" if undistort == "crop" else f"~{undistort}")
+        if undistort is not None and undistort != self.undistort:  # named as the preprocessing suite names it
+            name = name.removesuffix(f"~undistort_{self.undistort}")
+            name += "" if undistort == "crop" else f"~undistort_{undistort}"
         return replace(
             self,
             name=name,
@@ -358,6 +371,22 @@ class SequenceRef:
             size=_folder_size(size) if size is not None else self.size,
             undistort=undistort if undistort is not None else self.undistort,
         )
+
+
+def motion_label(path: str | Path) -> str:
+    """The name a recorded motion gives its sequences and domain: the file's stem, or its folder's name for a TUM
+    RGB-D ``groundtruth.txt`` (every sequence's is called that), made file-safe."""
+    path = Path(path)
+    stem = path.parent.name if path.stem == "groundtruth" else path.stem
+    return _SAFE_NAME.sub("_", stem.removeprefix("rgbd_dataset_"))
+
+
+def _file_sha256(params: Any) -> str | None:
+    """SHA-256 of the ``file`` of a replay trajectory's parameters (None when it cannot be read)."""
+    try:
+        return hashlib.sha256(Path(dict(params)["file"]).read_bytes()).hexdigest()
+    except (OSError, KeyError, TypeError):
+        return None
 
 
 def folder_ref(
@@ -949,14 +978,17 @@ def preprocessing_parts(suite: Suite) -> list[tuple[str, Suite, tuple[tuple[str,
 def _folder_traits(ref: SequenceRef) -> set[str]:
     """Which preprocessing choices change anything for this folder (see :class:`PreprocessingChoice`)."""
     source = ref.make_source()
-    traits = set()
-    if source.camera.distorted:
-        traits.add("distorted")
-    if source.depth_rig is not None:
-        traits.add("registered")
-    if ref.size != "native" and tuple(source.original_size) != tuple(ref.size):
-        traits.add("resized")
-    return traits
+    try:
+        traits = set()
+        if source.camera.distorted:
+            traits.add("distorted")
+        if source.depth_rig is not None:
+            traits.add("registered")
+        if ref.size != "native" and tuple(source.original_size) != tuple(ref.size):
+            traits.add("resized")
+        return traits
+    finally:
+        source.close()
 
 
 SWEEP_LENGTHS: tuple[int | None, ...] = (200, 400, 800, None)  # the length sweep's lengths (None: whole sequences)
@@ -1006,6 +1038,9 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     gap to the real rankings can be told from the images'."""
     if suite.kind != "transfer":
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
+    labels = [motion_label(m) for m in motions]
+    if len(set(labels)) != len(labels):
+        raise SuiteError(f"two motion files give the same name ({', '.join(labels)}): rename one")
     if lengths is None:
         lengths = (None,) if suite.frames is None else (suite.frames, None)
     table1 = SUITES["table1"]
@@ -1017,8 +1052,8 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
             part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs, frames=length)
             parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
             for motion in motions:
-                moved = tuple(r.with_motion(motion) for r in refs)
-                label = moved[0].name.split("~", 1)[1].split("@", 1)[0]
+                label = motion_label(motion)
+                moved = tuple(r.with_motion(motion, label) for r in refs)
                 part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=moved, frames=length)
                 parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}~{label}") for r in moved)))
         refs, domains = [], []

@@ -120,8 +120,9 @@ def correlations_with_intervals(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.D
             continue
         domains = list(dict.fromkeys(sub["domain"]))
         ranks = rank_methods(scores, domains=domains)
-        corr = rank_correlations(ranks).merge(bootstrap_correlations(sub), on=["sim", "real", "metric", "n"],
-                                              how="left")  # fmt: skip
+        ranked = sub.merge(ranks[["metric", "method"]].drop_duplicates(), on=["metric", "method"])  # the same set
+        corr = rank_correlations(ranks).merge(bootstrap_correlations(ranked).drop(columns="n"),
+                                              on=["sim", "real", "metric"], how="left")  # fmt: skip
         all_ranks.append(ranks.assign(length=length))
         all_corr.append(corr.assign(length=length))
     ranks = pd.concat(all_ranks, ignore_index=True) if all_ranks else pd.DataFrame(
@@ -130,6 +131,20 @@ def correlations_with_intervals(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.D
         columns=["sim", "real", "metric", "n", "spearman", "spearman_p", "kendall", "kendall_p", "methods",
                  "sim_samples", "real_samples", "rho_low", "rho_high", "defined", "length"])  # fmt: skip
     return ranks, corr
+
+
+def _dropped_line(frame: pd.DataFrame, ranks: pd.DataFrame) -> str:
+    """Which methods a length's rankings leave out (no finite score on some sequence or window of a domain)."""
+    if frame.empty:
+        return ""
+    out = []
+    for length, sub in frame.groupby("length", sort=False):
+        ranked = set(ranks.loc[ranks["length"] == length, "method"]) if not ranks.empty else set()
+        dropped = sorted(set(sub["method"]) - ranked)
+        if dropped:
+            out.append(f"at length {length}: {', '.join(dropped)}")
+    return ("Left out of the rankings (a sequence or window without a finite score, e.g. a failed run): "
+            + "; ".join(out) + ".\n") if out else ""
 
 
 def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir: str | Path,
@@ -167,7 +182,9 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
         "scipy's two-sided value (below 0.05 only for rho >= 0.9 at n = 5). The interval is a 95 % percentile "
         f"bootstrap over the simulated sequences and the real windows, {BOOTSTRAP_DRAWS} draws, each side "
         "resampled with replacement (a side with one sample, such as one whole real sequence, is not "
-        "resampled).\n",
+        "resampled); windows cut from one recording share its room, camera and operator, so they are not "
+        "independent samples and the interval is narrower than one over independent sequences would be.\n",
+        _dropped_line(frame, ranks),
         "Parts:\n",
         *[_part_line(part, run) for part, run in parts],
         "\n## Verdict\n",

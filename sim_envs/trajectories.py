@@ -767,7 +767,9 @@ def replay(
     stamps, T = read_tum_trajectory(file, duplicate_timestamps="first")
     times = frame_times(n_frames, fps, t0)
     src = stamps[0] + float(start_s) + (times - times[0])
-    if start_s < 0 or src[-1] > stamps[-1]:
+    if start_s < 0:
+        raise SimEnvError(f"start_s must be >= 0 seconds into the recording, got {start_s}")
+    if src[-1] > stamps[-1]:
         raise SimEnvError(f"{file} covers {stamps[-1] - stamps[0]:.2f} s; {n_frames} frames at {fps:g} fps from "
                           f"{start_s:g} s need {src[-1] - stamps[0]:.2f} s")  # fmt: skip
     positions = np.column_stack([np.interp(src, stamps, T[:, k, 3]) for k in range(3)])

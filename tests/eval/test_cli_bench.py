@@ -31,6 +31,9 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
     assert "unknown sequence 'office9'" in capsys.readouterr().err
     assert bench(tmp_path, "table1", "--external", "nonsense") == 2
     assert bench(tmp_path, "table1", "--executor", "local", "--address", "auto") == 2
+    assert bench(tmp_path, "table1", "--motion", str(tmp_path)) == 2  # --motion: the transfer suite's
+    assert bench(tmp_path, "table1", "--lengths", "200") == 2  # --lengths: the lengths and transfer suites'
+    assert bench(tmp_path, "lengths", "--lengths", "200", "--frames", "100") == 2
 
 
 def test_a_small_table1_with_a_user_method_file(tmp_path, capsys):

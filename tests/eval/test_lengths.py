@@ -96,3 +96,13 @@ def test_the_length_sweep_end_to_end(tmp_path, monkeypatch):
     md = (tmp_path / "res" / "lengths.md").read_text()
     assert "## Verdict" in md and "## Where each method's rank settles" in md and "| settles at |" in md
     assert (tmp_path / "res" / "lengths.png").is_file()
+
+
+def test_a_length_that_agrees_by_chance_is_not_the_bench_length():
+    table = {
+        "200": {"A": 0.1, "B": 0.2, "C": 0.3},  # agrees with whole
+        "400": {"A": 0.2, "B": 0.1, "C": 0.3},  # does not
+        "whole": {"A": 0.1, "B": 0.2, "C": 0.3},
+    }
+    agree = length_agreement(length_ranks(_frame(table)))
+    assert shortest_agreeing_length(agree, ["ate_se3_rmse"]) == "whole"

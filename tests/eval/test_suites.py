@@ -239,12 +239,12 @@ def test_undistortion_of_folder_sequences_gets_its_own_name_and_fingerprint(tmp_
     export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=3)
     ref = folder_ref(folder)
     full = ref.with_folder_options(undistort="full")
-    assert full.name == "seq~full" and full.undistort == "full" and full.describe()["undistort"] == "full"
+    assert full.name == "seq~undistort_full" and full.undistort == "full" and full.describe()["undistort"] == "full"
     assert "undistort" not in ref.describe()  # the default leaves earlier runs' fingerprints as they were
-    assert full.with_folder_options(undistort="none").name == "seq~none"
+    assert full.with_folder_options(undistort="none").name == "seq~undistort_none"
     assert full.with_folder_options(undistort="crop") == ref
     suite = get_suite("table1").select(sequences=[str(folder)], undistort="none")
-    assert [s.name for s in suite.sequences] == ["seq~none"]
+    assert [s.name for s in suite.sequences] == ["seq~undistort_none"]
     with pytest.raises(SuiteError, match="--undistort applies to folder sequences"):
         get_suite("table1").select(undistort="full")
     with pytest.raises(SuiteError, match="other than crop only for a folder"):
@@ -270,3 +270,12 @@ def test_a_recorded_motion_replays_in_the_same_room(tmp_path):
                                                                   sorted({d for _, d in parts[-1].domains})]
     with pytest.raises(SuiteError, match="is not a file"):
         ref.with_motion(tmp_path / "nope.txt")
+    assert ref.with_motion(motion).spec().n_frames == 300  # 10 s recorded: 1500 frames cut to what it covers
+    described = ref.describe()
+    assert len(described["motion_sha256"]) == 64  # an edited recording reruns
+    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
+    first, second = tmp_path / "a" / "groundtruth.txt", tmp_path / "b" / "groundtruth.txt"
+    first.write_text(motion.read_text()), second.write_text(motion.read_text())
+    assert get_suite("table1").sequences[0].with_motion(first).name == "office0~a@kinect"  # TUM's file name: its folder
+    with pytest.raises(SuiteError, match="give the same name"):
+        transfer_parts(get_suite("transfer"), lengths=(20,), motions=[first, first])

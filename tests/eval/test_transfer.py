@@ -203,3 +203,23 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     md = (tmp_path / "transfer.md").read_text()
     assert "### Length: 10" in md and "### Length: whole" in md and "| 10 | sim:kinect | real:kitchen |" in md
     assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png"}
+
+
+def test_intervals_survive_a_real_domain_that_misses_a_method(tmp_path):
+    """The point estimate ranks the methods scored in every domain of a length; the interval must use the same set
+    (it once merged on n and lost the interval of every pair where the counts differed)."""
+    from eval.transfer_report import correlations_with_intervals
+
+    rows = []
+    for domain, seqs in (("sim:kinect", ("a", "b", "c")), ("real:x", ("w0", "w1")), ("real:y", ("v0", "v1"))):
+        for seq in seqs:
+            for m, v in zip("ABCD", [1.0, 2.0, 3.0, 4.0], strict=True):
+                if domain == "real:y" and m == "D":
+                    continue  # real:y has no D: D is ranked nowhere at this length
+                rows.append({"domain": domain, "sequence": f"{domain}/{seq}", "method": m, "metric": "ate_se3_rmse",
+                             "value": v, "length": "200"})  # fmt: skip
+    _, corr = correlations_with_intervals(pd.DataFrame(rows))
+    corr = corr.set_index("real")
+    assert corr.loc["real:x", "n"] == corr.loc["real:y", "n"] == 3
+    assert corr.loc["real:x", ["rho_low", "rho_high"]].tolist() == pytest.approx([1.0, 1.0])
+    assert corr.loc["real:y", ["rho_low", "rho_high"]].tolist() == pytest.approx([1.0, 1.0])
