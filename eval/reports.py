@@ -46,6 +46,7 @@ from eval.tables import (
     table_to_latex,
     table_to_markdown,
 )
+from sim_envs.driver import match_timestamp
 
 ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Tracked share", "tracked_share"),
@@ -439,8 +440,10 @@ def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
                 stamps = kf["timestamps"]
                 frames = int(found[method]["metrics"].get("frames", len(source)))
                 middle = float(source.timestamps[min(frames // 2, len(source) - 1)])
-                k = int(np.argmin(np.abs(stamps - middle)))
-                i = int(np.argmin(np.abs(np.asarray(source.timestamps) - stamps[k])))
+                k = int(np.argmin(np.abs(stamps - middle)))  # the key-frame shown: the one nearest the middle
+                i = match_timestamp(source.timestamps, float(stamps[k]))
+                if i is None:
+                    return None
                 estimates.append(kf["depth"][k])
                 truths.append(source.frame(i).depth)
                 titles.append(f"{method}, t={stamps[k]:.2f} s")

@@ -151,6 +151,8 @@ def _timing_metrics(step_seconds: np.ndarray) -> dict[str, float]:
 
 def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[str]):
     """Per key-frame depth metrics, JSON rows, and the summed semantic confusion (None if no labels to score)."""
+    from sim_envs.driver import match_timestamp
+
     gt_frames = list(keyframe_gt)
     gt_stamps = np.array([float(f.timestamp) for f in gt_frames])
     per_kf: list[DepthMetrics] = []
@@ -158,14 +160,11 @@ def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[st
     conf = None
     for k, kf in enumerate(keyframes):
         t = float(kf.timestamp)
-        if k < len(gt_frames) and abs(gt_stamps[k] - t) <= 1e-6:
-            frame = gt_frames[k]
-        else:
-            near = int(np.argmin(np.abs(gt_stamps - t))) if gt_stamps.size else -1
-            if near < 0 or abs(gt_stamps[near] - t) > 1e-6:
-                warnings.append(f"key-frame {k} at t={t:.6f} s has no ground-truth frame; skipped")
-                continue
-            frame = gt_frames[near]
+        near = match_timestamp(gt_stamps, t)  # the world's tolerance, as the episode paired them
+        if near is None:
+            warnings.append(f"key-frame {k} at t={t:.6f} s has no ground-truth frame; skipped")
+            continue
+        frame = gt_frames[near]
         depth_est = np.asarray(kf.depth, dtype=np.float32)
         depth_gt = np.asarray(frame.depth, dtype=np.float32)
         if depth_est.shape != depth_gt.shape:

@@ -257,7 +257,7 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
     first ``frames`` frames (TUM greedy association, 0.02 s); returns the episode, the number of frames and the
     source's description."""
     from sim_envs.agent import KeyframeDepth
-    from sim_envs.driver import KEYFRAME_TIME_TOLERANCE
+    from sim_envs.driver import match_timestamp
 
     ref, method = spec.sequence, spec.method
     folder = Path(method.folder or "")
@@ -287,8 +287,8 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
         files = sorted(depth_dir.glob("*.png")) + sorted(depth_dir.glob("*.npy")) if depth_dir.is_dir() else []
         for file in files:
             t = float(file.stem)
-            i = int(np.argmin(np.abs(gt.timestamps - t)))
-            if abs(gt.timestamps[i] - t) > KEYFRAME_TIME_TOLERANCE:
+            i = match_timestamp(gt.timestamps, t)
+            if i is None:
                 continue
             k = int(np.argmin(np.abs(stamps - t))) if stamps.size else -1
             pose = T_est[k] if k >= 0 else np.eye(4)

@@ -208,6 +208,16 @@ def _agent_output(output: Any, agent: str) -> AgentOutput:
     return AgentOutput(keyframes=keyframes, extras=dict(output.extras))
 
 
+def match_timestamp(stamps: np.ndarray, t: float, tolerance: float = KEYFRAME_TIME_TOLERANCE) -> int | None:
+    """The index of the timestamp of ``stamps`` (seconds) nearest to ``t``, or None when none lies within
+    ``tolerance`` seconds: how a key-frame (or any estimate named by its time) finds its frame, everywhere."""
+    stamps = np.asarray(stamps, dtype=np.float64)
+    if stamps.size == 0:
+        return None
+    i = int(np.argmin(np.abs(stamps - float(t))))
+    return i if abs(stamps[i] - float(t)) <= tolerance else None
+
+
 def _match_keyframes(
     keyframes: list[KeyframeDepth], source: FrameSource, agent: str
 ) -> tuple[list[KeyframeDepth], list[Frame], list[float]]:
@@ -219,8 +229,8 @@ def _match_keyframes(
     unmatched: list[float] = []
     cache: dict[int, Frame] = {}
     for kf in keyframes:
-        i = int(np.argmin(np.abs(stamps - float(kf.timestamp))))
-        if abs(stamps[i] - float(kf.timestamp)) > KEYFRAME_TIME_TOLERANCE:
+        i = match_timestamp(stamps, float(kf.timestamp))
+        if i is None:
             unmatched.append(float(kf.timestamp))
             continue
         if i not in cache:

@@ -134,3 +134,12 @@ def test_ground_truth_agent_gets_full_ground_truth_from_a_pose_only_env():
 def test_driver_rejects_non_slam_envs():
     with pytest.raises(SimEnvError, match="SlamEnv"):
         run_episode(gym.make("CartPole-v1"), ConstantPoseAgent(), progress=False)
+
+
+def test_match_timestamp_takes_the_nearest_within_the_tolerance():
+    from sim_envs.driver import KEYFRAME_TIME_TOLERANCE, match_timestamp
+
+    stamps = np.array([0.0, 1 / 30, 2 / 30])
+    assert match_timestamp(stamps, 1 / 30 + 0.5 * KEYFRAME_TIME_TOLERANCE) == 1
+    assert match_timestamp(stamps, 1 / 30 + 2 * KEYFRAME_TIME_TOLERANCE) is None
+    assert match_timestamp(np.array([]), 0.0) is None
