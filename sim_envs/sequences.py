@@ -16,7 +16,7 @@ the three living-room sequences; only their hand-held trajectories differ.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cache
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
@@ -29,7 +29,6 @@ from sim_envs.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_
 
 if TYPE_CHECKING:
     from sim_envs.camera_effects import CameraEffects
-    from sim_envs.render.effects import SensorEffects
 
 Split = Literal["test", "train"]
 SPLITS: tuple[str, ...] = get_args(Split)
@@ -54,12 +53,11 @@ class SequenceSpec:
     a kind of :data:`sim_envs.trajectories.TRAJECTORY_KINDS`; trajectory_params: its keyword parameters as sorted
     ``(name, value)`` pairs (a mapping is accepted and converted); camera: a :func:`sim_envs.camera.preset` name;
     n_frames: frames at ``fps`` Hz; split: "test" or "train"; seed: seeds the trajectory and the per-frame sensor
-    noise; texture_density: in [0, 1], passed to the room generator; effects: the older, simple sensor effects on
-    8-bit values (``sim_envs.render.effects.SensorEffects``), None for none; width, height: image size in pixels;
+    noise; texture_density: in [0, 1], passed to the room generator; width, height: image size in pixels;
     description: one line for listings; camera_effects: what the camera does to the image
     (:mod:`sim_envs.camera_effects`): a preset name (``clean``, ``kinect``, ``hard``; kept as the name, so it is
-    part of the spec's repr and of run fingerprints) or a ``CameraEffects``; default ``clean``, the renderer's
-    bytes (see :func:`with_camera`). Not both ``effects`` and a ``camera_effects`` other than ``clean``; lighting:
+    part of the spec's repr) or a ``CameraEffects``; default ``clean``, the renderer's bytes (see
+    :func:`with_camera`); lighting:
     ``flat`` (every registered sequence) or ``lit`` (lamps, shadows, bright windows, highlights:
     :mod:`sim_envs.lighting`; MuJoCo renderer only); the trajectory does not depend on it.
     """
@@ -74,7 +72,6 @@ class SequenceSpec:
     split: Split = "test"
     seed: int = 0
     texture_density: float = 1.0
-    effects: SensorEffects | None = field(default=None)
     width: int = DEFAULT_WIDTH
     height: int = DEFAULT_HEIGHT
     fps: float = FPS
@@ -132,10 +129,6 @@ class SequenceSpec:
         elif not isinstance(value, CameraEffects):
             raise SimEnvError(
                 f"sequence {self.name!r}: camera_effects must be a preset name or a CameraEffects, got {value!r}"
-            )
-        if self.effects is not None and self.effects.any:
-            raise SimEnvError(
-                f"sequence {self.name!r}: give either effects (SensorEffects) or camera_effects, not both"
             )
 
     def camera_effects_model(self) -> CameraEffects:
@@ -215,7 +208,6 @@ def rotation_stress_spec(
     scene_seed: int = ICL_OFFICE_SEED,
     seed: int = 0,
     name: str | None = None,
-    effects: SensorEffects | None = None,
 ) -> SequenceSpec:
     """A pure-rotation stress sequence (like TUM fr1/rpy): ``axes`` ("yaw", "pitch", "roll", "rpy", "yaw+pitch")
     sweeping at ``speed_deg_s`` deg/s about a fixed optical centre, TUM fr1 intrinsics by default.
@@ -236,7 +228,6 @@ def rotation_stress_spec(
         camera=camera,
         n_frames=n_frames,
         seed=seed,
-        effects=effects,
         description=f"pure rotation ({label}) at {speed_deg_s:g} deg/s about a fixed optical centre",
     )
 

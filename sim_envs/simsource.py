@@ -244,12 +244,8 @@ class SimulatedSequence:
 
     def _render(self, index: int, outputs: tuple[str, ...], undistort: bool = True) -> dict[str, np.ndarray | None]:
         """Render ``outputs`` of frame ``index``. The RGB gets the spec's camera effects
-        (:func:`sim_envs.camera_effects.sensor_image`, then undistortion unless ``undistort`` is False) or its older
-        sensor effects: motion blur (the mean of renders at ``pose_at(t + offset)`` for the shutter's sub-frame
-        offsets), then exposure and noise drawn from :func:`frame_rng`. Ground truth (depth, labels, instances) is
-        exact, at the frame's own pose."""
-        from sim_envs.render.effects import apply_sensor_effects, average_frames, blur_offsets
-
+        (:func:`sim_envs.camera_effects.sensor_image`, then undistortion unless ``undistort`` is False). Ground truth
+        (depth, labels, instances) is exact, at the frame's own pose."""
         renderer = self._get_renderer()
         out = renderer.render(self.poses[index], outputs=outputs)
         result: dict[str, np.ndarray | None] = {
@@ -260,16 +256,6 @@ class SimulatedSequence:
         }
         if self.camera_effects.any or self.camera_effects.depth_noise:
             return self._camera_render(index, result, undistort)
-        effects = self.spec.effects
-        if effects is None or not effects.any or out.rgb is None:
-            return result
-        rgb = out.rgb
-        offsets = blur_offsets(effects)
-        if offsets.shape[0] > 1:
-            t = float(self.timestamps[index])
-            subframes = [renderer.render(T, outputs=("rgb",)).rgb for T in self.trajectory.pose_at(t + offsets[:-1])]
-            rgb = average_frames([*subframes, rgb])  # the last offset is 0: the frame's own render
-        result["rgb"] = apply_sensor_effects(rgb, effects, frame_rng(self.spec.seed, index))
         return result
 
     def _camera_render(self, index: int, result: dict[str, Any], undistort: bool) -> dict[str, Any]:
