@@ -10,7 +10,8 @@ runs and retries failed ones; methods that cannot run here are skipped and repor
 
 Examples::
 
-    cnnslam bench                                   # table1 at bench size -> results/table1.md
+    cnnslam bench                                   # table1, whole sequences (the paper's) -> results/table1.md
+    cnnslam bench table1 --frames 200 --results results/bench   # make bench: the bench length
     cnnslam bench rotation --jobs 2 --frames 90
     cnnslam bench table1 --methods CNN-SLAM oracle --sequences office0 living1 --frames 100
     cnnslam bench table1 --external MySLAM=out/myslam  # score a third-party system's output too
