@@ -159,7 +159,9 @@ def status_markdown(run: SuiteRun) -> str:
     lines = [
         "## Runs\n",
         f"{len(run.specs)} runs: {counts.get('done', 0)} run now, {counts.get('cached', 0)} reused from earlier, "
-        f"{counts.get('failed', 0)} failed. {machines_sentence(run)}",
+        f"{counts.get('failed', 0)} failed"
+        + (f", {counts['not_run']} not run (--report-only: no finished run in the output folder)"
+           if counts.get("not_run") else "") + f". {machines_sentence(run)}",
     ]
     failures = failure_frame(run)
     if failures.empty:
@@ -184,6 +186,14 @@ def status_markdown(run: SuiteRun) -> str:
     if run.failed:
         lines.append("\nFailed runs (rerun the same command to retry them):\n")
         lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]
+    not_run = [o for o in run.outcomes.values() if o.status == "not_run"]
+    if not_run:
+        per_method: dict[str, int] = {}
+        for spec in run.specs:
+            if run.outcomes.get(spec.key) is not None and run.outcomes[spec.key].status == "not_run":
+                per_method[spec.method.name] = per_method.get(spec.method.name, 0) + 1
+        lines.append("\nNot run (the tables were written from the finished runs only; each cell says how many it "
+                     "has): " + ", ".join(f"{m} {n}" for m, n in per_method.items()) + ".\n")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -230,9 +240,11 @@ def failure_frame(run: SuiteRun) -> pd.DataFrame:
     tracked = {rec["run"]: rec["metrics"].get("tracked_share") for rec in run.records}
     rows: dict[tuple[str, str], dict[str, int]] = {}
     for spec in run.specs:
+        outcome = run.outcomes.get(spec.key)
+        if outcome is not None and outcome.status == "not_run":
+            continue  # neither a result nor a failure
         row = rows.setdefault((spec.sequence.name, spec.method.name), {"runs": 0, "crashed": 0, "lost": 0})
         row["runs"] += 1
-        outcome = run.outcomes.get(spec.key)
         if outcome is None or outcome.status == "failed":
             row["crashed"] += 1
         elif (share := tracked.get(spec.key)) is not None and share < LOST_BELOW_TRACKED_SHARE:

@@ -70,7 +70,7 @@ RUN_FILES: tuple[str, ...] = (
 DONE_FILE = "metrics.json"
 FAILED_FILE = "failed.json"
 FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames rendered once, read by its other runs
-RunStatus = Literal["done", "cached", "failed"]
+RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
 
@@ -506,7 +506,8 @@ def _alive(pid: int) -> bool:
 # -------------------------------------------------------------------------------------------------- a suite run
 @dataclass(frozen=True)
 class RunOutcome:
-    """How one run of a suite ended: "done" (ran now), "cached" (finished earlier), "failed" (with its error)."""
+    """How one run of a suite ended: "done" (ran now), "cached" (finished earlier), "failed" (with its error), or
+    "not_run" (``--report-only`` and no finished run there: neither a result nor a failure)."""
 
     key: str
     status: RunStatus
@@ -604,7 +605,8 @@ def run_suite(
     default :class:`~eval.executors.SerialExecutor`. ``revision``: recorded in every run (default: the git revision).
     ``rerun``: run every run again, finished or not. ``report_only``: run nothing; take every run folder that holds
     a ``metrics.json``, whatever code made it (each record names its git revision), and report the others failed
-    ("not run"): for rewriting tables after a change of the report code, without rerunning. Ctrl-C
+    "not_run" (neither failed nor in the tables; the reports list them): for rewriting tables after a change of the
+    report code, without rerunning. Ctrl-C
     (KeyboardInterrupt) stops the executor and propagates;
     the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence and read
     back by the suite's other runs, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes).
@@ -626,7 +628,7 @@ def run_suite(
         folder = run_folder(out_root, spec)
         if report_only:
             done = (folder / DONE_FILE).is_file()
-            outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "failed", folder,
+            outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "not_run", folder,
                                             None if done else "not run (--report-only runs nothing)")  # fmt: skip
         elif not rerun and is_finished(out_root, spec):
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
@@ -650,7 +652,7 @@ def run_suite(
     records, timings = [], {}
     for spec in specs:
         outcome = outcomes[spec.key]
-        if outcome.status == "failed":
+        if outcome.status in ("failed", "not_run"):
             continue
         record = load_run(outcome.folder / DONE_FILE)
         record["run"] = spec.key
