@@ -344,7 +344,11 @@ def save_transfer_figure(ranks: pd.DataFrame, path: str | Path, domains: Sequenc
         ax.grid(alpha=0.3)
     for ax in axes[len(shown):]:
         ax.set_visible(False)
-    axes[0].legend(fontsize=6, loc="lower left")
+    handles = {}  # every method of any panel (REMODE has depth only), once
+    for ax in axes[: len(shown)]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    axes[0].legend(list(handles.values()), list(handles), fontsize=6, loc="lower left")
     fig.tight_layout()
     return _save(fig, path, dpi)
 
