@@ -323,12 +323,14 @@ class SequenceRef:
             base = f"{base}+{lighting}"
         return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
 
-    def with_motion(self, file: str | Path, label: str | None = None) -> SequenceRef:
+    def with_motion(self, file: str | Path, label: str | None = None, frames: int | None = None) -> SequenceRef:
         """This simulated sequence's room with a recorded camera motion replayed in it instead of its own
         trajectory (the ``replay`` kind of :mod:`sim_envs.trajectories`: a TUM trajectory ``file``, e.g. real
         hand-held motion), named ``<name>~<label>`` before any ``@<camera preset>`` (label: :func:`motion_label`).
-        The room and camera are the sequence's; its length too, cut to what the recording covers. The run's
-        fingerprint holds the file's SHA-256 (:meth:`describe`), so an edited recording reruns."""
+        The room and camera are the sequence's; its length too, cut to what the recording covers and to ``frames``
+        (the frames a suite will run: the whole replayed path must fit the room's free space, so a path longer than
+        the run would only make a room refuse it). The run's fingerprint holds the file's SHA-256
+        (:meth:`describe`), so an edited recording reruns."""
         if self.folder is not None:
             raise SuiteError(f"sequence {self.name!r} is a folder: its motion is the real camera's")
         path = Path(file).expanduser().resolve()
@@ -339,7 +341,8 @@ class SequenceRef:
         except SimEnvError as exc:
             raise SuiteError(f"motion file: {exc}") from None
         spec = self.spec()
-        n_frames = min(spec.n_frames, int(math.floor((stamps[-1] - stamps[0]) * spec.fps + 1e-9)) + 1)
+        n_frames = min(spec.n_frames, int(math.floor((stamps[-1] - stamps[0]) * spec.fps + 1e-9)) + 1,
+                       spec.n_frames if frames is None else int(frames))
         if n_frames < 2:
             raise SuiteError(f"motion file {path} covers {stamps[-1] - stamps[0]:.3f} s: too short to replay")
         overrides = dict(self.overrides)
@@ -1055,7 +1058,7 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
             parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
             for motion in motions:
                 label = motion_label(motion)
-                moved = tuple(r.with_motion(motion, label) for r in refs)
+                moved = tuple(r.with_motion(motion, label, frames=length) for r in refs)
                 part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=moved, frames=length)
                 parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}~{label}") for r in moved)))
         refs, domains = [], []

@@ -271,6 +271,8 @@ def test_a_recorded_motion_replays_in_the_same_room(tmp_path):
     with pytest.raises(SuiteError, match="is not a file"):
         ref.with_motion(tmp_path / "nope.txt")
     assert ref.with_motion(motion).spec().n_frames == 300  # 10 s recorded: 1500 frames cut to what it covers
+    assert ref.with_motion(motion, frames=200).spec().n_frames == 200  # and to what a suite runs: a path to fit
+    assert parts[1].suite.sequences[0].spec().n_frames == 20
     described = ref.describe()
     assert len(described["motion_sha256"]) == 64  # an edited recording reruns
     (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
