@@ -1,45 +1,14 @@
-"""RGB-D dataset folders: export any frame source as a TUM RGB-D folder; load real RGB-D folders as frame sources.
+"""RGB-D dataset folders as frame sources: load a real (or exported) RGB-D folder and convert its frames.
 
-Exported folder (:func:`export_tum_rgbd`), readable by third-party SLAM systems (ORB-SLAM3, DSO, DROID-SLAM) and by
-the TUM tools::
-
-    rgb/<t>.png        8-bit RGB                         rgb.txt          "timestamp rgb/<t>.png"
-    depth/<t>.png      16-bit, metres x 5000, 0 = none   depth.txt        "timestamp depth/<t>.png"
-    labels/<t>.png     8-bit SemanticClass, 255 = none   groundtruth.txt  "timestamp tx ty tz qx qy qz qw"
-    instances/<t>.png  16-bit, instance id + 1, 0 = none
-    cnnslam.json       the side file: intrinsics (pixels, OpenCV convention, at the image size), depth scale,
-                       what labels/ and instances/ hold, how many depth pixels were beyond the 16-bit range
-
-A sequence seen through a simulated camera (``camera_effects`` other than clean) also gets ``depth_sensor/`` (the
-camera's noisy depth, when it has depth noise; ``depth/`` stays the exact ground truth) and its photometric
-calibration as the TUM monoVO dataset ships it (:func:`export_photometric_calibration`: ``times.txt``,
-``pcalib.txt``, ``vignette.png``, ``camera.toml``, ``camera_raw.toml``).
-
-``<t>`` is the timestamp with 6 decimals; the text files hold the exact timestamps. Depth is planar z; a depth
-beyond 65535 / 5000 = 13.107 m cannot be stored and is written as 0 (no measurement), counted in the side file.
-:func:`write_folder` writes a source in any of the layouts below (small fixtures for tests, inputs for other tools).
+Four modules do the rest, and this one re-exports the names other code imports from it:
+:mod:`sim_envs.folder_layouts` (layouts, their detection and indexing, the side file, folder fingerprints),
+:mod:`sim_envs.camera_files` (reading and writing camera files), :mod:`sim_envs.depth_registration` (depth maps
+moved between cameras; depth checked against poses) and :mod:`sim_envs.folder_exports` (any frame source written as
+a TUM RGB-D folder, :func:`export_tum_rgbd`, or a folder of any layout, :func:`write_folder`).
 
 Loaded folders (:class:`RgbdFolder`; :func:`load_rgbd_folder` at the processing resolution) are frame sources. The
-layout is detected (:func:`detect_layout`, :data:`LAYOUTS`):
-
-- ``tum``, TUM RGB-D: ``rgb.txt``, ``depth.txt``, ``groundtruth.txt``. Each RGB image is associated with a depth
-  image and then with a ground-truth pose by the TUM tools' greedy rule (max difference 0.02 s); RGB images without
-  both are dropped. Frame i has the RGB image's timestamp and the associated ground-truth pose (not interpolated). A
-  timestamp repeated in the ground truth keeps its last pose, as the TUM tools do (fr2/desk has one).
-- ``icl``, ICL-NUIM "TUM-compatible": ``associations.txt`` (``index depth/N.png index rgb/N.png``) and one
-  ``*.gt.freiburg`` (or ``groundtruth.txt``) trajectory whose timestamps are the same frame indices. Indices are
-  matched exactly (within 0.02) and frame k gets the timestamp k / 30 s (ICL-NUIM renders at 30 Hz).
-- ``7scenes``, Microsoft 7-Scenes as it ships: ``frame-XXXXXX.color.png`` (or ``.jpg``), ``frame-XXXXXX.depth.png``
-  (16-bit millimetres; 0 and 65535 = no measurement) and ``frame-XXXXXX.pose.txt`` (4x4 camera-to-world, metres) in
-  one folder. There are no timestamps: frame XXXXXX is at XXXXXX / 30 s. The rotation of each pose is projected
-  onto SO(3) (:func:`read_pose_matrix`). A frame without its depth or pose file, or with a non-finite pose, is
-  dropped.
-- ``7scenes_split``: the same files split into ``rgb/``, ``depth/`` and ``poses/`` (as
-  ``../shared/data/real/7scenes_redkitchen``). TUM-style index files beside them are not needed and not read: the
-  frames and poses come from the 7-Scenes files, exactly as in the flat layout.
-- ``rgb_only``: ``rgb.txt`` and ``groundtruth.txt`` (or ``*.gt.freiburg``) without ``depth.txt``: a camera without
-  depth. Frames have an all-zero depth map (0 = no measurement, :attr:`RgbdFolder.has_depth` False), so no depth
-  metric can be computed (the benchmark runner skips it).
+layout is detected (:func:`detect_layout`, :data:`LAYOUTS`: TUM RGB-D, ICL-NUIM, 7-Scenes flat or split, RGB only)
+and the frames indexed (timestamps, files, poses) as :mod:`sim_envs.folder_layouts` describes.
 
 Depth scale (PNG value per metre), first found: the ``depth_scale`` argument; the side file's ``depth_scale``; the
 layout's (7-Scenes: 1000); TUM's 5000.
@@ -93,20 +62,15 @@ the raw POV-Ray depth (Euclidean ray length), converted by z = d / sqrt(((u-cx)/
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 import re
-import tomllib
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from sim_envs.camera import (
     DEFAULT_HEIGHT,
@@ -118,405 +82,42 @@ from sim_envs.camera import (
     camera_model,
     camera_presets,
 )
-from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
-from sim_envs.formats import (
-    associate_greedy,
-    read_tum_image_list,
-    read_tum_trajectory,
-    write_tum_image_list,
-    write_tum_trajectory,
+from sim_envs.camera_files import (
+    CAMERA_FILES,
+    SEVEN_SCENES_INTRINSICS_FILE,
+    _intrinsics_dict,
+    _read_intrinsics_matrix,
+    camera_fields,
+    camera_file_text,
+    read_camera_file,
 )
-from sim_envs.frames import NO_INSTANCE, NO_LABEL, Frame, SemanticClass
-from sim_envs.source import FrameSource
+from sim_envs.depth_registration import SEVEN_SCENES_T_COLOUR_DEPTH, DepthRig, depth_consistency, register_depth
+from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
+from sim_envs.folder_exports import export_photometric_calibration, export_tum_rgbd, write_folder
+from sim_envs.folder_layouts import (
+    _LAYOUT_DEPTH_SCALE,
+    DEPTH_SCALE,
+    LAYOUTS,
+    MAX_DIFFERENCE,
+    SEVEN_SCENES_FPS,
+    SEVEN_SCENES_INVALID_DEPTH,
+    SIDE_FILE,
+    _read_side_file,
+    detect_layout,
+    folder_fingerprint,
+    index_folder,
+    read_pose_matrix,
+)
+from sim_envs.frames import NO_INSTANCE, NO_LABEL, Frame
 
-SIDE_FILE = "cnnslam.json"
-SIDE_FORMAT = "cnnslam-tum-rgbd/1"
-CAMERA_FILES: tuple[str, ...] = ("camera.toml", "camera.yaml", "camera.yml")  # a folder's own camera file
-SEVEN_SCENES_INTRINSICS_FILE = "camera-intrinsics.txt"  # a 3x3 K, as andyzeng/tsdf-fusion ships 7-Scenes frames
-DEPTH_SCALE: float = 5000.0  # TUM RGB-D and ICL-NUIM: 16-bit PNG value 5000 = 1 m
-SEVEN_SCENES_DEPTH_SCALE: float = 1000.0  # 7-Scenes: millimetres
-SEVEN_SCENES_INVALID_DEPTH = 65535  # 7-Scenes marks no measurement by 0 and by 65535
-ICL_FPS: float = 30.0
-SEVEN_SCENES_FPS: float = 30.0  # 7-Scenes has no timestamps; the Kinect's nominal rate
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
 LOADER_VERSION = "cnnslam-rgbd-folder/5"  # recorded in descriptions; bump when a conversion changes its output
-# 7-Scenes' depth camera -> colour camera (X_colour = T X_depth, metres): the Kinect's 2.6 cm baseline between
-# them, the translation of the LIRIS Kinect calibration (projet.liris.cnrs.fr/voir/activities-dataset/
-# kinect-calibration.html) with which the relocalisation setups ACE and DSAC* register 7-Scenes. Its 0.65 deg
-# rotation is another Kinect's and is left out: on redkitchen's frames the depth edges fall on the colour edges far
-# better without it (sim_envs.camera_calibration.depth_edge_alignment over 20 frames: 2.57 without, 1.41 with,
-# 1.30 unregistered; with the translation, 525 px beats 510 and 540: 2.57 vs 1.81 and 2.07).
-SEVEN_SCENES_T_COLOUR_DEPTH = np.array([
-    [1.0, 0.0, 0.0, -2.5558943178152542e-02],
-    [0.0, 1.0, 0.0, 1.0109636268061706e-04],
-    [0.0, 0.0, 1.0, 2.0318321729487039e-03],
-    [0.0, 0.0, 0.0, 1.0],
-])  # fmt: skip
-SEVEN_SCENES_T_COLOUR_DEPTH.setflags(write=False)
 SEVEN_SCENES_COLOUR_SOURCE = "preset 7scenes_rgb (layout: 7-Scenes' colour camera)"
-Layout = Literal["tum", "icl", "7scenes", "7scenes_split", "rgb_only"]
-LAYOUTS: dict[str, str] = {
-    "tum": "TUM RGB-D (rgb.txt, depth.txt, groundtruth.txt)",
-    "icl": "ICL-NUIM TUM-compatible (associations.txt, *.gt.freiburg)",
-    "7scenes": "7-Scenes (frame-XXXXXX.color.png|jpg, .depth.png in mm, .pose.txt in one folder)",
-    "7scenes_split": "7-Scenes split (rgb/, depth/, poses/ holding the 7-Scenes files)",
-    "rgb_only": "RGB only (rgb.txt, groundtruth.txt, no depth.txt)",
-}
-_LAYOUT_DEPTH_SCALE: dict[str, float] = {"7scenes": SEVEN_SCENES_DEPTH_SCALE, "7scenes_split": SEVEN_SCENES_DEPTH_SCALE}
-_SEVEN_SCENES_COLOUR = re.compile(r"^(frame-(\d+))\.color\.(png|jpg)$")
-MAX_DIFFERENCE: float = 0.02  # seconds, the TUM tools' default association tolerance
 PoseConvention = Literal["opencv", "icl", "auto"]
 POSE_CONVENTIONS: tuple[str, ...] = ("opencv", "icl", "auto")
 _FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 
-
-# ---------------------------------------------------------------------------------------------------------- export
-def _stamp_name(t: float) -> str:
-    return f"{t:.6f}.png"
-
-
-def _write_png(path: Path, image: np.ndarray) -> None:
-    if not cv2.imwrite(str(path), image):
-        raise SimEnvError(f"cannot write the image {path}")
-
-
-def export_tum_rgbd(
-    source: FrameSource,
-    folder: str | Path,
-    *,
-    overwrite: bool = False,
-    progress: bool = True,
-    max_frames: int | None = None,
-    depth_scale: float = DEPTH_SCALE,
-) -> Path:
-    """Write ``source`` (its first ``max_frames`` frames) as a TUM RGB-D folder with the ``cnnslam.json`` side file.
-
-    Refuses a non-empty ``folder`` unless ``overwrite``. Shows a tqdm progress bar unless ``progress`` is False.
-    Returns the folder.
-    """
-    folder = Path(folder)
-    if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
-                           "(overwrite=True; --overwrite on the command line)")
-    n = len(source) if max_frames is None else min(int(max_frames), len(source))
-    if n <= 0:
-        raise SimEnvError(f"nothing to export: the source {source.name!r} has no frames (max_frames={max_frames})")
-    stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
-    names = [_stamp_name(t) for t in stamps]
-    if len(set(names)) != n:
-        raise SimEnvError("two timestamps agree to the microsecond; TUM file names (6 decimals) would collide")
-    for sub in ("rgb", "depth"):
-        (folder / sub).mkdir(parents=True, exist_ok=True)
-    max_value = np.iinfo(np.uint16).max
-    clipped = 0
-    has_labels = has_instances = has_sensor_depth = False
-    poses = np.empty((n, 4, 4))
-    for i in tqdm(range(n), desc=f"export {source.name}", unit="frame", disable=not progress):
-        frame = source.frame(i)
-        poses[i] = frame.T_world_cam
-        _write_png(folder / "rgb" / names[i], cv2.cvtColor(np.ascontiguousarray(frame.rgb), cv2.COLOR_RGB2BGR))
-        depth = np.nan_to_num(np.asarray(frame.depth, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-        scaled = np.rint(np.clip(depth, 0.0, None) * depth_scale)
-        over = scaled > max_value
-        clipped += int(over.sum())
-        _write_png(folder / "depth" / names[i], np.where(over, 0, scaled).astype(np.uint16))
-        if frame.labels is not None:
-            (folder / "labels").mkdir(exist_ok=True)
-            _write_png(folder / "labels" / names[i], np.asarray(frame.labels, dtype=np.uint8))
-            has_labels = True
-        if frame.instances is not None:
-            ids = np.asarray(frame.instances, dtype=np.int64) + 1  # NO_INSTANCE (-1) -> 0
-            if ids.min() < 0 or ids.max() > max_value:
-                raise SimEnvError(f"frame {i}: instance ids must lie in -1..{max_value - 1} to fit a 16-bit PNG")
-            (folder / "instances").mkdir(exist_ok=True)
-            _write_png(folder / "instances" / names[i], ids.astype(np.uint16))
-            has_instances = True
-        sensor_depth = getattr(frame, "sensor_depth", None)
-        if sensor_depth is not None:
-            (folder / "depth_sensor").mkdir(exist_ok=True)
-            sensor = np.rint(np.clip(np.nan_to_num(sensor_depth, nan=0.0), 0.0, None) * depth_scale)
-            _write_png(folder / "depth_sensor" / names[i], np.where(sensor > max_value, 0, sensor).astype(np.uint16))
-            has_sensor_depth = True
-    title = f"generated by cnnslam from {source.name!r}"
-    write_tum_image_list(folder / "rgb.txt", stamps, [f"rgb/{s}" for s in names], f"color images, {title}")
-    write_tum_image_list(folder / "depth.txt", stamps, [f"depth/{s}" for s in names], f"depth maps, {title}")
-    write_tum_trajectory(folder / "groundtruth.txt", stamps, poses, header=f"ground truth trajectory, {title}")
-    K = source.intrinsics
-    side: dict[str, Any] = {
-        "format": SIDE_FORMAT,
-        "name": source.name,
-        "frames": n,
-        "intrinsics": {"fx": K.fx, "fy": K.fy, "cx": K.cx, "cy": K.cy, "width": K.width, "height": K.height},
-        "camera_convention": "OpenCV: x right, y down, z forward; pixel centres at integers; poses T_world_cam",
-        "depth_scale": depth_scale,
-        "depth": "planar z in metres = PNG value / depth_scale; 0 = no measurement",
-        "depth_clipped_pixels": clipped,
-        "labels": None,
-        "instances": None,
-    }
-    if has_labels:
-        side["labels"] = {
-            "folder": "labels",
-            "classes": {str(c.value): c.name.lower() for c in SemanticClass},
-            "no_label": NO_LABEL,
-        }
-    if has_instances:
-        side["instances"] = {"folder": "instances", "encoding": "16-bit PNG value = instance id + 1; 0 = none"}
-    if has_sensor_depth:
-        side["sensor_depth"] = {"folder": "depth_sensor", "encoding": "as depth/, a simulated sensor's noisy depth"}
-    effects = getattr(source, "camera_effects", None)
-    if effects is not None and effects.any:
-        side["camera_effects"] = effects.describe()
-        side["photometric_calibration"] = sorted(export_photometric_calibration(source, folder, max_frames=n))
-    (folder / SIDE_FILE).write_text(json.dumps(side, indent=2) + "\n")
-    return folder
-
-
-PHOTOMETRIC_FILES: tuple[str, ...] = ("times.txt", "pcalib.txt", "vignette.png", "camera.toml", "camera_raw.toml")
-
-
-def export_photometric_calibration(source: Any, folder: str | Path, *, max_frames: int | None = None) -> list[str]:
-    """Write a simulated sequence's photometric calibration the way the TUM monoVO dataset ships its own (Engel,
-    Usenko, Cremers 2016), and its lens, into ``folder``; returns the file names written.
-
-    ``source``: a :class:`sim_envs.simsource.SimulatedSequence` (anything with ``camera_effects``, ``intrinsics``,
-    ``timestamps`` and ``exposures()``). Files:
-
-    - ``times.txt``: ``index timestamp exposure_ms`` per frame (monoVO's layout; the exposure is the effective one,
-      exposure time x analogue gain, in milliseconds, so that irradiance = G(pixel) / (V * exposure));
-    - ``pcalib.txt``: the inverse response G, 256 values on one line (G(0) = 0, G(255) = 255; linear signal on the
-      0-255 scale);
-    - ``vignette.png``: 16-bit vignette V (65535 = 1) on the pixel grid of the exported images (undistorted like
-      them when the lens is distorted);
-    - ``camera.toml``: the camera of the exported images (``rgb/``): pinhole intrinsics at the image size and zero
-      distortion, since delivered images are undistorted (:mod:`sim_envs.simsource`: the crop of
-      :meth:`sim_envs.camera.CameraModel.rectified` when the lens is distorted);
-    - ``camera_raw.toml``: the lens, for raw sensor images (``SimulatedSequence.raw_rgb``): the rendered camera's
-      intrinsics and the OpenCV distortion ``k1 k2 p1 p2 k3``. Both camera files are readable by
-      :func:`read_camera_file`.
-    """
-    from sim_envs.camera_effects import inverse_response, sensor_geometry, undistort_image
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    effects = source.camera_effects
-    n = len(source) if max_frames is None else min(int(max_frames), len(source))
-    exposure, gain = source.exposures(n - 1)
-    stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
-    effective_ms = exposure * gain * 1000.0
-    lines = [f"{i:05d} {t:.6f} {e:.6f}" for i, (t, e) in enumerate(zip(stamps, effective_ms, strict=True))]
-    (folder / "times.txt").write_text("\n".join(lines) + "\n")
-    (folder / "pcalib.txt").write_text(" ".join(f"{g:.6f}" for g in inverse_response(effects)) + "\n")
-    K = getattr(source, "sensor_intrinsics", source.intrinsics)  # the rendered camera (raw sensor images)
-    geometry = sensor_geometry(K, effects)
-    V = geometry.vignette if geometry.vignette is not None else np.ones((K.height, K.width), np.float32)
-    V = undistort_image(V, geometry)
-    _write_png(folder / "vignette.png", np.rint(np.clip(V, 0.0, 1.0) * 65535).astype(np.uint16))
-    pinhole = "the exported rgb/ images: pinhole (undistorted; OpenCV convention, pixel centres at integers)"
-    (folder / "camera.toml").write_text(camera_file_text(source.intrinsics, pinhole))
-    raw = "the raw sensor images (SimulatedSequence.raw_rgb): OpenCV radial-tangential distortion k1 k2 p1 p2 k3"
-    (folder / "camera_raw.toml").write_text(camera_file_text(CameraModel(K, effects.distortion), raw))
-    return list(PHOTOMETRIC_FILES)
-
-
-def write_folder(
-    source: FrameSource,
-    folder: str | Path,
-    layout: str,
-    *,
-    max_frames: int | None = None,
-    depth_scale: float | None = None,
-    image_format: Literal["png", "jpg"] = "png",
-    camera_file: bool = True,
-    overwrite: bool = False,
-) -> Path:
-    """Write the first ``max_frames`` frames of ``source`` as a folder of ``layout`` (a key of :data:`LAYOUTS`), the
-    way that dataset ships it (no ``cnnslam.json``): small real-format fixtures for tests, inputs for other tools.
-
-    - ``tum``: ``rgb/<t>.png``, ``depth/<t>.png``, ``rgb.txt``, ``depth.txt``, ``groundtruth.txt``;
-    - ``icl``: ``rgb/<k>.png``, ``depth/<k>.png``, ``associations.txt``, ``traj.gt.freiburg`` (timestamps = frame
-      number k; poses as the source has them, OpenCV convention);
-    - ``7scenes``: ``frame-XXXXXX.color.<png|jpg>``, ``frame-XXXXXX.depth.png`` (millimetres),
-      ``frame-XXXXXX.pose.txt`` in one folder, XXXXXX = frame number;
-    - ``7scenes_split``: the same files in ``rgb/``, ``depth/``, ``poses/`` with ``rgb.txt``, ``depth.txt`` and
-      ``groundtruth.txt`` beside them (timestamps k / 30 s), as ``../shared/data/real/7scenes_redkitchen``;
-    - ``rgb_only``: ``rgb/<t>.png``, ``rgb.txt``, ``groundtruth.txt``.
-
-    Depth is written as 16-bit PNG x ``depth_scale`` (default: the layout's, 1000 for 7-Scenes, else 5000); a depth
-    that does not fit (for 7-Scenes: that would read as 65535, its "invalid") is written as 0. ``camera_file``: also
-    write ``camera.toml`` with the source's intrinsics. ``image_format``: of the 7-Scenes colour images. Layouts
-    without timestamps (ICL, 7-Scenes) number the frames 0, 1, ...: the loader gives frame k the time k / 30 s.
-    """
-    if layout not in LAYOUTS:
-        raise UnknownNameError(f"unknown layout {layout!r}; valid layouts: {', '.join(LAYOUTS)}")
-    if image_format not in ("png", "jpg"):
-        raise SimEnvError(f"image_format must be png or jpg, got {image_format!r}")
-    folder = Path(folder)
-    if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
-                           "(overwrite=True; --overwrite on the command line)")
-    n = len(source) if max_frames is None else min(int(max_frames), len(source))
-    if n <= 0:
-        raise SimEnvError(f"nothing to write: the source {source.name!r} has no frames (max_frames={max_frames})")
-    scale = float(depth_scale or _LAYOUT_DEPTH_SCALE.get(layout, DEPTH_SCALE))
-    limit = SEVEN_SCENES_INVALID_DEPTH - 1 if layout in _LAYOUT_DEPTH_SCALE else np.iinfo(np.uint16).max
-    stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
-    seven = layout.startswith("7scenes")
-    flat = layout == "7scenes"  # 7-Scenes as it ships: every file in one folder
-    dirs = {"rgb": "" if flat else "rgb/", "depth": "" if flat else "depth/", "pose": "" if flat else "poses/"}
-    rows: dict[str, list[str]] = {"rgb": [], "depth": [], "assoc": []}
-    poses = np.empty((n, 4, 4))
-    for i in range(n):
-        frame = source.frame(i)
-        poses[i] = frame.T_world_cam
-        if seven:
-            names = {"rgb": f"frame-{i:06d}.color.{image_format}", "depth": f"frame-{i:06d}.depth.png"}
-        elif layout == "icl":
-            names = {"rgb": f"{i}.png", "depth": f"{i}.png"}
-        else:
-            names = dict.fromkeys(("rgb", "depth"), _stamp_name(stamps[i]))
-        rgb_rel, depth_rel = dirs["rgb"] + names["rgb"], dirs["depth"] + names["depth"]
-        (folder / rgb_rel).parent.mkdir(parents=True, exist_ok=True)
-        _write_png(folder / rgb_rel, cv2.cvtColor(np.ascontiguousarray(frame.rgb), cv2.COLOR_RGB2BGR))
-        rows["rgb"].append(rgb_rel)
-        if layout != "rgb_only":
-            depth = np.nan_to_num(np.asarray(frame.depth, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-            scaled = np.rint(np.clip(depth, 0.0, None) * scale)
-            (folder / depth_rel).parent.mkdir(parents=True, exist_ok=True)
-            _write_png(folder / depth_rel, np.where(scaled > limit, 0, scaled).astype(np.uint16))
-            rows["depth"].append(depth_rel)
-            rows["assoc"].append(f"{i} {depth_rel} {i} {rgb_rel}")
-        if seven:
-            pose_rel = dirs["pose"] + f"frame-{i:06d}.pose.txt"
-            (folder / pose_rel).parent.mkdir(parents=True, exist_ok=True)
-            np.savetxt(folder / pose_rel, frame.T_world_cam, fmt="%.18e")
-    title = f"written by cnnslam from {source.name!r} as layout {layout}"
-    if layout == "icl":
-        (folder / "associations.txt").write_text("\n".join(rows["assoc"]) + "\n")
-        write_tum_trajectory(folder / "traj.gt.freiburg", np.arange(n, dtype=np.float64), poses, header=title)
-    elif layout != "7scenes":
-        times = np.arange(n) / SEVEN_SCENES_FPS if seven else stamps
-        write_tum_image_list(folder / "rgb.txt", times, rows["rgb"], f"color images, {title}")
-        if layout != "rgb_only":
-            write_tum_image_list(folder / "depth.txt", times, rows["depth"], f"depth maps, {title}")
-        write_tum_trajectory(folder / "groundtruth.txt", times, poses, header=f"ground truth trajectory, {title}")
-    if camera_file:
-        K = source.intrinsics
-        (folder / CAMERA_FILES[0]).write_text(
-            f"# camera of {source.name!r}: pixels, OpenCV convention, for {K.width}x{K.height} images\n"
-            f"fx = {K.fx!r}\nfy = {K.fy!r}\ncx = {K.cx!r}\ncy = {K.cy!r}\nwidth = {K.width}\nheight = {K.height}\n"
-        )
-    return folder
-
-
-# ------------------------------------------------------------------------------------------------------ consistency
-def depth_consistency(
-    depth_a: np.ndarray,
-    T_world_a: np.ndarray,
-    depth_b: np.ndarray,
-    T_world_b: np.ndarray,
-    intrinsics: Intrinsics,
-    rel_tol: float = 0.05,
-    stride: int = 2,
-) -> float:
-    """Share (0..1) of frame a's depth pixels that, moved into frame b by the poses, land on a depth of b agreeing
-    within ``rel_tol`` (relative). Only pixels landing inside b on a valid depth count; NaN if none does.
-
-    depth_*: (H, W) planar z metres (0 = none); T_world_*: (4, 4) camera-to-world; every ``stride``-th pixel is used.
-    """
-    v, u = np.mgrid[0 : depth_a.shape[0] : stride, 0 : depth_a.shape[1] : stride]
-    z = np.asarray(depth_a, dtype=np.float64)[v, u]
-    ok = np.isfinite(z) & (z > 0)
-    ub, vb, zb = move_pixels(u[ok], v[ok], z[ok], intrinsics, np.linalg.inv(T_world_b) @ T_world_a, intrinsics,
-                             depth_b.shape)  # fmt: skip
-    measured = np.asarray(depth_b, dtype=np.float64)[vb, ub]
-    valid = np.isfinite(measured) & (measured > 0)
-    if not valid.any():
-        return math.nan
-    agree = np.abs(zb[valid] - measured[valid]) < rel_tol * measured[valid]
-    return float(agree.mean())
-
-
-def move_pixels(u: np.ndarray, v: np.ndarray, z: np.ndarray, K_from: Intrinsics, T_to_from: np.ndarray,
-                K_to: Intrinsics, shape_to: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """Pixels (u, v) with planar depth z (1-D arrays, metres) of a camera ``K_from``, back-projected, moved by
-    ``T_to_from`` (4, 4; OpenCV axes) and projected with ``K_to`` to their nearest pixel: (u', v', z') int64, int64,
-    float64 of those that land in front of the camera and inside an image of ``shape_to`` (height, width, ...)."""
-    points = np.stack([(u - K_from.cx) / K_from.fx * z, (v - K_from.cy) / K_from.fy * z, z, np.ones_like(z)])
-    moved = (np.asarray(T_to_from, dtype=np.float64) @ points)[:3]
-    zt = moved[2]
-    front = zt > 1e-6
-    ut = np.rint(K_to.fx * moved[0, front] / zt[front] + K_to.cx).astype(np.int64)
-    vt = np.rint(K_to.fy * moved[1, front] / zt[front] + K_to.cy).astype(np.int64)
-    zt = zt[front]
-    inside = (ut >= 0) & (ut < shape_to[1]) & (vt >= 0) & (vt < shape_to[0])
-    return ut[inside], vt[inside], zt[inside]
-
-
-# ------------------------------------------------------------------------------------------------------------ load
 CameraLike = Intrinsics | CameraModel | str | os.PathLike[str] | None
-
-
-@dataclass(frozen=True)
-class _Index:
-    """What a layout's files say: per kept frame its timestamp (s), RGB file, depth file (None: no depth), pose."""
-
-    timestamps: np.ndarray
-    rgb_files: list[Path]
-    depth_files: list[Path] | None
-    poses: np.ndarray
-    dropped: int  # frames listed but not kept (no depth or no pose)
-    timing: str  # where the timestamps come from
-
-
-def detect_layout(folder: str | Path) -> str:
-    """The layout of an RGB-D folder, a key of :data:`LAYOUTS`; :class:`SimEnvError` (one line, listing the layouts)
-    when none matches. 7-Scenes file names win over TUM index files beside them."""
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise SimEnvError(f"{folder} is not a folder")
-    if _has_seven_scenes_colour(folder):
-        return "7scenes"
-    if (folder / "poses").is_dir() and _has_seven_scenes_colour(folder / "rgb"):
-        return "7scenes_split"
-    if (folder / "rgb.txt").is_file():
-        return "tum" if (folder / "depth.txt").is_file() else "rgb_only"
-    if (folder / "associations.txt").is_file():
-        return "icl"
-    raise SimEnvError(
-        f"{folder}: not an RGB-D folder of a known layout; expected one of: {'; '.join(LAYOUTS.values())}"
-    )
-
-
-@dataclass(frozen=True)
-class DepthRig:
-    """A depth camera beside the colour camera, whose depth maps and poses the loader moves to the colour camera.
-
-    depth_intrinsics: the depth camera's pinhole K at the depth images' size; T_colour_depth: (4, 4) maps depth-camera
-    coordinates to colour-camera coordinates (OpenCV axes, metres); source: where both came from (for the record).
-    """
-
-    depth_intrinsics: Intrinsics
-    T_colour_depth: np.ndarray
-    source: str
-
-
-def register_depth(depth: np.ndarray, depth_intrinsics: Intrinsics, colour_intrinsics: Intrinsics,
-                   T_colour_depth: np.ndarray) -> np.ndarray:  # fmt: skip
-    """A depth camera's (H, W) planar z map (metres, 0 = none) seen from the colour camera: each measured pixel is
-    back-projected with ``depth_intrinsics``, moved by ``T_colour_depth`` and projected with ``colour_intrinsics``
-    to its nearest pixel, the nearest surface winning where several land on one pixel (a z-buffer). Returns
-    (colour height, colour width) float32 planar z in the colour camera, 0 where no measurement lands."""
-    d = np.asarray(depth, dtype=np.float64)
-    Kd, Kc = depth_intrinsics, colour_intrinsics
-    if d.shape != (Kd.height, Kd.width):
-        raise SimEnvError(f"depth of shape {d.shape} for a depth camera of {Kd.width}x{Kd.height}")
-    v, u = np.nonzero(d > 0)
-    uc, vc, zc = move_pixels(u, v, d[v, u], Kd, T_colour_depth, Kc, (Kc.height, Kc.width))
-    out = np.full(Kc.height * Kc.width, np.inf)
-    np.minimum.at(out, vc * Kc.width + uc, zc)
-    out[~np.isfinite(out)] = 0.0
-    return out.reshape(Kc.height, Kc.width).astype(np.float32)
 
 
 class RgbdFolder:
@@ -555,7 +156,7 @@ class RgbdFolder:
         self.side: dict[str, Any] = _read_side_file(side_path) if side_path.exists() else {}
         self.depth_scale, self.depth_scale_source = self._resolve_depth_scale(depth_scale)
         self.depth_is_ray_length = bool(depth_is_ray_length)
-        index = self._index(max_difference)
+        index = index_folder(self.folder, self.layout, max_difference)
         if not index.rgb_files:
             raise SimEnvError(f"{self.folder}: no RGB image has both a depth image and a ground-truth pose")
         self.timestamps: np.ndarray = index.timestamps
@@ -778,77 +379,6 @@ class RgbdFolder:
             raise SimEnvError(f"{self.folder}: depth_scale must be a positive number (from {source}), got {value!r}")
         return value, source
 
-    def _ground_truth_file(self) -> Path:
-        for candidate in [self.folder / "groundtruth.txt", *sorted(self.folder.glob("*.gt.freiburg"))]:
-            if candidate.exists():
-                return candidate
-        raise SimEnvError(f"{self.folder}: no ground truth (groundtruth.txt or *.gt.freiburg)")
-
-    def _index(self, max_difference: float) -> _Index:
-        if self.layout == "tum":
-            return self._index_tum(max_difference)
-        if self.layout == "icl":
-            return self._index_icl(max_difference)
-        if self.layout == "rgb_only":
-            return self._index_rgb_only(max_difference)
-        if self.layout == "7scenes":
-            return _index_seven_scenes(self.folder, self.folder, self.folder)
-        return _index_seven_scenes(self.folder / "rgb", self.folder / "depth", self.folder / "poses")
-
-    def _index_tum(self, max_difference: float) -> _Index:
-        rgb_t, rgb_names = read_tum_image_list(self.folder / "rgb.txt")
-        depth_t, depth_names = read_tum_image_list(self.folder / "depth.txt")
-        gt_t, gt_T = read_tum_trajectory(self._ground_truth_file(), duplicate_timestamps="last")
-        ri, di = associate_greedy(rgb_t, depth_t, max_difference)
-        rj, gj = associate_greedy(rgb_t[ri], gt_t, max_difference)
-        keep_rgb, keep_depth = ri[rj], di[rj]
-        return _Index(
-            rgb_t[keep_rgb].copy(),
-            [self.folder / rgb_names[k] for k in keep_rgb],
-            [self.folder / depth_names[k] for k in keep_depth],
-            gt_T[gj],
-            len(rgb_t) - len(keep_rgb),
-            "rgb.txt",
-        )
-
-    def _index_rgb_only(self, max_difference: float) -> _Index:
-        rgb_t, rgb_names = read_tum_image_list(self.folder / "rgb.txt")
-        gt_t, gt_T = read_tum_trajectory(self._ground_truth_file(), duplicate_timestamps="last")
-        ri, gi = associate_greedy(rgb_t, gt_t, max_difference)
-        return _Index(
-            rgb_t[ri].copy(), [self.folder / rgb_names[k] for k in ri], None, gt_T[gi], len(rgb_t) - len(ri), "rgb.txt"
-        )
-
-    def _index_icl(self, max_difference: float) -> _Index:
-        path = self.folder / "associations.txt"
-        rows = []
-        for number, line in enumerate(path.read_text().splitlines(), start=1):
-            fields = line.split("#", 1)[0].split()
-            if not fields:
-                continue
-            if len(fields) != 4:
-                raise FormatError(
-                    f"{path}:{number}: expected 4 columns (index depth/N.png index rgb/N.png), found {len(fields)}"
-                )
-            try:
-                rows.append((float(fields[2]), fields[3], fields[1]))
-            except ValueError:
-                raise FormatError(f"{path}:{number}: {fields[2]!r} is not a number (the RGB frame index)") from None
-        if not rows:
-            raise FormatError(f"{path}: no entries")
-        rows.sort()
-        index = np.array([r[0] for r in rows])
-        gt_t, gt_T = read_tum_trajectory(self._ground_truth_file(), duplicate_timestamps="last")
-        ai, gi = associate_greedy(index, gt_t, max_difference)
-        return _Index(
-            index[ai] / ICL_FPS,
-            [self.folder / rows[k][1] for k in ai],
-            [self.folder / rows[k][2] for k in ai],
-            gt_T[gi],
-            len(rows) - len(ai),
-            f"frame index / {ICL_FPS:g} s",
-        )
-
     def _image_size(self) -> tuple[int, int]:
         image = _read_image(self._rgb_files[0], cv2.IMREAD_UNCHANGED)
         return image.shape[1], image.shape[0]
@@ -957,195 +487,6 @@ def load_tum_rgbd_folder(folder: str | Path, camera: CameraLike = None, **kwargs
     return RgbdFolder(folder, camera, **kwargs)
 
 
-def read_pose_matrix(path: str | Path) -> np.ndarray:
-    """A 7-Scenes ``frame-XXXXXX.pose.txt`` (4 rows of 4 numbers, camera-to-world, metres) -> (4, 4) float64
-    ``T_world_cam``, the rotation block replaced by the nearest rotation (SVD, U V^T): 7-Scenes' KinectFusion
-    matrices are orthonormal only to about 4e-4. A matrix with a non-finite entry (no pose) comes back all NaN."""
-    path = Path(path)
-    try:
-        M = np.loadtxt(path, dtype=np.float64, ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise FormatError(f"{path}: not a 4x4 matrix of numbers ({exc})") from exc
-    if M.shape != (4, 4):
-        raise FormatError(f"{path}: expected 4 rows of 4 numbers (a 4x4 camera-to-world matrix), got {M.shape}")
-    if not np.isfinite(M).all():
-        return np.full((4, 4), np.nan)
-    if not np.allclose(M[3], [0.0, 0.0, 0.0, 1.0], atol=1e-6):
-        raise FormatError(f"{path}: the last row of a pose must be 0 0 0 1, got {M[3].tolist()}")
-    U, _, Vt = np.linalg.svd(M[:3, :3])
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        raise FormatError(f"{path}: the 3x3 block is a reflection (det < 0), not a rotation")
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = M[:3, 3]
-    return T
-
-
-def camera_fields(camera: CameraModel | Intrinsics) -> dict[str, float | int]:
-    """A camera's fields as a camera file and run records name them: ``fx fy cx cy width height`` (pixels, OpenCV
-    convention) and, for a :class:`CameraModel`, its distortion ``k1 k2 p1 p2 k3``."""
-    if isinstance(camera, Intrinsics):
-        return _intrinsics_dict(camera)
-    return {**_intrinsics_dict(camera.intrinsics), **dict(zip(DISTORTION_NAMES, camera.distortion, strict=True))}
-
-
-def camera_file_text(camera: CameraModel | Intrinsics, comment: str = "") -> str:
-    """The text of a camera file (TOML) for ``camera``, which :func:`read_camera_file` reads back exactly;
-    ``comment``: lines written first, as ``#`` comments."""
-    lines = [f"# {line}" for line in comment.splitlines()]
-    lines += [f"{k} = {int(v) if k in ('width', 'height') else float(v)!r}" for k, v in camera_fields(camera).items()]
-    return "\n".join(lines) + "\n"
-
-
-def read_camera_file(path: str | Path, width: int | None = None, height: int | None = None) -> CameraModel:
-    """A camera file: TOML (``.toml``) or flat YAML (``key: value`` lines, ``.yaml`` / ``.yml``) with
-
-    ``fx fy cx cy`` (pixels, OpenCV convention: y down, pixel centres at integers, so fy > 0) and optionally
-    ``width height`` (the image size they are for; default: ``width`` x ``height`` given here) and the OpenCV
-    distortion ``k1 k2 p1 p2 k3`` (default 0); or ``preset = "<name>"`` (a :func:`sim_envs.camera.preset` with its
-    distortion). The camera is scaled to ``width`` x ``height`` when both are given.
-    """
-    path = Path(path)
-    try:
-        text = path.read_text()
-        data = tomllib.loads(text) if path.suffix == ".toml" else _read_flat_yaml(text, path)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise FormatError(f"{path}: not a readable camera file ({exc})") from exc
-    valid = ("preset", "fx", "fy", "cx", "cy", "width", "height", *DISTORTION_NAMES)
-    unknown = sorted(set(data) - set(valid))
-    if unknown:
-        raise FormatError(f"{path}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(valid)}")
-    if "preset" in data:
-        if len(data) > 1:
-            raise FormatError(f"{path}: give either preset or fx fy cx cy (and distortion), not both")
-        name = str(data["preset"])
-        return camera_model(name, width, height) if width and height else camera_model(name, 640, 480)
-    missing = [k for k in ("fx", "fy", "cx", "cy") if k not in data]
-    if missing:
-        raise FormatError(f"{path}: missing {', '.join(missing)} (pixels) or a preset name")
-    w, h = data.get("width", width), data.get("height", height)
-    if not w or not h:
-        raise FormatError(f"{path}: give width and height (the image size fx fy cx cy are for)")
-    try:
-        K = Intrinsics(float(data["fx"]), float(data["fy"]), float(data["cx"]), float(data["cy"]), int(w), int(h))
-        model = CameraModel(K, tuple(float(data.get(n, 0.0)) for n in DISTORTION_NAMES))  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise FormatError(f"{path}: {exc}") from exc
-    if width and height and (K.width, K.height) != (width, height):
-        model = model.scaled(width, height)
-    return model
-
-
-def folder_fingerprint(folder: str | Path, extra_files: Sequence[str | Path] = ()) -> dict[str, Any]:
-    """A content fingerprint of an RGB-D folder that is cheap to compute: SHA-256 over the content of its text
-    files (index files, trajectories, 7-Scenes poses, side and camera files: what says which frame is where and
-    which pose it has) and the name and size of every other file (the images), in the folder and its immediate
-    sub-folders, plus the content of ``extra_files`` (a camera file elsewhere). Modification times are left out, so
-    a copied folder keeps its fingerprint. Returns ``{"sha256", "files", "bytes"}``."""
-    root = Path(folder)
-    entries = []
-    for path in sorted(_fingerprint_files(root)):
-        stat = path.stat()
-        entries.append((path.relative_to(root).as_posix(), stat.st_size, stat.st_mtime_ns, path))
-    extra = [Path(p) for p in extra_files]
-    key = (str(root.resolve()), tuple(e[:3] for e in entries), tuple(str(p) for p in extra))
-    cached = _FINGERPRINTS.get(key)
-    if cached is not None:
-        return dict(cached)
-    digest = hashlib.sha256()
-    total = 0
-    for rel, size, _, path in entries:
-        digest.update(f"{rel}\0{size}\0".encode())
-        if path.suffix.lower() in _TEXT_SUFFIXES:
-            digest.update(path.read_bytes())
-        total += size
-    for path in extra:
-        digest.update(f"extra\0{path.name}\0".encode() + path.read_bytes())
-    result = {"sha256": digest.hexdigest(), "files": len(entries), "bytes": total}
-    _FINGERPRINTS[key] = result  # the listing (with mtimes) is the key: a changed file is hashed again
-    return dict(result)
-
-
-_TEXT_SUFFIXES = frozenset({".txt", ".json", ".toml", ".yaml", ".yml", ".freiburg", ".csv"})
-_FINGERPRINTS: dict[tuple, dict[str, Any]] = {}
-
-
-def _fingerprint_files(root: Path) -> list[Path]:
-    files = []
-    for entry in os.scandir(root):
-        if entry.name.startswith("."):
-            continue
-        if entry.is_file():
-            files.append(Path(entry.path))
-        elif entry.is_dir():
-            files += [Path(e.path) for e in os.scandir(entry.path) if e.is_file() and not e.name.startswith(".")]
-    return files
-
-
-def _index_seven_scenes(colour_dir: Path, depth_dir: Path, pose_dir: Path) -> _Index:
-    """7-Scenes frames: every ``frame-XXXXXX.color.png|jpg`` with its ``.depth.png`` and a finite ``.pose.txt``."""
-    colour: dict[int, Path] = {}
-    for path in colour_dir.iterdir():
-        match = _SEVEN_SCENES_COLOUR.match(path.name)
-        if match and not (int(match[2]) in colour and colour[int(match[2])].suffix == ".png"):
-            colour[int(match[2])] = path  # PNG wins over a JPEG of the same frame
-    stamps, rgb_files, depth_files, poses = [], [], [], []
-    dropped = 0
-    for number in sorted(colour):
-        prefix = _SEVEN_SCENES_COLOUR.match(colour[number].name)[1]  # type: ignore[index]
-        depth, pose = depth_dir / f"{prefix}.depth.png", pose_dir / f"{prefix}.pose.txt"
-        T = read_pose_matrix(pose) if depth.is_file() and pose.is_file() else None
-        if T is None or not np.isfinite(T).all():
-            dropped += 1
-            continue
-        stamps.append(number / SEVEN_SCENES_FPS)
-        rgb_files.append(colour[number])
-        depth_files.append(depth)
-        poses.append(T)
-    return _Index(
-        np.asarray(stamps, dtype=np.float64),
-        rgb_files,
-        depth_files,
-        np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4),
-        dropped,
-        f"frame number / {SEVEN_SCENES_FPS:g} s",
-    )
-
-
-def _has_seven_scenes_colour(folder: Path) -> bool:
-    return folder.is_dir() and any(_SEVEN_SCENES_COLOUR.match(p.name) for p in folder.glob("frame-*.color.*"))
-
-
-def _read_intrinsics_matrix(path: Path, width: int, height: int) -> Intrinsics:
-    """A 3x3 camera matrix in a text file (7-Scenes' ``camera-intrinsics.txt``), for images of width x height."""
-    try:
-        K = np.loadtxt(path, dtype=np.float64, ndmin=2)
-    except ValueError as exc:
-        raise FormatError(f"{path}: not a 3x3 matrix of numbers ({exc})") from exc
-    if K.shape != (3, 3):
-        raise FormatError(f"{path}: expected a 3x3 camera matrix, got shape {K.shape}")
-    return Intrinsics(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), width, height)
-
-
-def _read_flat_yaml(text: str, path: Path) -> dict[str, Any]:
-    """``key: value`` lines (``#`` comments; numbers or plain strings): the YAML a camera file needs, no library."""
-    data: dict[str, Any] = {}
-    for number, line in enumerate(text.splitlines(), start=1):
-        line = line.split("#", 1)[0].rstrip()
-        if not line.strip() or line.startswith(("%", "---")):
-            continue
-        key, sep, value = line.partition(":")
-        value = value.strip().strip("\"'")
-        if not sep or line[0].isspace() or not value:
-            raise FormatError(f"{path}:{number}: expected a flat 'key: value' line (use TOML for anything else)")
-        try:
-            data[key.strip()] = float(value) if key.strip() != "preset" else value
-        except ValueError:
-            raise FormatError(f"{path}:{number}: {value!r} is not a number") from None
-    return data
-
-
 def check_size(size: Sequence[int]) -> tuple[int, int]:
     """``size`` as a (width, height) pair of positive pixel counts; :class:`SimEnvError` otherwise."""
     try:
@@ -1155,10 +496,6 @@ def check_size(size: Sequence[int]) -> tuple[int, int]:
     if width <= 0 or height <= 0:
         raise SimEnvError(f"size must be positive, got {width}x{height}")
     return width, height
-
-
-def _intrinsics_dict(K: Intrinsics) -> dict[str, float | int]:
-    return {"fx": K.fx, "fy": K.fy, "cx": K.cx, "cy": K.cy, "width": K.width, "height": K.height}
 
 
 def convert_pose_convention(T_world_cam: np.ndarray, convention: str) -> np.ndarray:
@@ -1202,16 +539,6 @@ def _preset_from_name(name: str) -> str | None:
     return f"tum_fr{match.group(1)}" if match else None
 
 
-def _read_side_file(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise FormatError(f"{path}: not a readable JSON side file: {exc}") from exc
-    if not isinstance(data, dict):
-        raise FormatError(f"{path}: the side file must hold a JSON object")
-    return data
-
-
 def _read_image(path: Path, flags: int) -> np.ndarray:
     image = cv2.imread(str(path), flags)
     if image is None:
@@ -1219,11 +546,20 @@ def _read_image(path: Path, flags: int) -> np.ndarray:
     return image
 
 
+# this module's public names and those it re-exports from camera_files, depth_registration, folder_exports and
+# folder_layouts (other code imports them from here)
 __all__: Sequence[str] = (
     "CAMERA_FILES",
     "LAYOUTS",
+    "LOADER_VERSION",
     "PROCESSING_SIZE",
+    "SEVEN_SCENES_COLOUR_SOURCE",
+    "SEVEN_SCENES_T_COLOUR_DEPTH",
+    "SIDE_FILE",
     "RgbdFolder",
+    "camera_fields",
+    "camera_file_text",
+    "check_size",
     "convert_pose_convention",
     "depth_consistency",
     "detect_layout",
@@ -1235,5 +571,6 @@ __all__: Sequence[str] = (
     "ray_length_to_z",
     "read_camera_file",
     "read_pose_matrix",
+    "register_depth",
     "write_folder",
 )
