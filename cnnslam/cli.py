@@ -29,7 +29,7 @@ register("contact-sheet", "sim_envs.cli_contact_sheet", "render RGB / depth / la
 register("bench-render", "sim_envs.bench_render", "render throughput of the MuJoCo and pyrender renderers (fps)")
 register("train", "cnnslam.depthnet.cli_train", "depth network: generate data, train, validate, export")
 register("bench-slam", "cnnslam.bench_slam", "CNN-SLAM speed: tracking and whole-system frames per second")
-register("bench", "eval.cli_bench", "run a benchmark suite (table1, rotation, ablation, sweep, perf, quick)")
+register("bench", "eval.cli_bench", "run a benchmark suite (table1, lengths, transfer, preprocessing, quick, ...)")
 register("generate", "eval.cli_generate", "generate rotation stress sequences (and export them as TUM RGB-D folders)")
 register("config", "eval.cli_config", "print the exact configuration a method's runs use (with --set overrides)")
 register("map", "cnnslam.cli_map", "run an agent, fuse its key-frames into the global model: PLY, pictures, metrics")
