@@ -31,6 +31,7 @@ from eval.plots import save_transfer_figure
 from eval.reports import long_frame, status_markdown
 from eval.runner import SuiteRun
 from eval.transfer import TRANSFER_METRICS
+from eval.transfer_report import fmt_score, ranks_markdown
 
 
 def lengths_frame(parts: Sequence[tuple[int | None, SuiteRun]]) -> pd.DataFrame:
@@ -38,12 +39,6 @@ def lengths_frame(parts: Sequence[tuple[int | None, SuiteRun]]) -> pd.DataFrame:
     frames = [long_frame(run).assign(length=length_label(n)) for n, run in parts]
     frames = [f for f in frames if not f.empty]
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-
-
-def _fmt(value: float) -> str:
-    if not np.isfinite(value):
-        return "-"
-    return f"{value:.3g}" if abs(value) < 100 else f"{value:.0f}"
 
 
 def _label(metric: str) -> str:
@@ -88,13 +83,13 @@ def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: st
         "## Agreement with the whole sequences\n",
         "| metric | length | n | Kendall tau | Spearman rho | same ranking |",
         "|---|---|---:|---:|---:|---|",
-        *[f"| {_label(r.metric)} | {r.length} | {r.n} | {_fmt(r.kendall)} | {_fmt(r.spearman)} | "
+        *[f"| {_label(r.metric)} | {r.length} | {r.n} | {fmt_score(r.kendall)} | {fmt_score(r.spearman)} | "
           f"{'yes' if r.same else 'no'} |" for r in agreement.itertuples()],  # fmt: skip
         "\n## Where each method's rank settles\n",
         "The shortest length from which the method's rank equals its whole-sequence rank at every longer length.\n",
         *_settling_markdown(settling, lengths),
         "\n## Scores and ranks per metric: score (rank)\n",
-        *_scores_markdown(ranks, lengths),
+        ranks_markdown(ranks.rename(columns={"length": "domain"}), lengths) if not ranks.empty else "",
         *([f"![ranks per length]({figure.name})\n"] if figure is not None else []),
         *[f"## Runs at {length_label(n)} {'frames' if n is not None else 'sequences'}\n"
           + status_markdown(run).removeprefix("## Runs\n") for n, run in parts],  # fmt: skip
@@ -113,23 +108,4 @@ def _settling_markdown(settling: pd.DataFrame, lengths: Sequence[str]) -> list[s
         row = r._asdict()
         ranks = [f"{row.get(f'rank_{x}', np.nan):g}" for x in lengths]
         out.append(f"| {_label(row['metric'])} | {row['method']} | " + " | ".join(ranks) + f" | {row['settles_at']} |")
-    return out
-
-
-def _scores_markdown(ranks: pd.DataFrame, lengths: Sequence[str]) -> list[str]:
-    out = []
-    for metric in TRANSFER_METRICS:
-        sub = ranks[ranks["metric"] == metric.name]
-        if sub.empty:
-            continue
-        better = "higher" if metric.higher_is_better else "lower"
-        out += [f"\n### {metric.label} ({better} is better)\n", "| method | " + " | ".join(lengths) + " |",
-                "|---|" + "---:|" * len(lengths)]  # fmt: skip
-        order = sub[sub["length"] == lengths[-1]].sort_values("rank")["method"].tolist()
-        for method in order + sorted(set(sub["method"]) - set(order)):
-            cells = []
-            for length in lengths:
-                row = sub[(sub["method"] == method) & (sub["length"] == length)]
-                cells.append("-" if row.empty else f"{_fmt(row['score'].iloc[0])} ({row['rank'].iloc[0]:g})")
-            out.append(f"| {method} | " + " | ".join(cells) + " |")
     return out

@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from eval.reports import long_frame, status_markdown
@@ -26,6 +25,7 @@ from eval.sensitivity import (
     choice_ranks,
 )
 from eval.suites import PREPROCESSING_CHOICES
+from eval.transfer_report import fmt_score as _fmt
 
 
 def preprocessing_frame(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, str], ...]]]) -> pd.DataFrame:
@@ -37,12 +37,6 @@ def preprocessing_frame(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, st
             frames.append(frame.assign(choice=choice, folder=frame["sequence"].map(dict(domains))))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(
         columns=["folder", "choice", "sequence", "method", "metric", "value"])  # fmt: skip
-
-
-def _fmt(value: float) -> str:
-    if not np.isfinite(value):
-        return "-"
-    return f"{value:.3g}" if abs(value) < 100 else f"{value:.0f}"
 
 
 def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, str], ...]]],

@@ -54,7 +54,8 @@ def _length_label(length: int | None) -> str:
     return "whole" if length is None else str(int(length))
 
 
-def _fmt(value: float) -> str:
+def fmt_score(value: float) -> str:
+    """A score as the ranking reports print it: 3 significant digits, whole numbers from 100, ``-`` when not finite."""
     if not np.isfinite(value):
         return "-"
     return f"{value:.3g}" if abs(value) < 100 else f"{value:.0f}"
@@ -76,7 +77,7 @@ def ranks_markdown(ranks: pd.DataFrame, domains: Sequence[str]) -> str:
             cells = []
             for domain in domains:
                 row = sub[(sub["method"] == method) & (sub["domain"] == domain)]
-                cells.append("-" if row.empty else f"{_fmt(row['score'].iloc[0])} ({row['rank'].iloc[0]:g})")
+                cells.append("-" if row.empty else f"{fmt_score(row['score'].iloc[0])} ({row['rank'].iloc[0]:g})")
             out.append(f"| {method} | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
