@@ -57,6 +57,18 @@ def _write_png(path: Path, image: np.ndarray) -> None:
         raise SimEnvError(f"cannot write the image {path}")
 
 
+def _frames_to_write(source: Any, folder: Path, overwrite: bool, max_frames: int | None, verb: str) -> int:
+    """How many frames of ``source`` a writer writes into ``folder`` (its first ``max_frames``); refuses a non-empty
+    folder unless ``overwrite``, and a source with nothing to write."""
+    if folder.exists() and any(folder.iterdir()) and not overwrite:
+        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
+                          "(overwrite=True; --overwrite on the command line)")
+    n = len(source) if max_frames is None else min(int(max_frames), len(source))
+    if n <= 0:
+        raise SimEnvError(f"nothing to {verb}: the source {source.name!r} has no frames (max_frames={max_frames})")
+    return n
+
+
 def export_tum_rgbd(
     source: FrameSource,
     folder: str | Path,
@@ -72,12 +84,7 @@ def export_tum_rgbd(
     Returns the folder.
     """
     folder = Path(folder)
-    if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
-                           "(overwrite=True; --overwrite on the command line)")
-    n = len(source) if max_frames is None else min(int(max_frames), len(source))
-    if n <= 0:
-        raise SimEnvError(f"nothing to export: the source {source.name!r} has no frames (max_frames={max_frames})")
+    n = _frames_to_write(source, folder, overwrite, max_frames, "export")
     stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
     names = [_stamp_name(t) for t in stamps]
     if len(set(names)) != n:
@@ -229,12 +236,7 @@ def write_folder(
     if image_format not in ("png", "jpg"):
         raise SimEnvError(f"image_format must be png or jpg, got {image_format!r}")
     folder = Path(folder)
-    if folder.exists() and any(folder.iterdir()) and not overwrite:
-        raise SimEnvError(f"{folder} exists and is not empty; choose another folder or allow overwriting it "
-                           "(overwrite=True; --overwrite on the command line)")
-    n = len(source) if max_frames is None else min(int(max_frames), len(source))
-    if n <= 0:
-        raise SimEnvError(f"nothing to write: the source {source.name!r} has no frames (max_frames={max_frames})")
+    n = _frames_to_write(source, folder, overwrite, max_frames, "write")
     scale = float(depth_scale or _LAYOUT_DEPTH_SCALE.get(layout, DEPTH_SCALE))
     limit = SEVEN_SCENES_INVALID_DEPTH - 1 if layout in _LAYOUT_DEPTH_SCALE else np.iinfo(np.uint16).max
     stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
