@@ -235,12 +235,13 @@ def _list(methods: dict) -> str:
     return "\n".join(lines)
 
 
-def results_folder(args: argparse.Namespace, suite, command: str) -> Path:
-    """Where the suite's tables go: ``--results``; else ``results/`` for the suite as defined; else a folder named
-    after the selection under ``<out>/reports/`` (a subset never overwrites the committed results)."""
+def results_folder(args: argparse.Namespace, suite, command: str, as_defined: bool = True) -> Path:
+    """Where the suite's tables go: ``--results``; else ``results/`` for the suite as defined (``as_defined``: False
+    for a variant the suite object does not show, e.g. other transfer lengths); else a folder named after the
+    selection under ``<out>/reports/`` (a subset never overwrites the committed results)."""
     if args.results is not None:
         return args.results
-    if suite.is_default and not args.external and args.method_file is None:
+    if as_defined and suite.is_default and not args.external and args.method_file is None:
         return Path("results")
     digest = hashlib.sha256(command.encode()).hexdigest()[:8]
     return args.out / "reports" / f"{suite.name}-{digest}"
@@ -387,9 +388,7 @@ def _transfer(args: argparse.Namespace, suite, methods: dict, executor, command:
         return 130
     parts = [(p, run) for p, (_, run) in zip(plan, done, strict=True)]
     as_defined = lengths is None and presets is None and not args.motion  # else a variant: never over results/
-    folder = results_folder(args, suite, command) if as_defined else (
-        args.results or args.out / "reports" / f"transfer-{hashlib.sha256(command.encode()).hexdigest()[:8]}")
-    paths = report_transfer(parts, folder, command)
+    paths = report_transfer(parts, results_folder(args, suite, command, as_defined), command)
     print("wrote " + ", ".join(str(p) for p in paths))
     for name, reason in suite.skipped:
         print(f"  skipped sequence {name}: {reason}")
@@ -431,9 +430,7 @@ def _lengths(args: argparse.Namespace, suite, methods: dict, executor, command: 
         print(f"cnnslam bench: interrupted; finished runs are kept under {args.out}/ (rerun the same command to "
               "resume)", file=sys.stderr)  # fmt: skip
         return 130
-    folder = results_folder(args, suite, command) if set(lengths) == set(SWEEP_LENGTHS) else (
-        args.results or args.out / "reports" / f"lengths-{hashlib.sha256(command.encode()).hexdigest()[:8]}")
-    paths = report_lengths(parts, folder, command)
+    paths = report_lengths(parts, results_folder(args, suite, command, set(lengths) == set(SWEEP_LENGTHS)), command)
     print("wrote " + ", ".join(str(p) for p in paths))
     return status
 

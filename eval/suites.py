@@ -44,6 +44,7 @@ import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
@@ -303,6 +304,14 @@ class SequenceRef:
             name = f"{name}@{preset}"
         return replace(self, name=name, overrides=tuple(overrides.items()))
 
+    def _camera_suffix(self) -> tuple[str, str, str]:
+        """The name split as ``(base, "@", preset)`` when it ends in its camera preset's ``@<preset>``, else
+        ``(name, "", "")``: where a variant's mark (``+lit``, ``~<motion>``) goes, before the camera."""
+        base, at, preset = self.name.rpartition("@")
+        if at and preset == dict(self.overrides).get("camera_effects"):
+            return base, at, preset
+        return self.name, "", ""
+
     def with_lighting(self, lighting: str) -> SequenceRef:
         """This simulated sequence in the same room lit otherwise (:data:`sim_envs.scene.LIGHTINGS`; ``lit``:
         :mod:`sim_envs.lighting`), named ``<name>+<lighting>`` before any ``@<camera preset>`` (its own run folders);
@@ -312,9 +321,7 @@ class SequenceRef:
         if lighting not in LIGHTINGS:
             raise SuiteError(f"unknown lighting {lighting!r}; valid: {', '.join(LIGHTINGS)}")
         overrides = dict(self.overrides)
-        base, at, preset = self.name.rpartition("@")
-        if not (at and preset == overrides.get("camera_effects")):
-            base, at, preset = self.name, "", ""
+        base, at, preset = self._camera_suffix()
         old = overrides.pop("lighting", "flat")
         if old != "flat" and base.endswith(f"+{old}"):
             base = base[: -len(old) - 1]
@@ -346,9 +353,7 @@ class SequenceRef:
         if n_frames < 2:
             raise SuiteError(f"motion file {path} covers {stamps[-1] - stamps[0]:.3f} s: too short to replay")
         overrides = dict(self.overrides)
-        base, at, preset = self.name.rpartition("@")
-        if not (at and preset == overrides.get("camera_effects")):
-            base, at, preset = self.name, "", ""
+        base, at, preset = self._camera_suffix()
         overrides.update(trajectory="replay", trajectory_params=(("file", str(path)),), n_frames=n_frames)
         name = f"{base}~{label or motion_label(path)}{at}{preset}"
         return replace(self, name=name, overrides=tuple(overrides.items()))
@@ -385,10 +390,22 @@ def motion_label(path: str | Path) -> str:
 
 
 def _file_sha256(params: Any) -> str | None:
-    """SHA-256 of the ``file`` of a replay trajectory's parameters (None when it cannot be read)."""
+    """SHA-256 of the ``file`` of a replay trajectory's parameters (None when it cannot be read); read once per
+    version of the file (``describe`` is called for every fingerprint, cache key and record)."""
     try:
-        return hashlib.sha256(Path(dict(params)["file"]).read_bytes()).hexdigest()
+        path = Path(dict(params)["file"])
+        stat = path.stat()
     except (OSError, KeyError, TypeError):
+        return None
+    return _sha256_of(str(path), stat.st_size, stat.st_mtime_ns)
+
+
+@lru_cache(maxsize=64)
+def _sha256_of(path: str, size: int, mtime_ns: int) -> str | None:
+    """SHA-256 of the file ``path`` as it is at (``size``, ``mtime_ns``), the cache's key."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
         return None
 
 
