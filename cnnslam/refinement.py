@@ -37,7 +37,7 @@ STATUS_NAMES = ("ok", "skipped", "epl_short", "epl_grad", "epl_angle", "out_of_i
                 "bad_depth")
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _interp(img: np.ndarray, x: float, y: float) -> float:
     ix = int(x)
     iy = int(y)
@@ -47,7 +47,7 @@ def _interp(img: np.ndarray, x: float, y: float) -> float:
             + (1.0 - ax) * ay * img[iy + 1, ix] + ax * ay * img[iy + 1, ix + 1])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _epipolar_stereo(
     kf_img: np.ndarray, kf_gx: np.ndarray, kf_gy: np.ndarray, cur_img: np.ndarray,
     depth: np.ndarray, variance: np.ndarray, attempt: np.ndarray,
