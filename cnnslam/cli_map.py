@@ -181,7 +181,7 @@ def measurement_scores(keyframes: list[Any], images: list[np.ndarray], intrinsic
                        evidence: list[np.ndarray]) -> dict[str, Any]:
     """``semantic_measurements`` of ``model`` (see the module docstring): replays its fusion with ``evidence`` maps
     and scores each fused measurement with its frame-wise and its surfel's fused label."""
-    from eval.reconstruction_metrics import measurement_label_metrics
+    from slamcommon.reconstruction_metrics import measurement_label_metrics
 
     C = config.num_classes
     replay_config = dataclasses.replace(config, num_classes=C + 2, label_weighting="confidence")
@@ -211,15 +211,15 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
     and ``config`` are those the model was fused with (:func:`fuse_keyframes`)."""
     from cnnslam.geometry import transform_points, vertex_map
     from cnnslam.global_model import GlobalModelConfig
-    from eval.alignment import align
-    from eval.reconstruction_metrics import (
+    from sim_envs.frames import NO_LABEL
+    from sim_envs.surface_sampling import sample_scene_surface
+    from slamcommon.alignment import align
+    from slamcommon.reconstruction_metrics import (
         image_label_accuracy,
         label_fusion_metrics,
         reconstruction_metrics,
         visible_in_views,
     )
-    from sim_envs.frames import NO_LABEL
-    from sim_envs.surface_sampling import sample_scene_surface
 
     intr = result.intrinsics.as_array()
     size = (result.intrinsics.height, result.intrinsics.width)

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from slamcommon.se3 import relative_pose, se3_inverse  # noqa: F401 - the shared definitions, re-exported
+
 _SMALL_ANGLE = 1e-2  # rad; below this the series of V and V^-1 are used (error < 1e-17 there) (ours)
 
 
@@ -96,18 +98,6 @@ def se3_log(T: np.ndarray) -> np.ndarray:
     return np.concatenate([v, w], axis=1).reshape(batch + (6,))
 
 
-def se3_inverse(T_a_b: np.ndarray) -> np.ndarray:
-    """``T_b_a`` of ``T_a_b`` ((..., 4, 4) float64), using the rigid form [R^T, -R^T t]."""
-    T_a_b = np.asarray(T_a_b, dtype=np.float64)
-    R = T_a_b[..., :3, :3]
-    Rt = np.swapaxes(R, -1, -2)
-    out = np.zeros_like(T_a_b)
-    out[..., :3, :3] = Rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T_a_b[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
-
-
 def adjoint(T_a_b: np.ndarray) -> np.ndarray:
     """The (..., 6, 6) adjoint of (..., 4, 4) transforms for twists [v, w]: [[R, hat(t) R], [0, R]].
 
@@ -120,11 +110,6 @@ def adjoint(T_a_b: np.ndarray) -> np.ndarray:
     out[..., 3:, 3:] = R
     out[..., :3, 3:] = hat(T_a_b[..., :3, 3]) @ R
     return out
-
-
-def relative_pose(T_world_a: np.ndarray, T_world_b: np.ndarray) -> np.ndarray:
-    """``T_a_b = T_world_a^-1 T_world_b`` (maps b-coordinates into a-coordinates), (4, 4) float64."""
-    return se3_inverse(T_world_a) @ np.asarray(T_world_b, dtype=np.float64)
 
 
 def rotation_angle_deg(T: np.ndarray) -> float:

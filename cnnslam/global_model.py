@@ -84,7 +84,8 @@ from cnnslam.icp import adaptive_normal_map, normal_map, smooth_depth
 
 LabelWeighting = Literal["confidence", "precision"]
 LABEL_WEIGHTINGS: tuple[str, ...] = get_args(LabelWeighting)
-NO_LABEL: int = 255  # sim_envs.frames.NO_LABEL: an element without label evidence
+from slamcommon.labels import NO_LABEL  # noqa: E402 - an element without label evidence
+
 NO_ANCHOR: int = -1
 N_NORMAL_DIRECTIONS: int = 6  # +-x, +-y, +-z: the dominant axis of a surfel normal, part of its voxel key
 _KEY_BITS: int = 20  # bits per voxel coordinate in the 64-bit key: +-2^19 voxels per axis (10 km at 2 cm)

@@ -28,6 +28,7 @@ import numpy as np
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import se3_inverse
 from cnnslam.global_model import SurfelCloud, splat_index_map
+from sim_envs.trajectories import look_at, poses_from
 
 CLASS_LABELS: tuple[str, ...] = ("floor", "vertical structure", "large structure / furniture", "small structure")
 # Fixed palette of the 4 classes (RGB), and the colour of an element without label evidence.
@@ -72,21 +73,6 @@ def up_direction(T_world_cam: np.ndarray) -> np.ndarray:
     return up / n
 
 
-def look_at(position: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """T_world_cam (4, 4) of a camera at ``position`` looking at ``target`` with image "up" along ``up`` (OpenCV axes:
-    z forward, x right, y down)."""
-    z = np.asarray(target, dtype=np.float64) - np.asarray(position, dtype=np.float64)
-    z /= max(np.linalg.norm(z), 1e-12)
-    x = np.cross(z, up)
-    if np.linalg.norm(x) < 1e-6:  # looking straight along up: any x
-        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, position
-    return T
-
-
 def project(points: np.ndarray, camera: ViewCamera) -> tuple[np.ndarray, np.ndarray]:
     """Pixel positions (N, 2) float64 and camera depths (N,) of world points (N, 3) (NaN pixels behind the camera)."""
     T = se3_inverse(camera.T_world_cam)
@@ -119,7 +105,7 @@ def overview_camera(T_world_cam_traj: np.ndarray, points: np.ndarray, size: tupl
     radius = float(np.percentile(np.linalg.norm(pts - target, axis=1), 90)) + 0.5
     e = math.radians(elevation_deg)
     position = target + (-forward * math.cos(e) + up * math.sin(e)) * 2.5 * radius
-    T = look_at(position, target, up)
+    T = poses_from(position, look_at(position, target, up))[0]  # elevation > 0: never along up
     h, w = size
     unit = ViewCamera(T, np.array([1.0, 1.0, 0.0, 0.0]), size)
     uv, z = project(pts, unit)

@@ -3,10 +3,12 @@
 Never imports ``cnnslam``: agents are named by ``"module:Class"`` strings, environments by Gymnasium id.
 
 - :mod:`eval.trajectory` (poses, SE(3) helpers), :mod:`eval.association` (TUM greedy / evo nearest),
-  :mod:`eval.alignment` (SE(3), Sim(3), origin, none; rotation-only fallback), :mod:`eval.metrics` (ATE, RPE,
+  :mod:`slamcommon.alignment` (SE(3), Sim(3), origin, none; rotation-only fallback), :mod:`eval.metrics` (ATE, RPE,
   rotation and scale error, tracked share, length);
-- :mod:`eval.depth_metrics` (the paper's percentage of correct depth, density, AbsRel, RMSE, delta < 1.25),
-  :mod:`eval.semantic_metrics` (pixel accuracy, IoU);
+- :mod:`slamcommon.depth_metrics` (the paper's percentage of correct depth, density, AbsRel, RMSE, delta < 1.25),
+  :mod:`slamcommon.semantic_metrics` (pixel accuracy, IoU), :mod:`slamcommon.reconstruction_metrics` and
+  :mod:`eval.map_metrics` (the agent's global model against the scene); the metric primitives and the alignment
+  live in :mod:`slamcommon`, the leaf that the agent's development tools share with the judge;
 - :mod:`eval.results` (score an episode, run records, long-form frames), :mod:`eval.tables` (Table 1),
   :mod:`eval.paper_table1` (the paper's numbers), :mod:`eval.plots`, :mod:`eval.regress` (the gate);
 - command lines: ``cnnslam eval`` (:mod:`eval.cli_ape`), ``cnnslam regress``, ``cnnslam export``;

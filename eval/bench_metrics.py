@@ -14,10 +14,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from eval.alignment import align
 from eval.association import associate
 from eval.metrics import evaluate_trajectory, relative_pose_errors, rpe_pair_indices, translation_errors
 from eval.trajectory import PoseTrajectory
+from slamcommon.alignment import align
 
 
 def synthetic_pair(n: int, seed: int = 0) -> tuple[PoseTrajectory, PoseTrajectory]:

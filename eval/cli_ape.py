@@ -39,13 +39,14 @@ if "numpy" not in sys.modules:
     for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS"):
         os.environ.setdefault(_name, "1")
 
-from eval.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from eval.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.errors import EvalError
 from eval.metrics import ErrorStatistics, RpeUnit, TrajectoryMetrics, evaluate_trajectory
 from eval.strict_json import json_ready
 from eval.trajectory import PoseTrajectory
 from eval.tum_reader import DUPLICATE_POLICIES
+from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
+from slamcommon.errors import MetricError
 
 EVAL_SCHEMA = "cnnslam-eval/1"
 
@@ -105,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
             rpe_delta=args.rpe_delta,
             rpe_unit=args.rpe_unit,
         )
-    except EvalError as exc:
+    except (EvalError, MetricError) as exc:
         print(f"cnnslam eval: error: {exc}", file=sys.stderr)
         return 1
     if args.plot:

@@ -60,6 +60,7 @@ from eval.methods import (
 )
 from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_camera_presets
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from slamcommon.errors import MetricError
 
 DEFAULT_BASELINE_DIR = Path("results") / "baselines"
 GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
@@ -307,7 +308,7 @@ def run(args: argparse.Namespace) -> int:
         preload = [methods[m].entry_point.partition(":")[0] for m in chosen if methods[m].entry_point]
         executor = make_executor(args.executor, args.jobs, args.address, fresh_workers=not args.reuse_workers,
                                  preload=preload, **options)  # fmt: skip
-    except EvalError as exc:
+    except (EvalError, MetricError) as exc:
         print(f"cnnslam bench: error: {exc}", file=sys.stderr)
         return 2
     from eval.reports import write_report

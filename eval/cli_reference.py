@@ -44,6 +44,7 @@ from eval.sfm_reference import (
     reference_trajectory,
 )
 from eval.trajectory import PoseTrajectory
+from slamcommon.errors import MetricError
 
 REFERENCE_SCHEMA = "cnnslam-reference/1"
 DEFAULT_OUT = Path("results/reference")
@@ -135,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         if seq.folder is None:
             raise EvalError(f"{args.folder!r} is a simulated sequence; give a real RGB-D folder or dataset-list name")
         folder = load_rgbd_folder(seq.folder, seq.camera, size=None, depth_scale=seq.depth_scale)
-    except (EvalError, SuiteError, SimEnvError) as exc:
+    except (EvalError, MetricError, SuiteError, SimEnvError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     selected = np.arange(len(folder))[args.first :: args.step]
@@ -164,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
             stages.close()
             depth_at = _depth_lookup(folder, selected) if folder.has_depth else None
             reference = reference_trajectory(model, folder.timestamps[selected], depth_at)
-    except EvalError as exc:
+    except (EvalError, MetricError) as exc:
         stages.close()
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -33,8 +33,8 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from eval.alignment import AlignmentMethod
 from eval.errors import EvalError
+from slamcommon.alignment import AlignmentMethod
 
 MethodKind = Literal["agent", "external"]
 METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)

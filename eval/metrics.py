@@ -4,18 +4,18 @@ Poses are T_world_cam (4x4 camera-to-world, OpenCV camera axes). Definitions (al
 k = 0..M-1, ground truth Q_k, aligned estimate P_k); flat names as in :meth:`TrajectoryMetrics.flat_metrics`:
 
 - ATE (absolute trajectory error, Sturm et al. IROS 2012, as the TUM tools and evo_ape compute it): the translation
-  error |t(Q_k) - t(P_k)| in metres after the run's alignment (:mod:`eval.alignment`, default SE(3));
+  error |t(Q_k) - t(P_k)| in metres after the run's alignment (:mod:`slamcommon.alignment`, default SE(3));
   ``ate_{rmse,mean,median,std,min,max,pairs}``. Whatever the run's alignment, ``ate_se3_rmse`` (metric ATE, SE(3)
   Umeyama = ``evo_ape -a``) and ``ate_sim3_rmse`` (scale-aligned ATE, Sim(3) Umeyama = ``evo_ape -as``) are also
   reported. ``ate_alignment_degenerate`` is 1 when the positions determine the SE(3)/Sim(3) fit badly or not at
-  all (:func:`eval.alignment.degeneracy`), ``ate_alignment_fallback`` 1 when Umeyama was not defined and the
+  all (:func:`slamcommon.alignment.degeneracy`), ``ate_alignment_fallback`` 1 when Umeyama was not defined and the
   rotation-only fallback was used (evo raises there), else 0.
 - rotation error ``rot_deg_*``: the angle of R(Q_k)^T R(P_k) in degrees after the run's alignment. Its rotation
   comes from the POSITIONS: when ``ate_alignment_degenerate`` is 1 (nearly pure rotation, a short straight run) it
   is arbitrary.
 - orientation error ``rot_deg_orient_*``: the angle of R(Q_k)^T R_o R(E_k) in degrees, E_k the unaligned estimate,
   after the orientation-only alignment R_o = chordal L2 mean of R(Q_k) R(E_k)^T projected onto SO(3)
-  (:func:`eval.alignment.orientation_alignment`): uses orientations only, independent of positions and scale.
+  (:func:`slamcommon.alignment.orientation_alignment`): uses orientations only, independent of positions and scale.
 - RPE (relative pose error, TUM ``evaluate_rpe.py``): E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) a fixed
   delta apart; translational part |t(E)| in metres (``rpe_trans_*``), rotational part angle(R(E)) in degrees
   (``rpe_rot_deg_*``). The delta is counted in ``frames`` (associated pairs), ``s`` (seconds of ground-truth time)
@@ -44,7 +44,10 @@ from typing import Any
 
 import numpy as np
 
-from eval.alignment import (
+from eval.association import DEFAULT_MAX_DIFFERENCE, Association, AssociationRule, associate, associated_pair
+from eval.errors import EvalError
+from eval.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
+from slamcommon.alignment import (
     Alignment,
     AlignmentError,
     AlignmentMethod,
@@ -53,9 +56,6 @@ from eval.alignment import (
     orientation_alignment,
     umeyama_alignment,
 )
-from eval.association import DEFAULT_MAX_DIFFERENCE, Association, AssociationRule, associate, associated_pair
-from eval.errors import EvalError
-from eval.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
 
 
 class RpeUnit(StrEnum):

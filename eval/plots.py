@@ -24,7 +24,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from eval.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
+from slamcommon.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
 
 GT_STYLE = {"color": "0.25", "linestyle": "--", "linewidth": 1.2, "label": "ground truth"}
 EST_STYLE = {"color": "tab:blue", "linewidth": 1.2, "label": "estimate"}

@@ -44,20 +44,20 @@ import cv2
 import numpy as np
 import pandas as pd
 
-from eval.alignment import AlignmentMethod
 from eval.association import AssociationRule
-from eval.depth_metrics import (
+from eval.errors import EvalError
+from eval.metrics import RpeUnit, evaluate_trajectory
+from eval.strict_json import json_ready
+from eval.trajectory import PoseTrajectory
+from sim_envs.frames import NUM_CLASSES
+from slamcommon.alignment import AlignmentMethod
+from slamcommon.depth_metrics import (
     CORRECT_THRESHOLD,
     DepthMetrics,
     aggregate_depth_metrics,
     depth_metrics,
 )
-from eval.errors import EvalError
-from eval.metrics import RpeUnit, evaluate_trajectory
-from eval.semantic_metrics import confusion_matrix, metrics_from_confusion
-from eval.strict_json import json_ready
-from eval.trajectory import PoseTrajectory
-from sim_envs.frames import NUM_CLASSES
+from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
 
 RUN_SCHEMA = "cnnslam-run/1"
 LONG_COLUMNS = ["sequence", "method", "metric", "value"]

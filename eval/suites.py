@@ -714,7 +714,7 @@ SWEEP_AXES: dict[str, str] = {
 class Suite:
     """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds`` (the runs of each cell, see
     ``eval/methods.toml`` for what a seed changes per method), each run on the first ``frames`` frames (None: whole
-    sequences); ``alignment`` of the ATE (``eval.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
+    sequences); ``alignment`` of the ATE (``slamcommon.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
     the throughput suite, which runs no agents; ``skipped``: ``(name, reason)`` of sequences it lists but cannot
     run here (a dataset folder that is missing)."""
 

@@ -2,7 +2,7 @@
 
 A :class:`PoseTrajectory` is timestamps (N,) float64 seconds plus ``T_world_cam`` (N, 4, 4) float64 camera-to-world
 poses (OpenCV camera axes). Functions are batched over the leading axis and named after the maths, like evo's
-``lie_algebra``: ``relative_se3(T_a, T_b) = T_a^-1 T_b``.
+``lie_algebra``: ``relative_se3(T_a, T_b) = T_a^-1 T_b`` (here :func:`slamcommon.se3.relative_pose`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import numpy as np
 
 from eval.errors import EvalError
 from eval.tum_reader import DuplicatePolicy, TumFileError, read_tum_file
+from slamcommon.se3 import relative_pose, se3_inverse, sim3_matrix, transform_poses  # noqa: F401 - shared, re-exported
 
 
 class TrajectoryError(EvalError):
@@ -22,22 +23,6 @@ class TrajectoryError(EvalError):
 
 
 # ------------------------------------------------------------------------------------------------------ SE(3) maths
-def se3_inverse(T: np.ndarray) -> np.ndarray:
-    """Inverse of rigid transforms (..., 4, 4): [R t; 0 1]^-1 = [R^T -R^T t; 0 1]."""
-    T = np.asarray(T, dtype=np.float64)
-    out = np.zeros_like(T)
-    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
-    out[..., :3, :3] = Rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def relative_se3(T_a: np.ndarray, T_b: np.ndarray) -> np.ndarray:
-    """T_a^-1 T_b for stacks (..., 4, 4): the pose of b expressed in the frame of a."""
-    return se3_inverse(T_a) @ np.asarray(T_b, dtype=np.float64)
-
-
 def so3_angle(R: np.ndarray) -> np.ndarray:
     """Rotation angle in radians, [0, pi], of rotation matrices (..., 3, 3).
 
@@ -48,28 +33,6 @@ def so3_angle(R: np.ndarray) -> np.ndarray:
     skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
     sin = np.linalg.norm(skew, axis=-1) / 2.0
     return np.arctan2(sin, cos)
-
-
-def sim3_matrix(rotation: np.ndarray, translation: np.ndarray, scale: float = 1.0) -> np.ndarray:
-    """4x4 similarity [s R t; 0 1]."""
-    S = np.eye(4)
-    S[:3, :3] = scale * np.asarray(rotation, dtype=np.float64)
-    S[:3, 3] = np.asarray(translation, dtype=np.float64)
-    return S
-
-
-def transform_poses(T_world_cam: np.ndarray, rotation: np.ndarray, translation: np.ndarray, scale: float = 1.0):
-    """Apply the similarity x -> s R x + t to the world frame of poses (N, 4, 4).
-
-    The camera axes stay orthonormal: R' = R R_i, t' = s R t_i + t (the scale moves positions, it does not shrink
-    the cameras). Returns a new (N, 4, 4) float64 array.
-    """
-    T = np.asarray(T_world_cam, dtype=np.float64)
-    R = np.asarray(rotation, dtype=np.float64)
-    out = T.copy()
-    out[..., :3, :3] = R @ T[..., :3, :3]
-    out[..., :3, 3] = scale * (T[..., :3, 3] @ R.T) + np.asarray(translation, dtype=np.float64)
-    return out
 
 
 def path_length(positions: np.ndarray) -> float:

@@ -1,31 +1,21 @@
 """What one frame of the world is: image, ground truth, and the semantic classes of the paper.
 
 ``NO_DEPTH`` (0.0) marks pixels with no surface in ground-truth depth (as in TUM's 16-bit PNGs, where 0 means no
-measurement). Label maps use ``NO_LABEL`` (255) there.
+measurement). Label maps use ``NO_LABEL`` (255) there. Both, and the classes, are defined in
+:mod:`slamcommon.labels` (shared with the agent and the judge).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 
-NO_DEPTH: float = 0.0
-NO_LABEL: int = 255
+from slamcommon.labels import NO_DEPTH, NO_LABEL, NUM_CLASSES, SemanticClass
+
+__all__ = ["NO_DEPTH", "NO_INSTANCE", "NO_LABEL", "NUM_CLASSES", "Frame", "SemanticClass"]
+
 NO_INSTANCE: int = -1
-
-
-class SemanticClass(IntEnum):
-    """The paper's 4 NYU super-classes (CNN-SLAM Sec. 4): what every surface of a scene is labelled with."""
-
-    FLOOR = 0
-    VERTICAL_STRUCTURE = 1  # walls, ceiling, doors, windows
-    LARGE_STRUCTURE = 2  # furniture: desks, tables, chairs, sofas, shelves, cabinets, beds
-    SMALL_STRUCTURE = 3  # small objects: books, boxes, cups, monitors, plants
-
-
-NUM_CLASSES: int = len(SemanticClass)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ With a ``numpy.random.Generator`` every point is jittered uniformly inside its c
 unbiased sample of the area); without one the cell centres are used (deterministic). Each point carries the
 outward unit normal of its face, its primitive's :class:`~sim_envs.frames.SemanticClass`, instance id and primitive
 index. Hidden faces (the underside of a box resting on the floor, the outside of the walls) are sampled too: which
-surfaces a camera saw is the judge's business (``eval.reconstruction_metrics.visible_in_views``).
+surfaces a camera saw is the judge's business (``slamcommon.reconstruction_metrics.visible_in_views``).
 
 Units: metres, world frame of the scene (z up). The render meshes approximate cylinders by 24 and spheres by 20 x 10
 facets: a rendered depth deviates from the analytic surface by at most r (1 - cos(pi / 24)) (0.9 % of r) on a

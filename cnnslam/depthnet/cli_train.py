@@ -278,7 +278,7 @@ def _validate(args: argparse.Namespace) -> int:
         manifest_path.write_text(json.dumps(manifest, indent=2) + "\n")
     o = report.overall
     print(f"test sequences, {o.frames} frames: AbsRel raw {o.raw.abs_rel:.3f} / eq. 5 {o.adjusted.abs_rel:.3f}; "
-          f"within 10 % raw {100 * o.raw.within_10pct:.1f} % / eq. 5 {100 * o.adjusted.within_10pct:.1f} %; "
+          f"within 10 % raw {o.raw.percent_correct:.1f} % / eq. 5 {o.adjusted.percent_correct:.1f} %; "
           f"pixel acc. {100 * o.semantic.pixel_accuracy:.1f} %, mIoU {100 * o.semantic.mean_iou:.1f} %; "
           f"inference {bench['median_ms']:.1f} ms/frame; targets met: {report.targets_met()}")
     return 0

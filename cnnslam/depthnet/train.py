@@ -30,10 +30,11 @@ import torch
 
 from cnnslam.depthnet.data import AugmentConfig, RenderedDataset, collate, training_batch
 from cnnslam.depthnet.loss import total_loss
-from cnnslam.depthnet.metrics import DepthSums, confusion_matrix, depth_sums, semantic_metrics
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, count_parameters, normalize_rgb
 from cnnslam.depthnet.weights_io import load_weights, save_weights
 from cnnslam.errors import CnnSlamError
+from slamcommon.depth_metrics import aggregate_depth_metrics, depth_metrics
+from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
 
 CHECKPOINT_FORMAT = "cnnslam-depthnet-checkpoint-v1"
 
@@ -102,25 +103,27 @@ def learning_rate(step: int, cfg: TrainConfig) -> float:
 def evaluate(
     model: DepthSemanticNet, dataset: RenderedDataset, indices: list[int], batch_size: int = 8
 ) -> dict[str, float]:
-    """Depth and semantic metrics of ``model`` (eval mode, full frames, raw depth) on ``dataset[indices]``."""
+    """Depth and semantic metrics of ``model`` (eval mode, full frames, raw depth) on ``dataset[indices]``, pooled
+    over pixels (the shared :mod:`slamcommon` definitions). Keys as the training manifests store them: shares 0..1
+    (``delta_1_25``, ``within_10pct`` = the paper's correct depth / 100, ``pixel_accuracy``, ``mean_iou``)."""
     was_training = model.training
     model.eval()
-    sums = DepthSums()
-    conf = np.zeros((model.config.num_classes,) * 2, np.int64)
+    per_frame = []
+    conf = np.zeros((model.config.num_classes, model.config.num_classes + 1), np.int64)
     for start in range(0, len(indices), batch_size):
         rgb, depth, labels = collate([dataset[i] for i in indices[start : start + batch_size]])
         pred, logits = model(normalize_rgb(rgb))
         pred_np, lab_np = pred[:, 0].numpy(), logits.argmax(1).numpy()
         for k in range(len(pred_np)):
-            sums = sums + depth_sums(pred_np[k], depth[k, 0].numpy())
+            per_frame.append(depth_metrics(pred_np[k], depth[k, 0].numpy()))
             conf += confusion_matrix(lab_np[k], labels[k].numpy(), model.config.num_classes)
     model.train(was_training)
-    dm, sm = sums.metrics(), semantic_metrics(conf)
+    dm, sm = aggregate_depth_metrics(per_frame, "pooled"), metrics_from_confusion(conf)
     return {
         "abs_rel": dm.abs_rel,
         "rmse": dm.rmse,
-        "delta_1_25": dm.delta_1_25,
-        "within_10pct": dm.within_10pct,
+        "delta_1_25": dm.delta_1_25 / 100.0,
+        "within_10pct": dm.percent_correct / 100.0,
         "pixel_accuracy": sm.pixel_accuracy,
         "mean_iou": sm.mean_iou,
         "frames": len(indices),

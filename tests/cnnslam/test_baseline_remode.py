@@ -22,12 +22,12 @@ from cnnslam.baselines.remode import (
     vogiatzis_update,
 )
 from cnnslam.errors import CnnSlamError
-from eval.depth_metrics import depth_metrics
 from sim_envs.driver import run_episode
 from sim_envs.env import SlamEnv
 from sim_envs.frames import SemanticClass
 from sim_envs.sequences import get_sequence
 from sim_envs.simsource import SimulatedSequence
+from slamcommon.depth_metrics import depth_metrics
 
 # ------------------------------------------------------------------------------------------------ equations
 

@@ -7,7 +7,7 @@ from eval.trajectory import (
     TrajectoryError,
     distances_along_path,
     path_length,
-    relative_se3,
+    relative_pose,
     se3_inverse,
     so3_angle,
     transform_poses,
@@ -24,7 +24,7 @@ def poses(n, seed=0):
 def test_se3_inverse_and_relative():
     T = poses(10)
     np.testing.assert_allclose(se3_inverse(T) @ T, np.tile(np.eye(4), (10, 1, 1)), atol=1e-12)
-    np.testing.assert_allclose(relative_se3(T[0], T[1]), np.linalg.inv(T[0]) @ T[1], atol=1e-12)
+    np.testing.assert_allclose(relative_pose(T[0], T[1]), np.linalg.inv(T[0]) @ T[1], atol=1e-12)
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-9, 1e-4, 0.5, np.pi / 2, np.pi - 1e-7, np.pi])

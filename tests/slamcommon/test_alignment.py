@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from eval.alignment import (
+from slamcommon.alignment import (
     ROTATION_ONLY,
     AlignmentError,
     align,

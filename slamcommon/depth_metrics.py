@@ -6,7 +6,7 @@ estimate (0 or NaN) counts as wrong, so a semi-dense method is penalised for wha
 measures accuracy and density at once. The density (share of valid-ground-truth pixels that have an estimate) is
 reported beside it, and the usual AbsRel, RMSE and delta < 1.25 (Eigen et al. 2014) over the pixels that have both.
 
-Valid ground truth: finite and > 0 (``sim_envs.frames.NO_DEPTH`` = 0 marks no surface). Valid estimate: finite and
+Valid ground truth: finite and > 0 (``slamcommon.labels.NO_DEPTH`` = 0 marks no surface). Valid estimate: finite and
 > 0. Depth maps are (H, W) metres; estimate and ground truth must have the same size. Percentages are 0..100.
 
 Aggregation over the key-frames of a sequence (:func:`aggregate_depth_metrics`): ``"pooled"`` counts every pixel
@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from eval.errors import EvalError
+from slamcommon.errors import MetricError
 
 CORRECT_THRESHOLD: float = 0.10  # CNN-SLAM Sec. 4.1: relative error below 10 %
 DELTA_THRESHOLD: float = 1.25  # Eigen et al. 2014: max(d/d_gt, d_gt/d) < 1.25
@@ -101,7 +101,7 @@ def aggregate_depth_metrics(per_frame: Sequence[DepthMetrics], how: Aggregation 
     square. Frames with nothing to measure are skipped by ``"mean"``.
     """
     if how not in ("pooled", "mean"):
-        raise EvalError(f"unknown depth aggregation {how!r}; valid: pooled, mean")
+        raise MetricError(f"unknown depth aggregation {how!r}; valid: pooled, mean")
     frames = list(per_frame)
     if not frames:
         nan = math.nan
@@ -153,7 +153,7 @@ def _check_pair(depth_est: np.ndarray, depth_gt: np.ndarray) -> tuple[np.ndarray
     est = np.asarray(depth_est, dtype=np.float64)
     gt = np.asarray(depth_gt, dtype=np.float64)
     if est.ndim != 2 or est.shape != gt.shape:
-        raise EvalError(
+        raise MetricError(
             f"depth maps must both be (H, W) of one size, got estimate {est.shape} and ground truth {gt.shape}; "
             "resize the estimate to the ground truth's resolution first"
         )

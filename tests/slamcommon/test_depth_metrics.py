@@ -1,13 +1,15 @@
+import math
+
 import numpy as np
 import pytest
 
-from eval.depth_metrics import (
+from slamcommon.depth_metrics import (
     aggregate_depth_metrics,
     correct_depth_mask,
     depth_metrics,
     relative_depth_error,
 )
-from eval.errors import EvalError
+from slamcommon.errors import MetricError
 
 GT = np.array([[1.0, 2.0, 4.0, 0.0], [2.0, 2.0, 5.0, 1.0]], dtype=np.float32)
 # pixel by pixel: exact, 5 % off (correct), 20 % off, no gt, missing (0), missing (NaN), 10 % off (not < 10 %), 2x
@@ -38,7 +40,7 @@ def test_masks():
 def test_empty_and_bad_input():
     m = depth_metrics(np.ones((2, 2)), np.zeros((2, 2)))
     assert m.n_valid_gt == 0 and np.isnan(m.percent_correct) and np.isnan(m.abs_rel)
-    with pytest.raises(EvalError, match="resize the estimate"):
+    with pytest.raises(MetricError, match="resize the estimate"):
         depth_metrics(np.ones((2, 3)), np.ones((2, 2)))
 
 
@@ -53,5 +55,24 @@ def test_pooled_and_mean_aggregation_differ_as_defined():
     assert pooled.abs_rel == pytest.approx(a.abs_rel * 5 / 8)  # weighted by pixels with both
     assert pooled.rmse == pytest.approx(np.sqrt(a.rmse**2 * 5 / 8))
     assert aggregate_depth_metrics([], "pooled").frames == 0
-    with pytest.raises(EvalError, match="pooled, mean"):
+    with pytest.raises(MetricError, match="pooled, mean"):
         aggregate_depth_metrics([a], "median")
+
+
+def test_known_values_pooled_over_frames_as_the_network_validation_uses_them():
+    gt = np.array([[1.0, 2.0], [4.0, 0.0]], np.float32)
+    pred = np.array([[1.05, 2.6], [3.0, 9.0]], np.float32)  # rel errors 0.05, 0.3, 0.25; last pixel has no gt
+    m = depth_metrics(pred, gt)
+    assert m.n_valid_gt == 3 and m.n_estimated == 3
+    assert m.abs_rel == pytest.approx((0.05 + 0.3 + 0.25) / 3, rel=1e-6)
+    assert m.rmse == pytest.approx(math.sqrt((0.05**2 + 0.6**2 + 1.0**2) / 3), rel=1e-6)
+    assert m.delta_1_25 == pytest.approx(100 / 3)  # ratios 1.05, 1.3, 4/3: only the first is < 1.25
+    assert m.percent_correct == pytest.approx(100 / 3)
+    # delta counts the ratio both ways: 1.2, 1.235, 1.3, 1.43
+    assert depth_metrics(np.array([[1.2, 0.81, 1.3, 0.7]]), np.ones((1, 4))).delta_1_25 == pytest.approx(50.0)
+    # pooled: every pixel once, whatever frame it came from
+    a = depth_metrics(np.array([[1.0, 1.0]]), np.array([[1.0, 2.0]]))
+    b = depth_metrics(np.array([[3.0]]), np.array([[3.0]]))
+    pooled = aggregate_depth_metrics([a, b], "pooled")
+    assert pooled.n_valid_gt == 3 and pooled.abs_rel == pytest.approx(0.5 / 3)
+    assert pooled.percent_correct == pytest.approx(200 / 3)

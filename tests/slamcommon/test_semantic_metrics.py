@@ -1,8 +1,10 @@
+import math
+
 import numpy as np
 import pytest
 
-from eval.errors import EvalError
-from eval.semantic_metrics import confusion_matrix, semantic_metrics
+from slamcommon.errors import MetricError
+from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion, semantic_metrics
 
 GT = np.array([[0, 0, 1, 1], [2, 2, 255, 1]], dtype=np.uint8)
 PRED = np.array([[0, 1, 1, 1], [2, 255, 3, 1]], dtype=np.uint8)
@@ -26,5 +28,19 @@ def test_probabilities_are_argmaxed_and_shapes_checked():
     scores = np.zeros((2, 4, 4), dtype=np.float32)
     scores[np.arange(2)[:, None], np.arange(4)[None, :], np.where(GT == 255, 0, GT)] = 1.0
     assert semantic_metrics(scores, GT).pixel_accuracy == 1.0
-    with pytest.raises(EvalError, match="same"):
+    with pytest.raises(MetricError, match="same"):
         confusion_matrix(PRED[:, :3], GT)
+
+
+def test_iou_known_answer_with_a_class_absent():
+    gt = np.array([[0, 0, 1], [1, 2, 255]])
+    pred = np.array([[0, 1, 1], [1, 2, 3]])
+    conf = confusion_matrix(pred, gt, 4)
+    assert conf.shape == (4, 5) and conf.sum() == 5  # the NO_LABEL pixel is not scored
+    m = metrics_from_confusion(conf)
+    assert m.pixel_accuracy == pytest.approx(4 / 5)
+    # IoU: class 0 = 1 / 2, class 1 = 2 / 3, class 2 = 1; class 3 is predicted only on the unlabelled pixel, so it
+    # is absent from both (NaN) and the mean is over 3 classes
+    assert m.iou[:3] == pytest.approx((0.5, 2 / 3, 1.0))
+    assert math.isnan(m.iou[3])
+    assert m.mean_iou == pytest.approx((0.5 + 2 / 3 + 1.0) / 3)

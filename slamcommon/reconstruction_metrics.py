@@ -2,7 +2,7 @@
 
 Inputs are plain arrays (the judge never imports ``cnnslam``): the model as points (N, 3) with optional labels, the
 ground truth as labelled surface samples (M, 3) with outward normals (``sim_envs.surface_sampling``), all in the
-ground-truth world frame and in metres. The caller aligns the model first (``eval.alignment``).
+ground-truth world frame and in metres. The caller aligns the model first (``slamcommon.alignment``).
 
 Reconstruction (as in the multi-view-stereo benchmarks, e.g. Middlebury / DTU "accuracy" and "completeness"):
 
@@ -43,9 +43,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from eval.errors import EvalError
-from eval.semantic_metrics import confusion_matrix, metrics_from_confusion
-from sim_envs.frames import NO_LABEL, NUM_CLASSES
+from slamcommon.errors import MetricError
+from slamcommon.labels import NO_LABEL, NUM_CLASSES
+from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
 
 DEFAULT_THRESHOLD: float = 0.05  # m; issue 7: share within 5 cm
 DEFAULT_LABEL_DISTANCE: float = 0.10  # m; ours: a point farther than this from every ground-truth sample is on no
@@ -54,7 +54,7 @@ VISIBILITY_ABS_TOLERANCE: float = 0.03  # m; ours: a sample is seen when |z - D_
 VISIBILITY_REL_TOLERANCE: float = 0.02  # meshes deviate from the analytic surfaces by < 5 % of small radii)
 
 
-class ReconstructionMetricsError(EvalError):
+class ReconstructionMetricsError(MetricError):
     """Inputs of the reconstruction metrics that cannot be scored (shapes, empty sets)."""
 
 

@@ -1,4 +1,4 @@
-"""Semantic segmentation metrics for the paper's 4 classes (``sim_envs.frames.SemanticClass``).
+"""Semantic segmentation metrics for the paper's 4 classes (``slamcommon.labels.SemanticClass``).
 
 Pixels whose ground truth is ``NO_LABEL`` (255) are ignored. A predicted label outside 0..C-1 (255 = the agent has
 no label there) counts as wrong. Predictions may be (H, W) integer labels or (H, W, C) class probabilities (argmax).
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from eval.errors import EvalError
-from sim_envs.frames import NO_LABEL, NUM_CLASSES, SemanticClass
+from slamcommon.errors import MetricError
+from slamcommon.labels import NO_LABEL, NUM_CLASSES, SemanticClass
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ def as_label_map(prediction: np.ndarray) -> np.ndarray:
     if p.ndim == 3:
         return np.argmax(p, axis=2)
     if p.ndim != 2:
-        raise EvalError(f"a label prediction must be (H, W) labels or (H, W, C) scores, got shape {p.shape}")
+        raise MetricError(f"a label prediction must be (H, W) labels or (H, W, C) scores, got shape {p.shape}")
     return p
 
 
@@ -54,7 +54,7 @@ def confusion_matrix(
     pred = as_label_map(prediction).astype(np.int64)
     gt = np.asarray(labels_gt).astype(np.int64)
     if pred.shape != gt.shape:
-        raise EvalError(f"prediction {pred.shape} and ground truth {gt.shape} must have the same (H, W)")
+        raise MetricError(f"prediction {pred.shape} and ground truth {gt.shape} must have the same (H, W)")
     keep = (gt != ignore) & (gt >= 0) & (gt < num_classes)
     g = gt[keep]
     p = pred[keep]

@@ -3,7 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from eval.reconstruction_metrics import (
+from sim_envs.frames import NO_LABEL
+from slamcommon.reconstruction_metrics import (
     ReconstructionMetricsError,
     distance_to_surface,
     image_label_accuracy,
@@ -13,7 +14,6 @@ from eval.reconstruction_metrics import (
     reconstruction_metrics,
     visible_in_views,
 )
-from sim_envs.frames import NO_LABEL
 
 SPACING = 0.02
 

@@ -38,8 +38,8 @@ from enum import StrEnum
 
 import numpy as np
 
-from eval.errors import EvalError
-from eval.trajectory import se3_inverse, sim3_matrix, transform_poses
+from slamcommon.errors import MetricError
+from slamcommon.se3 import se3_inverse, sim3_matrix, transform_poses
 
 MIN_SPREAD_M: float = 0.005  # ours: ground-truth RMS extent along the 2nd principal axis below this = degenerate
 MIN_SPREAD_RATIO: float = 0.01  # ours: 2nd / 1st principal extent below this = collinear (either trajectory)
@@ -47,7 +47,7 @@ MAX_RESIDUAL_RATIO: float = 1.0  # ours: fit residual RMS above this x the 2nd g
 COINCIDENT_SPREAD: float = 1e-9  # RMS extent below this x max(1, |coordinates|) = one point up to rounding
 
 
-class AlignmentError(EvalError):
+class AlignmentError(MetricError):
     """An alignment that cannot be computed (unknown method, too few pairs, degenerate positions)."""
 
 

@@ -1,0 +1,10 @@
+"""Concepts the world (``sim_envs``), the agent (``cnnslam``) and the judge (``eval``) share, defined once.
+
+A leaf: it imports none of the three packages, and all three may import it, so that the judge still never imports
+the agent. What lives here is what both sides must agree on to the bit:
+
+- :mod:`slamcommon.labels`: the semantic classes and the "no label" / "no depth" markers of ground truth;
+- :mod:`slamcommon.se3`: the inverse and the relative pose of rigid transforms ``T_a_b`` (4x4, OpenCV camera axes);
+- :mod:`slamcommon.depth_metrics`: the paper's correct depth (Sec. 4.1) and the usual depth accuracies;
+- :mod:`slamcommon.semantic_metrics`: the confusion matrix, pixel accuracy and IoU of label maps.
+"""
