@@ -115,8 +115,9 @@ class CnnSlamAgent:
         return {"T_world_cam": out.T_world_cam, "tracked": int(out.tracked)}
 
     def finish(self) -> Any:
-        """End the episode: an ``AgentOutput`` with the refined key-frames and JSON-serialisable extras."""
-        from sim_envs.agent import AgentOutput, KeyframeDepth
+        """End the episode: an ``AgentOutput`` with the refined key-frames, the global model (its surfels' positions,
+        fused labels, normals and colours) and JSON-serialisable extras."""
+        from sim_envs.agent import AgentOutput, KeyframeDepth, MapModel
 
         if self._system is None:
             raise CnnSlamError("finish() before reset()")
@@ -132,7 +133,12 @@ class CnnSlamAgent:
         extras["predictor"] = (self._predictor_spec if isinstance(self._predictor_spec, str)
                                else type(self._predictor_spec).__name__)
         extras["config"] = self.config.to_dict()
-        return AgentOutput(keyframes=keyframes, extras=extras)
+        model = None
+        if res.model is not None:  # the global model fused live by the key-frame thread (Sec. 3.5)
+            cloud = res.model.snapshot()
+            model = MapModel(points=cloud.positions, labels=cloud.labels, normals=cloud.normals,
+                             colours=cloud.colours)
+        return AgentOutput(keyframes=keyframes, extras=extras, model=model)
 
     @property
     def result(self) -> SlamResult | None:

@@ -3,13 +3,15 @@
 
 ``python -m cnnslam.bench_slam [--sequence office0] [--frames 300] [--predictor auto|network|degraded_ground_truth]``
 (also ``cnnslam bench-slam``). Frames are rendered before timing (rendering is not SLAM's cost); numba kernels are
-compiled and the network is warmed up on a short run first. Three runs over the same frames:
+compiled and the network is warmed up on a short run first. Four runs over the same frames:
 
 - single-thread system (``SystemConfig.threads = False``): its per-stage times give **tracking alone** (eq. 1-4, the
   time spent in frame-to-key-frame tracking per frame) and the cost of every other stage;
 - two-thread system (the paper's frame thread + key-frame thread): **whole system** fps = frames / wall time of
   ``process`` over the sequence (key-frame initialisation waits included, pose-graph work overlapping);
-- the frame thread's worst step.
+- the frame thread's worst step;
+- the two-thread system again without the global model (``global_model.enabled = False``): what fusing the model
+  in the key-frame thread costs the frame thread.
 
 Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``): fps times
 the seconds of a frozen reference workload (:func:`machine_unit_seconds`) timed in the same process just before
@@ -215,6 +217,9 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         (wall_1, steps_1, stats_1), unit_1 = _units_around(lambda: _run(single, intrinsics, frames, pred))
     two = base.with_overrides({"system.threads": True})
     (wall_2, steps_2, stats_2), unit_2 = _units_around(lambda: _run(two, intrinsics, frames, pred))
+    # the same without the global model (Sec. 3.5): fusion runs in the key-frame thread and must not slow the
+    # frame thread
+    wall_off, steps_off, _ = _run(two.with_overrides({"global_model.enabled": False}), intrinsics, frames, pred)
     n = len(frames)
     sec = stats_1["seconds"]
     h, w = frames[0][0].shape[:2]
@@ -240,7 +245,10 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         "pose_graph_ms_per_keyframe": 1000 * sec["pose_graph"] / max(stats_1["keyframes"] - 1, 1),
         "single_thread_fps": n / wall_1,
         "whole_system_fps": n / wall_2,
+        "whole_system_fps_without_model": n / wall_off,
+        "fusion_ms_per_keyframe": 1000 * sec.get("fusion", 0.0) / max(stats_1["keyframes"], 1),
         "frame_thread_median_ms": 1000 * float(np.median(steps_2)),
+        "frame_thread_median_ms_without_model": 1000 * float(np.median(steps_off)),
         "frame_thread_max_ms": 1000 * float(np.max(steps_2)),
         "tracked_share": stats_2["tracked_share"],
         # machine-speed units (frozen reference workload, this process): fps x unit seconds = frames per unit
@@ -303,7 +311,7 @@ def format_figures(figures: dict[str, Any]) -> str:
     width = max(len(k) for k in figures)
     lines = []
     for key, value in figures.items():
-        text = f"{value:.1f}" if isinstance(value, float) else str(value)
+        text = (f"{value:.4g}" if abs(value) < 1 else f"{value:.1f}") if isinstance(value, float) else str(value)
         lines.append(f"{key:<{width}}  {text}")
     return "\n".join(lines)
 

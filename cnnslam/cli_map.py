@@ -10,17 +10,20 @@ What it does, in order:
    at each key-frame (the source's RGB of that frame, the same bytes as the observation). ``--fuse online`` (default)
    replays the key-frame thread of the paper: each key-frame is fused at the pose the agent answered for its frame,
    then the key-frames are re-placed at their final pose-graph poses (:meth:`GlobalModel.update_poses`); ``--fuse
-   final`` fuses directly at the final poses;
+   final`` fuses directly at the final poses. The paper's agent (:class:`cnnslam.agent.CnnSlamAgent`) fuses its
+   key-frames live in its key-frame thread and re-places them at the end (``global_model.enabled``): with ``--fuse
+   online`` and its voxel size, that model is used as it is, and nothing is fused here;
 3. writes ``model.ply``, ``map.png`` (and a copy at ``--figure``), and ``metrics.json`` with the model's size, the
    re-placement, the fusion's memory (tracemalloc peak during fusion) and the process's peak RSS (scoring included),
-   and (unless ``--no-metrics``) the judge's reconstruction and semantic metrics (:mod:`eval.reconstruction_metrics`)
-   against the scene's ground-truth surfaces (:mod:`sim_envs.surface_sampling`), after aligning the key-frame poses
-   onto the ground truth (``--alignment``, SE(3) by default: absolute scale is part of what is measured).
+   and (unless ``--no-metrics``) the shared reconstruction and semantic metrics
+   (:mod:`slamcommon.reconstruction_metrics`, the judge's) against the scene's ground-truth surfaces
+   (:mod:`sim_envs.surface_sampling`), after aligning the key-frame poses onto the ground truth (``--alignment``,
+   SE(3) by default: absolute scale is part of what is measured).
 
 Semantic accuracy is reported four ways, fused model vs the frame-wise CNN labels each time:
 
 - ``semantic``: in 3D, on back-projected key-frame pixels, each scored against the nearest ground-truth surface
-  sample (:func:`eval.reconstruction_metrics.label_fusion_metrics`); a pixel whose estimated depth is off by more
+  sample (:func:`slamcommon.reconstruction_metrics.label_fusion_metrics`); a pixel whose estimated depth is off by more
   than the surface spacing is scored against whatever surface lies there, for both labels alike;
 - ``semantic_image``: the model rendered into each key-frame (front-most surfel per pixel) against the rendered
   ground-truth labels of that key-frame (the paper's Fig. 6 view);
@@ -28,7 +31,7 @@ Semantic accuracy is reported four ways, fused model vs the frame-wise CNN label
   is replayed with each key-frame pixel's ground-truth label and whether its CNN label was right in place of the
   class probabilities (same depth, poses and association, so the same surfels), and every fused measurement is
   scored against its own ground-truth label with its frame-wise label and with its surfel's fused label
-  (:func:`eval.reconstruction_metrics.measurement_label_metrics`; weights: Keller's radial confidence alpha). It
+  (:func:`slamcommon.reconstruction_metrics.measurement_label_metrics`; weights: Keller's radial confidence alpha). It
   separates what the label averaging does (``pure_*``: surfels whose measurements share one ground-truth label) from
   what the data association costs (``mixed_*``; ``purity`` is the ceiling of any one label per surfel);
 - ``semantic_measurements_exact_geometry``: the same, fusing the same CNN labels with the ground-truth depth and
@@ -324,7 +327,16 @@ def run(args: argparse.Namespace) -> int:
         steps = keyframe_frame_indices(result.keyframes, result.timestamps)
         online = result.T_world_cam_est[steps] if args.fuse == "online" else None
         images = [f.rgb for f in result.keyframe_gt]
-        model, fusion = fuse_keyframes(result.keyframes, images, result.intrinsics.as_array(), online, config)
+        live = getattr(getattr(agent, "result", None), "model", None)  # CnnSlamAgent: fused by its key-frame thread
+        if (live is not None and args.fuse == "online" and live.config.voxel_size == args.voxel
+                and len(live.keyframe_poses) == len(result.keyframes)):
+            model, config = live, live.config
+            fusion = {"source": "live: the agent's key-frame thread (Sec. 3.5)", "surfels": len(live),
+                      "seconds": result.extras.get("seconds", {}).get("fusion"), "model_mb": live.nbytes / 2**20,
+                      "tracemalloc_peak_mb": math.nan}
+        else:  # another agent's key-frames, --fuse final or another voxel size: fuse them here
+            model, fusion = fuse_keyframes(result.keyframes, images, result.intrinsics.as_array(), online, config)
+            fusion["source"] = "replayed from the agent's key-frames"
         cloud = model.snapshot()
         final = np.stack([np.asarray(k.T_world_cam, dtype=np.float64) for k in result.keyframes])
         trajectory = corrected_trajectory(result.T_world_cam_est, steps, result.T_world_cam_est[steps], final)
@@ -360,8 +372,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"cnnslam map: error: {exc}", file=sys.stderr)
         return 1
     summary = [f"{result.sequence}: {len(result.keyframes)} key-frames -> {len(cloud)} surfels ({ply})",
-               f"peak RSS {record['peak_rss_mb']:.0f} MiB, fusion tracemalloc peak "
-               f"{fusion['tracemalloc_peak_mb']:.1f} MiB"]
+               f"peak RSS {record['peak_rss_mb']:.0f} MiB, model {fusion['source']}"]
     m = record.get("metrics", {})
     if "reconstruction" in m:
         r = m["reconstruction"]

@@ -10,7 +10,8 @@ The two threads
 - Key-frame thread (``cnnslam-keyframe``, a daemon thread): initialises new key-frames (CNN depth on that frame,
   eq. 5; uncertainty, eq. 6; fusion with the previous key-frame, eq. 7-9; or propagation without a CNN) and
   maintains the pose graph (edges by direct alignment to key-frames with a similar view, loop edges, global
-  optimisation at each new key-frame).
+  optimisation at each new key-frame), and fuses every frozen key-frame into the global model with its class
+  probabilities (Sec. 3.5, :mod:`cnnslam.global_model`; ``global_model.enabled``).
 
 Hand-over (who pushes, reads and clears what)
 ---------------------------------------------
@@ -23,7 +24,9 @@ Hand-over (who pushes, reads and clears what)
   it to the key-frame list (under a lock); the frame thread makes it the active key-frame and then PUSHES a pose-
   graph job for it, which runs while the frame thread goes on tracking. The pose-graph work is split into small
   jobs (add the key-frame, one alignment per candidate, one optimisation), and initialisation jobs jump the queue,
-  so a key-frame switch waits for at most one small job.
+  so a key-frame switch waits for at most one small job. After the pose-graph job the frame thread PUSHES a fusion
+  job for the key-frame it just left (frozen): the model is the key-frame thread's alone; :meth:`finish` fuses the
+  last key-frame and re-places every key-frame's surfels at its final pose.
 - The pose-graph job WRITES optimised ``T_world_kf`` of every key-frame (atomic attribute swaps); the frame thread
   READS ``T_world_kf`` of its active key-frame to report T_world_cur = T_world_kf T_kf_cur, so reported poses move
   with the graph. Refinement WRITES the active key-frame's ``maps`` (atomic swaps of an immutable record).
@@ -63,6 +66,7 @@ from cnnslam.config import CnnSlamConfig
 from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, se3_inverse
+from cnnslam.global_model import GlobalModel
 from cnnslam.keyframes import (
     Keyframe,
     KeyframeInit,
@@ -137,7 +141,8 @@ class SlamResult:
     timestamps: (N,) float64 s; T_world_cam: (N, 4, 4) float64 final trajectory (each frame re-expressed through
     its key-frame's optimised pose: T_world_kf T_kf_cur); T_world_cam_online: (N, 4, 4) the poses answered frame by
     frame; tracked: (N,) bool; keyframes: list of :class:`KeyframeOutput`; edges: (i, j, kind) of the pose graph;
-    stats: JSON-serialisable diagnostics (counts, timings).
+    stats: JSON-serialisable diagnostics (counts, timings); model: the global model fused live by the key-frame
+    thread (:class:`~cnnslam.global_model.GlobalModel`, ``global_model.enabled``).
     """
 
     timestamps: np.ndarray
@@ -147,6 +152,7 @@ class SlamResult:
     keyframes: list[KeyframeOutput]
     edges: list[tuple[int, int, str]]
     stats: dict[str, Any] = field(default_factory=dict)
+    model: GlobalModel | None = None  # the global model (Sec. 3.5), re-placed at the final poses; None if disabled
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -242,6 +248,9 @@ class CnnSlam:
         self._cnn_log_scales: list[float] = []
         self._kf_lock = threading.Lock()
         self._graph_futures: list[Future] = []
+        # the global model (Sec. 3.5), key-frame thread only: each key-frame is fused once, when it is frozen
+        self._model = GlobalModel(config.global_model) if config.global_model.enabled else None
+        self._fused: set[int] = set()
         # frame-thread state
         self._active: Keyframe | None = None
         self._prev: tuple[Keyframe, np.ndarray] | None = None  # (key-frame, T_kf_prev) of the last frame
@@ -254,7 +263,7 @@ class CnnSlam:
         self._counters = {"lost": 0, "recovered": 0, "refined_pixels": 0, "observed_pixels": 0,
                           "alignments": 0, "edges_rejected": 0, "optimisations": 0}
         self._seconds = {"tracking": 0.0, "refinement": 0.0, "keyframe_wait": 0.0, "pyramid": 0.0,
-                         "keyframe_init": 0.0, "pose_graph": 0.0, "prediction": 0.0}
+                         "keyframe_init": 0.0, "pose_graph": 0.0, "prediction": 0.0, "fusion": 0.0}
         self._finished = False
 
     # ------------------------------------------------------------------------------------------------ frame thread
@@ -321,6 +330,8 @@ class CnnSlam:
             self._seconds["keyframe_wait"] += seconds["keyframe_wait"]
             self._graph_futures.append(self._worker.submit(1, self._update_graph, new, keyframe, T_kf_cur,
                                                            result.hessian))
+            if self._model is not None:  # the previous key-frame is frozen from now on: fuse it
+                self._graph_futures.append(self._worker.submit(1, self._fuse_keyframe, keyframe))
             self._active = new
             self._release_working_sets()
             keyframe, T_kf_cur = new, np.eye(4)
@@ -494,6 +505,21 @@ class CnnSlam:
             self._keyframes.append(keyframe)
         return keyframe
 
+    def _fuse_keyframe(self, keyframe: Keyframe) -> None:
+        """Sec. 3.5: fuse a frozen key-frame (its refined depth and variance, its image and CNN class probabilities)
+        into the global model at its current pose; the model re-places it when the pose graph has moved it
+        (:meth:`finish`). Key-frame thread; each key-frame once (a key-frame made active again by recovery keeps
+        what it had when it was first frozen)."""
+        if self._model is None or keyframe.index in self._fused:
+            return
+        t0 = time.perf_counter()
+        maps = keyframe.maps
+        labels = None if keyframe.label_probs is None else keyframe.label_probs.astype(np.float32)
+        self._model.integrate(maps.depth, keyframe.T_world_kf, self.intrinsics, keyframe.rgb, labels,
+                              maps.variance, anchor=keyframe.index)
+        self._fused.add(keyframe.index)
+        self._seconds["fusion"] += time.perf_counter() - t0
+
     def _update_graph(self, keyframe: Keyframe, parent: Keyframe | None, T_parent_new: np.ndarray | None,
                       hessian: np.ndarray | None) -> None:
         """Add the key-frame and its sequential edge to the pose graph, then queue one alignment job per candidate
@@ -567,6 +593,10 @@ class CnnSlam:
         self._raise_worker_error()
         for fut in self._graph_futures:
             fut.result()
+        if self._model is not None:  # the last key-frames, then every key-frame at its final pose-graph pose
+            for k in self.keyframes:
+                self._fuse_keyframe(k)
+            self._model.update_poses({k.index: k.T_world_kf for k in self.keyframes})
         n = len(self._frames)
         stamps = np.array([f[0] for f in self._frames], dtype=np.float64)
         final = np.stack([f[1].T_world_kf @ f[2] for f in self._frames]) if n else np.zeros((0, 4, 4))
@@ -598,7 +628,9 @@ class CnnSlam:
             "seconds": dict(self._seconds),
             "threads": self.config.system.threads,
         }
-        return SlamResult(stamps, final, online, tracked, keyframes, edges, stats)
+        if self._model is not None:
+            stats["model_surfels"] = len(self._model)
+        return SlamResult(stamps, final, online, tracked, keyframes, edges, stats, self._model)
 
     def close(self) -> None:
         """Stop the key-frame thread without collecting results (idempotent)."""

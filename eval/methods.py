@@ -14,8 +14,9 @@ Two kinds of method:
 
 Metric groups (:data:`METRIC_GROUPS`): ``trajectory`` (ATE, rotation error, RPE, scale, path lengths, tracked share),
 ``depth`` (percentage of correct depth, density, AbsRel, RMSE, delta < 1.25, key-frame count), ``semantic`` (pixel
-accuracy, IoU). ``frames`` is always kept. A method without the ``trajectory`` group (REMODE, which runs on LSD-BS
-poses) gets no ATE column, as in the paper's Table 1.
+accuracy, IoU), ``map`` (the global model's accuracy, completeness and fused-label accuracy, :mod:`eval.map_metrics`;
+for agents that hand back a model). ``frames`` is always kept. A method without the ``trajectory`` group (REMODE,
+which runs on LSD-BS poses) gets no ATE column, as in the paper's Table 1.
 """
 
 from __future__ import annotations
@@ -45,10 +46,11 @@ METRIC_GROUPS: dict[str, tuple[str, ...]] = {
     "trajectory": ("ate_", "rot_deg_", "rpe_", "scale", "length_", "tracked_share"),
     "depth": ("depth_",),
     "semantic": ("semantic_",),
+    "map": ("map_",),
 }
 ALWAYS_KEPT: tuple[str, ...] = ("frames",)
 # wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
-TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps")
+TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps", "map_scoring_s")
 
 EXTERNAL_LAYOUT = """\
 FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps

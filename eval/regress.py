@@ -129,6 +129,11 @@ DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
     Tolerance("*depth_rmse", "lower", abs=0.005, rel=0.05),
     Tolerance("*tracked_share", "higher", abs=0.02),
     Tolerance("*semantic_*", "higher", abs=0.01, rel=0.02),
+    Tolerance("*map_points", "match", rel=0.10),
+    Tolerance("*map_accuracy_median", "lower", abs=0.005, rel=0.05),
+    Tolerance("*map_completeness_median", "lower", abs=0.005, rel=0.05),
+    Tolerance("*map_*_within", "higher", abs=0.01, rel=0.03),
+    Tolerance("*map_label_accuracy", "higher", abs=0.01, rel=0.02),
     Tolerance("*step_ms_*", "lower", rel=0.50),
     Tolerance("*fps", "higher", rel=0.33),
 )

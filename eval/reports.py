@@ -55,7 +55,14 @@ ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Perc. Correct Depth [%]", "depth_percent_correct"),
 )
 SIM3_BLOCK: tuple[tuple[str, str], ...] = (("ATE after Sim(3) alignment [m]", "ate_sim3_rmse"),)
-QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, *SIM3_BLOCK, ("Tracked share", "tracked_share"))
+# The global model (Sec. 3.5) of the agents that hand one back (eval.map_metrics)
+MAP_BLOCKS: tuple[tuple[str, str], ...] = (
+    ("Map accuracy, median [m]", "map_accuracy_median"),
+    ("Map completeness within 5 cm", "map_completeness_within"),
+    ("Map label accuracy", "map_label_accuracy"),
+)
+QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, *SIM3_BLOCK, ("Tracked share", "tracked_share"),
+                                             *MAP_BLOCKS)
 DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
     ("ATE / length [%]", "ate_percent_length"),
     ("Scale error [%]", "scale_error_percent"),
@@ -359,10 +366,30 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         "The paper's ATE (above) aligns with SE(3): no scale correction, so a monocular method pays for a wrong "
         "scale. Monocular SLAM papers report ATE after Sim(3) alignment (`evo_ape -as`); both are here.\n",
         table_to_markdown(sim3, spread=sim3_spread),
+        *_map_section(run),
         "## Ours alone (as in table1.csv / table1.tex)\n",
         table_to_markdown(table, spread=spread),
     ]
     return _write_report(run, results_dir, "table1", text, paths)
+
+
+def _map_section(run: SuiteRun) -> list[str]:
+    """The global model's figures (Sec. 3.5, :mod:`eval.map_metrics`) for the methods that hand back a model; empty
+    when none does."""
+    table, spread = _suite_table(run, MAP_BLOCKS)
+    table = table.dropna(axis=1, how="all")
+    if table.empty or table.shape[1] == 0:
+        return []
+    spread = tuple(t[table.columns] for t in spread)
+    return [
+        "## Global model (Sec. 3.5, Fig. 1c)\n",
+        "The key-frames fused live into the agent's surfel model, moved onto the ground truth with the run's ATE "
+        "alignment, against the scene's surfaces (2 cm samples; `eval/map_metrics.py`). Accuracy: median distance "
+        "of the model's points to the surfaces; completeness: share of the surfaces a key-frame saw that have a "
+        "model point within 5 cm; label accuracy: share of the labelled model points whose fused label is the "
+        "surface's. Methods that build no model are left out.\n",
+        table_to_markdown(table, spread=spread),
+    ]
 
 
 # --------------------------------------------------------------------------------------------------- rotation

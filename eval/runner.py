@@ -51,6 +51,7 @@ from eval.association import associate
 from eval.environment import machine_description
 from eval.errors import EvalError
 from eval.executors import Executor, SerialExecutor
+from eval.map_metrics import map_metrics
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
 from eval.results import evaluate_episode, json_ready, load_run
 from eval.suites import SequenceRef, Suite, rotation_share
@@ -173,10 +174,11 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
 
 def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
+    scene = None
     if method.kind == "external":
         episode, n_frames, source_info = _external_episode(spec)
     else:
-        episode, source_info = _agent_episode(spec, progress)
+        episode, source_info, scene = _agent_episode(spec, progress)
         n_frames = int(episode.timestamps.shape[0])
     metadata = {
         "suite": spec.suite,
@@ -203,6 +205,12 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
     if not has_depth:  # an RGB-only folder: nothing to score key-frame depth against
         metrics = {k: v for k, v in metrics.items() if not k.startswith("depth_")}
         record["warnings"].append(f"{ref.name} has no ground-truth depth (RGB-only folder): depth metric skipped")
+    model = getattr(episode, "model", None)
+    if model is not None and scene is not None and len(model):  # the global model against the scene's surfaces
+        t_map = time.perf_counter()
+        metrics.update(map_metrics(model, episode.T_world_cam_gt, episode.T_world_cam_est, episode.keyframe_gt,
+                                   episode.intrinsics.as_array(), scene, str(spec.alignment)))
+        metrics["map_scoring_s"] = time.perf_counter() - t_map
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
@@ -232,15 +240,17 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None]:
-    """The agent's episode and the frame source's own description (:func:`_source_info`)."""
+def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None, Any]:
+    """The agent's episode, the frame source's own description (:func:`_source_info`) and its scene (simulated
+    sequences; None for folders)."""
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
 
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
     env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
     try:
-        return run_episode(env, agent, progress=progress), _source_info(env.unwrapped.source)
+        source = env.unwrapped.source
+        return run_episode(env, agent, progress=progress), _source_info(source), getattr(source, "scene", None)
     finally:
         env.close()
 

@@ -9,7 +9,8 @@ An agent is any object with ``reset``, ``step`` and ``finish`` (duck-typed; it n
   ((4, 4) float64, the agent's current camera-to-world estimate) and ``tracked`` (1 if tracking succeeded for this
   frame, 0 if the agent considers itself lost).
 - ``finish() -> AgentOutput`` (or a dict with the same fields): key-frames with the agent's final depth maps and
-  poses, for the depth metric and the global model.
+  poses, for the depth metric, and optionally the agent's global 3D model (:class:`MapModel`, the paper's Sec. 3.5
+  map with its fused labels), for the reconstruction and label metrics.
 
 Agents are named by ``"module:Class"`` strings and built with keyword arguments (:func:`load_agent`), so a user's
 agent plugs in exactly like ours. An agent whose class sets ``uses_ground_truth = True`` (the oracle, scale
@@ -44,11 +45,41 @@ class KeyframeDepth:
 
 
 @dataclass(frozen=True)
+class MapModel:
+    """The agent's global 3D model at the end of an episode, in the agent's world frame (the frame of its poses).
+
+    points: (N, 3) float32 metres; labels: (N,) uint8 fused semantic classes (``sim_envs.frames.NO_LABEL`` = none)
+    or None; normals: (N, 3) float32 unit or None; colours: (N, 3) uint8 RGB or None. The judge aligns the points
+    with the same transform as the key-frame poses and scores accuracy, completeness and labels against the
+    scene's surfaces.
+    """
+
+    points: np.ndarray
+    labels: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    colours: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.points)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise SimEnvError(f"MapModel.points must be (N, 3) metres, got shape {pts.shape}")
+        for name in ("labels", "normals", "colours"):
+            value = getattr(self, name)
+            if value is not None and len(value) != len(pts):
+                raise SimEnvError(f"MapModel.{name} must have one row per point ({len(pts)}), got {len(value)}")
+
+    def __len__(self) -> int:
+        return int(np.asarray(self.points).shape[0])
+
+
+@dataclass(frozen=True)
 class AgentOutput:
-    """What an agent hands back at the end of an episode. ``extras``: free-form, JSON-serialisable diagnostics."""
+    """What an agent hands back at the end of an episode. ``model``: its global 3D model, if it builds one;
+    ``extras``: free-form, JSON-serialisable diagnostics."""
 
     keyframes: list[KeyframeDepth] = field(default_factory=list)
     extras: dict[str, Any] = field(default_factory=dict)
+    model: MapModel | None = None
 
 
 @runtime_checkable

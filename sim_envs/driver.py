@@ -16,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from sim_envs.agent import AgentOutput, KeyframeDepth
+from sim_envs.agent import AgentOutput, KeyframeDepth, MapModel
 from sim_envs.camera import Intrinsics
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
@@ -39,7 +39,8 @@ class EpisodeResult:
     ``finish()``; keyframe_gt: the ground-truth :class:`Frame` at each key-frame's timestamp (same order);
     step_seconds: (N,) float64 wall-clock seconds spent in the agent's ``step`` (rendering excluded);
     uses_ground_truth: whether the agent received ground truth (``info``); extras: the agent's diagnostics plus
-    the driver's (``finish_seconds``, ``unmatched_keyframes``).
+    the driver's (``finish_seconds``, ``unmatched_keyframes``); model: the agent's global 3D model, if it hands
+    one back (:class:`~sim_envs.agent.MapModel`).
     """
 
     sequence: str
@@ -56,6 +57,7 @@ class EpisodeResult:
     step_seconds: np.ndarray
     uses_ground_truth: bool
     extras: dict[str, Any] = field(default_factory=dict)
+    model: MapModel | None = None
 
     @property
     def n_frames(self) -> int:
@@ -139,6 +141,7 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
         step_seconds=np.asarray(seconds, dtype=np.float64),
         uses_ground_truth=uses_gt,
         extras=extras,
+        model=output.model,
     )
 
 
@@ -179,13 +182,22 @@ def _check_action(action: Any, agent: str, step: int, frame: int) -> tuple[np.nd
 
 
 def _agent_output(output: Any, agent: str) -> AgentOutput:
-    """``finish()``'s result as an :class:`AgentOutput` (a dict with ``keyframes`` / ``extras`` is accepted; so are
-    key-frames given as dicts of :class:`KeyframeDepth` fields)."""
+    """``finish()``'s result as an :class:`AgentOutput` (a dict with ``keyframes`` / ``extras`` / ``model`` is
+    accepted; so are key-frames given as dicts of :class:`KeyframeDepth` fields and a model as a dict of
+    :class:`MapModel` fields)."""
     if isinstance(output, dict):
-        unknown = sorted(set(output) - {"keyframes", "extras"})
+        unknown = sorted(set(output) - {"keyframes", "extras", "model"})
         if unknown:
-            raise SimEnvError(f"agent {agent!r}: finish() returned unknown key(s) {unknown}; valid: keyframes, extras")
-        output = AgentOutput(keyframes=list(output.get("keyframes", [])), extras=dict(output.get("extras", {})))
+            raise SimEnvError(f"agent {agent!r}: finish() returned unknown key(s) {unknown}; valid: keyframes, extras, "
+                              "model")
+        model = output.get("model")
+        if isinstance(model, dict):
+            try:
+                model = MapModel(**model)
+            except TypeError as exc:
+                raise SimEnvError(f"agent {agent!r}: 'model' is not a valid MapModel: {exc}") from exc
+        output = AgentOutput(keyframes=list(output.get("keyframes", [])), extras=dict(output.get("extras", {})),
+                             model=model)
     if not isinstance(output, AgentOutput):
         got = type(output).__name__
         raise SimEnvError(f"agent {agent!r}: finish() must return an AgentOutput or a dict, got {got}")
@@ -205,7 +217,10 @@ def _agent_output(output: Any, agent: str) -> AgentOutput:
                 f"{depth.shape} and {T.shape}"
             )
         keyframes.append(kf)
-    return AgentOutput(keyframes=keyframes, extras=dict(output.extras))
+    if output.model is not None and not isinstance(output.model, MapModel):
+        raise SimEnvError(f"agent {agent!r}: 'model' must be a MapModel (points, labels, normals, colours), got "
+                          f"{type(output.model).__name__}")
+    return AgentOutput(keyframes=keyframes, extras=dict(output.extras), model=output.model)
 
 
 def match_timestamp(stamps: np.ndarray, t: float, tolerance: float = KEYFRAME_TIME_TOLERANCE) -> int | None:

@@ -137,3 +137,16 @@ def test_evidence_maps_hold_the_ground_truth_one_hot_and_whether_the_cnn_was_rig
     assert maps.shape == (2, 2, 6)
     assert maps[0, 0].tolist() == [0, 1, 0, 0, 1, 0] and maps[0, 1].tolist() == [0, 0, 1, 0, 0, 1]
     assert maps[1, 0].tolist() == [0] * 6 and maps[1, 1].tolist() == [0, 1, 0, 0, 1, 0]
+
+
+def test_map_command_takes_the_agents_live_model(tmp_path):
+    """The paper's agent hands back the model its key-frame thread fused: `cnnslam map` fuses nothing itself."""
+    from cnnslam.cli import main
+
+    out = tmp_path / "live"
+    code = main(["map", "office0", "--agent", "cnnslam.agent:GroundTruthAidedAgent", "--frames", "12", "--out",
+                 str(out), "--gt-spacing", "0.05", "--no-progress"])
+    assert code == 0
+    record = json.loads((out / "metrics.json").read_text())
+    assert record["fusion"]["source"].startswith("live") and record["model"]["surfels"] > 1000
+    assert 0 < record["metrics"]["reconstruction"]["completeness_within"] <= 1

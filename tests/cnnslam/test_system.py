@@ -157,3 +157,34 @@ def test_old_key_frames_hold_no_working_set(room, room_sequence) -> None:
     reference = keyframes[0].reference  # made again on use, with the maps it was made from
     assert keyframes[0].working_set_held and reference.levels[0].points.shape[0] > 0
     slam.finish()
+
+
+def test_the_key_frame_thread_fuses_the_global_model_live(room, room_sequence) -> None:
+    """Sec. 3.5: every key-frame is fused once, the model re-placed at the final poses, its labels fused; the frame
+    thread's figures do not depend on it (same bytes with the model off); the LSD baselines build none."""
+    _, on = _run(room_sequence, CFG, room.intrinsics)
+    _, off = _run(room_sequence, CFG.with_overrides({"global_model.enabled": False}), room.intrinsics)
+    assert off.model is None and on.model is not None
+    assert on.T_world_cam.tobytes() == off.T_world_cam.tobytes()
+    assert sorted(on.model.keyframe_poses) == [k.index for k in on.keyframes]
+    for k in on.keyframes:  # placed where the pose graph finally put each key-frame
+        np.testing.assert_allclose(on.model.keyframe_poses[k.index], k.T_world_kf, atol=1e-9)
+    cloud = on.model.snapshot()
+    assert len(cloud) > 10_000 and on.stats["model_surfels"] == len(cloud)
+    assert (cloud.labels != 255).mean() > 0.9  # the CNN's class probabilities were fused
+    # the surfels lie on the room's surfaces: the system's world is the first camera's frame (its key-frame sits at
+    # the origin), where their depth matches the first frame's rendered depth
+    np.testing.assert_array_equal(on.keyframes[0].T_world_kf, np.eye(4))
+    p = cloud.positions.astype(np.float64)
+    fx, fy, cx, cy = room.intrinsics
+    front = p[:, 2] > 0.2
+    u = np.round(fx * p[front, 0] / p[front, 2] + cx).astype(int)
+    v = np.round(fy * p[front, 1] / p[front, 2] + cy).astype(int)
+    inside = (u >= 0) & (u < 320) & (v >= 0) & (v < 240)
+    gt = room_sequence[0][1][v[inside], u[inside]]
+    rel = np.abs(p[front][inside, 2] - gt) / gt
+    assert np.median(rel) < 0.05
+    threaded = _run(room_sequence, CFG.with_overrides({"system.threads": True}), room.intrinsics)[1]
+    assert threaded.model is not None and abs(len(threaded.model) - len(on.model)) < 0.1 * len(on.model)
+    lsd = _run(room_sequence, baseline_config("lsd_bs").with_overrides({"system.threads": False}), room.intrinsics)[1]
+    assert lsd.model is None

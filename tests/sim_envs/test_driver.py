@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import sim_envs  # noqa: F401  (registers the environments)
-from sim_envs.agent import AgentOutput, KeyframeDepth
+from sim_envs.agent import AgentOutput, KeyframeDepth, MapModel
 from sim_envs.agents import ConstantPoseAgent, OracleAgent
 from sim_envs.camera import Intrinsics
 from sim_envs.driver import EpisodeResult, run_episode
@@ -121,6 +121,21 @@ def test_finish_may_return_a_dict_and_unmatched_keyframes_are_dropped(caplog):
     assert "match no frame" in caplog.text
     with pytest.raises(SimEnvError, match="unknown key"):
         run_episode(SlamEnv(source=_source()), _Scripted(-1, None, {"kf": []}), progress=False)
+
+
+def test_finish_may_hand_back_a_global_model():
+    points = np.random.default_rng(0).normal(size=(50, 3)).astype(np.float32)
+    output = {"keyframes": [], "model": {"points": points, "labels": np.zeros(50, np.uint8)}}
+    result = run_episode(SlamEnv(source=_source()), _Scripted(-1, None, output), progress=False)
+    assert isinstance(result.model, MapModel) and len(result.model) == 50
+    np.testing.assert_array_equal(result.model.points, points)
+    for bad, message in (({"points": np.zeros((5, 2))}, "must be \\(N, 3\\)"),
+                         ({"points": points, "labels": np.zeros(3)}, "one row per point"),
+                         ({"vertices": points}, "not a valid MapModel")):
+        with pytest.raises(SimEnvError, match=message):
+            run_episode(SlamEnv(source=_source()), _Scripted(-1, None, {"model": bad}), progress=False)
+    no_model = run_episode(SlamEnv(source=_source()), _Scripted(-1, None, {"keyframes": []}), progress=False)
+    assert no_model.model is None
 
 
 def test_ground_truth_agent_gets_full_ground_truth_from_a_pose_only_env():

@@ -1,0 +1,88 @@
+"""The agent's global 3D model scored against the scene (CNN-SLAM Sec. 3.5 / Fig. 1c, made quantitative), as run
+metrics of every suite: what ``cnnslam map`` measures in depth, here in the run record and the gate.
+
+Input: the agent's :class:`sim_envs.agent.MapModel` (points in its own world frame, fused labels), its key-frame
+poses and the ground-truth frames at those key-frames (the driver's matching), and the scene's labelled surface
+samples (:func:`sim_envs.surface_sampling.sample_scene_surface`, 2 cm apart). The model is moved onto the ground
+truth with the alignment of its key-frame positions (:func:`slamcommon.alignment.align`, the run's alignment method:
+SE(3) by default, so absolute scale counts). Only surfaces at least one key-frame saw count for completeness
+(:func:`slamcommon.reconstruction_metrics.visible_in_views`); `cnnslam map` holds accuracy to those too, so its
+figures are a little worse where a model point lies on a surface no key-frame saw in full.
+
+Metrics (metres, shares 0..1): ``map_accuracy_median`` and ``map_accuracy_within`` (model point to the nearest
+surface, any surface of the scene, point-to-plane within a sample's cell; share within 5 cm),
+``map_completeness_median`` and ``map_completeness_within`` (each surface sample a key-frame saw to the nearest
+model point),
+``map_label_accuracy`` (share of labelled model points whose fused label is the label of the nearest surface
+sample within 10 cm; the model's own elements, one vote each) and ``map_points``.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from slamcommon.alignment import align
+from slamcommon.labels import NO_LABEL
+from slamcommon.reconstruction_metrics import (
+    DEFAULT_LABEL_DISTANCE,
+    DEFAULT_THRESHOLD,
+    distance_to_surface,
+    nearest_labels,
+    visible_in_views,
+)
+
+GT_SPACING: float = 0.02  # m, the surface samples' spacing (as `cnnslam map`)
+MAP_METRICS: tuple[str, ...] = ("map_accuracy_median", "map_accuracy_within", "map_completeness_median",
+                                "map_completeness_within", "map_label_accuracy", "map_points")
+
+
+@lru_cache(maxsize=4)
+def _surface(scene: Any) -> Any:
+    from sim_envs.surface_sampling import sample_scene_surface
+
+    return sample_scene_surface(scene, GT_SPACING)
+
+
+def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndarray, keyframe_gt: list[Any],
+                intrinsics: np.ndarray, scene: Any, alignment: str = "se3",
+                threshold: float = DEFAULT_THRESHOLD) -> dict[str, float]:
+    """The ``map_*`` metrics of the module docstring. model: a ``MapModel``; T_world_cam_gt, T_world_cam_est: (N, 4,
+    4) the episode's poses, paired by index (they fit the alignment); keyframe_gt: the ground-truth frames
+    (``T_world_cam``, ``depth``) of the agent's key-frames; intrinsics: [fx, fy, cx, cy]; scene: the simulated
+    scene (hashable, for the surface cache). Empty dict without key-frames."""
+    if len(keyframe_gt) == 0:
+        return {}
+    T_gt = np.stack([np.asarray(f.T_world_cam, dtype=np.float64) for f in keyframe_gt])
+    S = align(np.asarray(T_world_cam_gt, dtype=np.float64), np.asarray(T_world_cam_est, dtype=np.float64),
+              alignment).matrix
+    points = np.asarray(model.points, dtype=np.float64) @ S[:3, :3].T + S[:3, 3]
+    surface = _surface(scene)
+    seen = visible_in_views(surface.points, T_gt, [f.depth for f in keyframe_gt], np.asarray(intrinsics))
+    gt_seen = surface.subset(seen)
+    if len(gt_seen.points) == 0:
+        return {}
+    # accuracy against every surface (a point on a surface no key-frame saw is still right), completeness against
+    # the surfaces the key-frames saw
+    acc, _ = distance_to_surface(points, surface.points, surface.normals, surface.spacing)
+    comp = (np.asarray(cKDTree(points).query(gt_seen.points, k=1)[0], dtype=np.float64) if points.shape[0]
+            else np.full(len(gt_seen.points), np.inf))
+    out = {
+        "map_accuracy_median": float(np.median(acc)) if acc.size else math.nan,
+        "map_accuracy_within": float(np.mean(acc < threshold)) if acc.size else math.nan,
+        "map_completeness_median": float(np.median(comp)),
+        "map_completeness_within": float(np.mean(comp < threshold)),
+        "map_points": float(points.shape[0]),
+    }
+    labels = None if model.labels is None else np.asarray(model.labels).reshape(-1)
+    if labels is not None and (labels != NO_LABEL).any():
+        labelled = labels != NO_LABEL
+        gt_labels, _ = nearest_labels(points[labelled], surface.points, surface.labels, DEFAULT_LABEL_DISTANCE)
+        scored = gt_labels != NO_LABEL
+        out["map_label_accuracy"] = (float(np.mean(labels[labelled][scored] == gt_labels[scored])) if scored.any()
+                                     else math.nan)
+    return out
