@@ -17,6 +17,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("baseline", help="baseline JSON (committed under results/)")
     parser.add_argument("run", help="the run's metrics JSON (a run record, a flat object, or a list of run records)")
     parser.add_argument("--update", action="store_true", help="write the run's metrics into the baseline instead")
+    parser.add_argument("--only-new", action="store_true",
+                        help="with --update: add only the figures the baseline does not hold yet (newly gated "
+                             "metrics), keeping every other figure and its calibration")
     parser.add_argument("--changes-only", action="store_true", help="list only metrics whose status is not 'equal'")
 
 
@@ -24,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         metrics = load_run_metrics(args.run)
         if args.update:
-            new = update_baseline(args.baseline, metrics)
+            new = update_baseline(args.baseline, metrics, only_new=args.only_new)
             print(f"updated {args.baseline}: {len(new.metrics)} metrics, {len(new.tolerances)} tolerance rules")
             return 0
         report = compare(load_baseline(args.baseline), metrics)

@@ -68,7 +68,8 @@ from eval.results import json_ready
 BASELINE_SCHEMA = "cnnslam-baseline/2"
 # rotation twice: after the SE(3) fit (catches an error in the camera frame, which an orientation-only fit absorbs
 # on short runs) and after the orientation-only fit (which no ill-posed position fit can decide)
-GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", "rot_deg_rmse", "rot_deg_orient_rmse")
+GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", "rot_deg_rmse", "rot_deg_orient_rmse",
+                          "map_accuracy_median", "map_completeness_within", "map_label_accuracy")
 GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics is "missing"), not averaged
 AVERAGE_PREFIX = "avg"
 CALIBRATION_K = 3.0  # allowed change = k x the spread measured over the perturbation matrix (ours: see calibrate)
@@ -367,16 +368,26 @@ def save_baseline(baseline: Baseline, path: str | Path) -> Path:
 
 def update_baseline(
     path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None,
-    description: str | None = None,
+    description: str | None = None, only_new: bool = False,
 ) -> Baseline:
     """Replace the baseline's metrics by the run's, keeping everything else it holds (tolerances, policy,
     calibrated tolerances and their record), or ``tolerances`` / ``description`` where given; write and return it.
     The one way a baseline's figures are rewritten (``cnnslam regress --update``, ``cnnslam bench
     --update-baseline``). A missing baseline file is created with the default tolerances.
+
+    ``only_new``: add the run's figures the baseline does not hold yet (a newly gated metric) and keep every figure
+    it holds as it is (their calibration was measured around them, on the machines of its record); the default
+    tolerance rules whose patterns the baseline lacks are appended to its rules, so the new figures get theirs.
     """
     path = Path(path)
     old = load_baseline(path) if path.exists() else Baseline({})
-    new = replace(old, metrics=dict(run_metrics))
+    if only_new:
+        added = {k: v for k, v in run_metrics.items() if k not in old.metrics}
+        patterns = {t.pattern for t in old.tolerances}
+        rules = (*old.tolerances, *(t for t in DEFAULT_TOLERANCES if t.pattern not in patterns))
+        new = replace(old, metrics={**old.metrics, **added}, tolerances=rules)
+    else:
+        new = replace(old, metrics=dict(run_metrics))
     if tolerances is not None:
         new = replace(new, tolerances=tuple(tolerances))
     if description is not None:

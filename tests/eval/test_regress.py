@@ -105,6 +105,12 @@ def test_files_and_suite_flattening(tmp_path):
     again = load_baseline(tmp_path / "results" / "base.json")
     assert again.policy == "two-sided" and again.calibrated == {"x/ate_rmse": {"spread": 0.01, "allowed": 0.02}}
     assert again.calibration == {"how": "test"} and again.metrics == {"x/ate_rmse": 0.3}
+    # only_new: a newly gated figure joins, with its default rule; the calibrated figure stays as it was
+    added = update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.9, "x/map_label_accuracy": 0.6},
+                            only_new=True)
+    assert added.metrics == {"x/ate_rmse": 0.3, "x/map_label_accuracy": 0.6} and added.policy == "two-sided"
+    assert added.calibrated == again.calibrated and added.tolerances[0] == Tolerance("*", "higher")
+    assert added.tolerance_for("x/map_label_accuracy").pattern == "*"  # an earlier, broader rule still wins
 
 
 def test_command_line_exit_codes(tmp_path, capsys):
