@@ -13,9 +13,10 @@ The perturbation matrix (:data:`MATRIX`) runs the suite, with all its runs per c
 
 - ``reference``: 2 runs at a time, one math thread per run (how CI runs the gate);
 - ``threads2``: 1 run at a time, two math threads per run (other reduction orders in torch, OpenCV, numba);
-- ``onednn-off``: torch's oneDNN kernels off (``CNNSLAM_ONEDNN=0``: another math back-end);
-- ``another-cpu``: the network's outputs perturbed in their last bits in every run, seed 0 included
-  (``CNNSLAM_NET_JITTER``: what another CPU does to them; see ``cnnslam/depthnet/predict.py``);
+- ``onednn-off``: torch's oneDNN kernels off for the network (predictor option ``onednn = false``: another math
+  back-end);
+- ``another-cpu``: the network's outputs perturbed in their last bits in every run, seed 0 included (predictor
+  option ``jitter_seed_fallback``: what another CPU does to them; see ``cnnslam/depthnet/predict.py``);
 - ``another-isa``: every numeric library of the stack on an older instruction set than this CPU's (:data:`OLDER_ISA`:
   OpenBLAS's Sandy Bridge kernels, numpy's and OpenCV's dispatch without AVX2/FMA, numba compiling for a generic
   x86-64, torch's ATen kernels without vectorisation and oneDNN up to SSE4.1). Another CPU changes the bytes of the
@@ -29,9 +30,12 @@ Other machines: ``--calibrate`` also writes this machine's reference figures to 
 seeds), so an intended change of results leaves the older records out (reported) until they are made again there.
 The matrix emulates another CPU; a record measures one.
 
-The environment variables reach the runs because the local executor's workers are spawned from this process. Each
-configuration's runs go to their own folder (``<out>/calibrate/<name>/``): the fingerprint does not cover the
-environment, so they must not share one. ``cnnslam bench quick --calibrate`` runs this and writes the baseline.
+A configuration's predictor options are merged into the ``predictor_options`` keyword of every method whose seed
+reaches the network (``predictor_options.jitter_seed`` among its seed targets): they become part of its method
+definition and so of every run's fingerprint. The instruction-set configuration is the numeric libraries' own
+environment variables (which CPU the stack believes it runs on, not a parameter of ours); they reach the runs because
+the local executor's workers are spawned from this process. Each configuration's runs go to their own folder
+(``<out>/calibrate/<name>/``). ``cnnslam bench quick --calibrate`` runs this and writes the baseline.
 """
 
 from __future__ import annotations
@@ -48,6 +52,7 @@ from typing import Any
 
 from eval.environment import machine_description
 from eval.executors import LocalExecutor
+from eval.methods import with_predictor_options
 from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
 from eval.results import json_ready
 from eval.runner import SuiteRun, run_suite
@@ -56,13 +61,23 @@ from eval.suites import Suite
 
 @dataclass(frozen=True)
 class Perturbation:
-    """One configuration of the matrix: ``jobs`` runs at a time (math threads per run = cores / jobs) and
-    environment variables set for the runs."""
+    """One configuration of the matrix: ``jobs`` runs at a time (math threads per run = cores / jobs), the numeric
+    libraries' environment variables set for the runs, and ``predictor_options`` given to every method whose seed
+    reaches the network (explicit: part of its runs' fingerprints)."""
 
     name: str
     jobs: int
     env: dict[str, str] = field(default_factory=dict)
     description: str = ""
+    predictor_options: dict[str, Any] = field(default_factory=dict)
+
+    def methods(self, methods: Mapping[str, Any]) -> dict[str, Any]:
+        """``methods`` with :attr:`predictor_options` merged into the network methods' ``predictor_options``."""
+        if not self.predictor_options:
+            return dict(methods)
+        return {name: (with_predictor_options(m, self.predictor_options)
+                       if "predictor_options.jitter_seed" in getattr(m, "seed_targets", ()) else m)
+                for name, m in methods.items()}
 
 
 # Environment variables read by the libraries at import: each selects an older code path than the CPU offers.
@@ -78,9 +93,10 @@ OLDER_ISA: dict[str, str] = {
 MATRIX: tuple[Perturbation, ...] = (
     Perturbation("reference", 2, {}, "2 runs at a time, 1 math thread per run (as CI runs the gate)"),
     Perturbation("threads2", 1, {}, "1 run at a time, 2 math threads per run"),
-    Perturbation("onednn-off", 2, {"CNNSLAM_ONEDNN": "0"}, "torch's oneDNN kernels off"),
-    Perturbation("another-cpu", 2, {"CNNSLAM_NET_JITTER": "1009"},
-                 "the network's outputs perturbed in their last bits (2 ulp) in every run, seed 0 included"),
+    Perturbation("onednn-off", 2, {}, "torch's oneDNN kernels off", {"onednn": False}),
+    Perturbation("another-cpu", 2, {},
+                 "the network's outputs perturbed in their last bits (2 ulp) in every run, seed 0 included",
+                 {"jitter_seed_fallback": 1009}),
     Perturbation("another-isa", 2, OLDER_ISA,
                  "every numeric library on an older instruction set (BLAS, numpy, OpenCV, numba, torch, oneDNN)"),
 )  # fmt: skip
@@ -106,7 +122,7 @@ def run_configuration(suite: Suite, methods: Mapping[str, Any], out_root: Path, 
     """The suite's runs under one configuration of the matrix, in ``out_root / config.name``, rendered with
     ``renderer``, each stopped after ``timeout_s`` seconds (None: no limit)."""
     with environment(config.env):
-        return run_suite(suite, methods, Path(out_root) / config.name,
+        return run_suite(suite, config.methods(methods), Path(out_root) / config.name,
                          executor=LocalExecutor(jobs=config.jobs, timeout_s=timeout_s), renderer=renderer,
                          plots=False, progress=progress)  # fmt: skip
 

@@ -503,3 +503,14 @@ def with_settings(method: Method, settings: Sequence[tuple[str, Any]]) -> Method
     kwargs = {k: _thaw(v) for k, v in method.kwargs}
     kwargs["config"] = {**(kwargs.get("config") or {}), **dict(settings)}
     return replace(method, kwargs=kwargs)
+
+
+def with_predictor_options(method: Method, options: Mapping[str, Any]) -> Method:
+    """``method`` with ``options`` merged into its agent's ``predictor_options`` keyword (the network's explicit
+    run parameters: ``jitter_seed_fallback``, ``onednn``, ...): a new method whose keyword arguments, and so whose run
+    fingerprints, carry them."""
+    if not options:
+        return method
+    kwargs = {k: _thaw(v) for k, v in method.kwargs}
+    kwargs["predictor_options"] = {**(kwargs.get("predictor_options") or {}), **dict(options)}
+    return replace(method, kwargs=kwargs)

@@ -9,19 +9,21 @@ network has ``train_size`` (160, 120): a 320x240 frame is halved on the way in a
 Floating point across machines: the network's float32 outputs differ in their last bits between CPUs and math
 back-ends (measured on office0's first frame with oneDNN off against on: 74 % of the depth pixels differ, by a median
 of 0.9, a 99th percentile of 3.6 and at most 7.4 float32 ulps), and the SLAM system amplifies such differences.
-Two switches reproduce that here, so results can be checked against it (see ``docs/benchmarks.md``, "Determinism"):
+Explicit parameters of the predictor reproduce that here (agents take them as ``predictor_options``, so they are
+part of a run's method definition and its fingerprint; see ``docs/benchmarks.md``, "Determinism"):
 
 - ``jitter_seed``: multiply every output (depth and class probabilities) by ``1 + e``, e ~ N(0, (2 ulp)^2) per pixel,
   drawn from a generator seeded with ``jitter_seed`` (new draws per frame, the same sequence for the same seed): what
   another CPU does to the outputs. The benchmark's seeds 1, 2, ... set it; 0 or None leaves the outputs as computed,
-  unless the environment variable ``CNNSLAM_NET_JITTER=S`` gives a seed for every predictor of the process (to run
-  the whole test suite as if on another CPU);
-- the environment variable ``CNNSLAM_ONEDNN=0`` turns torch's oneDNN (MKL-DNN) kernels off in the process.
+  unless ``jitter_seed_fallback`` gives a seed for that case (the calibration's "another CPU": every run perturbed,
+  seed 0 included);
+- ``onednn=False``: torch's oneDNN (MKL-DNN) kernels off for this predictor's inference (a second math back-end;
+  scoped to each forward pass, the process's setting is left as it was). ``num_threads`` likewise applies to this
+  predictor's forward passes only.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,15 +35,6 @@ from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, p
 from cnnslam.depthnet.model import DepthSemanticNet, normalize_rgb
 from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
 from cnnslam.errors import CnnSlamError
-
-JITTER_VARIABLE = "CNNSLAM_NET_JITTER"  # a jitter seed for predictors built without one
-ONEDNN_VARIABLE = "CNNSLAM_ONEDNN"  # "0": torch's oneDNN kernels off in this process (a second math back-end)
-
-
-def apply_backend_switches() -> None:
-    """Turn torch's oneDNN kernels off when the environment says ``CNNSLAM_ONEDNN=0`` (checked at predictor build)."""
-    if os.environ.get(ONEDNN_VARIABLE, "1").strip().lower() in ("0", "off", "false", "no"):
-        torch.backends.mkldnn.enabled = False
 
 
 @dataclass(frozen=True)
@@ -72,8 +65,9 @@ class DepthNetPredictor:
     """A trained :class:`DepthSemanticNet` with its training camera.
 
     train_focal: f_tr, pixels at ``train_size``; train_size: (W, H) of the training images. ``num_threads`` (if given)
-    sets torch's intra-op thread count for the process. ``jitter_seed`` (if given): perturb the outputs in their last
-    bits as another CPU would (see the module docstring); ``output_scale``: multiply the depth by this factor (a
+    is torch's intra-op thread count during this predictor's forward passes. ``jitter_seed`` (if given; else
+    ``jitter_seed_fallback``): perturb the outputs in their last bits as another CPU would, and ``onednn=False``: infer
+    without torch's oneDNN kernels (see the module docstring); ``output_scale``: multiply the depth by this factor (a
     deliberate scale bias, for sensitivity studies and for proving that the regression gate catches one).
     """
 
@@ -85,26 +79,35 @@ class DepthNetPredictor:
         num_threads: int | None = None,
         jitter_seed: int | None = None,
         output_scale: float = 1.0,
+        jitter_seed_fallback: int | None = None,
+        onednn: bool = True,
     ) -> None:
         if not (np.isfinite(output_scale) and output_scale > 0):
             raise CnnSlamError(f"output_scale must be a positive number, got {output_scale!r}")
-        apply_backend_switches()
-        if num_threads is not None:
-            if num_threads < 1:
-                raise CnnSlamError(f"num_threads must be >= 1, got {num_threads}")
-            torch.set_num_threads(int(num_threads))
+        if num_threads is not None and num_threads < 1:
+            raise CnnSlamError(f"num_threads must be >= 1, got {num_threads}")
+        self.num_threads = None if num_threads is None else int(num_threads)
+        self.onednn = bool(onednn)
         self.model = model.eval()
         self.train_focal = float(train_focal)
         self.train_size = (int(train_size[0]), int(train_size[1]))
         self.output_scale = float(output_scale)
         if not jitter_seed:
-            jitter_seed = int(os.environ.get(JITTER_VARIABLE, "0") or 0)
+            jitter_seed = jitter_seed_fallback
         self._jitter = np.random.default_rng(int(jitter_seed)) if jitter_seed else None
 
     @torch.inference_mode()
     def _forward(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = normalize_rgb(torch.from_numpy(np.ascontiguousarray(rgb)).permute(2, 0, 1)[None])
-        depth, logits = self.model(x)
+        threads = torch.get_num_threads()
+        if self.num_threads is not None:
+            torch.set_num_threads(self.num_threads)
+        try:
+            with torch.backends.mkldnn.flags(enabled=self.onednn and torch.backends.mkldnn.enabled):
+                depth, logits = self.model(x)
+        finally:
+            if self.num_threads is not None:
+                torch.set_num_threads(threads)
         probs = torch.softmax(logits, dim=1)
         depth_np = depth[0, 0].numpy().astype(np.float32)
         probs_np = probs[0].permute(1, 2, 0).numpy().astype(np.float32)
@@ -157,9 +160,11 @@ class DepthNetPredictor:
 
 
 def load_predictor(weights: str | Path | None = None, num_threads: int | None = None,
-                   jitter_seed: int | None = None, output_scale: float = 1.0) -> DepthNetPredictor:
+                   jitter_seed: int | None = None, output_scale: float = 1.0, jitter_seed_fallback: int | None = None,
+                   onednn: bool = True) -> DepthNetPredictor:
     """The predictor of a weights file (``None``: the shipped ``cnnslam/depthnet/weights/default.pt``); the other
     keywords are :class:`DepthNetPredictor`'s."""
     loaded = load_weights(DEFAULT_WEIGHTS if weights is None else weights)
     return DepthNetPredictor(loaded.model, loaded.train_focal, loaded.train_size, num_threads=num_threads,
-                             jitter_seed=jitter_seed, output_scale=output_scale)
+                             jitter_seed=jitter_seed, output_scale=output_scale,
+                             jitter_seed_fallback=jitter_seed_fallback, onednn=onednn)

@@ -106,3 +106,21 @@ def test_every_committed_machine_record_of_the_baseline_s_runs_passes_it():
         figures = {k: math.nan if v is None else v for k, v in figures.items()}
         assert compare(baseline, figures).passed, name
     assert all("made from other runs" in why for why in left_out), left_out
+
+
+def test_network_perturbations_are_explicit_predictor_options():
+    """No environment channel into the agent: the matrix's network switches are predictor options merged into the
+    network methods' definitions (so their fingerprints differ), and only theirs."""
+    from eval.methods import load_methods
+
+    methods = load_methods()
+    (cpu,) = [c for c in MATRIX if c.name == "another-cpu"]
+    (onednn,) = [c for c in MATRIX if c.name == "onednn-off"]
+    assert not cpu.env and not onednn.env
+    perturbed = cpu.methods(methods)
+    cnn = perturbed["CNN-SLAM"].agent_kwargs(0)
+    assert cnn["predictor_options"] == {"jitter_seed": 0, "jitter_seed_fallback": 1009}
+    assert perturbed["CNN-SLAM"].describe() != methods["CNN-SLAM"].describe()
+    assert perturbed["LSD"] == methods["LSD"] and perturbed["dev-depth-5"] == methods["dev-depth-5"]
+    assert onednn.methods(methods)["CNN-SLAM"].agent_kwargs(1)["predictor_options"] == {"jitter_seed": 1,
+                                                                                          "onednn": False}

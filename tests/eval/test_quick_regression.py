@@ -57,7 +57,8 @@ def test_the_quick_suite_passes_the_committed_baseline(quick_run, baseline):
 
 
 def test_the_gate_holds_with_the_network_perturbed_as_on_another_cpu(quick_run, baseline, tmp_path):
-    other_cpu = Perturbation("another-cpu+onednn-off", 2, {"CNNSLAM_NET_JITTER": "7919", "CNNSLAM_ONEDNN": "0"})
+    other_cpu = Perturbation("another-cpu+onednn-off", 2, {}, "",
+                             {"jitter_seed_fallback": 7919, "onednn": False})
     suite = get_suite("quick").select(methods=list(NETWORK_METHODS))
     perturbed = run_configuration(suite, load_methods(), tmp_path, other_cpu, progress=False)
     assert not perturbed.failed, [f"{o.key}: {o.error}" for o in perturbed.failed]
@@ -68,7 +69,10 @@ def test_the_gate_holds_with_the_network_perturbed_as_on_another_cpu(quick_run, 
     reference = gate_metrics(quick_run.records)
     moved = [k for k, v in gate_metrics(perturbed.records).items() if k.split("/")[1] == "CNN-SLAM"
              and not math.isclose(v, reference[k], rel_tol=0, abs_tol=0)]  # fmt: skip
-    assert moved, "the perturbation changed nothing: the switches did not reach the workers"
+    assert moved, "the perturbation changed nothing: the predictor options did not reach the agents"
+    # explicit: the perturbed runs are other runs (their fingerprints carry the options), not the same ones
+    fingerprints = {r["metadata"]["fingerprint"] for r in quick_run.records}
+    assert not fingerprints & {r["metadata"]["fingerprint"] for r in perturbed.records}
 
 
 @pytest.fixture(scope="module")
