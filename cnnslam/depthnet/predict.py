@@ -103,8 +103,11 @@ class DepthNetPredictor:
         if self.num_threads is not None:
             torch.set_num_threads(self.num_threads)
         try:
-            with torch.backends.mkldnn.flags(enabled=self.onednn and torch.backends.mkldnn.enabled):
+            if self.onednn:
                 depth, logits = self.model(x)
+            else:
+                with torch.backends.mkldnn.flags(enabled=False):
+                    depth, logits = self.model(x)
         finally:
             if self.num_threads is not None:
                 torch.set_num_threads(threads)
