@@ -768,14 +768,19 @@ class GlobalModel:
         moved = np.flatnonzero(which >= 0)
         if moved.size == 0:
             return ReplacementStats(len(deltas), 0, 0, 0.0, 0.0)
-        Ts = stack[which[moved]]
-        p_old = self._col("position")[moved].astype(np.float64)
-        p_new = np.einsum("nij,nj->ni", Ts[:, :3, :3], p_old) + Ts[:, :3, 3]
-        self._data["position"][moved] = p_new
-        self._data["normal"][moved] = np.einsum("nij,nj->ni", Ts[:, :3, :3],
-                                                self._col("normal")[moved].astype(np.float64))
-        disp = np.linalg.norm(p_new - p_old, axis=1)
-        self._data["key"][moved] = voxel_keys(p_new, self._col("normal")[moved], cfg.voxel_size)
+        # key-frame by key-frame (no (N, 4, 4) stack: after a long episode N is millions of surfels)
+        moved = moved[np.argsort(which[moved], kind="stable")]
+        bounds = np.flatnonzero(np.r_[True, np.diff(which[moved]) != 0, True])
+        disp = np.empty(moved.size)
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+            idx = moved[lo:hi]
+            T = stack[which[idx[0]]]
+            p_old = self._data["position"][idx].astype(np.float64)
+            p_new = p_old @ T[:3, :3].T + T[:3, 3]
+            self._data["position"][idx] = p_new
+            self._data["normal"][idx] = self._data["normal"][idx].astype(np.float64) @ T[:3, :3].T
+            disp[lo:hi] = np.linalg.norm(p_new - p_old, axis=1)
+            self._data["key"][idx] = voxel_keys(p_new, self._data["normal"][idx], cfg.voxel_size)
         before = self._size
         self._rebuild_index(merge=True)
         return ReplacementStats(len(deltas), int(moved.size), before - self._size, float(disp.max()),
@@ -815,33 +820,50 @@ class GlobalModel:
         self._sorted_ids = order.astype(np.int64)
 
     def _combine(self, order: np.ndarray, starts: np.ndarray) -> None:
-        """Merge each run ``order[starts[i]:starts[i+1]]`` of surfels sharing a key into its first member."""
+        """Merge each run ``order[starts[i]:starts[i+1]]`` of surfels sharing a key into its first member; the model
+        keeps one surfel per run, in run order. Runs of one surfel are copied as they are; the weighted means are
+        computed for the runs of several only, so that the float64 work (and memory) scales with the merges, not
+        with the model (a re-placement after a long episode merges a few per cent of millions of surfels)."""
         D = self._data
-
-        def add(values: np.ndarray) -> np.ndarray:
-            return np.add.reduceat(values[order], starts, axis=0)
-
-        W = D["weight"][: self._size].astype(np.float64)
-        c = D["confidence"][: self._size].astype(np.float64)
-        W_sum, c_sum = add(W), add(c)
-        position = add(W[:, None] * D["position"][: self._size]) / W_sum[:, None]
-        normal = add(W[:, None] * D["normal"][: self._size])
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-        colour = add(c[:, None] * D["colour"][: self._size]) / c_sum[:, None]
-        radius = add(c * D["radius"][: self._size]) / c_sum
-        labels = add(self._labels[: self._size].astype(np.float64))
-        n_obs = np.maximum.reduceat(D["n_obs"][: self._size][order], starts)
-        first = np.minimum.reduceat(D["first_seen"][: self._size][order], starts)
-        last = np.maximum.reduceat(D["last_seen"][: self._size][order], starts)
-        misses = np.minimum.reduceat(D["misses"][: self._size][order], starts)
-        lead = order[starts]  # the member with the strongest anchor
-        anchor, anchor_w, key = D["anchor"][lead], D["anchor_weight"][lead], D["key"][lead]
         k = starts.size
-        D["position"][:k], D["normal"][:k], D["colour"][:k] = position, normal, colour
-        D["radius"][:k], D["weight"][:k], D["confidence"][:k] = radius, W_sum, c_sum
-        D["n_obs"][:k], D["first_seen"][:k], D["last_seen"][:k] = n_obs, first, last
-        D["misses"][:k] = misses
-        D["anchor"][:k], D["anchor_weight"][:k], D["key"][:k] = anchor, anchor_w, key
+        lengths = np.diff(np.r_[starts, order.size])
+        lead = order[starts]  # the member with the strongest anchor
+        multi = np.flatnonzero(lengths > 1)
+        merged: dict[str, np.ndarray] = {}
+        if multi.size:
+            members = np.repeat(np.arange(k), lengths)  # the run of each position in ``order``
+            in_multi = (lengths > 1)[members]
+            sub = order[in_multi]
+            sub_runs = members[in_multi]
+            sub_starts = np.flatnonzero(np.r_[True, sub_runs[1:] != sub_runs[:-1]])
+
+            def add(values: np.ndarray) -> np.ndarray:  # values of the members in ``sub`` order
+                return np.add.reduceat(values, sub_starts, axis=0)
+
+            W = D["weight"][sub].astype(np.float64)
+            c = D["confidence"][sub].astype(np.float64)
+            W_sum, c_sum = add(W), add(c)
+            merged["position"] = add(W[:, None] * D["position"][sub]) / W_sum[:, None]
+            normal = add(W[:, None] * D["normal"][sub])
+            merged["normal"] = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+            merged["colour"] = add(c[:, None] * D["colour"][sub]) / c_sum[:, None]
+            merged["radius"] = add(c * D["radius"][sub]) / c_sum
+            merged["weight"], merged["confidence"] = W_sum, c_sum
+            merged["labels"] = add(self._labels[sub].astype(np.float64))
+            merged["n_obs"] = np.maximum.reduceat(D["n_obs"][sub], sub_starts)
+            merged["first_seen"] = np.minimum.reduceat(D["first_seen"][sub], sub_starts)
+            merged["last_seen"] = np.maximum.reduceat(D["last_seen"][sub], sub_starts)
+            merged["misses"] = np.minimum.reduceat(D["misses"][sub], sub_starts)
+        # one column at a time: the lead's values, the merged ones where a run had several members
+        for name in ("position", "normal", "colour", "radius", "weight", "confidence", "n_obs", "first_seen",
+                     "last_seen", "misses", "anchor", "anchor_weight", "key"):
+            column = D[name][lead]
+            if name in merged:
+                column[multi] = merged[name]
+            D[name][:k] = column
+        labels = self._labels[lead]
+        if "labels" in merged:
+            labels[multi] = merged["labels"]
         self._labels[:k] = labels
         self._size = k
 
