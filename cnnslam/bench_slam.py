@@ -274,7 +274,8 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
     """Peak resident memory of a long episode, rendering included: ``sequence``'s room and hand-held path stretched
     to ``n_frames`` frames through ``camera``, rendered one frame at a time and handed to the two-thread system as
     an agent would. Figures: peak RSS (MiB) after each checkpoint's frame and after ``finish``; key-frames made;
-    MiB per 1000 frames between the first checkpoint and the end."""
+    MiB per 1000 frames between the first checkpoint and the end; the global model's surfels and the MiB its arrays
+    hold (allocated capacity, index included)."""
     from dataclasses import replace
 
     from sim_envs.sequences import get_sequence, with_camera
@@ -297,6 +298,9 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
                 figures[f"keyframes_at_{i + 1}"] = len(slam.keyframes)
         result = slam.finish()
     figures["peak_rss_mib_after_finish"] = _peak_rss_mib()
+    if result.model is not None:  # the global model the key-frame thread fused (Sec. 3.5)
+        figures["model_surfels"] = len(result.model)
+        figures["model_mib"] = result.model.nbytes / 2**20
     figures["tracked_share"] = result.stats["tracked_share"]
     figures["wall_s"] = time.perf_counter() - start
     first, last = marks[0], marks[-1]

@@ -517,6 +517,9 @@ class CnnSlam:
         labels = None if keyframe.label_probs is None else keyframe.label_probs.astype(np.float32)
         self._model.integrate(maps.depth, keyframe.T_world_kf, self.intrinsics, keyframe.rgb, labels,
                               maps.variance, anchor=keyframe.index)
+        cfg = self.config.global_model
+        if cfg.unstable_confidence > 0:  # Keller's removal of unstable points
+            self._model.prune(cfg.unstable_confidence, cfg.unstable_age)
         self._fused.add(keyframe.index)
         self._seconds["fusion"] += time.perf_counter() - t0
 

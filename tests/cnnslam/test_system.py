@@ -188,3 +188,11 @@ def test_the_key_frame_thread_fuses_the_global_model_live(room, room_sequence) -
     assert threaded.model is not None and abs(len(threaded.model) - len(on.model)) < 0.1 * len(on.model)
     lsd = _run(room_sequence, baseline_config("lsd_bs").with_overrides({"system.threads": False}), room.intrinsics)[1]
     assert lsd.model is None
+
+
+def test_unstable_surfels_can_be_removed_as_keller_does(room, room_sequence) -> None:
+    _, kept = _run(room_sequence, CFG, room.intrinsics)
+    _, pruned = _run(room_sequence, CFG.with_overrides({"global_model.unstable_confidence": 1.0,
+                                                        "global_model.unstable_age": 1}), room.intrinsics)
+    assert 0 < len(pruned.model) < len(kept.model)
+    assert pruned.T_world_cam.tobytes() == kept.T_world_cam.tobytes()  # the map never feeds back into tracking
