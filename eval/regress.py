@@ -72,6 +72,7 @@ GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", 
                           "map_accuracy_median", "map_completeness_within", "map_label_accuracy")
 GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics is "missing"), not averaged
 AVERAGE_PREFIX = "avg"
+ADDED_KEY = "added_after_calibration"  # the baseline's figures written by update_baseline(only_new=True)
 CALIBRATION_K = 3.0  # allowed change = k x the spread measured over the perturbation matrix (ours: see calibrate)
 Direction = Literal["lower", "higher", "match"]
 Policy = Literal["one-sided", "two-sided"]
@@ -385,7 +386,10 @@ def update_baseline(
         added = {k: v for k, v in run_metrics.items() if k not in old.metrics}
         patterns = {t.pattern for t in old.tolerances}
         rules = (*old.tolerances, *(t for t in DEFAULT_TOLERANCES if t.pattern not in patterns))
-        new = replace(old, metrics={**old.metrics, **added}, tolerances=rules)
+        # the calibration record says which figures came after it (and so are in no machine record made before)
+        calibration = dict(old.calibration)
+        calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
+        new = replace(old, metrics={**old.metrics, **added}, tolerances=rules, calibration=calibration)
     else:
         new = replace(old, metrics=dict(run_metrics))
     if tolerances is not None:

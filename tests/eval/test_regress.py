@@ -110,6 +110,7 @@ def test_files_and_suite_flattening(tmp_path):
                             only_new=True)
     assert added.metrics == {"x/ate_rmse": 0.3, "x/map_label_accuracy": 0.6} and added.policy == "two-sided"
     assert added.calibrated == again.calibrated and added.tolerances[0] == Tolerance("*", "higher")
+    assert added.calibration == {"how": "test", "added_after_calibration": ["x/map_label_accuracy"]}
     assert added.tolerance_for("x/map_label_accuracy").pattern == "*"  # an earlier, broader rule still wins
 
 
