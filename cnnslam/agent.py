@@ -13,12 +13,13 @@ Keyword arguments (both classes; all optional)::
                  config={"section.field": value, ...},  # overrides on top of the preset
                  predictor="network" | "degraded_ground_truth" | <an object with predict_raw / train_focal>,
                  predictor_options={...},               # keywords of the predictor (weights=..., seed=...)
-                 threads=True | False)                  # the paper's two threads, or deterministic single-thread
+                 threads=True | False,                  # the paper's two threads, or deterministic single-thread
+                 observers=[...])                       # cnnslam.system.SlamObserver-like (Python callers only)
 
 The agent reports T_world_cam of every frame as it goes (the world frame is the first camera); ``finish()`` returns
 the key-frames with their refined depth, pose-graph-optimised pose, depth variance and the CNN's class probabilities,
-and keeps the final trajectory (every frame re-expressed through its key-frame's optimised pose) for
-:meth:`CnnSlamAgent.save_trajectory`.
+and the global model its key-frame thread fused (``AgentOutput.model``), and keeps the final trajectory (every frame
+re-expressed through its key-frame's optimised pose) for :meth:`CnnSlamAgent.save_trajectory`.
 """
 
 from __future__ import annotations
@@ -68,8 +69,10 @@ class CnnSlamAgent:
         predictor: str | Any | None = None,
         predictor_options: dict[str, Any] | None = None,
         threads: bool | None = None,
+        observers: tuple[Any, ...] | list[Any] = (),
     ) -> None:
         self.config = build_config(preset, config, threads)
+        self.observers = tuple(observers)  # cnnslam.system.SlamObserver-like: told of frames, fused key-frames, the end
         self.preset = preset
         if self.config.depth.source == "ground_truth_first" and not self.uses_ground_truth:
             raise CnnSlamError(
@@ -101,7 +104,7 @@ class CnnSlamAgent:
             self._system.close()
         self._result = None
         self._system = CnnSlam(self.config, np.asarray(intrinsics, dtype=np.float64), tuple(image_size),
-                               self.predictor)
+                               self.predictor, self.observers)
 
     def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
         """Process one observation (``rgb``, ``timestamp``); answer ``{"T_world_cam": (4, 4), "tracked": 0|1}``."""

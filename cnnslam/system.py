@@ -58,7 +58,7 @@ import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -132,6 +132,32 @@ class KeyframeOutput:
     label_probs: np.ndarray | None
     cnn_depth: np.ndarray | None
     parent: int | None
+
+
+class SlamObserver(Protocol):
+    """What the system tells an observer while it runs (LSD-SLAM's ``Output3DWrapper``): a viewer, a logger, a map
+    server. Every method is optional (the system calls the ones an observer has); an error raised by one ends the
+    run like an error of the system.
+
+    - ``frame(timestamp, T_world_cam, tracked)``: frame thread, after each frame (the pose as answered);
+    - ``keyframe_fused(index, T_world_kf, model)``: key-frame thread, after a key-frame was fused into the global
+      model (Sec. 3.5); ``model`` is the live :class:`~cnnslam.global_model.GlobalModel`: read it there (e.g.
+      ``model.snapshot()``), do not keep it for later;
+    - ``finished(result)``: at the end, with the :class:`SlamResult`.
+    """
+
+    def frame(self, timestamp: float, T_world_cam: np.ndarray, tracked: bool) -> None: ...
+
+    def keyframe_fused(self, index: int, T_world_kf: np.ndarray, model: GlobalModel) -> None: ...
+
+    def finished(self, result: SlamResult) -> None: ...
+
+
+def _notify(observers: tuple[Any, ...], event: str, *args: Any) -> None:
+    for observer in observers:
+        callback = getattr(observer, event, None)
+        if callback is not None:
+            callback(*args)
 
 
 @dataclass(frozen=True)
@@ -219,12 +245,14 @@ class CnnSlam:
 
     config: :class:`CnnSlamConfig`; intrinsics: [fx, fy, cx, cy] pixels; image_size: (H, W), divisible by
     2^(pyramid_levels - 1); predictor: the depth network (``predict_raw``, ``train_focal``) when
-    ``config.depth.source == "cnn"``, else unused.
+    ``config.depth.source == "cnn"``, else unused; observers: :class:`SlamObserver`-like objects told of every
+    frame, every fused key-frame and the end.
     """
 
     def __init__(self, config: CnnSlamConfig, intrinsics: np.ndarray, image_size: tuple[int, int],
-                 predictor: Any = None) -> None:
+                 predictor: Any = None, observers: tuple[Any, ...] | list[Any] = ()) -> None:
         self.config = config
+        self.observers = tuple(observers)  # SlamObserver-like objects
         self.intrinsics = np.asarray(intrinsics, dtype=np.float64).reshape(4)
         if not (np.isfinite(self.intrinsics).all() and self.intrinsics[0] > 0 and self.intrinsics[1] > 0):
             raise CnnSlamError(f"intrinsics must be finite [fx, fy, cx, cy] with fx, fy > 0, got {intrinsics!r}")
@@ -445,6 +473,8 @@ class CnnSlam:
     def _record(self, timestamp: float, keyframe: Keyframe, T_kf_cur: np.ndarray, tracked: bool) -> None:
         self._frames.append((timestamp, keyframe, np.array(T_kf_cur), tracked))
         self._online.append(keyframe.T_world_kf @ T_kf_cur)
+        if self.observers:
+            _notify(self.observers, "frame", timestamp, self._online[-1].copy(), tracked)
 
     def _raise_worker_error(self) -> None:
         if self._worker.error is not None:
@@ -522,6 +552,8 @@ class CnnSlam:
             self._model.prune(cfg.unstable_confidence, cfg.unstable_age)
         self._fused.add(keyframe.index)
         self._seconds["fusion"] += time.perf_counter() - t0
+        if self.observers:
+            _notify(self.observers, "keyframe_fused", keyframe.index, keyframe.T_world_kf.copy(), self._model)
 
     def _update_graph(self, keyframe: Keyframe, parent: Keyframe | None, T_parent_new: np.ndarray | None,
                       hessian: np.ndarray | None) -> None:
@@ -633,7 +665,9 @@ class CnnSlam:
         }
         if self._model is not None:
             stats["model_surfels"] = len(self._model)
-        return SlamResult(stamps, final, online, tracked, keyframes, edges, stats, self._model)
+        result = SlamResult(stamps, final, online, tracked, keyframes, edges, stats, self._model)
+        _notify(self.observers, "finished", result)
+        return result
 
     def close(self) -> None:
         """Stop the key-frame thread without collecting results (idempotent)."""

@@ -197,3 +197,40 @@ def test_unstable_surfels_can_be_removed_as_keller_does(room, room_sequence) -> 
                                                         "global_model.unstable_age": 1}), room.intrinsics)
     assert 0 < len(pruned.model) < len(kept.model)
     assert pruned.T_world_cam.tobytes() == kept.T_world_cam.tobytes()  # the map never feeds back into tracking
+
+
+def test_observers_hear_every_frame_every_fused_key_frame_and_the_end(room, room_sequence) -> None:
+    """LSD-SLAM's Output3DWrapper: frames from the frame thread, fused key-frames with the live model from the
+    key-frame thread, the result at the end; an observer may implement only some of them."""
+
+    class Recorder:
+        def __init__(self) -> None:
+            self.frames, self.fused, self.results = [], [], []
+
+        def frame(self, timestamp, T_world_cam, tracked):
+            self.frames.append((timestamp, T_world_cam, tracked))
+
+        def keyframe_fused(self, index, T_world_kf, model):
+            self.fused.append((index, len(model)))
+
+        def finished(self, result):
+            self.results.append(result)
+
+    class OnlyTheEnd:
+        def __init__(self) -> None:
+            self.results = []
+
+        def finished(self, result):
+            self.results.append(result)
+
+    recorder, end = Recorder(), OnlyTheEnd()
+    predictor = DegradedGroundTruthPredictor(train_focal=259.58, seed=7)
+    slam = CnnSlam(CFG, room.intrinsics, (240, 320), predictor, observers=[recorder, end])
+    for k, (rgb, depth, _) in enumerate(room_sequence):
+        slam.process(rgb, k / 30.0, GroundTruthHint(depth))
+    result = slam.finish()
+    assert len(recorder.frames) == len(room_sequence)
+    np.testing.assert_array_equal(np.stack([f[1] for f in recorder.frames]), result.T_world_cam_online)
+    assert [i for i, _ in recorder.fused] == [k.index for k in result.keyframes]
+    assert [n for _, n in recorder.fused] == sorted(n for _, n in recorder.fused)  # the model grows as it fuses
+    assert recorder.results == [result] and end.results == [result]
