@@ -8,6 +8,8 @@ made on one machine judges another. The second test slows tracking down on purpo
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 import cnnslam.system
@@ -23,9 +25,20 @@ def baseline():
 
 
 def test_this_tree_is_not_slower_than_the_baseline(baseline) -> None:
-    figures = benchmark(baseline.sequence, baseline.frames, baseline.predictor)
-    assert figures["tracked_share"] == 1.0
-    assert speed_regressions(figures, baseline) == []
+    """Read as benchmarks are: the best of up to three measurements, 10 s apart. ``make test`` runs two test files
+    at a time, and a neighbour's burst (the quick gate's agent runs, torch) slowed one measurement of the unchanged
+    tree 1.82x in these units on the 2-core EPYC of round 34 while the unit did not see it; a real slowdown fails
+    all three (the next test injects one and is measured once)."""
+    failures: list[str] = []
+    for attempt in range(3):
+        if attempt:
+            time.sleep(10.0)
+        figures = benchmark(baseline.sequence, baseline.frames, baseline.predictor)
+        assert figures["tracked_share"] == 1.0
+        failures = speed_regressions(figures, baseline)
+        if not failures:
+            break
+    assert failures == []
 
 
 def test_a_slowed_tracking_step_fails_the_gate(baseline, monkeypatch) -> None:
