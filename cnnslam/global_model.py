@@ -828,11 +828,12 @@ class GlobalModel:
         k = starts.size
         lengths = np.diff(np.r_[starts, order.size])
         lead = order[starts]  # the member with the strongest anchor
-        multi = np.flatnonzero(lengths > 1)
+        several = lengths > 1
+        multi = np.flatnonzero(several)
         merged: dict[str, np.ndarray] = {}
         if multi.size:
             members = np.repeat(np.arange(k), lengths)  # the run of each position in ``order``
-            in_multi = (lengths > 1)[members]
+            in_multi = several[members]
             sub = order[in_multi]
             sub_runs = members[in_multi]
             sub_starts = np.flatnonzero(np.r_[True, sub_runs[1:] != sub_runs[:-1]])

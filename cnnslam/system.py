@@ -628,10 +628,11 @@ class CnnSlam:
         self._raise_worker_error()
         for fut in self._graph_futures:
             fut.result()
+        all_keyframes = self.keyframes  # final: the key-frame thread has stopped
         if self._model is not None:  # the last key-frames, then every key-frame at its final pose-graph pose
-            for k in self.keyframes:
+            for k in all_keyframes:
                 self._fuse_keyframe(k)
-            self._model.update_poses({k.index: k.T_world_kf for k in self.keyframes})
+            self._model.update_poses({k.index: k.T_world_kf for k in all_keyframes})
         n = len(self._frames)
         stamps = np.array([f[0] for f in self._frames], dtype=np.float64)
         final = np.stack([f[1].T_world_kf @ f[2] for f in self._frames]) if n else np.zeros((0, 4, 4))
@@ -639,7 +640,7 @@ class CnnSlam:
         tracked = np.array([f[3] for f in self._frames], dtype=bool)
         # the maps are final now: the outputs are read-only views of them, not copies (a long sequence's key-frames
         # would otherwise be held twice at the end); the working sets are no longer needed
-        for k in self.keyframes:
+        for k in all_keyframes:
             k.release_working_set()
         keyframes = [
             KeyframeOutput(
@@ -649,7 +650,7 @@ class CnnSlam:
                 label_probs=None if k.label_probs is None else k.label_probs.astype(np.float32),
                 cnn_depth=None if k.cnn_depth is None else _read_only(k.cnn_depth), parent=k.parent,
             )
-            for k in self.keyframes
+            for k in all_keyframes
         ]
         edges = [(e.i, e.j, e.kind) for e in self._graph.edges]
         stats: dict[str, Any] = {

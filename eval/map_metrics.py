@@ -20,12 +20,12 @@ sample within 10 cm; the model's own elements, one vote each) and ``map_points``
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sim_envs.surface_sampling import sample_scene_surface
 from slamcommon.alignment import align
 from slamcommon.labels import NO_LABEL
 from slamcommon.reconstruction_metrics import (
@@ -41,27 +41,20 @@ MAP_METRICS: tuple[str, ...] = ("map_accuracy_median", "map_accuracy_within", "m
                                 "map_completeness_within", "map_label_accuracy", "map_points")
 
 
-@lru_cache(maxsize=4)
-def _surface(scene: Any) -> Any:
-    from sim_envs.surface_sampling import sample_scene_surface
-
-    return sample_scene_surface(scene, GT_SPACING)
-
-
 def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndarray, keyframe_gt: list[Any],
                 intrinsics: np.ndarray, scene: Any, alignment: str = "se3",
                 threshold: float = DEFAULT_THRESHOLD) -> dict[str, float]:
     """The ``map_*`` metrics of the module docstring. model: a ``MapModel``; T_world_cam_gt, T_world_cam_est: (N, 4,
     4) the episode's poses, paired by index (they fit the alignment); keyframe_gt: the ground-truth frames
     (``T_world_cam``, ``depth``) of the agent's key-frames; intrinsics: [fx, fy, cx, cy]; scene: the simulated
-    scene (hashable, for the surface cache). Empty dict without key-frames."""
+    scene (its surfaces are sampled here). Empty dict without key-frames."""
     if len(keyframe_gt) == 0:
         return {}
     T_gt = np.stack([np.asarray(f.T_world_cam, dtype=np.float64) for f in keyframe_gt])
     S = align(np.asarray(T_world_cam_gt, dtype=np.float64), np.asarray(T_world_cam_est, dtype=np.float64),
               alignment).matrix
     points = np.asarray(model.points, dtype=np.float64) @ S[:3, :3].T + S[:3, 3]
-    surface = _surface(scene)
+    surface = sample_scene_surface(scene, GT_SPACING)
     seen = visible_in_views(surface.points, T_gt, [f.depth for f in keyframe_gt], np.asarray(intrinsics))
     gt_seen = surface.subset(seen)
     if len(gt_seen.points) == 0:

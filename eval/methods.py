@@ -500,17 +500,18 @@ def with_settings(method: Method, settings: Sequence[tuple[str, Any]]) -> Method
     if not takes_config(method):
         raise MethodError(f"method {method.name!r} ({method.entry_point or method.kind}) takes no configuration to "
                           "--set")
-    kwargs = {k: _thaw(v) for k, v in method.kwargs}
-    kwargs["config"] = {**(kwargs.get("config") or {}), **dict(settings)}
-    return replace(method, kwargs=kwargs)
+    return _merged_into(method, "config", dict(settings))
 
 
 def with_predictor_options(method: Method, options: Mapping[str, Any]) -> Method:
     """``method`` with ``options`` merged into its agent's ``predictor_options`` keyword (the network's explicit
     run parameters: ``jitter_seed_fallback``, ``onednn``, ...): a new method whose keyword arguments, and so whose run
     fingerprints, carry them."""
-    if not options:
-        return method
+    return _merged_into(method, "predictor_options", dict(options)) if options else method
+
+
+def _merged_into(method: Method, keyword: str, values: dict[str, Any]) -> Method:
+    """A new method whose dict keyword argument ``keyword`` has ``values`` merged in (``values`` win)."""
     kwargs = {k: _thaw(v) for k, v in method.kwargs}
-    kwargs["predictor_options"] = {**(kwargs.get("predictor_options") or {}), **dict(options)}
+    kwargs[keyword] = {**(kwargs.get(keyword) or {}), **values}
     return replace(method, kwargs=kwargs)
