@@ -75,13 +75,23 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from cnnslam.config import LABEL_WEIGHTINGS, GlobalModelConfig, LabelWeighting  # noqa: F401 - re-exported
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import pixel_rays, se3_inverse
-from cnnslam.icp import adaptive_normal_map, normal_map, smooth_depth
-from slamcommon.labels import NO_LABEL  # an element without label evidence
+from cnnslam.icp import ADAPTIVE_NORMAL_CONSISTENCY, SurfaceMaps, smooth_depth
+from cnnslam.label_fusion import class_probability_map, fuse_labels, fused_labels, label_distribution, label_weights
+from cnnslam.surfel_kernels import (
+    associate_kernel,
+    group_kernel,
+    measure_kernel,
+    merge_kernel,
+    render_kernel,
+    sampled_normals,
+    splat_index_map,  # noqa: F401 - re-exported (model pictures)
+)
+from cnnslam.surfel_store import SURFEL_COLUMNS, SurfelStore
+from slamcommon.labels import NO_LABEL  # noqa: F401 - re-exported: an element without label evidence
 
 NO_ANCHOR: int = -1
 N_NORMAL_DIRECTIONS: int = 6  # +-x, +-y, +-z: the dominant axis of a surfel normal, part of its voxel key
@@ -158,68 +168,7 @@ class ModelView:
     confidence: np.ndarray
 
 
-# -------------------------------------------------------------------------------------------------- kernels
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _splat_one(index, best, i, u, v, z, r, observed, closest):  # pragma: no cover - compiled
-    """:func:`_splat` for the one point i at (u, v), depth z, radius r pixels, into ``index`` and ``best``."""
-    h, w = best.shape
-    uc = int(math.floor(u + 0.5))
-    vc = int(math.floor(v + 0.5))
-    ri = int(math.ceil(r))
-    r2 = r * r
-    for dv in range(-ri, ri + 1):
-        y = vc + dv
-        if y < 0 or y >= h:
-            continue
-        for du in range(-ri, ri + 1):
-            x = uc + du
-            if x < 0 or x >= w or (closest and observed[y, x] <= 0):
-                continue
-            if (du != 0 or dv != 0) and (x - u) ** 2 + (y - v) ** 2 > r2:
-                continue
-            cost = abs(z - observed[y, x]) if closest else z
-            if cost < best[y, x]:
-                best[y, x] = cost
-                index[y, x] = i
-
-
-@njit(cache=True, nogil=True)
-def _splat(u, v, z, radius_px, observed, closest):  # pragma: no cover - compiled
-    """Per pixel the point of least cost among those whose disc covers it: cost z (front-most) or, with
-    ``closest``, |z - observed[y, x]| and no point where observed <= 0. Returns (index (h, w) int32, -1 = none;
-    cost (h, w) float32, inf = none); ``observed`` (h, w) also gives the image size.
-
-    u, v: (N,) float pixel positions of the points; z: (N,) camera depth; radius_px: (N,) disc radius in pixels. A
-    point covers the pixel centres within its radius of (u, v), and always the pixel it falls in.
-    """
-    h, w = observed.shape
-    index = np.full((h, w), -1, np.int32)
-    best = np.full((h, w), np.inf, np.float32)
-    for i in range(u.shape[0]):
-        _splat_one(index, best, i, u[i], v[i], z[i], radius_px[i], observed, closest)
-    return index, best
-
-
-def splat_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.ndarray, h: int,
-                    w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Front-most point per pixel: (index (h, w) int32, -1 = none; zbuf (h, w) float32, inf = none).
-
-    u, v: (N,) float pixel positions of the points; z: (N,) camera depth; radius_px: (N,) disc radius in pixels. A
-    point covers the pixel centres within its radius of (u, v), and always the pixel it falls in.
-    """
-    return _splat(u, v, z, radius_px, np.zeros((h, w), np.float32), False)
-
-
-def closest_depth_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.ndarray,
-                            observed: np.ndarray) -> np.ndarray:
-    """Per pixel, the point whose depth is closest to the observed depth there: index (h, w) int32, -1 = none.
-
-    Like :func:`splat_index_map`, but the z-test is replaced by |z - observed[y, x]|, so that a measurement can find
-    its surface behind unconfirmed clutter in front of it; pixels with observed <= 0 get none.
-    """
-    return _splat(u, v, z, radius_px, observed, True)[0]
+# ------------------------------------------------------------------------------------------- keys, weights
 
 
 def voxel_keys(positions: np.ndarray, normals: np.ndarray, voxel_size: float) -> np.ndarray:
@@ -246,23 +195,8 @@ def radial_confidence(image_size: tuple[int, int], intrinsics: np.ndarray, sigma
     return np.exp(-(r2 / max(corner2, 1e-12)) / (2.0 * sigma**2)).astype(np.float32)
 
 
-# ------------------------------------------------------------------------------------------------- the model
 
-_FIELDS: dict[str, tuple[type, tuple[int, ...]]] = {
-    "position": (np.float32, (3,)),
-    "normal": (np.float32, (3,)),
-    "colour": (np.float32, (3,)),
-    "radius": (np.float32, ()),
-    "weight": (np.float32, ()),
-    "confidence": (np.float32, ()),
-    "n_obs": (np.uint32, ()),
-    "anchor": (np.int32, ()),
-    "anchor_weight": (np.float32, ()),
-    "first_seen": (np.int32, ()),
-    "last_seen": (np.int32, ()),
-    "misses": (np.uint16, ()),
-    "key": (np.int64, ()),
-}
+# ------------------------------------------------------------------------------------------------- the model
 
 
 @dataclass(frozen=True)
@@ -299,16 +233,14 @@ class GlobalModel:
     """An incrementally fused surfel model with label distributions (see the module docstring).
 
     ``config``: :class:`GlobalModelConfig`. Integrate depth maps with :meth:`integrate`, move key-frames with
-    :meth:`update_poses`, read with :meth:`snapshot` or :meth:`render`.
+    :meth:`update_poses`, read with :meth:`snapshot`, :meth:`render` or :meth:`render_surface`. The surfels live in a
+    :class:`~cnnslam.surfel_store.SurfelStore` (``store``); the per-pixel and per-surfel steps run in the kernels of
+    :mod:`cnnslam.surfel_kernels`; labels are fused by :func:`cnnslam.label_fusion.fuse_labels`.
     """
 
     def __init__(self, config: GlobalModelConfig | None = None) -> None:
         self.config = config or GlobalModelConfig()
-        self._size = 0
-        self._data = {name: np.zeros((16, *shape), dtype) for name, (dtype, shape) in _FIELDS.items()}
-        self._labels = np.zeros((16, self.config.num_classes), np.float32)  # L = sum alpha P
-        self._sorted_keys = np.zeros(0, np.int64)
-        self._sorted_ids = np.zeros(0, np.int64)
+        self.store = SurfelStore(self.config.num_classes)
         self._poses: dict[int, np.ndarray] = {}  # anchor id -> T_world_kf the surfels are expressed at
         self._frames = 0
         self._tables_key: tuple | None = None
@@ -317,7 +249,7 @@ class GlobalModel:
     # ---------------------------------------------------------------------------------------------- reading
 
     def __len__(self) -> int:
-        return self._size
+        return len(self.store)
 
     @property
     def integrations(self) -> int:
@@ -327,8 +259,7 @@ class GlobalModel:
     @property
     def nbytes(self) -> int:
         """Bytes held by the model's arrays (allocated capacity, index included)."""
-        return (sum(a.nbytes for a in self._data.values()) + self._labels.nbytes + self._sorted_keys.nbytes
-                + self._sorted_ids.nbytes + 128 * len(self._poses))
+        return self.store.nbytes + 128 * len(self._poses)
 
     @property
     def keyframe_poses(self) -> dict[int, np.ndarray]:
@@ -336,23 +267,20 @@ class GlobalModel:
         return {k: v.copy() for k, v in self._poses.items()}
 
     def _col(self, name: str) -> np.ndarray:
-        return self._data[name][: self._size]
+        return self.store.column(name)
 
     def label_evidence(self) -> np.ndarray:
         """(N, C) float32 copy of the accumulated label evidence L = sum alpha P (not normalised): the weight of the
         measurements fused into each surfel per class."""
-        return self._labels[: self._size].copy()
+        return self.store.live_evidence().copy()
 
     def label_probabilities(self) -> np.ndarray:
         """(N, C) float32 label distributions L / sum(L) (rows of zeros without label evidence)."""
-        L = self._labels[: self._size]
-        s = L.sum(axis=1, keepdims=True)
-        return np.where(s > 0, L / np.where(s > 0, s, 1.0), 0.0).astype(np.float32)
+        return label_distribution(self.store.live_evidence())
 
     def labels(self) -> np.ndarray:
         """(N,) uint8 argmax labels, ``NO_LABEL`` without label evidence."""
-        L = self._labels[: self._size]
-        return np.where(L.sum(axis=1) > 0, np.argmax(L, axis=1), NO_LABEL).astype(np.uint8)
+        return fused_labels(self.store.live_evidence())
 
     def snapshot(self, min_confidence: float = 0.0) -> SurfelCloud:
         """A :class:`SurfelCloud` of the surfels with confidence >= ``min_confidence`` (copies)."""
@@ -369,6 +297,19 @@ class GlobalModel:
             anchors=self._col("anchor")[keep].copy(),
         )
 
+    def _raycast(self, T_world_cam: np.ndarray, intrinsics: np.ndarray, image_size: tuple[int, int],
+                 min_confidence: float, max_radius_px: float | None) -> tuple[np.ndarray, ...]:
+        """:func:`~cnnslam.surfel_kernels.render_kernel` in a camera: (vertices, normals, valid, index)."""
+        h, w = int(image_size[0]), int(image_size[1])
+        k = np.asarray(intrinsics, dtype=np.float64).reshape(4)
+        T_cam_world = se3_inverse(np.asarray(T_world_cam, dtype=np.float64))
+        R, t = np.ascontiguousarray(T_cam_world[:3, :3]), np.ascontiguousarray(T_cam_world[:3, 3])
+        cap = self.config.max_splat_radius_px if max_radius_px is None else float(max_radius_px)
+        return render_kernel(
+            self._col("position"), self._col("normal"), self._col("confidence"), self._col("radius"),
+            float(min_confidence), R.astype(np.float32), t.astype(np.float32), R, t, k[0], k[1], k[2], k[3], h, w,
+            float(cap), np.float32(0.75 * self.config.voxel_size))
+
     def render(self, T_world_cam: np.ndarray, intrinsics: np.ndarray, image_size: tuple[int, int],
                min_confidence: float = 0.0, max_radius_px: float | None = None) -> ModelView:
         """Splat the surfels (confidence >= ``min_confidence``) into a camera: the front-most surfel per pixel, and the
@@ -377,64 +318,26 @@ class GlobalModel:
         T_world_cam: (4, 4); intrinsics [fx, fy, cx, cy] pixels; image_size (H, W). Disc radii are at least 0.75
         voxel and at most ``max_radius_px`` pixels (default ``config.max_splat_radius_px``).
         """
-        h, w = int(image_size[0]), int(image_size[1])
-        ids, u, v, z, _, r_px = self._project(T_world_cam, intrinsics, (h, w), min_confidence, max_radius_px)
-        index, zbuf = splat_index_map(u, v, z, r_px, h, w)
+        V, N, _, index = self._raycast(T_world_cam, intrinsics, image_size, min_confidence, max_radius_px)
         hit = index >= 0
-        out_index = np.full((h, w), -1, np.int32)
-        out_index[hit] = ids[index[hit]]
-        T_cam_world = se3_inverse(np.asarray(T_world_cam, dtype=np.float64))
-        R, t = T_cam_world[:3, :3], T_cam_world[:3, 3]
-        sel = out_index[hit]
-        centre = self._col("position")[sel].astype(np.float64) @ R.T + t
-        normal = self._col("normal")[sel].astype(np.float64) @ R.T
-        # the point where the pixel's ray meets the surfel's disc plane (the centre at grazing angles)
-        ray = pixel_rays((h, w), intrinsics)[hit]
-        denom = np.einsum("ij,ij->i", normal, ray)
-        grazing = np.abs(denom) < 0.2 * np.linalg.norm(ray, axis=1)
-        ray_z = np.einsum("ij,ij->i", normal, centre) / np.where(grazing, 1.0, denom)
-        vertex = np.where(grazing[:, None], centre, ray * ray_z[:, None])
-        vertices = np.zeros((h, w, 3), np.float32)
-        normals = np.zeros((h, w, 3), np.float32)
-        depth = np.zeros((h, w), np.float32)
-        confidence = np.zeros((h, w), np.float32)
-        vertices[hit] = vertex
-        normals[hit] = normal
-        depth[hit] = vertex[:, 2]
-        confidence[hit] = self._col("confidence")[sel]
-        return ModelView(out_index, depth, vertices, normals, confidence)
+        confidence = np.zeros(index.shape, np.float32)
+        confidence[hit] = self._col("confidence")[index[hit]]
+        return ModelView(index, V[..., 2].copy(), V, N, confidence)
 
-    def _project(self, T_world_cam: np.ndarray, intrinsics: np.ndarray, size: tuple[int, int], min_confidence: float,
-                 max_radius_px: float | None) -> tuple[np.ndarray, ...]:
-        """Surfels in front of the camera near its image: (ids, u, v, z, camera positions (M, 3), splat radii in
-        pixels), float64 arrays."""
-        h, w = size
-        fx, fy, cx, cy = np.asarray(intrinsics, dtype=np.float64).reshape(4)
-        T_cam_world = se3_inverse(np.asarray(T_world_cam, dtype=np.float64))
-        pos = self._col("position")
-        q = pos @ T_cam_world[:3, :3].T.astype(np.float32) + T_cam_world[:3, 3].astype(np.float32)
-        z = q[:, 2]
-        cap = self.config.max_splat_radius_px if max_radius_px is None else float(max_radius_px)
-        keep = z > 1e-3
-        if min_confidence > 0:
-            keep &= self._col("confidence") >= min_confidence
-        ids = np.flatnonzero(keep)
-        q = q[ids].astype(np.float64)
-        z = q[:, 2]
-        u = fx * q[:, 0] / z + cx
-        v = fy * q[:, 1] / z + cy
-        margin = cap + 1.0
-        inside = (u > -margin) & (u < w - 1 + margin) & (v > -margin) & (v < h - 1 + margin)
-        ids, u, v, z, q = ids[inside], u[inside], v[inside], z[inside], q[inside]
-        r = np.maximum(self._col("radius")[ids], 0.75 * self.config.voxel_size)
-        return ids, u, v, z, q, np.minimum(0.5 * (fx + fy) * r / z, cap)
+    def render_surface(self, T_world_cam: np.ndarray, intrinsics: np.ndarray, image_size: tuple[int, int],
+                       min_confidence: float = 0.0) -> SurfaceMaps:
+        """:meth:`render` as ICP's reference surface (KinectFusion's ray-cast model, frame-to-model tracking): the
+        :class:`~cnnslam.icp.SurfaceMaps` of the view's vertices and normals, valid where a surfel with a normal covers
+        the pixel."""
+        V, N, valid, _ = self._raycast(T_world_cam, intrinsics, image_size, min_confidence, None)
+        return SurfaceMaps(V, N, valid, np.asarray(intrinsics, dtype=np.float64).reshape(4).copy())
 
     # ------------------------------------------------------------------------------------------- integration
 
     def integrate(self, depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,
                   rgb: np.ndarray | None = None, label_probs: np.ndarray | None = None,
                   variance: np.ndarray | None = None, anchor: int | None = None) -> IntegrationStats:
-        """Fuse one depth map (see the module docstring, steps 1-4).
+        """Fuse one depth map (see the module docstring, steps 1-5) and its class probabilities (Sec. 3.5).
 
         depth: (H, W) metres (0 or NaN = none); T_world_cam: (4, 4) camera-to-world; intrinsics: [fx, fy, cx, cy];
         rgb: (H, W, 3) uint8 or None (grey); label_probs: (H, W, C) float class probabilities, or (H, W) integer
@@ -447,7 +350,7 @@ class GlobalModel:
         h, w = depth.shape
         if rgb is not None and np.shape(rgb) != (h, w, 3):
             raise CnnSlamError(f"rgb must be (H, W, 3) = {(h, w, 3)}, got {np.shape(rgb)}")
-        probs_map = self._probability_map(label_probs, (h, w))
+        probs_map = class_probability_map(label_probs, (h, w), cfg.num_classes)
         if anchor is not None:
             anchor = int(anchor)
             if anchor < 0:
@@ -469,7 +372,7 @@ class GlobalModel:
         colour = (np.full((vs.size, 3), 128.0, np.float32) if rgb is None
                   else np.asarray(rgb)[vs, us].astype(np.float32))
         probs = None if probs_map is None else probs_map[vs, us]
-        label_weight = alpha if cfg.label_weighting == "confidence" else alpha * (cfg.min_depth_sigma**2 / sigma2)
+        label_weight = label_weights(alpha, sigma2, cfg.label_weighting, cfg.min_depth_sigma)
         m = vs.size
 
         # 2. projective data association
@@ -479,8 +382,8 @@ class GlobalModel:
         seen = np.zeros(0, np.int64)
         if associated:
             groups, inverse = np.unique(target[assoc], return_inverse=True)
-            meas = self._group(inverse, groups.size, assoc, x_world, n_world, colour, radius, weight, alpha, probs,
-                               label_weight)
+            meas = _group(inverse, groups.size, assoc, x_world, n_world, colour, radius, weight, alpha, probs,
+                          label_weight)
             self._merge_into(groups, meas, frame, anchor)
             seen = groups
 
@@ -490,9 +393,9 @@ class GlobalModel:
         if rest.size:
             keys = voxel_keys(x_world[rest], n_world[rest], cfg.voxel_size)
             ukeys, inverse = np.unique(keys, return_inverse=True)
-            meas = self._group(inverse, ukeys.size, rest, x_world, n_world, colour, radius, weight, alpha, probs,
-                               label_weight)
-            key_ids = self._surfels_of_keys(ukeys)
+            meas = _group(inverse, ukeys.size, rest, x_world, n_world, colour, radius, weight, alpha, probs,
+                          label_weight)
+            key_ids = self.store.ids_of_keys(ukeys)
             found = key_ids >= 0
             if found.any():
                 merged_ids = key_ids[found]
@@ -508,45 +411,35 @@ class GlobalModel:
         removed = 0
         missed = np.setdiff1d(in_view, seen, assume_unique=False)
         if missed.size:
-            self._data["misses"][missed] = np.minimum(self._data["misses"][missed].astype(np.int64) + 1, 65535)
+            misses_column = self.store.columns["misses"]
+            misses_column[missed] = np.minimum(misses_column[missed].astype(np.int64) + 1, 65535)
             misses = self._col("misses").astype(np.int64)
             drop = (misses >= cfg.max_misses) & (misses > self._col("n_obs"))
             removed = int(drop.sum())
             if removed:
-                self._compact(np.flatnonzero(~drop))
+                self.store.compact(np.flatnonzero(~drop))
                 self._rebuild_index(merge=False)
-        return IntegrationStats(frame, m, associated, voxel_merged, created, removed, self._size)
+        return IntegrationStats(frame, m, associated, voxel_merged, created, removed, len(self.store))
 
     def _measure(self, depth: np.ndarray, intr: np.ndarray, variance: np.ndarray | None) -> _PixelMeasurements:
-        """Step 1: the pixels of ``depth`` that make measurements, with their camera points, normals and sigmas."""
+        """Step 1: the pixels of ``depth`` that make measurements, with their camera points, normals (adaptive
+        normals computed at the sampled pixels only) and sigmas."""
         cfg = self.config
         h, w = depth.shape
         rays, alpha_map = self._camera_tables((h, w), intr)
         d = np.where(np.isfinite(depth) & (depth >= cfg.min_depth) & (depth <= cfg.max_depth), depth, 0.0)
-        if cfg.normal_smoothing_px > 0:
-            smoothed = smooth_depth(d, cfg.normal_smoothing_px, cfg.normal_smoothing_relative)
-            N = adaptive_normal_map(rays * d[..., None], rays * smoothed[..., None], cfg.max_relative_depth_jump,
-                                    cfg.normal_step_px)
-        else:
-            N = normal_map(rays * d[..., None], cfg.max_relative_depth_jump, 1)
+        d = np.ascontiguousarray(d, dtype=np.float32)
+        adaptive = cfg.normal_smoothing_px > 0
+        smoothed = smooth_depth(d, cfg.normal_smoothing_px, cfg.normal_smoothing_relative) if adaptive else d
         s = cfg.pixel_stride
-        vs, us = np.nonzero((N[::s, ::s] != 0).any(axis=2) & (d[::s, ::s] > 0))
-        vs, us = vs * s, us * s
-        x_cam = rays[vs, us].astype(np.float64) * d[vs, us, None].astype(np.float64)
-        n_cam = N[vs, us].astype(np.float64)
-        z = x_cam[:, 2]
-        cos_inc = np.abs(np.einsum("ij,ij->i", n_cam, x_cam)) / np.linalg.norm(x_cam, axis=1)
-        if variance is None:
-            sigma2 = (cfg.default_relative_sigma * z) ** 2
-        else:
-            var = np.asarray(variance, dtype=np.float64)[vs, us]
-            sigma2 = np.where(np.isfinite(var) & (var > 0), var, (cfg.default_relative_sigma * z) ** 2)
-        sigma2 = np.maximum(sigma2, cfg.min_depth_sigma**2)
-        ok = (cos_inc >= math.cos(math.radians(cfg.max_incidence_deg))) & (sigma2 <= (cfg.max_relative_sigma * z) ** 2)
-        vs, us, x_cam, n_cam, z, cos_inc, sigma2 = (a[ok] for a in (vs, us, x_cam, n_cam, z, cos_inc, sigma2))
-        f = 0.5 * (intr[0] + intr[1])
-        radius = s * z / (math.sqrt(2.0) * f * cos_inc)
-        alpha = alpha_map[vs, us].astype(np.float64)
+        N = sampled_normals(d, rays, np.ascontiguousarray(smoothed, dtype=np.float32),
+                            float(cfg.max_relative_depth_jump), int(cfg.normal_step_px), s,
+                            ADAPTIVE_NORMAL_CONSISTENCY, adaptive)
+        var = np.zeros((1, 1)) if variance is None else np.ascontiguousarray(variance, dtype=np.float64)
+        vs, us, x_cam, n_cam, z, sigma2, radius, alpha = measure_kernel(
+            N, d, rays, alpha_map, var, variance is not None, s, float(cfg.default_relative_sigma),
+            float(cfg.min_depth_sigma**2), float(cfg.max_relative_sigma), math.cos(math.radians(cfg.max_incidence_deg)),
+            float(0.5 * (intr[0] + intr[1])))
         return _PixelMeasurements(d, vs, us, x_cam, n_cam, z, sigma2, radius, alpha)
 
     def _associate(self, px: _PixelMeasurements, T: np.ndarray, intr: np.ndarray,
@@ -554,40 +447,21 @@ class GlobalModel:
         """Step 2, Keller's projective data association: (target surfel id per measurement, -1 = none; ids of the
         surfels the frame should see, not hidden behind a nearer measured surface, when ``find_misses``)."""
         cfg = self.config
-        h, w = px.depth.shape
         m = px.vs.size
-        target = np.full(m, -1, np.int64)
-        in_view = np.zeros(0, np.int64)
-        if not (self._size and m):
-            return target, in_view
-        R = T[:3, :3]
-        ids, u_p, v_p, z_p, q, r_px = self._project(T, intr, (h, w), 0.0, None)
-        if find_misses:
-            ui, vi = np.rint(u_p).astype(np.int64), np.rint(v_p).astype(np.int64)
-            inside = (ui >= 0) & (ui < w) & (vi >= 0) & (vi < h)
-            d_at = np.zeros(ids.size)
-            d_at[inside] = px.depth[vi[inside], ui[inside]]
-            in_view = ids[(d_at > 0) & (d_at > z_p + cfg.miss_margin)]
-        observed = np.zeros((h, w), np.float32)
-        observed[px.vs, px.us] = px.z
-        local = closest_depth_index_map(u_p, v_p, z_p, r_px, observed)[px.vs, px.us]
-        hit = np.flatnonzero(local >= 0)
-        if hit.size:
-            sid = ids[local[hit]]
-            n_s = self._col("normal")[sid].astype(np.float64) @ R  # surfel normals in camera coordinates
-            p_s = q[local[hit]]
-            ray = px.x_cam[hit] / px.z[hit, None]
-            denom = np.einsum("ij,ij->i", n_s, ray)
-            plane_z = np.where(np.abs(denom) > 0.2 * np.linalg.norm(ray, axis=1),
-                               np.einsum("ij,ij->i", n_s, p_s) / np.where(denom == 0, 1.0, denom), p_s[:, 2])
-            conf, wsum = self._col("confidence")[sid], self._col("weight")[sid]
-            sigma2_s = conf / np.maximum(wsum, 1e-12)
-            tol = np.clip(cfg.association_sigmas * np.sqrt(px.sigma2[hit] + sigma2_s), cfg.min_association_distance,
-                          cfg.max_association_distance)
-            agree = (np.abs(px.z[hit] - plane_z) <= tol) & (
-                np.einsum("ij,ij->i", n_s, px.n_cam[hit]) >= math.cos(math.radians(cfg.max_normal_angle_deg)))
-            target[hit[agree]] = sid[agree]
-        return target, in_view
+        if not (len(self.store) and m):
+            return np.full(m, -1, np.int64), np.zeros(0, np.int64)
+        k = np.asarray(intr, dtype=np.float64).reshape(4)
+        T_cam_world = se3_inverse(np.asarray(T, dtype=np.float64))
+        R = np.ascontiguousarray(T[:3, :3], dtype=np.float64)
+        return associate_kernel(
+            self._col("position"), self._col("radius"), self._col("normal"), self._col("confidence"),
+            self._col("weight"), T_cam_world[:3, :3].astype(np.float32), T_cam_world[:3, 3].astype(np.float32), R,
+            k[0], k[1], k[2], k[3], float(cfg.max_splat_radius_px), np.float32(0.75 * cfg.voxel_size),
+            np.ascontiguousarray(px.depth, dtype=np.float32), px.vs, px.us, np.ascontiguousarray(px.x_cam),
+            np.ascontiguousarray(px.n_cam), np.ascontiguousarray(px.z), np.ascontiguousarray(px.sigma2),
+            bool(find_misses), float(cfg.miss_margin), float(cfg.association_sigmas),
+            float(cfg.min_association_distance), float(cfg.max_association_distance),
+            math.cos(math.radians(cfg.max_normal_angle_deg)))
 
     def associate(self, depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,
                   variance: np.ndarray | None = None) -> np.ndarray:
@@ -603,19 +477,10 @@ class GlobalModel:
         rest = np.flatnonzero(target < 0)
         if rest.size:
             x_world = px.x_cam[rest] @ T[:3, :3].T + T[:3, 3]
-            target[rest] = self._surfels_of_keys(voxel_keys(x_world, px.n_cam[rest] @ T[:3, :3].T,
-                                                            self.config.voxel_size))
+            target[rest] = self.store.ids_of_keys(voxel_keys(x_world, px.n_cam[rest] @ T[:3, :3].T,
+                                                             self.config.voxel_size))
         out = np.full(depth.shape, -1, np.int64)
         out[px.vs, px.us] = target
-        return out
-
-    def _surfels_of_keys(self, keys: np.ndarray) -> np.ndarray:
-        """(K,) int64 id of the surfel holding each voxel key, -1 where none does (step 3's hash lookup)."""
-        out = np.full(keys.shape, -1, np.int64)
-        if self._sorted_keys.size:
-            pos = np.minimum(np.searchsorted(self._sorted_keys, keys), self._sorted_keys.size - 1)
-            found = self._sorted_keys[pos] == keys
-            out[found] = self._sorted_ids[pos[found]]
         return out
 
     def _camera_tables(self, size: tuple[int, int], intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -627,115 +492,40 @@ class GlobalModel:
             self._tables_key = key
         return self._tables
 
-    def _probability_map(self, label_probs: np.ndarray | None, size: tuple[int, int]) -> np.ndarray | None:
-        if label_probs is None:
-            return None
-        C = self.config.num_classes
-        p = np.asarray(label_probs)
-        if p.ndim == 2:
-            if p.shape != size:
-                raise CnnSlamError(f"a label map must be (H, W) = {size}, got {p.shape}")
-            out = np.zeros((*size, C), np.float32)
-            ok = (p >= 0) & (p < C)
-            out[ok, p[ok].astype(np.intp)] = 1.0
-            return out
-        if p.shape != (*size, C):
-            raise CnnSlamError(f"label probabilities must be (H, W, C) = {(*size, C)}, got {p.shape}")
-        p = np.nan_to_num(p.astype(np.float32), nan=0.0)
-        if (p < 0).any():
-            raise CnnSlamError("label probabilities must be >= 0")
-        s = p.sum(axis=2, keepdims=True)
-        return np.where(s > 0, p / np.where(s > 0, s, 1.0), 0.0).astype(np.float32)
-
-    @staticmethod
-    def _group(inverse: np.ndarray, n_groups: int, rows: np.ndarray, x_world: np.ndarray, n_world: np.ndarray,
-               colour: np.ndarray, radius: np.ndarray, weight: np.ndarray, alpha: np.ndarray,
-               probs: np.ndarray | None, label_weight: np.ndarray) -> _Measurements:
-        """Average the measurements ``rows`` per group (``inverse`` maps each row to its group): step 3's one
-        observation per frame and target."""
-        wt, al = weight[rows], alpha[rows]
-        count = np.bincount(inverse, minlength=n_groups).astype(np.float64)
-        wsum = np.bincount(inverse, weights=wt, minlength=n_groups)
-        asum = np.bincount(inverse, weights=al, minlength=n_groups)
-
-        def wmean(values: np.ndarray, wts: np.ndarray, total: np.ndarray) -> np.ndarray:
-            cols = [np.bincount(inverse, weights=wts * values[:, k], minlength=n_groups)
-                    for k in range(values.shape[1])]
-            return np.stack(cols, axis=1) / total[:, None]
-
-        position = wmean(x_world[rows], wt, wsum)
-        normal = wmean(n_world[rows], wt, wsum)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-        col = wmean(colour[rows].astype(np.float64), al, asum).astype(np.float32)
-        rad = np.bincount(inverse, weights=al * radius[rows], minlength=n_groups) / asum
-        lw = label_weight[rows]
-        lsum = np.bincount(inverse, weights=lw, minlength=n_groups)
-        pr = None if probs is None else wmean(probs[rows].astype(np.float64), lw, lsum).astype(np.float32)
-        return _Measurements(position, normal, col, rad, wsum / count, asum / count, pr, lsum / count)
-
     def _merge_into(self, ids: np.ndarray, meas: _Measurements, frame: int, anchor: int | None) -> None:
-        """Step 3 on the surfels ``ids`` (unique) with one grouped measurement each."""
-        D = self._data
-        W = D["weight"][ids].astype(np.float64)
-        c = D["confidence"][ids].astype(np.float64)
-        w, a = meas.weight, meas.alpha
-        W_new, c_new = W + w, c + a
-        D["position"][ids] = (W[:, None] * D["position"][ids] + w[:, None] * meas.position) / W_new[:, None]
-        n = W[:, None] * D["normal"][ids] + w[:, None] * meas.normal
-        norm = np.linalg.norm(n, axis=1, keepdims=True)
-        D["normal"][ids] = np.where(norm > 1e-9, n / np.maximum(norm, 1e-12), D["normal"][ids])
-        D["colour"][ids] = (c[:, None] * D["colour"][ids] + a[:, None] * meas.colour) / c_new[:, None]
-        D["radius"][ids] = (c * D["radius"][ids] + a * meas.radius) / c_new
-        D["weight"][ids] = W_new
-        D["confidence"][ids] = c_new
-        D["n_obs"][ids] += 1
-        D["last_seen"][ids] = frame
-        if anchor is not None:
-            stronger = w > D["anchor_weight"][ids]
-            D["anchor"][ids[stronger]] = anchor
-            D["anchor_weight"][ids[stronger]] = w[stronger]
+        """Step 3 on the surfels ``ids`` (unique) with one grouped measurement each, and their labels (Sec. 3.5)."""
+        D = self.store.columns
+        ids = np.ascontiguousarray(ids, dtype=np.int64)
+        merge_kernel(ids, D["position"], D["normal"], D["colour"], D["radius"], D["weight"], D["confidence"],
+                     D["n_obs"], D["last_seen"], D["anchor"], D["anchor_weight"],
+                     np.ascontiguousarray(meas.position, dtype=np.float64),
+                     np.ascontiguousarray(meas.normal, dtype=np.float64),
+                     np.ascontiguousarray(meas.colour, dtype=np.float32),
+                     np.ascontiguousarray(meas.radius, dtype=np.float64),
+                     np.ascontiguousarray(meas.weight, dtype=np.float64),
+                     np.ascontiguousarray(meas.alpha, dtype=np.float64), int(frame),
+                     -1 if anchor is None else int(anchor), anchor is not None)
         if meas.probs is not None:
-            self._labels[ids] += (meas.label_weight[:, None] * meas.probs).astype(np.float32)
-
-    def _reserve(self, extra: int) -> None:
-        need = self._size + extra
-        cap = self._data["position"].shape[0]
-        if need <= cap:
-            return
-        new_cap = max(need, 2 * cap)
-        for name, arr in self._data.items():
-            grown = np.zeros((new_cap, *arr.shape[1:]), arr.dtype)
-            grown[: self._size] = arr[: self._size]
-            self._data[name] = grown
-        labels = np.zeros((new_cap, self._labels.shape[1]), np.float32)
-        labels[: self._size] = self._labels[: self._size]
-        self._labels = labels
+            fuse_labels(self.store.evidence, ids, meas.probs, meas.label_weight)
 
     def _append(self, meas: _Measurements, keys: np.ndarray, frame: int, anchor: int | None) -> None:
         """New surfels from grouped measurements whose ``keys`` (sorted, unique, absent from the model) are new."""
-        k = keys.size
-        self._reserve(k)
-        sl = slice(self._size, self._size + k)
-        D = self._data
-        D["position"][sl] = meas.position
-        D["normal"][sl] = meas.normal
-        D["colour"][sl] = meas.colour
-        D["radius"][sl] = meas.radius
-        D["weight"][sl] = meas.weight
-        D["confidence"][sl] = meas.alpha
-        D["n_obs"][sl] = 1
-        D["anchor"][sl] = NO_ANCHOR if anchor is None else anchor
-        D["anchor_weight"][sl] = meas.weight if anchor is not None else 0.0
-        D["first_seen"][sl] = frame
-        D["last_seen"][sl] = frame
-        D["misses"][sl] = 0
-        D["key"][sl] = keys
-        self._labels[sl] = 0.0 if meas.probs is None else meas.label_weight[:, None] * meas.probs
-        new_ids = np.arange(self._size, self._size + k, dtype=np.int64)
-        self._size += k
-        at = np.searchsorted(self._sorted_keys, keys)
-        self._sorted_keys = np.insert(self._sorted_keys, at, keys)
-        self._sorted_ids = np.insert(self._sorted_ids, at, new_ids)
+        rows = self.store.append(keys)
+        D = self.store.columns
+        D["position"][rows] = meas.position
+        D["normal"][rows] = meas.normal
+        D["colour"][rows] = meas.colour
+        D["radius"][rows] = meas.radius
+        D["weight"][rows] = meas.weight
+        D["confidence"][rows] = meas.alpha
+        D["n_obs"][rows] = 1
+        D["anchor"][rows] = NO_ANCHOR if anchor is None else anchor
+        D["anchor_weight"][rows] = meas.weight if anchor is not None else 0.0
+        D["first_seen"][rows] = frame
+        D["last_seen"][rows] = frame
+        D["misses"][rows] = 0
+        if meas.probs is not None:
+            fuse_labels(self.store.evidence, np.arange(rows.start, rows.stop), meas.probs, meas.label_weight)
 
     # -------------------------------------------------------------------------------------- re-placement, pruning
 
@@ -758,7 +548,7 @@ class GlobalModel:
                 continue
             deltas[kf] = delta
             self._poses[kf] = T_new.copy()
-        if not deltas or not self._size:
+        if not deltas or not len(self.store):
             return ReplacementStats(len(deltas), 0, 0, 0.0, 0.0)
         anchors = self._col("anchor")
         table = np.full(max(max(deltas), int(anchors.max(initial=0))) + 2, -1, np.int64)
@@ -772,18 +562,19 @@ class GlobalModel:
         moved = moved[np.argsort(which[moved], kind="stable")]
         bounds = np.flatnonzero(np.r_[True, np.diff(which[moved]) != 0, True])
         disp = np.empty(moved.size)
+        D = self.store.columns
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
             idx = moved[lo:hi]
             T = stack[which[idx[0]]]
-            p_old = self._data["position"][idx].astype(np.float64)
+            p_old = D["position"][idx].astype(np.float64)
             p_new = p_old @ T[:3, :3].T + T[:3, 3]
-            self._data["position"][idx] = p_new
-            self._data["normal"][idx] = self._data["normal"][idx].astype(np.float64) @ T[:3, :3].T
+            D["position"][idx] = p_new
+            D["normal"][idx] = D["normal"][idx].astype(np.float64) @ T[:3, :3].T
             disp[lo:hi] = np.linalg.norm(p_new - p_old, axis=1)
-            self._data["key"][idx] = voxel_keys(p_new, self._data["normal"][idx], cfg.voxel_size)
-        before = self._size
+            D["key"][idx] = voxel_keys(p_new, D["normal"][idx], cfg.voxel_size)
+        before = len(self.store)
         self._rebuild_index(merge=True)
-        return ReplacementStats(len(deltas), int(moved.size), before - self._size, float(disp.max()),
+        return ReplacementStats(len(deltas), int(moved.size), before - len(self.store), float(disp.max()),
                                 float(disp.mean()))
 
     def prune(self, min_confidence: float, min_age: int = 0) -> int:
@@ -794,37 +585,27 @@ class GlobalModel:
         drop = (self._col("confidence") < min_confidence) & (self._frames - self._col("first_seen") >= min_age)
         n = int(drop.sum())
         if n:
-            self._compact(np.flatnonzero(~drop))
+            self.store.compact(np.flatnonzero(~drop))
             self._rebuild_index(merge=False)
         return n
 
-    def _compact(self, keep: np.ndarray) -> None:
-        k = keep.size
-        for arr in self._data.values():
-            arr[:k] = arr[keep]
-        self._labels[:k] = self._labels[keep]
-        self._size = k
-
     def _rebuild_index(self, merge: bool) -> None:
         """Sort the keys again; with ``merge``, surfels sharing a key are combined into one (weights add)."""
-        keys = self._col("key")
-        order = np.lexsort((-self._col("anchor_weight"), keys))  # by key, strongest anchor first
-        sk = keys[order]
-        starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+        order, _, starts = self.store.key_runs()
         if merge and starts.size < order.size:
             self._combine(order, starts)
-            keys = self._col("key")
-            order = np.argsort(keys, kind="stable")
-            sk = keys[order]
-        self._sorted_keys = sk.copy()
-        self._sorted_ids = order.astype(np.int64)
+            self.store.reindex()
+        else:
+            self.store.reindex(order)
 
     def _combine(self, order: np.ndarray, starts: np.ndarray) -> None:
         """Merge each run ``order[starts[i]:starts[i+1]]`` of surfels sharing a key into its first member; the model
         keeps one surfel per run, in run order. Runs of one surfel are copied as they are; the weighted means are
         computed for the runs of several only, so that the float64 work (and memory) scales with the merges, not
-        with the model (a re-placement after a long episode merges a few per cent of millions of surfels)."""
-        D = self._data
+        with the model (a re-placement after a long episode merges a few per cent of millions of surfels). Their label
+        evidence adds (the evidence of every measurement fused into any of them, Sec. 3.5)."""
+        D = self.store.columns
+        evidence = self.store.evidence
         k = starts.size
         lengths = np.diff(np.r_[starts, order.size])
         lead = order[starts]  # the member with the strongest anchor
@@ -850,23 +631,38 @@ class GlobalModel:
             merged["colour"] = add(c[:, None] * D["colour"][sub]) / c_sum[:, None]
             merged["radius"] = add(c * D["radius"][sub]) / c_sum
             merged["weight"], merged["confidence"] = W_sum, c_sum
-            merged["labels"] = add(self._labels[sub].astype(np.float64))
+            merged["labels"] = add(evidence[sub].astype(np.float64))
             merged["n_obs"] = np.maximum.reduceat(D["n_obs"][sub], sub_starts)
             merged["first_seen"] = np.minimum.reduceat(D["first_seen"][sub], sub_starts)
             merged["last_seen"] = np.maximum.reduceat(D["last_seen"][sub], sub_starts)
             merged["misses"] = np.minimum.reduceat(D["misses"][sub], sub_starts)
         # one column at a time: the lead's values, the merged ones where a run had several members
-        for name in ("position", "normal", "colour", "radius", "weight", "confidence", "n_obs", "first_seen",
-                     "last_seen", "misses", "anchor", "anchor_weight", "key"):
+        columns: dict[str, np.ndarray] = {}
+        for name in SURFEL_COLUMNS:
             column = D[name][lead]
             if name in merged:
                 column[multi] = merged[name]
-            D[name][:k] = column
-        labels = self._labels[lead]
+            columns[name] = column
+        labels = evidence[lead]
         if "labels" in merged:
             labels[multi] = merged["labels"]
-        self._labels[:k] = labels
-        self._size = k
+        self.store.replace_rows(columns, labels)
+
+
+def _group(inverse: np.ndarray, n_groups: int, rows: np.ndarray, x_world: np.ndarray, n_world: np.ndarray,
+           colour: np.ndarray, radius: np.ndarray, weight: np.ndarray, alpha: np.ndarray, probs: np.ndarray | None,
+           label_weight: np.ndarray) -> _Measurements:
+    """Average the measurements ``rows`` per group (``inverse`` maps each row to its group): step 3's one observation
+    per frame and target (:func:`~cnnslam.surfel_kernels.group_kernel`)."""
+    has_probs = probs is not None
+    p = np.ascontiguousarray(probs, dtype=np.float32) if has_probs else np.zeros((1, 1), np.float32)
+    position, normal, col, rad, w, a, pr, lw = group_kernel(
+        np.ascontiguousarray(inverse, dtype=np.int64), int(n_groups), np.ascontiguousarray(rows, dtype=np.int64),
+        np.ascontiguousarray(x_world, dtype=np.float64), np.ascontiguousarray(n_world, dtype=np.float64),
+        np.ascontiguousarray(colour, dtype=np.float32), np.ascontiguousarray(radius, dtype=np.float64),
+        np.ascontiguousarray(weight, dtype=np.float64), np.ascontiguousarray(alpha, dtype=np.float64), p, has_probs,
+        np.ascontiguousarray(label_weight, dtype=np.float64))
+    return _Measurements(position, normal, col, rad, w, a, pr if has_probs else None, lw)
 
 
 def _checked_view(depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,

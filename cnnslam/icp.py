@@ -164,8 +164,12 @@ def normal_map(vertices: np.ndarray, max_relative_depth_jump: float = 0.05, step
     return out
 
 
+# a raw normal is kept where the mean of its 3x3 neighbours' normals is at least this long
+ADAPTIVE_NORMAL_CONSISTENCY: float = 0.98
+
+
 def adaptive_normal_map(vertices: np.ndarray, smoothed_vertices: np.ndarray, max_relative_depth_jump: float = 0.05,
-                        step: int = 2, consistency: float = 0.98) -> np.ndarray:
+                        step: int = 2, consistency: float = ADAPTIVE_NORMAL_CONSISTENCY) -> np.ndarray:
     """Normals (H, W, 3) float32 that are sharp where the depth is clean and smoothed where it is noisy (ours).
 
     The normal of the raw vertex map (:func:`normal_map`, 1-pixel step) is kept where it agrees with its 3x3

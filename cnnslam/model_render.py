@@ -2,7 +2,7 @@
 with the estimated camera trajectory drawn in green, seen from above and behind the trajectory.
 
 Rendering is ours and needs no OpenGL: the surfels are splatted as discs into a virtual pinhole camera with a
-z-buffer (the numba kernel :func:`cnnslam.global_model.splat_index_map`), shaded by their normals for the label view.
+z-buffer (the numba kernel :func:`cnnslam.surfel_kernels.splat_index_map`), shaded by their normals for the label view.
 The virtual camera (:func:`overview_camera`) looks at the model's median point from ``elevation_deg`` above the
 horizon, from the side opposite to the trajectory's mean viewing direction ("behind" the camera), and its focal
 length is set so that 98 % of the points fill the image. A cut-away makes the room readable from there: surfels
@@ -27,7 +27,8 @@ import numpy as np
 
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import se3_inverse
-from cnnslam.global_model import SurfelCloud, splat_index_map
+from cnnslam.global_model import SurfelCloud
+from cnnslam.surfel_kernels import splat_index_map
 from sim_envs.trajectories import look_at, poses_from
 
 CLASS_LABELS: tuple[str, ...] = ("floor", "vertical structure", "large structure / furniture", "small structure")

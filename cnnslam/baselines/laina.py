@@ -26,9 +26,9 @@ direct alignment) against the last predicted frame: its image with its CNN depth
 and they are not fused.
 
 Speed (one core): the per-pixel work of every frame (the model rendered for ICP, the surface pyramids, the ICP
-normal equations, and the measurements, association and merging of the fusion) runs in the numba kernels of
-:mod:`cnnslam.baselines.laina_kernels` (:class:`~cnnslam.baselines.laina_kernels.LainaModel` is the global model
-with them). They compute what :mod:`cnnslam.icp` and :mod:`cnnslam.global_model` compute (the tests compare them);
+normal equations, and the measurements, association and merging of the fusion) runs in numba kernels: ICP's in
+:mod:`cnnslam.baselines.laina_kernels` (they compute what :mod:`cnnslam.icp` computes; the tests compare them), the
+model's in :mod:`cnnslam.surfel_kernels` (the global model's only implementation, shared with CNN-SLAM);
 with the convergence test the agent takes 53-59 instead of 142-162 ms per frame (200 frames of office0, living1 and
 tum_long_office, 3 seeds, one core; about 23 ms of it is the network).
 
@@ -53,12 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from cnnslam.baselines.laina_kernels import (
-    LainaModel,
-    depth_surface_pyramid,
-    evaluate_icp,
-    maps_surface_pyramid,
-)
+from cnnslam.baselines.laina_kernels import depth_surface_pyramid, evaluate_icp, maps_surface_pyramid
 from cnnslam.config import TrackingConfig
 from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
@@ -206,7 +201,7 @@ class LainaAgent:
             raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
         self._intrinsics = k
         self._size = (int(image_size[0]), int(image_size[1]))
-        self._model = LainaModel(self.config.model)
+        self._model = GlobalModel(self.config.model)
         self._frame = 0
         self._T_world_prev: np.ndarray | None = None
         self._velocity = np.eye(4)  # T_prev_cur of the last tracked motion

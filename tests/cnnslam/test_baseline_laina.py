@@ -10,11 +10,7 @@ import numpy as np
 import pytest
 
 from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, LainaConfig
-from cnnslam.baselines.laina_kernels import (
-    LainaModel,
-    depth_surface_pyramid,
-    evaluate_icp,
-)
+from cnnslam.baselines.laina_kernels import depth_surface_pyramid, evaluate_icp
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import rotation_angle_deg, se3_inverse
 from cnnslam.global_model import GlobalModel, GlobalModelConfig
@@ -133,13 +129,6 @@ def _noisy(depth: np.ndarray, seed: int) -> np.ndarray:
     return (depth * (1.0 + 0.02 * rng.standard_normal(depth.shape))).astype(np.float32)
 
 
-def _probs(shape: tuple[int, int], seed: int) -> np.ndarray:
-    p = np.random.default_rng(seed).random((*shape, 4)).astype(np.float32)
-    p[0, 0] = 0.0  # no evidence
-    p[0, 1, 2] = np.nan  # read as 0
-    return p
-
-
 def test_depth_surface_pyramid_known_answer_on_a_fronto_parallel_plane():
     intr = np.array([200.0, 200.0, 15.5, 11.5])
     depth = np.full((24, 32), 2.0, np.float32)
@@ -172,7 +161,7 @@ def test_depth_surface_pyramid_matches_the_reference(room, room_sequence):
 
 
 def test_render_surface_known_answer_one_surfel_facing_the_camera():
-    model = LainaModel(GlobalModelConfig(pixel_stride=1, normal_smoothing_px=0.0))
+    model = GlobalModel(GlobalModelConfig(pixel_stride=1, normal_smoothing_px=0.0))
     intr = np.array([100.0, 100.0, 15.5, 11.5])
     depth = np.zeros((24, 32), np.float32)
     depth[10:13, 14:17] = 2.0  # a 3x3 patch: one measurement at its centre (15, 11) with a normal
@@ -185,49 +174,12 @@ def test_render_surface_known_answer_one_surfel_facing_the_camera():
     assert not model.render_surface(np.eye(4), intr, (24, 32), min_confidence=5.0).valid.any()
 
 
-def test_probability_map_known_answer():
-    model = LainaModel(GlobalModelConfig())
-    p = np.zeros((1, 3, 4), np.float32)
-    p[0, 0] = [1.0, 1.0, 2.0, 0.0]
-    p[0, 1] = [np.nan, 3.0, 0.0, 1.0]
-    out = model._probability_map(p, (1, 3))
-    assert np.allclose(out[0], [[0.25, 0.25, 0.5, 0.0], [0.0, 0.75, 0.0, 0.25], [0.0, 0.0, 0.0, 0.0]])
-    with pytest.raises(CnnSlamError, match=">= 0"):
-        model._probability_map(-p, (1, 3))
-
-
-def test_laina_model_fuses_as_the_global_model_does(room, room_sequence):
-    """Step by step against GlobalModel on noisy depth: measurements, association, probabilities and the fused
-    model agree; the rendering may differ where two surfels tie in depth (float32 products rounded differently)."""
-    cfg = LainaConfig().model
-    ref, fast = GlobalModel(cfg), LainaModel(cfg)
-    intr, size = room.intrinsics, room_sequence[0][1].shape
-    for k in range(0, 12, 2):
-        _, exact, T = room_sequence[k]
-        depth, probs = _noisy(exact, k), _probs(size, k)
-        if k:
-            view = ref.render(T, intr, size, 1.0)
-            maps = fast.render_surface(T, intr, size, 1.0)
-            valid = (view.index >= 0) & (np.abs(view.normals).sum(axis=2) > 0)
-            same = (valid == maps.valid) & np.isclose(view.vertices, maps.vertices, atol=1e-5).all(axis=2)
-            assert same.mean() > 0.999
-        assert np.array_equal(ref._probability_map(probs, size), fast._probability_map(probs, size))
-        variance = (0.05 * depth) ** 2 * np.random.default_rng(k).choice([0.0, np.nan, np.inf, 1.0, 200.0], size)
-        for var in (None, variance):
-            a, b = ref._measure(depth, intr, var), fast._measure(depth, intr, var)
-            assert np.array_equal(a.vs, b.vs) and np.array_equal(a.us, b.us)
-            for name in ("x_cam", "n_cam", "z", "sigma2", "radius", "alpha"):
-                assert np.allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=0), name
-        if len(ref):
-            (ta, ia), (tb, ib) = ref._associate(a, T, intr, True), fast._associate(a, T, intr, True)
-            assert (ta != tb).mean() < 1e-3 and np.array_equal(ia, ib)
-        assert ref.integrate(depth, T, intr, room_sequence[k][0], probs) == fast.integrate(
-            depth, T, intr, room_sequence[k][0], probs)
-    assert ref.prune(2.0, 0) == fast.prune(2.0, 0)
-    sa, sb = ref.snapshot(), fast.snapshot()
-    assert len(sa) == len(sb) and np.array_equal(sa.observations, sb.observations)
-    for name in ("positions", "normals", "label_probs", "confidence", "radius"):
-        assert np.allclose(getattr(sa, name), getattr(sb, name), atol=1e-4), name
+def test_laina_fuses_into_the_global_model_itself(room, room_sequence):
+    """No shadow copy: the agent's model is CNN-SLAM's GlobalModel class, and its ICP reference is that model's
+    ray-cast."""
+    agent = LainaAgent(predictor=TablePredictor(room_sequence, float(np.mean(room.intrinsics[:2]))))
+    agent.reset(room.intrinsics, room_sequence[0][1].shape)
+    assert type(agent.global_model) is GlobalModel
 
 
 def test_fast_icp_matches_the_reference_and_recovers_the_motion(room, room_sequence):

@@ -1,0 +1,49 @@
+"""The global model's storage and key index: rows appended, found by key, compacted (in place or in any order) and
+re-indexed; growth keeps the rows."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cnnslam.surfel_store import SURFEL_COLUMNS, SurfelStore
+
+
+def _filled(n: int) -> SurfelStore:
+    store = SurfelStore(num_classes=3)
+    rows = store.append(np.arange(n, dtype=np.int64) * 10)
+    store.columns["radius"][rows] = np.arange(n)
+    store.evidence[rows, 1] = np.arange(n)
+    return store
+
+
+def test_append_grows_and_indexes_by_key():
+    store = _filled(40)  # past the initial capacity of 16: grown twice
+    assert len(store) == 40 and store.columns["radius"].shape[0] >= 40
+    assert np.array_equal(store.column("radius"), np.arange(40))
+    assert store.ids_of_keys(np.array([0, 70, 75, 390, 400])).tolist() == [0, 7, -1, 39, -1]
+    later = store.append(np.array([5, 395]))
+    assert (later.start, later.stop) == (40, 42) and store.ids_of_keys(np.array([5, 395])).tolist() == [40, 41]
+    assert not store.live_evidence()[40:].any()
+
+
+def test_compact_in_place_or_in_any_order_then_reindex():
+    store = _filled(10)
+    store.compact(np.array([1, 4, 9]))
+    store.reindex()
+    assert np.array_equal(store.column("radius"), [1, 4, 9]) and np.array_equal(store.live_evidence()[:, 1], [1, 4, 9])
+    assert store.ids_of_keys(np.array([10, 40, 90, 20])).tolist() == [0, 1, 2, -1]
+    store.compact(np.array([2, 0]))  # not increasing: copied
+    store.reindex()
+    assert np.array_equal(store.column("radius"), [9, 1]) and store.ids_of_keys(np.array([90, 10])).tolist() == [0, 1]
+
+
+def test_key_runs_put_the_strongest_anchor_first():
+    store = SurfelStore(num_classes=1)
+    rows = store.append(np.array([1, 2, 3]))
+    store.columns["key"][rows] = [7, 5, 7]  # two rows now share key 7 (as after a re-placement)
+    store.columns["anchor_weight"][rows] = [1.0, 1.0, 3.0]
+    order, keys, starts = store.key_runs()
+    assert keys.tolist() == [5, 7, 7] and order.tolist() == [1, 2, 0] and starts.tolist() == [0, 1]
+    store.replace_rows({name: store.columns[name][[1, 2]] for name in SURFEL_COLUMNS}, store.evidence[[1, 2]])
+    store.reindex()
+    assert len(store) == 2 and store.ids_of_keys(np.array([5, 7])).tolist() == [0, 1]
