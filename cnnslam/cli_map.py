@@ -236,9 +236,8 @@ def score_model(cloud: Any, model: Any, result: Any, scene: Any, args: argparse.
 
     gt = sample_scene_surface(scene, args.gt_spacing)
     seen = visible_in_views(gt.points, kf_gt, [f.depth for f in result.keyframe_gt], intr)
-    gt_seen = gt.subset(seen)
     model_points = to_gt(cloud.positions.astype(np.float64))
-    recon = reconstruction_metrics(model_points, gt_seen.points, gt_seen.normals, gt.spacing, args.threshold)
+    recon = reconstruction_metrics(model_points, gt.points, gt.normals, gt.spacing, args.threshold, seen=seen)
     out: dict[str, Any] = {"alignment": alignment.describe(), "gt_samples": len(gt), "gt_visible": int(seen.sum()),
                            "gt_spacing_m": gt.spacing, "reconstruction": recon.to_dict()}
     if all(k.labels is not None for k in result.keyframes) and (cloud.labels != NO_LABEL).any():

@@ -4,10 +4,10 @@ metrics of every suite: what ``cnnslam map`` measures in depth, here in the run 
 Input: the agent's :class:`sim_envs.agent.MapModel` (points in its own world frame, fused labels), its key-frame
 poses and the ground-truth frames at those key-frames (the driver's matching), and the scene's labelled surface
 samples (:func:`sim_envs.surface_sampling.sample_scene_surface`, 2 cm apart). The model is moved onto the ground
-truth with the alignment of its key-frame positions (:func:`slamcommon.alignment.align`, the run's alignment method:
-SE(3) by default, so absolute scale counts). Only surfaces at least one key-frame saw count for completeness
-(:func:`slamcommon.reconstruction_metrics.visible_in_views`); `cnnslam map` holds accuracy to those too, so its
-figures are a little worse where a model point lies on a surface no key-frame saw in full.
+truth with the alignment of the run's trajectory, the one its ATE uses (:func:`slamcommon.alignment.align`, the
+run's alignment method: SE(3) by default, so absolute scale counts). Only surfaces at least one key-frame saw count
+for completeness (:func:`slamcommon.reconstruction_metrics.visible_in_views`); accuracy is measured against every
+surface. Both come from :func:`slamcommon.reconstruction_metrics.reconstruction_metrics`, as in `cnnslam map`.
 
 Metrics (metres, shares 0..1): ``map_accuracy_median`` and ``map_accuracy_within`` (model point to the nearest
 surface, any surface of the scene, point-to-plane within a sample's cell; share within 5 cm),
@@ -23,7 +23,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sim_envs.surface_sampling import sample_scene_surface
 from slamcommon.alignment import align
@@ -31,8 +30,8 @@ from slamcommon.labels import NO_LABEL
 from slamcommon.reconstruction_metrics import (
     DEFAULT_LABEL_DISTANCE,
     DEFAULT_THRESHOLD,
-    distance_to_surface,
     nearest_labels,
+    reconstruction_metrics,
     visible_in_views,
 )
 
@@ -56,19 +55,14 @@ def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndar
     points = np.asarray(model.points, dtype=np.float64) @ S[:3, :3].T + S[:3, 3]
     surface = sample_scene_surface(scene, GT_SPACING)
     seen = visible_in_views(surface.points, T_gt, [f.depth for f in keyframe_gt], np.asarray(intrinsics))
-    gt_seen = surface.subset(seen)
-    if len(gt_seen.points) == 0:
+    if not seen.any():
         return {}
-    # accuracy against every surface (a point on a surface no key-frame saw is still right), completeness against
-    # the surfaces the key-frames saw
-    acc, _ = distance_to_surface(points, surface.points, surface.normals, surface.spacing)
-    comp = (np.asarray(cKDTree(points).query(gt_seen.points, k=1)[0], dtype=np.float64) if points.shape[0]
-            else np.full(len(gt_seen.points), np.inf))
+    recon = reconstruction_metrics(points, surface.points, surface.normals, surface.spacing, threshold, seen=seen)
     out = {
-        "map_accuracy_median": float(np.median(acc)) if acc.size else math.nan,
-        "map_accuracy_within": float(np.mean(acc < threshold)) if acc.size else math.nan,
-        "map_completeness_median": float(np.median(comp)),
-        "map_completeness_within": float(np.mean(comp < threshold)),
+        "map_accuracy_median": recon.accuracy_median,
+        "map_accuracy_within": recon.accuracy_within,
+        "map_completeness_median": recon.completeness_median,
+        "map_completeness_within": recon.completeness_within,
         "map_points": float(points.shape[0]),
     }
     labels = None if model.labels is None else np.asarray(model.labels).reshape(-1)

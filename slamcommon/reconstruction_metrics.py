@@ -188,17 +188,29 @@ def distance_to_surface(points: np.ndarray, samples: np.ndarray, normals: np.nda
 
 
 def reconstruction_metrics(model_points: np.ndarray, gt_points: np.ndarray, gt_normals: np.ndarray | None = None,
-                           gt_spacing: float | None = None,
-                           threshold: float = DEFAULT_THRESHOLD) -> ReconstructionMetrics:
+                           gt_spacing: float | None = None, threshold: float = DEFAULT_THRESHOLD,
+                           seen: np.ndarray | None = None) -> ReconstructionMetrics:
     """Accuracy and completeness of a model (N, 3) against ground-truth samples (M, 3) (module docstring).
 
-    gt_normals (M, 3) and gt_spacing (m) enable the point-to-surface refinement of the accuracy distances.
+    gt_normals (M, 3) and gt_spacing (m) enable the point-to-surface refinement of the accuracy distances. ``seen``
+    (M,) bool: the samples that count for completeness, the surfaces the views saw (:func:`visible_in_views`); the
+    accuracy is still measured against every sample (a model point on a surface no view saw in full is not an
+    error). ``n_gt`` counts the samples scored for completeness.
     """
     model = _points("model_points", model_points)
-    gt = _points("gt_points", gt_points, allow_empty=False)
+    all_gt = _points("gt_points", gt_points, allow_empty=False)
     if not (math.isfinite(threshold) and threshold > 0):
         raise ReconstructionMetricsError(f"threshold must be positive metres, got {threshold!r}")
-    acc, _ = distance_to_surface(model, gt, gt_normals, gt_spacing)
+    acc, _ = distance_to_surface(model, all_gt, gt_normals, gt_spacing)
+    gt = all_gt
+    if seen is not None:
+        seen = np.asarray(seen)
+        if seen.shape != (all_gt.shape[0],) or seen.dtype != bool:
+            raise ReconstructionMetricsError(f"seen must be a bool mask of the {all_gt.shape[0]} ground-truth samples, "
+                                             f"got {seen.dtype} {seen.shape}")
+        if not seen.any():
+            raise ReconstructionMetricsError("no ground-truth sample was seen: nothing to score completeness on")
+        gt = all_gt[seen]
     if model.shape[0]:
         comp, _ = cKDTree(model).query(gt, k=1)
         comp = np.asarray(comp, dtype=np.float64)

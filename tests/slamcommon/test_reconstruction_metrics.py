@@ -45,6 +45,20 @@ def test_known_shift_gives_known_accuracy_and_completeness():
     assert m.n_model == 5000 and m.n_gt == gt.shape[0]
 
 
+def test_seen_samples_count_for_completeness_and_every_sample_for_accuracy():
+    gt, normals = _plane_samples()
+    left = gt[:, 0] < 0.5  # the views saw the left half only
+    model = gt[left & (gt[:, 1] < 0.5)] + [0.0, 0.0, 0.01]  # the model covers a quarter, 1 cm up
+    model = np.vstack([model, [[0.9, 0.9, 0.02]]])  # and one point 2 cm over the unseen half
+    m = reconstruction_metrics(model, gt, normals, SPACING, threshold=0.05, seen=left)
+    assert m.accuracy_within == 1.0 and m.accuracy_median == pytest.approx(0.01)  # the unseen surface is a surface
+    assert m.n_gt == int(left.sum()) and m.completeness_within == pytest.approx(0.5 + 2 / 50, abs=0.03)
+    with pytest.raises(ReconstructionMetricsError, match="bool mask"):
+        reconstruction_metrics(model, gt, seen=np.ones(3, bool))
+    with pytest.raises(ReconstructionMetricsError, match="no ground-truth sample was seen"):
+        reconstruction_metrics(model, gt, seen=np.zeros(len(gt), bool))
+
+
 def test_plain_nearest_sample_distance_has_the_sampling_bias_the_refinement_removes():
     gt, normals = _plane_samples()
     model = np.array([[0.5, 0.5, 0.0], [0.51, 0.51, 0.0]])  # on the surface: between 4 samples, on a sample
