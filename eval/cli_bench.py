@@ -62,8 +62,6 @@ from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_ca
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import MetricError
 
-DEFAULT_BASELINE_DIR = Path("results") / "baselines"
-GATED_SUITES = ("quick",)  # suites compared with their baseline unless --no-gate
 DEFAULT_JOBS = 2  # runs in parallel: one per core of the 2-core machines the suites are sized for
 
 
@@ -219,9 +217,9 @@ def _list(methods: dict) -> str:
     for suite in SUITES.values():
         lines.append(f"  {suite.name:<9} {suite.description}")
         if suite.kind == "runs":
-            if suite.name == "real":
+            if suite.real_folders:
                 try:
-                    suite = get_suite("real")
+                    suite = get_suite(suite.name)
                 except SuiteError as exc:
                     lines.append(f"            {exc}")
             frames = "all" if suite.frames is None else suite.frames
@@ -497,7 +495,7 @@ def _calibrate(args: argparse.Namespace, suite, methods: dict, command: str) -> 
     if failed:
         print("not writing a baseline: runs failed:\n  " + "\n  ".join(failed), file=sys.stderr)
         return 1
-    path = Path(args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json")
+    path = Path(args.baseline or suite.baseline_path)
     reference = records[MATRIX[0].name]
     own = save_machine_record(machine_record(suite, reference, git_revision() or ""),
                               path.parent / "machines" / suite.name)
@@ -529,7 +527,7 @@ def _gate(args: argparse.Namespace, result) -> int:
     from eval.regress import compare, format_report, gate_metrics, load_baseline, update_baseline
 
     suite = result.suite
-    path = args.baseline or DEFAULT_BASELINE_DIR / f"{suite.name}.json"
+    path = args.baseline or suite.baseline_path
     metrics = gate_metrics(result.records)
     if args.update_baseline:
         if result.failed or result.skipped_methods:
@@ -540,7 +538,7 @@ def _gate(args: argparse.Namespace, result) -> int:
         print(f"updated {path}: {len(metrics)} gated figures ({len(new.calibrated)} with calibrated tolerances; "
               f"recalibrate with --calibrate after a change of the methods' spread)")
         return 0
-    if args.no_gate or (args.baseline is None and suite.name not in GATED_SUITES):
+    if args.no_gate or (args.baseline is None and not suite.gated):
         return 0
     if not path.exists():
         print(f"no baseline at {path}; create it with: cnnslam bench {suite.name} --update-baseline")

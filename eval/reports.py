@@ -727,7 +727,8 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
     return "\n".join(lines)
 
 
-REPORTS = {
+REPORTS = {  # a suite's report layout (eval.suites.REPORT_LAYOUTS) -> its writer
+    "generic": report_generic,
     "table1": report_table1,
     "rotation": report_rotation,
     "ablation": report_ablation,
@@ -739,4 +740,4 @@ REPORTS = {
 
 def write_report(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
     """The suite's outputs in ``results_dir`` (see the module docstring); returns the files written."""
-    return REPORTS.get(run.suite.name, report_generic)(run, results_dir, command)
+    return REPORTS[run.suite.report](run, results_dir, command)

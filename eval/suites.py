@@ -710,13 +710,24 @@ SWEEP_AXES: dict[str, str] = {
 }
 
 
+# the report layouts a suite may name (eval.reports writes each); "generic" is the plain per-metric table
+REPORT_LAYOUTS: tuple[str, ...] = ("generic", "table1", "rotation", "ablation", "sweep", "quick", "depth_quality")
+BASELINE_DIR: Path = Path("results") / "baselines"  # relative to the working directory, as --results is
+
+
 @dataclass(frozen=True)
 class Suite:
     """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds`` (the runs of each cell, see
     ``eval/methods.toml`` for what a seed changes per method), each run on the first ``frames`` frames (None: whole
     sequences); ``alignment`` of the ATE (``slamcommon.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
     the throughput suite, which runs no agents; ``skipped``: ``(name, reason)`` of sequences it lists but cannot
-    run here (a dataset folder that is missing)."""
+    run here (a dataset folder that is missing).
+
+    The suite also names what is made of its runs: ``report``, the layout of its report (:data:`REPORT_LAYOUTS`,
+    written by :func:`eval.reports.write_report`); ``gated``: ``cnnslam bench`` compares its runs with its
+    ``baseline`` file (default ``results/baselines/<name>.json``) unless told not to; ``real_folders``: its
+    sequences are the folders of the local dataset list, read when the suite is asked for (:func:`get_suite`).
+    Nothing else in the code switches on a suite's name."""
 
     name: str
     description: str
@@ -727,6 +738,20 @@ class Suite:
     alignment: str = "se3"
     kind: SuiteKind = "runs"
     skipped: tuple[tuple[str, str], ...] = ()
+    report: str = "generic"
+    gated: bool = False
+    baseline: str | None = None
+    real_folders: bool = False
+
+    def __post_init__(self) -> None:
+        if self.report not in REPORT_LAYOUTS:
+            raise SuiteError(f"suite {self.name!r}: report must be one of {', '.join(REPORT_LAYOUTS)}, got "
+                             f"{self.report!r}")  # fmt: skip
+
+    @property
+    def baseline_path(self) -> Path:
+        """The gate's baseline file of this suite (``baseline``, or ``results/baselines/<name>.json``)."""
+        return Path(self.baseline) if self.baseline is not None else BASELINE_DIR / f"{self.name}.json"
 
     def select(
         self,
@@ -836,6 +861,7 @@ def _suites() -> dict[str, Suite]:
             table1,
             TABLE1_METHODS,
             frames=None,
+            report="table1",
         ),
         "rotation": Suite(
             "rotation",
@@ -845,6 +871,7 @@ def _suites() -> dict[str, Suite]:
                   for s in ROTATION_SPEEDS),
             TABLE1_METHODS,
             frames=150,
+            report="rotation",
         ),
         "ablation": Suite(
             "ablation",
@@ -852,6 +879,7 @@ def _suites() -> dict[str, Suite]:
             table1,
             ABLATION_METHODS,
             frames=BENCH_FRAMES,
+            report="ablation",
         ),
         "sweep": Suite(
             "sweep",
@@ -860,6 +888,7 @@ def _suites() -> dict[str, Suite]:
             sweep_sequences(),
             tuple(m for m in TABLE1_METHODS if m != "oracle"),
             frames=150,
+            report="sweep",
         ),
         "depth_quality": Suite(
             "depth_quality",
@@ -868,6 +897,7 @@ def _suites() -> dict[str, Suite]:
             tuple(_named(name) for name in DEPTH_QUALITY_SEQUENCES),
             DEPTH_QUALITY_METHODS,
             frames=None,
+            report="depth_quality",
         ),
         "perf": Suite(
             "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time", kind="perf"
@@ -879,6 +909,7 @@ def _suites() -> dict[str, Suite]:
             (),
             TABLE1_METHODS,
             frames=None,
+            real_folders=True,
         ),
         "transfer": Suite(
             "transfer",
@@ -890,6 +921,7 @@ def _suites() -> dict[str, Suite]:
             TRANSFER_METHODS,
             frames=BENCH_FRAMES,
             kind="transfer",
+            real_folders=True,
         ),
         "lengths": Suite(
             "lengths",
@@ -911,6 +943,7 @@ def _suites() -> dict[str, Suite]:
             TRANSFER_METHODS,
             frames=BENCH_FRAMES,
             kind="preprocessing",
+            real_folders=True,
         ),
         "quick": Suite(
             "quick",
@@ -918,6 +951,8 @@ def _suites() -> dict[str, Suite]:
             tuple(_named(name) for name in ("office0", "tum_nostructure_near", "rot_yaw_30")),
             QUICK_METHODS,
             frames=60,
+            report="quick",
+            gated=True,
         ),
     }
 
@@ -928,14 +963,11 @@ SUITES: dict[str, Suite] = _suites()
 def get_suite(name: str) -> Suite:
     """A suite by name (``real``: built from the dataset list now, :func:`real_suite`); :class:`SuiteError`
     listing the valid names otherwise."""
-    if name == "real":
-        return real_suite()
-    if name in ("transfer", "preprocessing"):  # the real folders of the dataset list, as the real suite's
-        return replace(SUITES[name], sequences=(real := real_suite()).sequences, skipped=real.skipped)
     try:
-        return SUITES[name]
+        suite = SUITES[name]
     except KeyError:
         raise SuiteError(f"unknown suite {name!r}; valid suites: {', '.join(SUITES)}") from None
+    return with_real_folders(suite) if suite.real_folders else suite
 
 
 def sim_domain(name: str) -> tuple[str, str]:
@@ -1090,8 +1122,14 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
 
 
 def real_suite(path: str | Path | None = None) -> Suite:
-    """The ``real`` suite: every folder of the dataset list (:func:`load_dataset_list`) that is there and of a
-    known layout; the others are its ``skipped`` sequences, with the reason."""
+    """The ``real`` suite with the folders of the dataset list at ``path`` (default :func:`dataset_list_file`)."""
+    return with_real_folders(SUITES["real"], path)
+
+
+def with_real_folders(suite: Suite, path: str | Path | None = None) -> Suite:
+    """``suite`` with every folder of the dataset list (:func:`load_dataset_list`; ``path`` default
+    :func:`dataset_list_file`) that is there and of a known layout as its sequences; the others are its ``skipped``
+    sequences, with the reason."""
     file = Path(path) if path is not None else dataset_list_file()
     refs, skipped = [], []
     for entry in load_dataset_list(path).values():
@@ -1104,4 +1142,4 @@ def real_suite(path: str | Path | None = None) -> Suite:
             skipped.append((entry.name, str(exc)))
             continue
         refs.append(entry.ref())
-    return replace(SUITES["real"], sequences=tuple(refs), skipped=tuple(skipped))
+    return replace(suite, sequences=tuple(refs), skipped=tuple(skipped))

@@ -15,6 +15,7 @@ from eval.suites import (
     REPLAY_ENV_ID,
     SUITES,
     SequenceRef,
+    Suite,
     SuiteError,
     VariantSequence,
     get_suite,
@@ -281,3 +282,32 @@ def test_a_recorded_motion_replays_in_the_same_room(tmp_path):
     assert get_suite("table1").sequences[0].with_motion(first).name == "office0~a@kinect"  # TUM's file name: its folder
     with pytest.raises(SuiteError, match="give the same name"):
         transfer_parts(get_suite("transfer"), lengths=(20,), motions=[first, first])
+
+
+def test_a_suite_carries_its_report_gate_and_baseline_and_nothing_switches_on_its_name():
+    import ast
+    from pathlib import Path
+
+    from eval.reports import REPORTS
+    from eval.suites import REPORT_LAYOUTS, SUITES
+
+    assert set(REPORTS) == set(REPORT_LAYOUTS)
+    assert [s.name for s in SUITES.values() if s.gated] == ["quick"]
+    assert SUITES["quick"].baseline_path == Path("results/baselines/quick.json")
+    assert {s.name for s in SUITES.values() if s.real_folders} == {"real", "transfer", "preprocessing"}
+    with pytest.raises(SuiteError, match="report must be one of"):
+        Suite("x", "a suite with a report nobody writes", report="table2")
+    # no comparison of a suite's name with a literal outside the registry
+    names = set(SUITES)
+    root = Path(__file__).resolve().parents[2]
+    offenders = []
+    for path in sorted((root / "eval").glob("*.py")):
+        if path.name == "suites.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Compare) and any(
+                    isinstance(side, ast.Attribute) and side.attr == "name" for side in [node.left, *node.comparators]):
+                literals = [c.value for c in ast.walk(node) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+                if names & set(literals):
+                    offenders.append(f"{path.name}:{node.lineno}")
+    assert not offenders
