@@ -21,7 +21,7 @@ def register(name: str, module: str, help_text: str) -> None:
     SUBCOMMANDS[name] = (module, help_text)
 
 
-register("eval", "eval.cli_ape", "score an estimated trajectory against ground truth (like evo_ape)")
+register("eval", "eval.cli_eval", "score an estimated trajectory against ground truth (like evo_ape)")
 register("regress", "eval.cli_regress", "compare a run's metrics with a committed baseline (regression gate)")
 register("export", "eval.cli_export", "write a registered sequence as a TUM RGB-D folder")
 register("reference", "eval.cli_reference", "an SfM reference (COLMAP, self-calibrated camera) for a real RGB-D folder")

@@ -11,7 +11,7 @@ Never imports ``cnnslam``: agents are named by ``"module:Class"`` strings, envir
   live in :mod:`slamcommon`, the leaf that the agent's development tools share with the judge;
 - :mod:`eval.results` (score an episode, run records, long-form frames), :mod:`eval.tables` (Table 1),
   :mod:`eval.paper_table1` (the paper's numbers), :mod:`eval.plots`, :mod:`eval.regress` (the gate);
-- command lines: ``cnnslam eval`` (:mod:`eval.cli_ape`), ``cnnslam regress``, ``cnnslam export``;
+- command lines: ``cnnslam eval`` (:mod:`eval.cli_eval`), ``cnnslam regress``, ``cnnslam export``;
   ``python -m eval.bench_metrics`` times the metrics on 100k poses.
 
 File formats (TUM, KITTI) and dataset folders live in ``sim_envs.formats`` / ``sim_envs.datasets``: the world reads

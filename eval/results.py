@@ -13,7 +13,7 @@ A run record (what :func:`evaluate_episode` returns and :func:`save_run` writes)
 ``degenerate``, ``fallback``, ``warning``, the fits behind ``ate_se3_rmse`` / ``ate_sim3_rmse`` under ``se3`` and
 ``sim3``, and the orientation-only alignment's definition under ``orientation``. ``alignment``, ``association``,
 ``rpe``, ``warnings`` and the trajectory part of ``metrics`` have the same names and meaning in
-``cnnslam eval --json`` (:mod:`eval.cli_ape`).
+``cnnslam eval --json`` (:mod:`eval.cli_eval`).
 
 Metric names (all values numbers; definitions in :mod:`eval.metrics`): ``ate_{rmse,mean,median,std,min,max,pairs}``
 (m, after the run's alignment, default SE(3)), ``ate_se3_rmse`` (m, metric ATE, SE(3) Umeyama = evo_ape -a),
