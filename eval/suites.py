@@ -24,12 +24,12 @@ Suites (:data:`SUITES`):
 - ``quick``: a few short sequences x all methods, the CI regression baseline.
 
 Sweep variants (:func:`sweep_sequences`), built with :func:`dataclasses.replace` on the base sequence's spec where
-the spec has the parameter, and by :class:`VariantSequence` where it has not:
+the spec has the parameter, and by :class:`sim_envs.variants.VariantSequence` where it has not:
 
 - texture density: ``SequenceSpec.texture_density`` (the room generator's share of textured surfaces);
 - rotation share: the base trajectory with an extra pan (rotation about the camera's y axis) sweeping +-20 deg at a
   set angular speed; the x value is the measured share of the image motion due to rotation
-  (:func:`rotation_share`);
+  (:func:`eval.trajectory.rotation_share`);
 - focal mismatch: the test camera's focal lengths set to ``ratio x`` the training camera's
   (:data:`sim_envs.sequences.TRAIN_CAMERA`, NYU) at the same resolution, principal point kept
   (:meth:`sim_envs.camera.Intrinsics.with_focal`); the field of view changes, the images are rendered with it.
@@ -48,11 +48,8 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
 from eval.errors import EvalError
-from sim_envs.camera import UNDISTORT_MODES, camera_presets, preset
+from sim_envs.camera import UNDISTORT_MODES, camera_presets
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import (
     LOADER_VERSION,
@@ -68,7 +65,6 @@ from sim_envs.frame_cache import CachedFrames, cache_key
 from sim_envs.scene import LIGHTINGS
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
-    TRAIN_CAMERA,
     SequenceSpec,
     get_sequence,
     gym_id,
@@ -77,11 +73,10 @@ from sim_envs.sequences import (
 )
 from sim_envs.simsource import SimulatedSequence
 from sim_envs.source import FrameWindow
-from sim_envs.trajectories import ROTATION_AXES, Trajectory, parse_axes, sweep_angles
+from sim_envs.trajectories import ROTATION_AXES, parse_axes
+from sim_envs.variants import VariantSequence
 
 REPLAY_ENV_ID = "sim_envs/Replay-v0"
-NOMINAL_DEPTH_M = 2.0  # scene depth that weighs translation against rotation in rotation_share (ours: indoor rooms)
-ADDED_PAN_AMPLITUDE_DEG = 20.0  # amplitude of the sweep's extra pan (ours: keeps the view on the room's content)
 _ROTATION_NAME = re.compile(r"^rot_(?P<axes>[a-z]+(-[a-z]+)*)_(?P<speed>\d+(\.\d+)?)$")
 _SAFE_NAME = re.compile(r"[^A-Za-z0-9_.+-]")  # what a folder's name may keep in a sequence (and run folder) name
 DATASETS_ENV = "CNNSLAM_DATASETS"  # a user's list of local dataset folders, instead of the repository's
@@ -94,52 +89,6 @@ class SuiteError(EvalError):
 
 
 # ------------------------------------------------------------------------------------------------ the sequences
-class VariantSequence(SimulatedSequence):
-    """A simulated sequence with what :class:`~sim_envs.sequences.SequenceSpec` cannot express: other focal lengths
-    (``focal_ratio`` x the training camera's, at the spec's resolution) and an extra pan sweeping
-    +-:data:`ADDED_PAN_AMPLITUDE_DEG` at ``added_pan_deg_s`` deg/s about the camera's y axis (down in the image).
-
-    Rendering, ground truth and determinism are :class:`SimulatedSequence`'s: the renderer is built from
-    ``self.intrinsics`` and ``self.poses``, both set here before the first frame.
-    """
-
-    def __init__(
-        self,
-        spec: SequenceSpec,
-        renderer: str = "mujoco",
-        *,
-        name: str | None = None,
-        focal_ratio: float | None = None,
-        added_pan_deg_s: float = 0.0,
-    ) -> None:
-        super().__init__(spec, renderer)
-        self.name = name or spec.name
-        if focal_ratio is not None:
-            if not (math.isfinite(focal_ratio) and focal_ratio > 0):
-                raise SuiteError(f"focal_ratio must be a positive number, got {focal_ratio!r}")
-            train = preset(TRAIN_CAMERA, spec.width, spec.height)
-            self.intrinsics = self.intrinsics.with_focal(focal_ratio * train.fx, focal_ratio * train.fy)
-        if not (math.isfinite(added_pan_deg_s) and added_pan_deg_s >= 0):
-            raise SuiteError(f"added_pan_deg_s must be a number >= 0, got {added_pan_deg_s!r}")
-        self.added_pan_deg_s = float(added_pan_deg_s)
-        self._panned: Trajectory | None = None
-
-    @property
-    def trajectory(self) -> Trajectory:
-        """The spec's trajectory, with the extra pan when one is set (computed once)."""
-        base = super().trajectory
-        if self.added_pan_deg_s == 0.0:
-            return base
-        if self._panned is None:
-            angles = sweep_angles(
-                base.timestamps, np.radians(ADDED_PAN_AMPLITUDE_DEG), np.radians(self.added_pan_deg_s)
-            )
-            pan = np.tile(np.eye(4), (len(base), 1, 1))
-            pan[:, :3, :3] = Rotation.from_euler("y", angles[:, None]).as_matrix()
-            self._panned = Trajectory(base.timestamps, base.T_world_cam @ pan, kind=f"{base.kind}+pan")
-        return self._panned
-
-
 @dataclass(frozen=True)
 class SequenceRef:
     """A sequence of a suite: a registered one, a rotation stress sequence, a variant of either, or an RGB-D folder.
@@ -635,23 +584,6 @@ def _with_default_camera(name: str) -> SequenceRef:
     if ref.folder is not None or named_camera or "camera_effects" in dict(ref.overrides):
         return ref
     return ref.with_camera_effects(DEFAULT_CAMERA_EFFECTS)
-
-
-def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
-    """Share (0..1) of the image motion along a trajectory that is due to rotation.
-
-    Per frame step, a rotation by angle a moves the image by about f * a pixels and a translation t by about
-    f * |t| / d for a scene at depth d; the share is sum(a) / (sum(a) + sum(|t|) / d) over the steps.
-    T_world_cam: (N, 4, 4); depth_m: the scene depth d in metres. NaN for a trajectory that does not move.
-    """
-    T = np.asarray(T_world_cam, dtype=np.float64)
-    if T.shape[0] < 2:
-        return math.nan
-    rel = np.einsum("nji,njk->nik", T[:-1, :3, :3], T[1:, :3, :3])
-    angles = Rotation.from_matrix(rel).magnitude()
-    shifts = np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1) / float(depth_m)
-    total = float(angles.sum() + shifts.sum())
-    return float(angles.sum() / total) if total > 0 else math.nan
 
 
 # --------------------------------------------------------------------------------------------------- the suites

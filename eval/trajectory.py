@@ -137,3 +137,28 @@ class PoseTrajectory:
         from sim_envs.formats import write_kitti_poses
 
         return write_kitti_poses(path, self.T_world_cam)
+
+
+# scene depth that weighs translation against rotation in rotation_share (ours: indoor rooms)
+NOMINAL_DEPTH_M: float = 2.0
+
+
+def rotation_share(T_world_cam: np.ndarray, depth_m: float = NOMINAL_DEPTH_M) -> float:
+    """Share (0..1) of the image motion along a trajectory that is due to rotation.
+
+    Per frame step, a rotation by angle a moves the image by about f * a pixels and a translation t by about
+    f * |t| / d for a scene at depth d; the share is sum(a) / (sum(a) + sum(|t|) / d) over the steps.
+    T_world_cam: (N, 4, 4); depth_m: the scene depth d in metres. NaN for a trajectory that does not move.
+    """
+    import math
+
+    from scipy.spatial.transform import Rotation  # here: `cnnslam eval` imports this module and needs no scipy
+
+    T = np.asarray(T_world_cam, dtype=np.float64)
+    if T.shape[0] < 2:
+        return math.nan
+    rel = np.einsum("nji,njk->nik", T[:-1, :3, :3], T[1:, :3, :3])
+    angles = Rotation.from_matrix(rel).magnitude()
+    shifts = np.linalg.norm(np.diff(T[:, :3, 3], axis=0), axis=1) / float(depth_m)
+    total = float(angles.sum() + shifts.sum())
+    return float(angles.sum() / total) if total > 0 else math.nan

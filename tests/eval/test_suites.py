@@ -1,6 +1,5 @@
 """Suite definitions, sequence references and their environments, the sweep's variants, the rotation share."""
 
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -9,7 +8,6 @@ from scipy.spatial.transform import Rotation
 
 from eval.methods import load_methods
 from eval.suites import (
-    ADDED_PAN_AMPLITUDE_DEG,
     CAMERA_EFFECT_STRENGTHS,
     FOCAL_RATIOS,
     REPLAY_ENV_ID,
@@ -17,10 +15,8 @@ from eval.suites import (
     SequenceRef,
     Suite,
     SuiteError,
-    VariantSequence,
     get_suite,
     resolve_sequence,
-    rotation_share,
     sweep_sequences,
 )
 from sim_envs.camera import camera_presets, preset
@@ -96,40 +92,6 @@ def test_sweep_variants_change_one_thing_each():
         if ref.axis == "texture":
             assert spec.texture_density == ref.axis_value and ref.focal_ratio is None
     assert [r.axis_value for r in refs if r.axis == "focal"] == list(FOCAL_RATIOS)
-
-
-def test_rotation_share_known_answers():
-    n = 5
-    T = np.tile(np.eye(4), (n, 1, 1))
-    T[:, 0, 3] = 0.1 * np.arange(n)  # translation only
-    assert rotation_share(T) == 0.0
-    R = np.tile(np.eye(4), (n, 1, 1))
-    R[:, :3, :3] = Rotation.from_euler("y", 0.05 * np.arange(n)[:, None]).as_matrix()  # rotation only
-    assert rotation_share(R) == pytest.approx(1.0)
-    both = R.copy()
-    both[:, 0, 3] = 0.1 * np.arange(n)  # 0.05 rad and 0.1 m per step, scene 2 m away: 0.05 / (0.05 + 0.05)
-    assert rotation_share(both, depth_m=2.0) == pytest.approx(0.5)
-    assert math.isnan(rotation_share(np.tile(np.eye(4), (3, 1, 1))))
-
-
-def test_variant_sequence_focal_and_pan():
-    spec = get_sequence("office1").with_frames(90)
-    plain = VariantSequence(spec)
-    assert plain.trajectory is plain.trajectory and plain.intrinsics == spec.intrinsics()
-    focal = VariantSequence(spec, name="f", focal_ratio=1.2)
-    nyu = preset("nyu", spec.width, spec.height)
-    assert focal.name == "f" and focal.intrinsics.fx == pytest.approx(1.2 * nyu.fx)
-    assert focal.intrinsics.cx == spec.intrinsics().cx
-    panned = VariantSequence(spec, added_pan_deg_s=30.0)
-    base_T, pan_T = plain.poses, panned.poses
-    np.testing.assert_allclose(pan_T[:, :3, 3], base_T[:, :3, 3])  # the optical centre keeps its path
-    rel = Rotation.from_matrix(np.einsum("nji,njk->nik", base_T[:, :3, :3], pan_T[:, :3, :3]))
-    angles = np.degrees(rel.as_rotvec())
-    assert np.abs(angles[:, [0, 2]]).max() < 1e-6  # about the camera's y axis only
-    assert np.abs(angles[:, 1]).max() == pytest.approx(ADDED_PAN_AMPLITUDE_DEG, abs=0.5)
-    assert rotation_share(pan_T) > rotation_share(base_T)
-    with pytest.raises(SuiteError, match="focal_ratio"):
-        VariantSequence(spec, focal_ratio=0.0)
 
 
 def test_a_variant_environment_renders_with_its_camera():

@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -8,6 +10,7 @@ from eval.trajectory import (
     distances_along_path,
     path_length,
     relative_pose,
+    rotation_share,
     se3_inverse,
     so3_angle,
     transform_poses,
@@ -74,3 +77,17 @@ def test_files_round_trip_through_the_trajectory(tmp_path):
     (tmp_path / "bad.txt").write_text("1 2 3\n")
     with pytest.raises(TrajectoryError, match=r"bad\.txt:1: expected 8 columns"):
         PoseTrajectory.from_tum_file(tmp_path / "bad.txt")
+
+
+def test_rotation_share_known_answers():
+    n = 5
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, 0, 3] = 0.1 * np.arange(n)  # translation only
+    assert rotation_share(T) == 0.0
+    R = np.tile(np.eye(4), (n, 1, 1))
+    R[:, :3, :3] = Rotation.from_euler("y", 0.05 * np.arange(n)[:, None]).as_matrix()  # rotation only
+    assert rotation_share(R) == pytest.approx(1.0)
+    both = R.copy()
+    both[:, 0, 3] = 0.1 * np.arange(n)  # 0.05 rad and 0.1 m per step, scene 2 m away: 0.05 / (0.05 + 0.05)
+    assert rotation_share(both, depth_m=2.0) == pytest.approx(0.5)
+    assert math.isnan(rotation_share(np.tile(np.eye(4), (3, 1, 1))))
