@@ -45,7 +45,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from eval.errors import EvalError
+from eval.errors import EvalError, SuiteError
 from eval.executors import EXECUTORS, make_executor
 from eval.methods import (
     ALIGNMENTS,
@@ -58,7 +58,8 @@ from eval.methods import (
     takes_config,
     with_settings,
 )
-from eval.suites import SUITES, SuiteError, dataset_list_file, get_suite, sim_camera_presets
+from eval.sequence_ref import dataset_list_file, sim_camera_presets
+from eval.suites import SUITES, get_suite
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import MetricError
 

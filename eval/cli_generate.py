@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from eval.errors import EvalError
-from eval.suites import SequenceRef, rotation_ref, sim_camera_presets
+from eval.sequence_ref import SequenceRef, rotation_ref, sim_camera_presets
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.errors import SimEnvError
 

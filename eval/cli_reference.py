@@ -124,7 +124,8 @@ def _markdown(name: str, summary: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from eval.suites import SuiteError, resolve_sequence
+    from eval.errors import SuiteError
+    from eval.sequence_ref import resolve_sequence
     from sim_envs.datasets import load_rgbd_folder
     from sim_envs.errors import SimEnvError
 

@@ -3,3 +3,7 @@
 
 class EvalError(ValueError):
     """Base class for every error raised by ``eval`` (bad trajectories, no associations, bad baselines)."""
+
+
+class SuiteError(EvalError):
+    """An unknown suite, sequence or method selection."""

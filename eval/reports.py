@@ -658,9 +658,9 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
     TUM association), beside the folder's own ground truth scored against it: how far the two references disagree
     is the floor below which no error can be read. Cells: median [min, max] over runs. Empty when no sequence of
     the suite has one."""
-    from eval.errors import EvalError
+    from eval.errors import EvalError, SuiteError
     from eval.metrics import evaluate_trajectory
-    from eval.suites import SuiteError, load_dataset_list
+    from eval.sequence_ref import load_dataset_list
     from eval.trajectory import PoseTrajectory
     from sim_envs.formats import read_tum_trajectory
 

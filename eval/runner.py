@@ -54,7 +54,8 @@ from eval.executors import Executor, SerialExecutor
 from eval.map_metrics import map_metrics
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, check_methods
 from eval.results import evaluate_episode, json_ready, load_run
-from eval.suites import SequenceRef, Suite
+from eval.sequence_ref import SequenceRef
+from eval.suites import Suite
 from eval.trajectory import PoseTrajectory, rotation_share
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 

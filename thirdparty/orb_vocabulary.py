@@ -222,7 +222,7 @@ def training_frames(sequences: Sequence[str] = TRAINING_SEQUENCES, per_sequence:
                     camera: str = "kinect") -> Iterator[np.ndarray]:
     """``per_sequence`` evenly spaced RGB frames of each sequence seen through ``camera`` (a camera preset of
     :mod:`sim_envs.camera_effects`). Only sequences of the TRAINING split: ValueError for any other."""
-    from eval.suites import resolve_sequence
+    from eval.sequence_ref import resolve_sequence
     from sim_envs.sequences import get_sequence
 
     for name in sequences:

@@ -8,7 +8,7 @@ import pytest
 from cnnslam.cli import main
 from eval.cli_generate import rotation_refs
 from eval.errors import EvalError
-from eval.suites import resolve_sequence
+from eval.sequence_ref import resolve_sequence
 from sim_envs.formats import read_tum_image_list, read_tum_trajectory
 
 

@@ -28,7 +28,8 @@ from eval.executors import (
 )
 from eval.methods import load_methods
 from eval.runner import RunSpec, execute_run, run_suite
-from eval.suites import SequenceRef, get_suite
+from eval.sequence_ref import SequenceRef
+from eval.suites import get_suite
 
 linux_only = pytest.mark.skipif(sys.platform != "linux", reason="reads worker processes from /proc")
 

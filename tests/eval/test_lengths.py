@@ -73,9 +73,9 @@ def test_the_length_sweep_end_to_end(tmp_path, monkeypatch):
     from dataclasses import replace
 
     from cnnslam.cli import main
-    from eval import suites
+    from eval import sequence_ref, suites
 
-    short = suites.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
+    short = sequence_ref.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
     monkeypatch.setitem(suites.SUITES, "lengths", replace(suites.SUITES["lengths"], sequences=(short,)))
     methods = tmp_path / "methods.toml"
     methods.write_text('[methods.yawed]\nentry_point = "sim_envs.agents:BiasedPoseAgent"\n'

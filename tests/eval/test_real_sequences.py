@@ -10,19 +10,19 @@ import numpy as np
 import pytest
 
 from cnnslam.cli import main
+from eval.errors import SuiteError
 from eval.methods import load_methods
 from eval.runner import run_suite
-from eval.suites import (
+from eval.sequence_ref import (
     DATASETS_ENV,
     DEFAULT_DATASETS_FILE,
     REPLAY_ENV_ID,
     SequenceRef,
-    SuiteError,
     folder_ref,
-    get_suite,
     load_dataset_list,
     resolve_sequence,
 )
+from eval.suites import get_suite
 from sim_envs.camera import preset
 from sim_envs.datasets import write_folder
 from sim_envs.frames import Frame

@@ -23,7 +23,8 @@ from eval.runner import (
     run_suite,
     store_result,
 )
-from eval.suites import SequenceRef, get_suite
+from eval.sequence_ref import SequenceRef
+from eval.suites import get_suite
 from sim_envs.datasets import export_tum_rgbd
 from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
 

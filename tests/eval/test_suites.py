@@ -6,19 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from eval.errors import SuiteError
 from eval.methods import load_methods
-from eval.suites import (
-    CAMERA_EFFECT_STRENGTHS,
-    FOCAL_RATIOS,
-    REPLAY_ENV_ID,
-    SUITES,
-    SequenceRef,
-    Suite,
-    SuiteError,
-    get_suite,
-    resolve_sequence,
-    sweep_sequences,
-)
+from eval.sequence_ref import REPLAY_ENV_ID, SequenceRef, resolve_sequence
+from eval.suites import CAMERA_EFFECT_STRENGTHS, FOCAL_RATIOS, SUITES, Suite, get_suite, sweep_sequences
 from sim_envs.camera import camera_presets, preset
 from sim_envs.sequences import TABLE1_SEQUENCES, get_sequence
 
@@ -135,13 +126,14 @@ def test_a_lit_sequence_is_named_with_plus_lit_before_its_camera_and_fingerprint
 
 
 def test_camera_preset_names_do_not_collide_with_folder_calibrations():
-    from eval.suites import sim_camera_presets
+    from eval.sequence_ref import sim_camera_presets
 
     assert not set(sim_camera_presets()) & set(camera_presets())
 
 
 def test_the_transfer_suite_compares_like_with_like(tmp_path):
-    from eval.suites import BENCH_FRAMES, folder_ref, transfer_parts
+    from eval.sequence_ref import folder_ref
+    from eval.suites import BENCH_FRAMES, transfer_parts
     from sim_envs.datasets import export_tum_rgbd
     from sim_envs.simsource import SimulatedSequence
 
@@ -167,7 +159,7 @@ def test_the_transfer_suite_compares_like_with_like(tmp_path):
 
 
 def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
-    from eval.suites import folder_ref, window_refs
+    from eval.sequence_ref import folder_ref, window_refs
     from sim_envs.datasets import export_tum_rgbd
     from sim_envs.simsource import SimulatedSequence
 
@@ -194,7 +186,7 @@ def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
 
 
 def test_undistortion_of_folder_sequences_gets_its_own_name_and_fingerprint(tmp_path):
-    from eval.suites import folder_ref
+    from eval.sequence_ref import folder_ref
     from sim_envs.datasets import export_tum_rgbd
     from sim_envs.simsource import SimulatedSequence
 

@@ -95,15 +95,15 @@ def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatc
     from dataclasses import replace
 
     from cnnslam.cli import main
-    from eval import suites
+    from eval import sequence_ref, suites
     from sim_envs.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "tiny_7scenes", "7scenes")
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.tiny]\npath = "{folder}"\n')
-    monkeypatch.setenv(suites.DATASETS_ENV, str(listing))
-    short = suites.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
+    monkeypatch.setenv(sequence_ref.DATASETS_ENV, str(listing))
+    short = sequence_ref.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
     monkeypatch.setitem(suites.SUITES, "table1", replace(suites.SUITES["table1"], sequences=(short,), frames=5))
     methods = tmp_path / "methods.toml"
     methods.write_text('[methods.yawed]\nentry_point = "sim_envs.agents:BiasedPoseAgent"\n'
@@ -177,7 +177,8 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     report must give +1 for the first pair and -1 for the second, never mixing the lengths."""
     from dataclasses import replace
 
-    from eval.suites import SequenceRef, TransferPart, get_suite
+    from eval.sequence_ref import SequenceRef
+    from eval.suites import TransferPart, get_suite
     from eval.transfer_report import report_transfer
     from tests.eval.test_reports import fake_run
 

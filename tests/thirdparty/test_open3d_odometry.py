@@ -19,7 +19,7 @@ def test_method_is_available():
 
 def test_tracks_office0_from_the_sensor_depth():
     from eval.results import evaluate_episode
-    from eval.suites import resolve_sequence
+    from eval.sequence_ref import resolve_sequence
     from sim_envs.driver import run_episode
     from thirdparty.open3d_odometry import Open3dOdometryAgent
 
