@@ -296,6 +296,9 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
             if i + 1 in marks:
                 figures[f"peak_rss_mib_at_{i + 1}"] = _peak_rss_mib()
                 figures[f"keyframes_at_{i + 1}"] = len(slam.keyframes)
+                if slam._model is not None:  # read between frames: the key-frame thread may be fusing
+                    figures[f"model_mib_at_{i + 1}"] = slam._model.nbytes / 2**20
+                    figures[f"model_surfels_at_{i + 1}"] = len(slam._model)
         result = slam.finish()
     figures["peak_rss_mib_after_finish"] = _peak_rss_mib()
     if result.model is not None:  # the global model the key-frame thread fused (Sec. 3.5)

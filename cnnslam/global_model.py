@@ -90,7 +90,7 @@ from cnnslam.surfel_kernels import (
     sampled_normals,
     splat_index_map,  # noqa: F401 - re-exported (model pictures)
 )
-from cnnslam.surfel_store import SURFEL_COLUMNS, SurfelStore
+from cnnslam.surfel_store import SurfelStore
 from slamcommon.labels import NO_LABEL  # noqa: F401 - re-exported: an element without label evidence
 
 NO_ANCHOR: int = -1
@@ -384,7 +384,7 @@ class GlobalModel:
             groups, inverse = np.unique(target[assoc], return_inverse=True)
             meas = _group(inverse, groups.size, assoc, x_world, n_world, colour, radius, weight, alpha, probs,
                           label_weight)
-            self._merge_into(groups, meas, frame, anchor)
+            self._merge_into(groups, meas, anchor)
             seen = groups
 
         # 3-4. voxel-hash merge and new surfels
@@ -399,7 +399,7 @@ class GlobalModel:
             found = key_ids >= 0
             if found.any():
                 merged_ids = key_ids[found]
-                self._merge_into(merged_ids, _take(meas, found), frame, anchor)
+                self._merge_into(merged_ids, _take(meas, found), anchor)
                 voxel_merged = int(found.sum())
                 seen = np.union1d(seen, merged_ids)
             new = ~found
@@ -492,19 +492,19 @@ class GlobalModel:
             self._tables_key = key
         return self._tables
 
-    def _merge_into(self, ids: np.ndarray, meas: _Measurements, frame: int, anchor: int | None) -> None:
+    def _merge_into(self, ids: np.ndarray, meas: _Measurements, anchor: int | None) -> None:
         """Step 3 on the surfels ``ids`` (unique) with one grouped measurement each, and their labels (Sec. 3.5)."""
         D = self.store.columns
         ids = np.ascontiguousarray(ids, dtype=np.int64)
         merge_kernel(ids, D["position"], D["normal"], D["colour"], D["radius"], D["weight"], D["confidence"],
-                     D["n_obs"], D["last_seen"], D["anchor"], D["anchor_weight"],
+                     D["n_obs"], D["anchor"], D["anchor_weight"],
                      np.ascontiguousarray(meas.position, dtype=np.float64),
                      np.ascontiguousarray(meas.normal, dtype=np.float64),
                      np.ascontiguousarray(meas.colour, dtype=np.float32),
                      np.ascontiguousarray(meas.radius, dtype=np.float64),
                      np.ascontiguousarray(meas.weight, dtype=np.float64),
-                     np.ascontiguousarray(meas.alpha, dtype=np.float64), int(frame),
-                     -1 if anchor is None else int(anchor), anchor is not None)
+                     np.ascontiguousarray(meas.alpha, dtype=np.float64), -1 if anchor is None else int(anchor),
+                     anchor is not None)
         if meas.probs is not None:
             fuse_labels(self.store.evidence, ids, meas.probs, meas.label_weight)
 
@@ -522,7 +522,6 @@ class GlobalModel:
         D["anchor"][rows] = NO_ANCHOR if anchor is None else anchor
         D["anchor_weight"][rows] = meas.weight if anchor is not None else 0.0
         D["first_seen"][rows] = frame
-        D["last_seen"][rows] = frame
         D["misses"][rows] = 0
         if meas.probs is not None:
             fuse_labels(self.store.evidence, np.arange(rows.start, rows.stop), meas.probs, meas.label_weight)
@@ -560,22 +559,24 @@ class GlobalModel:
             return ReplacementStats(len(deltas), 0, 0, 0.0, 0.0)
         # key-frame by key-frame (no (N, 4, 4) stack: after a long episode N is millions of surfels)
         moved = moved[np.argsort(which[moved], kind="stable")]
-        bounds = np.flatnonzero(np.r_[True, np.diff(which[moved]) != 0, True])
-        disp = np.empty(moved.size)
+        which = which[moved]
+        bounds = np.flatnonzero(np.r_[True, np.diff(which) != 0, True])
+        n_moved, disp_max, disp_sum = int(moved.size), 0.0, 0.0
         D = self.store.columns
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
             idx = moved[lo:hi]
-            T = stack[which[idx[0]]]
+            T = stack[which[lo]]
             p_old = D["position"][idx].astype(np.float64)
             p_new = p_old @ T[:3, :3].T + T[:3, 3]
             D["position"][idx] = p_new
             D["normal"][idx] = D["normal"][idx].astype(np.float64) @ T[:3, :3].T
-            disp[lo:hi] = np.linalg.norm(p_new - p_old, axis=1)
+            disp = np.linalg.norm(p_new - p_old, axis=1)
+            disp_max, disp_sum = max(disp_max, float(disp.max())), disp_sum + float(disp.sum())
             D["key"][idx] = voxel_keys(p_new, D["normal"][idx], cfg.voxel_size)
+        del moved, which, anchors, table  # the re-hash below needs the memory (millions of surfels)
         before = len(self.store)
         self._rebuild_index(merge=True)
-        return ReplacementStats(len(deltas), int(moved.size), before - len(self.store), float(disp.max()),
-                                float(disp.mean()))
+        return ReplacementStats(len(deltas), n_moved, before - len(self.store), disp_max, disp_sum / n_moved)
 
     def prune(self, min_confidence: float, min_age: int = 0) -> int:
         """Remove surfels with confidence < ``min_confidence`` created at least ``min_age`` integrations ago
@@ -591,33 +592,34 @@ class GlobalModel:
 
     def _rebuild_index(self, merge: bool) -> None:
         """Sort the keys again; with ``merge``, surfels sharing a key are combined into one (weights add)."""
-        order, _, starts = self.store.key_runs()
-        if merge and starts.size < order.size:
-            self._combine(order, starts)
-            self.store.reindex()
+        order, first = self.store.key_runs()
+        if merge and not first.all():
+            self._combine(order, first)
+            del order, first
+            self.store.reindex(np.arange(len(self.store)))  # the combined rows are in key order
         else:
             self.store.reindex(order)
 
-    def _combine(self, order: np.ndarray, starts: np.ndarray) -> None:
-        """Merge each run ``order[starts[i]:starts[i+1]]`` of surfels sharing a key into its first member; the model
-        keeps one surfel per run, in run order. Runs of one surfel are copied as they are; the weighted means are
-        computed for the runs of several only, so that the float64 work (and memory) scales with the merges, not
-        with the model (a re-placement after a long episode merges a few per cent of millions of surfels). Their label
-        evidence adds (the evidence of every measurement fused into any of them, Sec. 3.5)."""
+    def _combine(self, order: np.ndarray, first: np.ndarray) -> None:
+        """Merge each run of surfels sharing a key (``order``, sorted by key, runs starting where ``first``) into its
+        first member; the model keeps one surfel per run, in run (key) order. Runs of one surfel are copied as they
+        are; the weighted means are computed for the runs of several only, so that the float64 work and the memory
+        scale with the merges, not with the model (a re-placement after a long episode merges a few per cent of
+        millions of surfels). Their label evidence adds (the evidence of every measurement fused into any of them,
+        Sec. 3.5)."""
         D = self.store.columns
         evidence = self.store.evidence
-        k = starts.size
-        lengths = np.diff(np.r_[starts, order.size])
-        lead = order[starts]  # the member with the strongest anchor
-        several = lengths > 1
+        continues = np.zeros(first.size, bool)  # the next position is of the same run
+        np.logical_not(first[1:], out=continues[:-1])
+        several = continues[first]  # per run: has more than one member
         multi = np.flatnonzero(several)
         merged: dict[str, np.ndarray] = {}
         if multi.size:
-            members = np.repeat(np.arange(k), lengths)  # the run of each position in ``order``
-            in_multi = several[members]
-            sub = order[in_multi]
-            sub_runs = members[in_multi]
-            sub_starts = np.flatnonzero(np.r_[True, sub_runs[1:] != sub_runs[:-1]])
+            in_multi = continues
+            in_multi[1:] |= ~first[1:]  # a member of a run of several: continued, or continuing one
+            sub = order[in_multi]  # the members of the runs of several, run by run
+            sub_starts = np.flatnonzero(first[in_multi])  # where each of those runs starts in ``sub``
+            del in_multi, continues
 
             def add(values: np.ndarray) -> np.ndarray:  # values of the members in ``sub`` order
                 return np.add.reduceat(values, sub_starts, axis=0)
@@ -631,22 +633,13 @@ class GlobalModel:
             merged["colour"] = add(c[:, None] * D["colour"][sub]) / c_sum[:, None]
             merged["radius"] = add(c * D["radius"][sub]) / c_sum
             merged["weight"], merged["confidence"] = W_sum, c_sum
-            merged["labels"] = add(evidence[sub].astype(np.float64))
+            merged["evidence"] = add(evidence[sub].astype(np.float64))
             merged["n_obs"] = np.maximum.reduceat(D["n_obs"][sub], sub_starts)
             merged["first_seen"] = np.minimum.reduceat(D["first_seen"][sub], sub_starts)
-            merged["last_seen"] = np.maximum.reduceat(D["last_seen"][sub], sub_starts)
             merged["misses"] = np.minimum.reduceat(D["misses"][sub], sub_starts)
-        # one column at a time: the lead's values, the merged ones where a run had several members
-        columns: dict[str, np.ndarray] = {}
-        for name in SURFEL_COLUMNS:
-            column = D[name][lead]
-            if name in merged:
-                column[multi] = merged[name]
-            columns[name] = column
-        labels = evidence[lead]
-        if "labels" in merged:
-            labels[multi] = merged["labels"]
-        self.store.replace_rows(columns, labels)
+        lead = order[first]  # per run, the member with the strongest anchor
+        # the lead's values, the merged ones where a run had several members (one column at a time)
+        self.store.gather(lead, {name: (multi, values) for name, values in merged.items()})
 
 
 def _group(inverse: np.ndarray, n_groups: int, rows: np.ndarray, x_world: np.ndarray, n_world: np.ndarray,

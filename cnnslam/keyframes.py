@@ -375,7 +375,8 @@ class Keyframe:
     """One key-frame k_i of the paper: image, pose T_k_i, depth D_k_i and uncertainty U_k_i (Sec. 3.1).
 
     index: creation order (0 = first); timestamp: seconds of its frame; rgb: (H, W, 3) uint8; pyramid: its grey
-    :class:`ImagePyramid`; label_probs: (H, W, C) float16 CNN class probabilities (None without a CNN); cnn_depth:
+    :class:`ImagePyramid`; label_probs: (H, W, C) float16 CNN class probabilities (None without a CNN; dropped by
+    :meth:`keep_labels_only` once the global model has fused them, leaving ``labels``, their argmax); cnn_depth:
     (H, W) float32 metres, the CNN depth it was initialised with (after eq. 5 when enabled; None without a CNN);
     parent: index of the key-frame it was tracked from (None for the first); gradient_masks: its tracking-pixel
     masks per pyramid level (:func:`cnnslam.tracking.gradient_masks`, fixed by the image).
@@ -409,12 +410,29 @@ class Keyframe:
         self.maps = maps
         self.T_world_kf = np.array(T_world_kf, dtype=np.float64)
         self.label_probs = None if label_probs is None else np.asarray(label_probs, dtype=np.float16)
+        self._labels: np.ndarray | None = None
         self.cnn_depth = cnn_depth
         self.parent = parent
         self._masks = gradient_masks
         self._builder = builder
         self._maps_lock = threading.Lock()
         self.frames_tracked = 0
+
+    @property
+    def labels(self) -> np.ndarray | None:
+        """(H, W) uint8 CNN labels, the argmax of the class probabilities (None without a CNN)."""
+        if self._labels is not None:
+            return self._labels
+        probs = self.label_probs
+        return None if probs is None else np.argmax(probs, axis=2).astype(np.uint8)
+
+    def keep_labels_only(self) -> None:
+        """Keep the argmax of the class probabilities and drop the distribution (1/8 of its memory at C = 4): after
+        the global model has fused them (Sec. 3.5) it holds the distributions; the key-frame keeps the label it gave
+        each pixel. Key-frame thread, once the key-frame is frozen."""
+        if self.label_probs is not None:
+            self._labels = np.argmax(self.label_probs, axis=2).astype(np.uint8)
+            self.label_probs = None
 
     @property
     def pyramid(self) -> ImagePyramid:

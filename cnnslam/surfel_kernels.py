@@ -355,9 +355,9 @@ def group_kernel(inverse, n_groups, rows, x_world, n_world, colour, radius, weig
 
 
 @njit(cache=True, nogil=True)
-def merge_kernel(ids, position, normal, colour, radius, weight, confidence, n_obs, last_seen, anchor_ids,
-                 anchor_weight, m_position, m_normal, m_colour, m_radius, m_weight, m_alpha, frame, anchor,
-                 has_anchor):  # pragma: no cover - compiled
+def merge_kernel(ids, position, normal, colour, radius, weight, confidence, n_obs, anchor_ids, anchor_weight,
+                 m_position, m_normal, m_colour, m_radius, m_weight, m_alpha, anchor, has_anchor
+                 ):  # pragma: no cover - compiled
     """Step 3's weighted update of the geometry of the surfels ``ids`` (unique) in place; their labels are fused
     apart (:func:`cnnslam.label_fusion.fuse_labels`)."""
     for k in range(ids.size):
@@ -379,7 +379,6 @@ def merge_kernel(ids, position, normal, colour, radius, weight, confidence, n_ob
         weight[i] = W_new
         confidence[i] = c_new
         n_obs[i] += 1
-        last_seen[i] = frame
         if has_anchor and w > anchor_weight[i]:
             anchor_ids[i] = anchor
             anchor_weight[i] = w

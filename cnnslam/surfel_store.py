@@ -5,7 +5,7 @@ computed is fusion's business; here rows are only stored, found by key, removed 
 
 Columns (:data:`SURFEL_COLUMNS`): position, normal (world, float32), colour (RGB 0..255 float32), radius (m), weight
 W = sum alpha / sigma_d^2, confidence c = sum alpha, n_obs (frames merged in), anchor (key-frame id, -1 = none) and
-anchor_weight, first_seen / last_seen (integration counter), misses (free-space test), key (int64 voxel key); and the
+anchor_weight, first_seen (integration counter), misses (free-space test), key (int64 voxel key); and the
 label evidence L (N, C) float32 of :mod:`cnnslam.label_fusion`.
 """
 
@@ -26,7 +26,6 @@ SURFEL_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
     "anchor": (np.int32, ()),
     "anchor_weight": (np.float32, ()),
     "first_seen": (np.int32, ()),
-    "last_seen": (np.int32, ()),
     "misses": (np.uint16, ()),
     "key": (np.int64, ()),
 }
@@ -71,7 +70,7 @@ class SurfelStore:
         cap = self.columns["position"].shape[0]
         if need <= cap:
             return
-        new_cap = max(need, 2 * cap)
+        new_cap = max(need, cap + cap // 4)  # 1.25x: a long episode's model is hundreds of MB; slack is memory
         for name, arr in self.columns.items():
             grown = np.zeros((new_cap, *arr.shape[1:]), arr.dtype)
             grown[: self._size] = arr[: self._size]
@@ -117,22 +116,32 @@ class SurfelStore:
                 (compact_1d if arr.ndim == 1 else compact_2d)(arr, keep)
         self._size = keep.size
 
-    def replace_rows(self, columns: dict[str, np.ndarray], evidence: np.ndarray) -> None:
-        """Make the live rows exactly ``columns`` (every column, same length) and ``evidence``; the index must be
-        rebuilt (:meth:`reindex`)."""
-        k = evidence.shape[0]
-        for name, values in columns.items():
-            self.columns[name][:k] = values
-        self.evidence[:k] = evidence
-        self._size = k
+    def gather(self, ids: np.ndarray, overrides: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
+        """Make live row j the current row ``ids[j]`` (j < len(ids)) and drop the rest, one column at a time (so the
+        transient memory is one column, not the store); ``overrides[name] = (js, values)`` then sets rows ``js`` of
+        column ``name`` (``"evidence"``: the label evidence) to ``values``. The index must be rebuilt
+        (:meth:`reindex`)."""
+        overrides = overrides or {}
+        ids = np.asarray(ids, dtype=np.int64)
+        for name, arr in (*self.columns.items(), ("evidence", self.evidence)):
+            column = arr[ids]
+            if name in overrides:
+                js, values = overrides[name]
+                column[js] = values
+            arr[: ids.size] = column
+            del column
+        self._size = ids.size
 
-    def key_runs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def key_runs(self) -> tuple[np.ndarray, np.ndarray]:
         """The rows sorted by key, the strongest anchor (``anchor_weight``) first among rows sharing one: (order,
-        the sorted keys, the start of each run of one key in ``order``)."""
+        ``first`` (N,) bool: True where a run of one key starts in ``order``)."""
         keys = self.column("key")
         order = np.lexsort((-self.column("anchor_weight"), keys))
         sk = keys[order]
-        return order, sk, np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+        first = np.empty(sk.size, bool)
+        first[:1] = True
+        np.not_equal(sk[1:], sk[:-1], out=first[1:])
+        return order, first
 
     def reindex(self, order: np.ndarray | None = None) -> None:
         """Rebuild the key index from the key column; ``order``: the rows already sorted by key (else sorted here,
@@ -140,5 +149,5 @@ class SurfelStore:
         keys = self.column("key")
         if order is None:
             order = np.argsort(keys, kind="stable")
-        self._sorted_keys = keys[order].copy()
-        self._sorted_ids = np.asarray(order).astype(np.int64)
+        self._sorted_keys = keys[order]
+        self._sorted_ids = np.asarray(order).astype(np.int64, copy=False)

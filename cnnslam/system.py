@@ -118,9 +118,11 @@ class KeyframeOutput:
     """A key-frame as the system finally holds it.
 
     depth: (H, W) float32 metres refined (0 = none); variance: (H, W) float32 m^2 (inf = none); T_world_kf: (4, 4)
-    float64 pose-graph-optimised pose; label_probs: (H, W, C) float32 CNN class probabilities or None; cnn_depth:
-    (H, W) float32 the CNN depth it was initialised with (None without a CNN); rgb: (H, W, 3) uint8 its image.
-    depth, variance, cnn_depth and rgb are read-only views of the system's final arrays, not copies.
+    float64 pose-graph-optimised pose; labels: (H, W) uint8 CNN labels (the argmax of its class probabilities) or
+    None without a CNN; label_probs: (H, W, C) float16 CNN class probabilities while the key-frame holds them, i.e.
+    with the global model off (with it on, the model holds the fused distributions and the key-frame its labels);
+    cnn_depth: (H, W) float32 the CNN depth it was initialised with (None without a CNN); rgb: (H, W, 3) uint8 its
+    image. The arrays are read-only views of the system's final arrays, not copies.
     """
 
     index: int
@@ -129,6 +131,7 @@ class KeyframeOutput:
     depth: np.ndarray
     variance: np.ndarray
     T_world_kf: np.ndarray
+    labels: np.ndarray | None
     label_probs: np.ndarray | None
     cnn_depth: np.ndarray | None
     parent: int | None
@@ -551,6 +554,7 @@ class CnnSlam:
         if cfg.unstable_confidence > 0:  # Keller's removal of unstable points
             self._model.prune(cfg.unstable_confidence, cfg.unstable_age)
         self._fused.add(keyframe.index)
+        keyframe.keep_labels_only()  # the model holds the distributions now; 1.8 -> 1.3 MB per key-frame
         self._seconds["fusion"] += time.perf_counter() - t0
         if self.observers:
             _notify(self.observers, "keyframe_fused", keyframe.index, keyframe.T_world_kf.copy(), self._model)
@@ -632,22 +636,26 @@ class CnnSlam:
         if self._model is not None:  # the last key-frames, then every key-frame at its final pose-graph pose
             for k in all_keyframes:
                 self._fuse_keyframe(k)
+        # the maps are final now: the working sets are no longer needed (released before the model's re-placement,
+        # the largest transient of a long episode)
+        for k in all_keyframes:
+            k.release_working_set()
+        if self._model is not None:
             self._model.update_poses({k.index: k.T_world_kf for k in all_keyframes})
         n = len(self._frames)
         stamps = np.array([f[0] for f in self._frames], dtype=np.float64)
         final = np.stack([f[1].T_world_kf @ f[2] for f in self._frames]) if n else np.zeros((0, 4, 4))
         online = np.stack(self._online) if n else np.zeros((0, 4, 4))
         tracked = np.array([f[3] for f in self._frames], dtype=bool)
-        # the maps are final now: the outputs are read-only views of them, not copies (a long sequence's key-frames
-        # would otherwise be held twice at the end); the working sets are no longer needed
-        for k in all_keyframes:
-            k.release_working_set()
+        # the outputs are read-only views of the final maps, not copies (a long sequence's key-frames would
+        # otherwise be held twice at the end)
         keyframes = [
             KeyframeOutput(
                 index=k.index, timestamp=k.timestamp, rgb=_read_only(k.rgb), depth=_read_only(k.maps.depth),
                 variance=_read_only(k.maps.variance),
                 T_world_kf=k.T_world_kf.copy(),
-                label_probs=None if k.label_probs is None else k.label_probs.astype(np.float32),
+                labels=None if (labels := k.labels) is None else _read_only(labels),
+                label_probs=None if k.label_probs is None else _read_only(k.label_probs),
                 cnn_depth=None if k.cnn_depth is None else _read_only(k.cnn_depth), parent=k.parent,
             )
             for k in all_keyframes

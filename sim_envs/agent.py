@@ -34,7 +34,8 @@ class KeyframeDepth:
 
     timestamp: seconds (matches an observation's timestamp); depth: (H, W) float32 metres, 0 or NaN where the agent
     has no estimate; T_world_cam: (4, 4) float64 estimated pose; uncertainty: optional (H, W) float32 depth variance
-    (m^2); labels: optional (H, W) uint8 semantic classes or (H, W, C) float32 class probabilities.
+    (m^2); labels: optional (H, W) uint8 semantic classes or (H, W, C) float class probabilities (float16 or float32;
+    scored by their argmax).
     """
 
     timestamp: float

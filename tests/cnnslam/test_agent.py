@@ -30,7 +30,7 @@ def test_short_episode_end_to_end(tmp_path) -> None:
     assert len(result.keyframes) >= 2 and len(result.keyframe_gt) == len(result.keyframes)
     for kf, gt in zip(result.keyframes, result.keyframe_gt, strict=True):
         assert kf.depth.shape == (240, 320) and kf.depth.dtype == np.float32
-        assert kf.labels is not None and kf.labels.shape == (240, 320, 4)
+        assert kf.labels is not None and kf.labels.shape == (240, 320) and kf.labels.dtype == np.uint8
         valid = gt.depth > 0
         assert np.mean(np.abs(kf.depth - gt.depth)[valid] < 0.1 * gt.depth[valid]) > 0.5
     assert result.extras["keyframes"] == len(result.keyframes) and result.extras["predictor"] == "degraded_ground_truth"

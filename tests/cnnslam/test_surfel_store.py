@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnnslam.surfel_store import SURFEL_COLUMNS, SurfelStore
+from cnnslam.surfel_store import SurfelStore
 
 
 def _filled(n: int) -> SurfelStore:
@@ -42,8 +42,10 @@ def test_key_runs_put_the_strongest_anchor_first():
     rows = store.append(np.array([1, 2, 3]))
     store.columns["key"][rows] = [7, 5, 7]  # two rows now share key 7 (as after a re-placement)
     store.columns["anchor_weight"][rows] = [1.0, 1.0, 3.0]
-    order, keys, starts = store.key_runs()
-    assert keys.tolist() == [5, 7, 7] and order.tolist() == [1, 2, 0] and starts.tolist() == [0, 1]
-    store.replace_rows({name: store.columns[name][[1, 2]] for name in SURFEL_COLUMNS}, store.evidence[[1, 2]])
+    order, first = store.key_runs()
+    assert order.tolist() == [1, 2, 0] and first.tolist() == [True, True, False]  # keys 5 | 7, 7
+    store.gather(order[first], {"radius": (np.array([1]), np.array([9.0])), "evidence": (np.array([0]), 1.0)})
     store.reindex()
     assert len(store) == 2 and store.ids_of_keys(np.array([5, 7])).tolist() == [0, 1]
+    assert store.column("radius").tolist() == [0.0, 9.0] and store.live_evidence()[:, 0].tolist() == [1.0, 0.0]
+    assert store.column("anchor_weight").tolist() == [1.0, 3.0]  # the strongest anchor led its run

@@ -51,7 +51,9 @@ def test_single_thread_is_deterministic_and_accurate(room, room_sequence) -> Non
     # every key-frame after the first got a sequential edge; the first sits at the origin
     assert sum(1 for e in a.edges if e[2] == "sequential") == len(a.keyframes) - 1
     np.testing.assert_array_equal(a.keyframes[0].T_world_kf, np.eye(4))
-    assert a.keyframes[0].label_probs is not None and a.keyframes[0].label_probs.shape == (240, 320, 4)
+    labels = a.keyframes[0].labels  # the argmax of the CNN's probabilities; the global model holds the distributions
+    assert labels is not None and labels.shape == (240, 320) and labels.dtype == np.uint8
+    assert a.keyframes[0].label_probs is None and a.model is not None and len(a.model)
     assert a.stats["frames"] == len(room_sequence) and a.stats["tracked_share"] == 1.0
 
 
@@ -166,6 +168,9 @@ def test_the_key_frame_thread_fuses_the_global_model_live(room, room_sequence) -
     _, off = _run(room_sequence, CFG.with_overrides({"global_model.enabled": False}), room.intrinsics)
     assert off.model is None and on.model is not None
     assert on.T_world_cam.tobytes() == off.T_world_cam.tobytes()
+    for k_on, k_off in zip(on.keyframes, off.keyframes, strict=True):  # fused: the key-frame keeps its labels only
+        assert k_on.label_probs is None and k_off.label_probs is not None
+        assert np.array_equal(k_on.labels, np.argmax(k_off.label_probs, axis=2)) and k_on.labels.dtype == np.uint8
     assert sorted(on.model.keyframe_poses) == [k.index for k in on.keyframes]
     for k in on.keyframes:  # placed where the pose graph finally put each key-frame
         np.testing.assert_allclose(on.model.keyframe_poses[k.index], k.T_world_kf, atol=1e-9)
