@@ -42,27 +42,30 @@ def _spec(name: str, frames: int, full_length: bool = False) -> SequenceSpec:
     return spec if full_length else spec.with_frames(frames)
 
 
-def measure_sequence(name: str, preset: str, frames: int, renderer: str = "mujoco",
-                     full_length: bool = False) -> tuple[CameraStatistics, float]:  # fmt: skip
+def measure_sequence(name: str, preset: str, frames: int, renderer: str = "mujoco", full_length: bool = False,
+                     step: int = 1) -> tuple[CameraStatistics, float]:  # fmt: skip
     """Statistics of the first ``frames`` frames of registered sequence ``name`` (maybe with ``+lit`` / ``+rich``
     marks, :func:`sim_envs.sequences.variant_spec`; made ``frames`` long unless ``full_length``) through camera
-    preset ``preset``, and the seconds it took (rendering included)."""
+    preset ``preset``, and the seconds it took (rendering included). ``step`` > 1: frames 0, step, 2 step... of
+    the registered sequence instead (spread over it; the frame-to-frame statistic then compares frames ``step``
+    apart)."""
     from sim_envs.sequences import with_camera
     from sim_envs.simsource import SimulatedSequence
 
     start = time.perf_counter()
-    with SimulatedSequence(with_camera(_spec(name, frames, full_length), preset), renderer) as seq:
-        stats = camera_statistics(seq.rgb(i) for i in range(frames))
+    with SimulatedSequence(with_camera(_spec(name, frames, full_length or step > 1), preset), renderer) as seq:
+        stats = camera_statistics(seq.rgb(i) for i in range(0, frames * step, step))
     return stats, time.perf_counter() - start
 
 
-def measure_depths(name: str, frames: int, renderer: str = "mujoco", full_length: bool = False) -> DepthStatistics:
-    """:func:`sim_envs.camera_calibration.depth_statistics` of the exact depth of the first ``frames`` frames of
-    ``name`` (as :func:`measure_sequence`; the depths do not depend on the camera preset)."""
+def measure_depths(name: str, frames: int, renderer: str = "mujoco", full_length: bool = False,
+                   step: int = 1) -> DepthStatistics:  # fmt: skip
+    """:func:`sim_envs.camera_calibration.depth_statistics` of the exact depth of the frames
+    :func:`measure_sequence` measures (the depths do not depend on the camera preset)."""
     from sim_envs.simsource import SimulatedSequence
 
-    with SimulatedSequence(_spec(name, frames, full_length), renderer) as seq:
-        return depth_statistics(seq.frame(i).depth for i in range(frames))
+    with SimulatedSequence(_spec(name, frames, full_length or step > 1), renderer) as seq:
+        return depth_statistics(seq.frame(i).depth for i in range(0, frames * step, step))
 
 
 def _cell(value: float) -> str:
@@ -120,19 +123,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--full-length", action="store_true",
                         help="the first N frames of each sequence as registered (the frames a suite runs), not of "
                              "the sequence made N frames long (a trajectory generated for that length: the default)")
+    parser.add_argument("--step", type=int, default=1,
+                        help="measure frames 0, STEP, 2 STEP... (N of them) of every sequence as registered and of "
+                             "the real one, spread over them (default 1: the first N)")
     args = parser.parse_args(argv)
+    if args.step < 1:
+        parser.error(f"--step must be >= 1, got {args.step}")
 
     from sim_envs.datasets import load_rgbd_folder
 
     real = load_rgbd_folder(args.real)
     real_name = f"real ({Path(args.real).name})"
-    columns = {real_name: camera_statistics(real.frame(i).rgb for i in range(args.frames))}
-    depths = {real_name: depth_statistics(real.frame(i).depth for i in range(args.frames))} if args.depth else None
+    picked = range(0, args.frames * args.step, args.step)
+    columns = {real_name: camera_statistics(real.frame(i).rgb for i in picked)}
+    depths = {real_name: depth_statistics(real.frame(i).depth for i in picked)} if args.depth else None
     timing = []
     for name in args.sequences:
-        seen = measure_depths(name, args.frames, full_length=args.full_length) if args.depth else None
+        seen = measure_depths(name, args.frames, full_length=args.full_length, step=args.step) if args.depth else None
         for preset in args.presets:
-            stats, seconds = measure_sequence(name, preset, args.frames, full_length=args.full_length)
+            stats, seconds = measure_sequence(name, preset, args.frames, full_length=args.full_length, step=args.step)
             columns[f"{name} {preset}"] = stats
             if depths is not None and seen is not None:
                 depths[f"{name} {preset}"] = seen

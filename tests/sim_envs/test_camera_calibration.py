@@ -73,3 +73,10 @@ def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
     assert np.isnan(depth_edge_alignment(rgb, np.full((120, 160), 2.0, np.float32)))  # no depth edge
     with pytest.raises(SimEnvError, match="depth of shape"):
         depth_edge_alignment(rgb, depth[:10])
+
+
+def test_the_calibration_command_refuses_a_step_below_one():
+    from sim_envs.cli_camera_calibration import main
+
+    with pytest.raises(SystemExit):
+        main(["--step", "0"])
