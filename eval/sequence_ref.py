@@ -37,13 +37,14 @@ from sim_envs.datasets import (
 from sim_envs.errors import SimEnvError
 from sim_envs.formats import read_tum_trajectory
 from sim_envs.frame_cache import CachedFrames, cache_key
-from sim_envs.scene import LIGHTINGS
+from sim_envs.scene import DETAILS, LIGHTINGS
 from sim_envs.sequences import (
     SequenceSpec,
     get_sequence,
     gym_id,
     list_sequences,
     rotation_stress_spec,
+    split_variant,
 )
 from sim_envs.simsource import SimulatedSequence
 from sim_envs.source import FrameWindow
@@ -254,12 +255,34 @@ class SequenceRef:
             raise SuiteError(f"unknown lighting {lighting!r}; valid: {', '.join(LIGHTINGS)}")
         overrides = dict(self.overrides)
         base, at, preset = self._camera_suffix()
+        detail = overrides.get("detail", "standard")  # a +<detail> mark stays last: office0+lit+rich
+        tail = f"+{detail}" if detail != "standard" and base.endswith(f"+{detail}") else ""
+        base = base[: len(base) - len(tail)]
         old = overrides.pop("lighting", "flat")
         if old != "flat" and base.endswith(f"+{old}"):
             base = base[: -len(old) - 1]
         if lighting != "flat":
             overrides["lighting"] = lighting
             base = f"{base}+{lighting}"
+        return replace(self, name=f"{base}{tail}{at}{preset}", overrides=tuple(overrides.items()))
+
+    def with_detail(self, detail: str) -> SequenceRef:
+        """This simulated sequence in the same room at another detail level (:data:`sim_envs.scene.DETAILS`;
+        ``rich``: clutter and texture detail, :mod:`sim_envs.scenegen`), named ``<name>+<detail>`` after any
+        ``+<lighting>`` and before any ``@<camera preset>`` (its own run folders); ``standard`` is the plain name. The
+        trajectory is the same."""
+        if self.folder is not None:
+            raise SuiteError(f"sequence {self.name!r} is a folder: its detail is the real room's")
+        if detail not in DETAILS:
+            raise SuiteError(f"unknown detail {detail!r}; valid: {', '.join(DETAILS)}")
+        overrides = dict(self.overrides)
+        base, at, preset = self._camera_suffix()
+        old = overrides.pop("detail", "standard")
+        if old != "standard" and base.endswith(f"+{old}"):
+            base = base[: -len(old) - 1]
+        if detail != "standard":
+            overrides["detail"] = detail
+            base = f"{base}+{detail}"
         return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
 
     def with_motion(self, file: str | Path, label: str | None = None, frames: int | None = None) -> SequenceRef:
@@ -446,17 +469,20 @@ def resolve_sequence(name: str) -> SequenceRef:
     folder. The first that fits wins. A simulated sequence's name may end in ``@<camera preset>``
     (``office0@clean``): that sequence seen through that camera (:meth:`SequenceRef.with_camera_effects`); without
     one it is the renderer's image (``clean``). A simulated name may end in ``+lit`` before that (``office0+lit@hard``):
-    the same room and trajectory with lamps, shadows and highlights (:meth:`SequenceRef.with_lighting`)."""
+    the same room and trajectory with lamps, shadows and highlights (:meth:`SequenceRef.with_lighting`), and in
+    ``+rich`` (``office0+rich``, ``office0+lit+rich@kinect``): the same room with clutter and texture detail
+    (:meth:`SequenceRef.with_detail`); the marks may come in either order, the name is made ``+lit+rich``."""
     plain, sep, preset = name.rpartition("@")
     if sep and preset in sim_camera_presets() and plain:
         ref = resolve_sequence(plain)
         if ref.folder is None:
             return ref.with_camera_effects(preset)
-    plain, sep, lighting = name.rpartition("+")
-    if sep and lighting in LIGHTINGS and lighting != "flat" and plain:
+    variant = split_variant(name)
+    if variant is not None:
+        plain, field, value = variant
         ref = resolve_sequence(plain)
         if ref.folder is None:
-            return ref.with_lighting(lighting)
+            return ref.with_lighting(value) if field == "lighting" else ref.with_detail(value)
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)

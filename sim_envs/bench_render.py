@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from sim_envs.camera import preset
-from sim_envs.scene import LIGHTINGS, Scene
+from sim_envs.scene import DETAILS, LIGHTINGS, Scene
 
 OUTPUT_SETS: dict[str, tuple[str, ...]] = {
     "rgb": ("rgb",),
@@ -90,11 +90,13 @@ def camera_throughput(
     variants: dict[str, object] | None = None,
     lighting: str = "flat",
     first: int = 0,
+    detail: str = "standard",
 ) -> dict[str, float]:
     """Frames per second of RGB + depth through each camera variant (name -> preset name or ``CameraEffects``;
     default :func:`camera_variants`) along the first ``frames`` frames of ``sequence`` at ``width`` x ``height``,
     after one warm-up frame (context made, room generated; the auto-exposure brightness pass of the frames is
-    included in the time), the room lit ``lighting`` (``flat`` or ``lit``). ``first`` > 0: the warm-up frame is
+    included in the time), the room lit ``lighting`` (``flat`` or ``lit``) at ``detail`` (``standard`` or ``rich``:
+    :mod:`sim_envs.scenegen`). ``first`` > 0: the warm-up frame is
     frame ``first`` of a sequence that long and the timed frames follow it (what a frame costs late in a long
     sequence). Prints one line per variant and returns name -> fps."""
     from dataclasses import replace
@@ -105,7 +107,7 @@ def camera_throughput(
     if first < 0:
         raise ValueError(f"first must be >= 0, got {first}")
     spec = replace(get_sequence(sequence).with_frames(first + frames + 1), width=width, height=height,
-                   lighting=lighting)  # fmt: skip
+                   lighting=lighting, detail=detail)  # fmt: skip
     out = {}
     for name, camera in (variants or camera_variants()).items():
         with SimulatedSequence(with_camera(spec, camera), renderer) as seq:  # type: ignore[arg-type]
@@ -135,6 +137,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --cameras: time the frames after frame FIRST of a sequence that long (default 0)")
     parser.add_argument("--lighting", default="flat", choices=LIGHTINGS,
                         help="flat (default) or lit: lamps with shadows, bright windows, highlights (mujoco only)")
+    parser.add_argument("--detail", default="standard", choices=DETAILS,
+                        help="standard (default) or rich: the rooms with clutter and texture detail")
+    parser.add_argument("--sequence", default="office0", help="with --cameras: the sequence (default office0)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -142,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
     from sim_envs.scenegen import generate_scene
 
     if args.cameras:
-        print(f"camera throughput, RGB + depth at {args.width}x{args.height}, office0 ({args.lighting}), "
-              f"{args.frames} frames after frame {args.first}")  # fmt: skip
+        print(f"camera throughput, RGB + depth at {args.width}x{args.height}, {args.sequence} ({args.lighting}, "
+              f"{args.detail}), {args.frames} frames after frame {args.first}")  # fmt: skip
         variants = None if args.first == 0 else {"kinect": "kinect", "hard": "hard"}  # late frames: the presets
-        fps = camera_throughput("office0", args.frames, args.width, args.height, args.backends[0], variants,
-                                lighting=args.lighting, first=args.first)  # fmt: skip
+        fps = camera_throughput(args.sequence, args.frames, args.width, args.height, args.backends[0], variants,
+                                lighting=args.lighting, first=args.first, detail=args.detail)  # fmt: skip
         if args.json:  # one object, keys "<variant>_fps" (words joined by "_"), for `cnnslam bench perf`
             print(json.dumps({re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_") + "_fps": round(value, 2)
                               for name, value in fps.items()}))  # fmt: skip
@@ -156,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{'style':<10} {'renderer':<10} {'outputs':<10} {'fps':>8}")
     for style in args.styles:
         start = time.perf_counter()
-        scene = generate_scene(style, args.seed, lighting=args.lighting)
+        scene = generate_scene(style, args.seed, lighting=args.lighting, detail=args.detail)
         gen_s = time.perf_counter() - start
         start = time.perf_counter()
         generate_scene(style, args.seed, settle=False)

@@ -15,6 +15,9 @@ Measured on 8-bit RGB frames (H, W, 3) uint8, each on the grey image ``(R + G + 
 - vignetting: the mean brightness of the four corner patches (each 1/8 of the width and height) over that of the
   central patch (1/4 of the width and height), averaged over frames (scene content averages out over a moving
   camera; 1 = none).
+
+:func:`depth_statistics` describes the depths a sequence sees (the room and the camera path, not the camera): the
+10th, 50th and 90th percentiles of every valid depth pixel of the frames pooled, and the share of valid pixels.
 """
 
 from __future__ import annotations
@@ -51,6 +54,37 @@ class CameraStatistics:
     def as_dict(self) -> dict[str, float | int]:
         """The statistics as a dict (field order)."""
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class DepthStatistics:
+    """The depths seen over a sequence (:func:`depth_statistics`): p10, median, p90 in metres over every valid pixel
+    of the frames pooled; valid_share: mean share of valid pixels per frame; frames: how many frames."""
+
+    p10: float
+    median: float
+    p90: float
+    valid_share: float
+    frames: int
+
+    def as_dict(self) -> dict[str, float | int]:
+        """The statistics as a dict (field order)."""
+        return asdict(self)
+
+
+def depth_statistics(depths: Iterable[np.ndarray]) -> DepthStatistics:
+    """Percentiles of the valid depths of frames (each (H, W) metres; valid: finite and > 0, so 0 = none)."""
+    pooled, shares = [], []
+    for depth in depths:
+        d = np.asarray(depth, dtype=np.float32)
+        valid = np.isfinite(d) & (d > 0)
+        pooled.append(d[valid])
+        shares.append(float(valid.mean()))
+    values = np.concatenate(pooled) if pooled else np.empty(0, np.float32)
+    if values.size == 0:
+        raise SimEnvError(f"depth statistics need at least one valid depth, got {len(shares)} frames without one")
+    p10, median, p90 = (float(v) for v in np.percentile(values, [10, 50, 90]))
+    return DepthStatistics(p10, median, p90, float(np.mean(shares)), len(shares))
 
 
 def grey(rgb: np.ndarray) -> np.ndarray:

@@ -472,6 +472,123 @@ def bin_(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     return a
 
 
+def papers(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A stack of 1-5 loose sheets (A4 or A5, 2 mm each), each turned a little; the top sheet's page is unique."""
+    w, d = (0.21, 0.297) if rng.random() < 0.7 else (0.148, 0.21)
+    if rng.random() < 0.5:
+        w, d = d, w
+    a = Assembly("papers", [], (w / 2, d / 2), 0.0, SMALL)
+    n = int(rng.integers(1, 6))
+    for k in range(n):
+        off = rng.uniform(-0.012, 0.012, 2)
+        mat = bank.unique("paper") if k == n - 1 else bank.shared("paper")
+        a.add_box(f"sheet_{k}", (off[0], off[1], 0.001 + 0.002 * k), (w / 2, d / 2, 0.001), mat,
+                  rpy=(0.0, 0.0, float(rng.uniform(-0.08, 0.08))))  # fmt: skip
+    return a
+
+
+def tin(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A labelled tin, jar or can: a cylinder whose label wraps once around it."""
+    r, h = rng.uniform(0.03, 0.055), rng.uniform(0.07, 0.18)
+    a = Assembly("tin", [], (r, r), h, SMALL)
+    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, bank.unique("label"))
+    return a
+
+
+def carton(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A printed carton (cereal, tissues, a parcel): a box with its own label on every face."""
+    hx, hy, hz = rng.uniform(0.04, 0.13), rng.uniform(0.025, 0.08), rng.uniform(0.03, 0.13)
+    a = Assembly("carton", [], (hx, hy), 2 * hz, SMALL)
+    a.add_box("body", (0, 0, hz), (hx, hy, hz), bank.unique("label"))
+    return a
+
+
+def pen_holder(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A pot with 3-6 pens standing in it at small angles."""
+    r, h = rng.uniform(0.03, 0.04), rng.uniform(0.08, 0.11)
+    a = Assembly("pen_holder", [], (r, r), h, SMALL)
+    a.add_cylinder("pot", (0, 0, h / 2), r, h / 2, bank.shared("ceramic" if rng.random() < 0.5 else "metal"))
+    for k in range(int(rng.integers(3, 7))):
+        off = rng.uniform(-0.5, 0.5, 2) * r
+        tilt = rng.uniform(-0.2, 0.2, 2)
+        a.add_cylinder(f"pen_{k}", (off[0], off[1], h * 0.55 + 0.06), 0.004, 0.07, bank.shared("plastic"),
+                       rpy=(float(tilt[0]), float(tilt[1]), 0.0))  # fmt: skip
+    return a
+
+
+def bush(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A potted plant as a cluster of 4-8 leafy balls and blades (boxes) of two greens, over a pot."""
+    s = rng.uniform(0.8, 1.4)
+    r, h = 0.06 * s, 0.09 * s
+    a = Assembly("plant", [], (r, r), h, SMALL)
+    a.add_cylinder("pot", (0, 0, h / 2), r, h / 2, bank.shared("soil_pot"))
+    greens = (bank.shared("leaves"), bank.unique("leaves"))
+    for k in range(int(rng.integers(4, 9))):
+        off = rng.normal(0.0, 0.6, 3) * r
+        z = h + abs(off[2]) + 0.03 * s
+        if rng.random() < 0.6:
+            a.add_sphere(f"leaves_{k}", (off[0], off[1], z), float(rng.uniform(0.025, 0.05) * s), greens[k % 2])
+        else:
+            a.add_box(f"blade_{k}", (off[0], off[1], z + 0.03 * s), (0.012 * s, 0.004, 0.06 * s), greens[k % 2],
+                      rpy=(float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5)), float(rng.uniform(0, np.pi))))
+    return a
+
+
+# ------------------------------------------------------------------------------------------------ wall decorations
+# Local frame of a wall decoration: origin at the bottom centre of its back, which touches the wall; its front faces
+# +y (into the room); x along the wall. ``half`` is (half width, depth / 2), ``height`` its height.
+
+
+def picture_frame(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A framed picture or photo: a frame board and the picture 4 mm in front of it, inset by the frame's width."""
+    w = rng.uniform(0.18, 0.6)
+    h = w * rng.uniform(0.7, 1.4)
+    border = rng.uniform(0.015, 0.05)
+    a = Assembly("frame", [], (w / 2, 0.0125), h, SMALL)
+    a.add_box("board", (0, 0.01, h / 2), (w / 2, 0.01, h / 2), bank.shared("frame"))
+    a.add_box("picture", (0, 0.0225, h / 2), (w / 2 - border, 0.0025, h / 2 - border), bank.unique("poster"))
+    return a
+
+
+def pinboard(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A cork board with 3-8 notes and printouts pinned on it, a little crooked."""
+    w, h = rng.uniform(0.5, 1.0), rng.uniform(0.4, 0.7)
+    a = Assembly("pinboard", [], (w / 2, 0.01), h, SMALL)
+    a.add_box("cork", (0, 0.008, h / 2), (w / 2, 0.008, h / 2), bank.shared("cork"))
+    for k in range(int(rng.integers(3, 9))):
+        nw, nh = rng.uniform(0.06, 0.15), rng.uniform(0.06, 0.2)
+        x, z = rng.uniform(-w / 2 + nw, w / 2 - nw), rng.uniform(nh, h - nh)
+        a.add_box(f"note_{k}", (x, 0.017 + 0.0005 * k, z), (nw / 2, 0.0005, nh / 2), bank.unique("paper"),
+                  rpy=(0.0, float(rng.uniform(-0.15, 0.15)), 0.0))  # fmt: skip
+    return a
+
+
+def wall_clock(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A round clock: a short cylinder whose axis points into the room, its face on the front cap."""
+    r = rng.uniform(0.11, 0.18)
+    a = Assembly("clock", [], (r, 0.02), 2 * r, SMALL)
+    a.add_cylinder("body", (0, 0.02, r), r, 0.02, bank.unique("clock"), rpy=(-np.pi / 2, 0.0, 0.0))
+    return a
+
+
+def calendar(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A hanging calendar or notice: a picture over a printed page."""
+    w = rng.uniform(0.22, 0.35)
+    a = Assembly("calendar", [], (w / 2, 0.002), 1.5 * w, SMALL)
+    a.add_box("picture", (0, 0.002, 1.1 * w), (w / 2, 0.002, 0.4 * w), bank.unique("poster"))
+    a.add_box("page", (0, 0.002, 0.35 * w), (w / 2, 0.002, 0.35 * w), bank.unique("paper"))
+    return a
+
+
+def switch_plate(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+    """A light switch or socket plate, or a thermostat: a small flat box."""
+    w, h = rng.uniform(0.07, 0.12), rng.uniform(0.07, 0.12)
+    a = Assembly("switch", [], (w / 2, 0.006), h, SMALL)
+    mat = bank.shared("plastic" if rng.random() < 0.3 else "appliance")
+    a.add_box("plate", (0, 0.006, h / 2), (w / 2, 0.006, h / 2), mat)
+    return a
+
+
 def part_corners(part: Part) -> np.ndarray:
     """(8, 3) corners of a part's bounding box in its assembly's frame (cylinders and spheres: their boxes)."""
     r = part.size[0]
@@ -507,7 +624,11 @@ _FURNITURE: dict[str, Builder] = {
 _OBJECTS: dict[str, Builder] = {
     "book": book, "standing_book": standing_book, "box": box, "cup": cup, "bottle": bottle, "monitor": monitor,
     "tv": tv, "laptop": laptop, "keyboard": keyboard, "plant": plant, "large_plant": large_plant, "lamp": lamp,
-    "vase": vase, "bowl": bowl, "pillow": pillow, "bin": bin_,
+    "vase": vase, "bowl": bowl, "pillow": pillow, "bin": bin_, "papers": papers, "tin": tin, "carton": carton,
+    "pen_holder": pen_holder, "bush": bush,
 }  # fmt: skip
 FURNITURE: dict[str, Builder] = {name: fitted(f) for name, f in _FURNITURE.items()}
 OBJECTS: dict[str, Builder] = {name: fitted(f) for name, f in _OBJECTS.items()}
+WALL_DECORATIONS: dict[str, Builder] = {
+    "frame": picture_frame, "pinboard": pinboard, "clock": wall_clock, "calendar": calendar, "switch": switch_plate,
+}  # fmt: skip

@@ -113,4 +113,4 @@ def light_room(scene: Scene) -> Scene:
                        for p in scene.primitives)  # fmt: skip
     fill = tuple(Light(light.direction, light.intensity * FILL_SCALE) for light in scene.lights)
     return Scene(scene.style, scene.seed, scene.room_size, primitives, fill, scene.ambient * FILL_SCALE,
-                 scene.texture_density, "lit", tuple(lamps))  # fmt: skip
+                 scene.texture_density, "lit", tuple(lamps), scene.detail)  # fmt: skip

@@ -4,12 +4,14 @@
 A :class:`MaterialBank` draws every texture from its own generator in the order slots are first asked for, and draws
 the same random numbers whatever the texture density, so a room generated with another density has the same
 layout and the same texture patterns, only fewer and fainter textures (density 0: a textureless world of plain colours).
+
+:func:`enrich_material` gives a material of a ``rich`` room (:data:`sim_envs.scene.DETAILS`) its texture detail.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -85,7 +87,51 @@ SLOTS: dict[str, Slot] = {
     "soil_pot": Slot(textures.concrete, ((0.6, 0.35, 0.25), (0.85, 0.85, 0.85), (0.3, 0.3, 0.3)), (0.3, 0.5)),
     "dark": Slot(None, ((0.12, 0.12, 0.13), (0.2, 0.2, 0.22))),
     "glass": Slot(None, ((0.55, 0.7, 0.65), (0.45, 0.3, 0.2), (0.6, 0.65, 0.75))),
+    # the clutter of rich rooms
+    "paper": Slot(textures.page, ((1.0, 1.0, 1.0),), None, takes_rgb=False),
+    "label": Slot(textures.book_cover, ((1.0, 1.0, 1.0),), None, takes_rgb=False),
+    "clock": Slot(textures.clock_face, ((1.0, 1.0, 1.0),), None, takes_rgb=False),
+    "cork": Slot(textures.concrete, ((0.72, 0.55, 0.36), (0.65, 0.5, 0.32)), (0.3, 0.5)),
+    "frame": Slot(textures.wood, ((0.12, 0.1, 0.09), (0.55, 0.36, 0.2), (0.85, 0.85, 0.83), (0.7, 0.6, 0.3)),
+                  (0.3, 0.5)),
 }
+
+
+# Texture detail of rich rooms (:func:`enrich_material`). "fitted": chosen on image statistics of simulated frames
+# against the real kitchen's (results/camera_calibration.md, "Rich rooms", says on which frames and how)
+RICH_CONTRAST = 2.0  # a texture's deviation from its mean colour is scaled by this (ours, fitted)
+RICH_MID = 0.15  # amplitude of the mid-scale blotches, +- share of the colour (ours)
+RICH_FINE = 0.25  # amplitude of the fine grain (ours, fitted)
+RICH_SPECKS = 0.04  # share of the surface in dark specks (ours)
+RICH_SPECK_DEPTH = 0.35  # how much darker a speck is (ours)
+RICH_PLAIN_SIZE = 128  # texels per side of the detail texture a plain material gets (ours)
+RICH_WALL_STRENGTH = 0.35  # walls and ceilings get this share of the detail: plaster stays plainer (ours, fitted)
+
+
+def enrich_material(material: Material, rng: np.random.Generator, texture_density: float = 1.0,
+                    strength: float = 1.0) -> Material:  # fmt: skip
+    """``material`` as a rich room has it: its texture's contrast raised by :data:`RICH_CONTRAST` and wear overlaid
+    (:func:`sim_envs.textures.detailed` with :data:`RICH_MID`, :data:`RICH_FINE`, :data:`RICH_SPECKS`,
+    :data:`RICH_SPECK_DEPTH`); a plain
+    colour becomes a texture of that colour with the same wear (over ``tile_m``, or once per face when None).
+
+    Every amplitude is scaled by ``strength`` (e.g. :data:`RICH_WALL_STRENGTH`) and by ``texture_density`` in
+    [0, 1], as :class:`MaterialBank` scales its textures; at 0 the material is returned unchanged (a textureless
+    world stays textureless). Same name, rgb (1, 1, 1) when a
+    texture is made; lighting terms (specular, shininess, emission) kept. Draws from ``rng`` only.
+    """
+    density = float(np.clip(texture_density, 0.0, 1.0)) * float(strength)
+    if density <= 0.0:
+        return material
+    contrast = 1.0 + (RICH_CONTRAST - 1.0) * density
+    mid, fine, depth = RICH_MID * density, RICH_FINE * density, RICH_SPECK_DEPTH * density
+    if material.texture is None:
+        base = np.clip(np.asarray(material.rgb) * 255.0, 0, 255).astype(np.uint8)
+        plain = np.broadcast_to(base, (RICH_PLAIN_SIZE, RICH_PLAIN_SIZE, 3))
+        image = textures.detailed(plain, rng, 1.0, mid, fine, RICH_SPECKS, depth)
+        return replace(material, rgb=(1.0, 1.0, 1.0), texture=image)
+    image = textures.detailed(material.texture, rng, contrast, mid, fine, RICH_SPECKS, depth)
+    return replace(material, texture=image)
 
 
 class MaterialBank:

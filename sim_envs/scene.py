@@ -16,6 +16,13 @@ Lighting, two models (``Scene.lighting``):
   with distance fall-off and shadow maps (light through the windows, a ceiling lamp), glowing window panes and
   specular highlights on some materials: brightness changes across the room and with the view, as in a real room.
 
+Detail, two levels (``Scene.detail``, :data:`DETAILS`; either lighting, both renderers):
+
+- ``standard`` (every registered sequence): the room as :func:`sim_envs.scenegen.generate_scene` lays it out.
+- ``rich``: the same room (same layout, furniture, objects, lights) with clutter added on every support, on the
+  floor along the walls and on the walls (frames, notes, clocks), and every material given texture detail at
+  several scales (:func:`sim_envs.materials.enrich_material`), as cluttered as a lived-in room.
+
 Texture coordinates (:class:`TriMesh`) follow OpenGL: ``v = 0`` is the BOTTOM row of a texture image, and on the side
 faces of a box the image appears upright and unmirrored to a viewer outside the face.
 """
@@ -293,6 +300,7 @@ class Light:
 
 
 LIGHTINGS: tuple[str, ...] = ("flat", "lit")
+DETAILS: tuple[str, ...] = ("standard", "rich")  # room detail levels (module docstring)
 
 
 @dataclass(frozen=True)
@@ -333,7 +341,7 @@ class Scene:
     spans ``[0, Lx] x [0, Ly] x [0, H]``; primitives: every shape; lights: static directional lights; ambient:
     ambient gain (``ambient + sum of intensities <= 1`` so colours never clip); texture_density: what the generator
     was asked for, in [0, 1]; lighting: ``flat`` or ``lit`` (module docstring); lamps: the spot lights of a ``lit``
-    scene.
+    scene; detail: ``standard`` or ``rich`` (module docstring, :data:`DETAILS`).
     """
 
     style: str
@@ -345,11 +353,14 @@ class Scene:
     texture_density: float = 1.0
     lighting: str = "flat"
     lamps: tuple[Lamp, ...] = ()
+    detail: str = "standard"
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # derived arrays (bounds)
 
     def __post_init__(self) -> None:
         if self.lighting not in LIGHTINGS:
             raise SimEnvError(f"scene lighting must be one of {', '.join(LIGHTINGS)}, got {self.lighting!r}")
+        if self.detail not in DETAILS:
+            raise SimEnvError(f"scene detail must be one of {', '.join(DETAILS)}, got {self.detail!r}")
         glossy = any(p.material.specular or p.material.emission for p in self.primitives)
         if self.lighting == "flat" and (self.lamps or glossy):
             raise SimEnvError("a flat scene has no lamps, specular or emissive materials (make it lighting='lit')")

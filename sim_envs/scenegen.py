@@ -12,13 +12,22 @@ the floor, then dropped and settled with MuJoCo physics (:mod:`sim_envs.physics`
 Determinism: one ``numpy.random.Generator`` for the layout and one for textures, both seeded from ``(seed, style)``;
 nothing is cached between calls. The texture generator draws the same numbers whatever ``texture_density``, so the
 same seed at another density gives the same room with fewer and fainter textures.
+
+Detail (``detail``, :data:`sim_envs.scene.DETAILS`): a ``rich`` room is the ``standard`` room of the same arguments
+(the same draws, so the same layout, furniture, objects and lights) with more: clutter on every support
+(:data:`RICH_OBJECTS_ON`: papers, books, mugs, tins, cartons, pen holders, plants as clusters of leaves), on the floor
+along the walls and on the walls (frames, pinboards, clocks, calendars, switches), dropped and settled by physics
+with the rest, then every material given texture detail (:func:`sim_envs.materials.enrich_material`). The rich
+additions draw from their own generators, seeded from ``(seed, style, RICH_STREAM)``. The standard room's
+trajectories stay valid in it: clutter stands on furniture or within half a metre of a wall, at most
+:data:`RICH_FLOOR_MAX_HEIGHT` m high on the floor, and wall decorations stand out at most 5 cm.
 """
 
 from __future__ import annotations
 
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -26,9 +35,9 @@ import numpy as np
 from sim_envs import furniture as fur
 from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import SemanticClass
-from sim_envs.materials import MaterialBank
+from sim_envs.materials import RICH_WALL_STRENGTH, MaterialBank, enrich_material
 from sim_envs.physics import FreeBody, settle_bodies
-from sim_envs.scene import LIGHTINGS, Light, Material, Primitive, Scene
+from sim_envs.scene import DETAILS, LIGHTINGS, Light, Material, Primitive, Scene
 
 TEST_STYLES: tuple[str, ...] = ("office", "living")
 TRAIN_STYLES: tuple[str, ...] = ("bedroom", "kitchen", "classroom", "study")
@@ -148,6 +157,30 @@ SHELF_OBJECTS: tuple[tuple[str, float], ...] = (("box", 1), ("vase", 1), ("book"
 MAX_OBJECTS_PER_SUPPORT = 7  # (ours)
 TUMBLING = frozenset({"book", "box", "pillow", "bottle", "cup", "bowl", "vase"})  # may be tossed (ours)
 TUMBLE_PROBABILITY = 0.35  # share of those tossed from a few cm with a random tilt rather than set down (ours)
+
+# Rich rooms (module docstring): what the rich pass adds, by support kind (fur.Support.kind)
+RICH_STREAM = 23  # the rich pass's generators are seeded from (seed, style, RICH_STREAM) (ours)
+_RICH_TOP: tuple[tuple[str, float], ...] = (
+    ("papers", 4), ("book", 3), ("cup", 2), ("tin", 2), ("carton", 2), ("pen_holder", 1), ("bush", 1), ("bowl", 1),
+    ("bottle", 1),
+)  # fmt: skip
+RICH_OBJECTS_ON: dict[str, tuple[tuple[str, float], ...]] = {
+    "top": _RICH_TOP,
+    "tv": _RICH_TOP,
+    "shelf": (("tin", 2), ("carton", 2), ("book", 2), ("cup", 1), ("bush", 1), ("papers", 1)),
+    "seat": (("pillow", 2), ("papers", 1), ("book", 1)),
+}
+RICH_CLUTTER = 30.0  # extra objects per square metre of support, before the caps (ours)
+RICH_MAX_PER_SUPPORT = 14  # extra objects per support at most (ours)
+RICH_TRIES = 30  # random spots tried per extra object (ours; the standard pass tries 12)
+RICH_MAX_PER_SEAT = 2  # extra objects per seat at most (ours)
+RICH_FLOOR_OBJECTS: tuple[int, int] = (3, 6)  # extra floor objects along the walls (ours)
+RICH_FLOOR_TABLE: tuple[tuple[str, float], ...] = (("box", 3), ("carton", 2), ("bin", 1), ("bush", 1))
+RICH_FLOOR_MAX_HEIGHT = 0.45  # metres: a rich room's floor objects are at most this high (ours: below cameras)
+RICH_WALL_ITEMS: tuple[int, int] = (18, 30)  # wall decorations tried (ours, fitted: results/camera_calibration.md)
+RICH_WALL_TABLE: tuple[tuple[str, float], ...] = (
+    ("frame", 6), ("pinboard", 1), ("clock", 0.5), ("calendar", 1), ("switch", 1.5),
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -297,6 +330,7 @@ class _Builder:
         self.openings: list[Opening] = []
         self.placed: list[Placed] = []
         self.wall_items: list[tuple[int, float, float, float]] = []  # (wall, s0, s1, top height) of furniture
+        self.occupancy: dict[int, list[Rect]] = {}  # id(support) -> footprints of the objects set on it
         self.opening_zones: list[Rect] = []  # kept clear in front of doors, and above the height of window sills
 
     # ------------------------------------------------------------------------------------------------ primitives
@@ -615,9 +649,9 @@ class _Builder:
         for placed in self.placed:
             kind = placed.assembly.kind
             for sup in placed.assembly.supports:
-                occupied: list[Rect] = []
+                occupied = self.occupancy.setdefault(id(sup), [])
                 if sup.kind == "shelf":
-                    out += self._shelf(placed, sup)
+                    out += self._shelf(placed, sup, occupied)
                     continue
                 if kind == "desk" and self.style.name in ("office", "study") and self.rng.random() < 0.8:
                     out += self._workstation(placed, sup, occupied)
@@ -666,10 +700,10 @@ class _Builder:
         occupied.append(r)
         return [Drop(a, placed.T_world @ _T(xy[0], xy[1], sup.z + lift, yaw), lift)]
 
-    def _random_spot(self, placed: Placed, sup: fur.Support, a: fur.Assembly,
-                     occupied: list[Rect]) -> list[Drop]:  # fmt: skip
-        """``a`` at a random free spot of ``sup`` (some objects tossed with a tilt), or nothing after 12 tries."""
-        for _ in range(12):
+    def _random_spot(self, placed: Placed, sup: fur.Support, a: fur.Assembly, occupied: list[Rect],
+                     tries: int = 12) -> list[Drop]:  # fmt: skip
+        """``a`` at a random free spot of ``sup`` (some objects tossed with a tilt), or nothing after ``tries``."""
+        for _ in range(tries):
             xy = (
                 sup.centre[0] + self.rng.uniform(-1, 1) * sup.half[0],
                 sup.centre[1] + self.rng.uniform(-1, 1) * sup.half[1],
@@ -713,10 +747,10 @@ class _Builder:
             out += self._place_at(placed, sup, k, (x, sup.centre[1] + sup.half[1] * 0.35), 0.0, occupied)
         return out
 
-    def _shelf(self, placed: Placed, sup: fur.Support) -> list[Drop]:
-        """A row of upright books (spines to the front) and a few other objects along one shelf board."""
+    def _shelf(self, placed: Placed, sup: fur.Support, occupied: list[Rect]) -> list[Drop]:
+        """A row of upright books (spines to the front) and a few other objects along one shelf board; their
+        footprints join ``occupied``."""
         out: list[Drop] = []
-        occupied: list[Rect] = []
         x = sup.centre[0] - sup.half[0] + self.rng.uniform(0.0, 0.15)
         end = sup.centre[0] + sup.half[0]
         while x < end:
@@ -731,11 +765,14 @@ class _Builder:
             x += 2 * w + (0.003 if got else 0.0) + (self.rng.uniform(0.1, 0.3) if self.rng.random() < 0.15 else 0.0)
         return out
 
-    def _floor_objects(self) -> list[Drop]:
-        """Objects standing on the floor along the walls (plants, bins, boxes)."""
+    def _floor_objects(self, count: tuple[int, int] | None = None,
+                       table: tuple[tuple[str, float], ...] | None = None) -> list[Drop]:  # fmt: skip
+        """Objects standing on the floor along the walls: ``count`` (min, max; default the style's) drawn from
+        ``table`` (default plants, bins, boxes)."""
         out = []
-        for _ in range(int(self.rng.integers(self.style.floor_objects[0], self.style.floor_objects[1] + 1))):
-            a = fur.OBJECTS[self._choose(OBJECTS_ON["floor"])](self.rng, self.bank)
+        count = count or self.style.floor_objects
+        for _ in range(int(self.rng.integers(count[0], count[1] + 1))):
+            a = fur.OBJECTS[self._choose(table or OBJECTS_ON["floor"])](self.rng, self.bank)
             for _ in range(30):
                 # near a wall or a corner, where such things stand
                 w = int(self.rng.integers(4))
@@ -750,6 +787,51 @@ class _Builder:
                     break
         return out
 
+    # ------------------------------------------------------------------------------------------------ rich rooms
+    def rich(self, rng: np.random.Generator, bank: MaterialBank) -> list[Drop]:
+        """The rich pass (module docstring): wall decorations (added now, static) and the clutter to drop. From here
+        on the builder draws from ``rng`` and makes materials with ``bank`` (the rich pass's own streams)."""
+        self.rng, self.bank = rng, bank
+        self._rich_walls()
+        out: list[Drop] = []
+        for placed in self.placed:
+            for sup in placed.assembly.supports:
+                occupied = self.occupancy.setdefault(id(sup), [])
+                area = 4 * sup.half[0] * sup.half[1]
+                n = min(RICH_MAX_PER_SUPPORT, int(self.rng.poisson(RICH_CLUTTER * area)))
+                if sup.kind == "seat":
+                    n = min(n, RICH_MAX_PER_SEAT)
+                for _ in range(n):
+                    name = self._choose(RICH_OBJECTS_ON[sup.kind])
+                    if name == "book" and sup.kind != "shelf" and self.rng.random() < 0.4:
+                        out += self._pile(placed, sup, occupied)
+                        continue
+                    a = fur.OBJECTS[name](self.rng, self.bank)
+                    out += self._random_spot(placed, sup, a, occupied, RICH_TRIES)
+        floor = self._floor_objects(RICH_FLOOR_OBJECTS, RICH_FLOOR_TABLE)
+        return out + [d for d in floor if d.assembly.height <= RICH_FLOOR_MAX_HEIGHT]
+
+    def _rich_walls(self) -> None:
+        """Frames, pinboards, clocks, calendars and switches on free wall space (as :meth:`decorations`)."""
+        H = self.size[2]
+        for _ in range(int(self.rng.integers(RICH_WALL_ITEMS[0], RICH_WALL_ITEMS[1] + 1))):
+            a = fur.WALL_DECORATIONS[self._choose(RICH_WALL_TABLE)](self.rng, self.bank)
+            w = 2 * a.half[0]
+            for _ in range(40):
+                z0 = self.rng.uniform(1.0, 1.25) if a.kind == "switch" else self.rng.uniform(0.8, H - 0.15 - a.height)
+                wall = int(self.rng.integers(4))
+                origin, tangent, length = _wall_frame(wall, self.size)
+                if z0 + a.height > H - 0.15 or length < w + 0.4:
+                    continue
+                s = self.rng.uniform(0.2 + w / 2, length - 0.2 - w / 2)
+                if not self._free_on_wall(wall, s - w / 2, s + w / 2, z0):
+                    continue
+                # blocks the wall up to its top: a later decoration may hang above it (a gallery), not below
+                self.wall_items.append((wall, s - w / 2, s + w / 2, z0 + a.height))
+                p = origin + tangent * s
+                self.add_assembly(a, _T(p[0], p[1], z0, _yaw_facing(_inward(tangent))))
+                break
+
     def lights(self) -> tuple[tuple[Light, ...], float]:
         """Two static directional lights (one from above, one from a side) and an ambient term summing to <= 0.95."""
         ambient = float(self.rng.uniform(0.45, 0.55))
@@ -763,7 +845,8 @@ class _Builder:
 
 
 def generate_scene(
-    style: str, seed: int, texture_density: float = 1.0, settle: bool = True, lighting: str = "flat"
+    style: str, seed: int, texture_density: float = 1.0, settle: bool = True, lighting: str = "flat",
+    detail: str = "standard",
 ) -> Scene:
     """A furnished room of ``style`` from ``seed``: the same arguments always give the same scene (bit for bit).
 
@@ -771,10 +854,13 @@ def generate_scene(
     textured and how strongly (0 = nearly textureless); settle: drop the small objects with MuJoCo physics until they
     rest (False: they are placed exactly on their supports, which is faster but allows no piles to topple);
     lighting: ``flat`` (the same colour from every view) or ``lit`` (the same room relit by
-    :func:`sim_envs.lighting.light_room`: lamps with shadows, bright windows, highlights; MuJoCo renderer only).
+    :func:`sim_envs.lighting.light_room`: lamps with shadows, bright windows, highlights; MuJoCo renderer only);
+    detail: ``standard`` or ``rich`` (the same room with clutter and texture detail: module docstring).
     """
     if lighting not in LIGHTINGS:
         raise SimEnvError(f"lighting must be one of {', '.join(LIGHTINGS)}, got {lighting!r}")
+    if detail not in DETAILS:
+        raise SimEnvError(f"detail must be one of {', '.join(DETAILS)}, got {detail!r}")
     if style not in STYLES:
         raise UnknownNameError(f"unknown room style {style!r}; valid styles: {', '.join(ROOM_STYLES)}")
     if not 0.0 <= float(texture_density) <= 1.0:
@@ -788,6 +874,12 @@ def generate_scene(
     b.decorations()
     b.rug()
     drops = b.objects()
+    lights, ambient = b.lights()  # the last draws of the layout generator: a rich pass draws from its own
+    if detail == "rich":
+        key = zlib.crc32(STYLES[style].name.encode())
+        layout_seq, texture_seq, detail_seq = np.random.SeedSequence([int(seed), key, RICH_STREAM]).spawn(3)
+        drops += b.rich(np.random.default_rng(layout_seq), MaterialBank(np.random.default_rng(texture_seq),
+                                                                        float(texture_density)))
     if settle and drops:
         bodies = [FreeBody([(p.kind, p.size, p.T) for p in d.assembly.parts], d.start_pose()) for d in drops]
         result = settle_bodies(list(b.primitives), bodies)
@@ -803,10 +895,20 @@ def generate_scene(
         placed = [(d.assembly, _T(0.0, 0.0, -d.lift, 0.0) @ d.T_world) for d in drops]
     for a, T in placed:
         b.add_assembly(a, T)
-    lights, ambient = b.lights()
-    scene = Scene(style, int(seed), b.size, tuple(b.primitives), lights, ambient, float(texture_density))
+    scene = Scene(style, int(seed), b.size, tuple(b.primitives), lights, ambient, float(texture_density),
+                  detail=detail)  # fmt: skip
+    if detail == "rich":  # texture detail on every material, drawn in order of first use; plaster stays plainer
+        rng = np.random.default_rng(detail_seq)
+        users: dict[int, set[str]] = {}
+        for p in scene.primitives:
+            users.setdefault(id(p.material), set()).add(p.instance_kind)
+        rich = {id(m): enrich_material(m, rng, float(texture_density),
+                                       RICH_WALL_STRENGTH if users[id(m)] <= {"wall", "ceiling"} else 1.0)
+                for m in scene.materials()}  # fmt: skip
+        scene = replace(scene, primitives=tuple(replace(p, material=rich[id(p.material)]) for p in scene.primitives))
     if lighting == "lit":
         from sim_envs.lighting import light_room
 
         scene = light_room(scene)
     return scene
+

@@ -24,7 +24,7 @@ import numpy as np
 
 from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, Intrinsics, camera_presets, preset
 from sim_envs.errors import SimEnvError, UnknownNameError
-from sim_envs.scene import LIGHTINGS
+from sim_envs.scene import DETAILS, LIGHTINGS
 from sim_envs.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_params
 
 if TYPE_CHECKING:
@@ -59,7 +59,9 @@ class SequenceSpec:
     part of the spec's repr) or a ``CameraEffects``; default ``clean``, the renderer's bytes (see
     :func:`with_camera`); lighting:
     ``flat`` (every registered sequence) or ``lit`` (lamps, shadows, bright windows, highlights:
-    :mod:`sim_envs.lighting`; MuJoCo renderer only); the trajectory does not depend on it.
+    :mod:`sim_envs.lighting`; MuJoCo renderer only); the trajectory does not depend on it; detail: ``standard``
+    (every registered sequence) or ``rich`` (the same room with clutter and texture detail: :mod:`sim_envs.scenegen`);
+    the trajectory does not depend on it either (it is the standard room's).
     """
 
     name: str
@@ -78,12 +80,17 @@ class SequenceSpec:
     description: str = ""
     camera_effects: str | CameraEffects = "clean"
     lighting: str = "flat"
+    detail: str = "standard"
 
     def __post_init__(self) -> None:
         self._check_camera_effects()
         if self.lighting not in LIGHTINGS:
             raise SimEnvError(
                 f"sequence {self.name!r}: lighting must be one of {', '.join(LIGHTINGS)}, got {self.lighting!r}"
+            )
+        if self.detail not in DETAILS:
+            raise SimEnvError(
+                f"sequence {self.name!r}: detail must be one of {', '.join(DETAILS)}, got {self.detail!r}"
             )
         params = self.trajectory_params
         items = params.items() if isinstance(params, Mapping) else params
@@ -169,6 +176,40 @@ def with_camera(spec: SequenceSpec, camera_effects: str | CameraEffects) -> Sequ
     until the benchmark switches its default (which changes every committed result).
     """
     return replace(spec, camera_effects=camera_effects)
+
+
+# Marks a name may carry after a registered sequence's name, ``office0+lit+rich``: mark -> (SequenceSpec field, value)
+VARIANT_MARKS: dict[str, tuple[str, str]] = {
+    **{v: ("lighting", v) for v in LIGHTINGS if v != "flat"},
+    **{v: ("detail", v) for v in DETAILS if v != "standard"},
+}
+
+
+def split_variant(name: str) -> tuple[str, str, str] | None:
+    """``(rest, field, value)`` when ``name`` ends in a variant mark ``+<mark>`` of :data:`VARIANT_MARKS`
+    (``office0+lit+rich`` -> ``("office0+lit", "detail", "rich")``), else None."""
+    rest, sep, mark = name.rpartition("+")
+    if sep and rest and mark in VARIANT_MARKS:
+        return (rest, *VARIANT_MARKS[mark])
+    return None
+
+
+def variant_spec(name: str) -> SequenceSpec:
+    """A registered sequence by name, with any variant marks: ``office0+lit`` (lit room), ``office0+rich`` (rich
+    room), ``office0+lit+rich`` (both; marks in any order, each at most once). The spec keeps the given name."""
+    fields: dict[str, str] = {}
+    rest = name
+    while (split := split_variant(rest)) is not None:
+        rest, key, value = split
+        if key in fields:
+            raise SimEnvError(f"sequence {name!r}: more than one {key} mark")
+        fields[key] = value
+    try:
+        spec = get_sequence(rest)
+    except UnknownNameError as exc:
+        marks = ", ".join(f"+{m}" for m in VARIANT_MARKS)
+        raise UnknownNameError(f"{exc}; a name may end in the variant marks {marks}") from None
+    return replace(spec, name=name, **fields) if fields else spec
 
 
 def gym_id(name: str) -> str:

@@ -45,13 +45,14 @@ _ALL_OUTPUTS = ("rgb", "depth", "labels", "instances")
 
 
 @lru_cache(maxsize=8)
-def cached_scene(style: str, seed: int, texture_density: float = 1.0, lighting: str = "flat") -> Any:
-    """The room ``generate_scene(style, seed, texture_density, lighting=lighting)``, generated once per process
-    (settled by physics). Scenes are treated as immutable by every user; the cache holds the last 8.
+def cached_scene(style: str, seed: int, texture_density: float = 1.0, lighting: str = "flat",
+                 detail: str = "standard") -> Any:  # fmt: skip
+    """The room ``generate_scene(style, seed, texture_density, lighting=lighting, detail=detail)``, generated once
+    per process (settled by physics). Scenes are treated as immutable by every user; the cache holds the last 8.
     """
     from sim_envs.scenegen import generate_scene
 
-    return generate_scene(style, int(seed), texture_density=float(texture_density), lighting=lighting)
+    return generate_scene(style, int(seed), texture_density=float(texture_density), lighting=lighting, detail=detail)
 
 
 @lru_cache(maxsize=64)
@@ -108,7 +109,8 @@ class SimulatedSequence:
     @property
     def scene(self) -> Any:
         """The room (``sim_envs.scene.Scene``), generated on first use."""
-        return cached_scene(self.spec.style, self.spec.scene_seed, self.spec.texture_density, self.spec.lighting)
+        spec = self.spec
+        return cached_scene(spec.style, spec.scene_seed, spec.texture_density, spec.lighting, spec.detail)
 
     @property
     def trajectory(self) -> Trajectory:

@@ -8,7 +8,8 @@ covers, screens, windows and whiteboards are single images stretched once over a
 
 Direct SLAM needs texture (image gradients) but real rooms also have low-texture surfaces: :func:`paint` is almost
 flat on purpose, and :func:`scale_contrast` scales any texture towards its mean colour (the scene generator's
-``texture_density``).
+``texture_density``). :func:`detailed` does the opposite for ``rich`` rooms: it raises a texture's contrast and
+overlays wear at several scales (mid-scale blotches, fine grain, specks), as real surfaces have.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import cv2
 import numpy as np
 
 TEXTURE_SIZE = 256  # pixels per side of a repeating texture (ours: ~4 mm per pixel at 1 m per tile)
+GRAIN_TEXELS: tuple[int, ...] = (8, 4)  # :func:`detail_gain`'s fine grain, an octave per cell size in texels (fitted)
 _WORDS = (
     "SLAM", "DEPTH", "MAP", "ROOM", "OFFICE", "NOTES", "PLAN", "DATA", "VISION", "TEAM", "GOALS", "2017", "CNN",
     "KEY", "FRAME", "LOOP", "POSE", "GRAPH", "MEETING", "IDEAS", "ART", "CITY", "NATURE", "MUSIC", "TRAVEL",
@@ -357,6 +359,79 @@ def door_panel(rng: np.random.Generator, rgb: tuple[float, float, float] = (0.6,
         cv2.rectangle(img, (m, y0), (width - m, y0 + h), dark, max(2, width // 40))
     cv2.circle(img, (width - width // 8, height // 2), max(3, width // 20), (200.0, 200.0, 190.0), -1, cv2.LINE_AA)
     return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def page(rng: np.random.Generator, width: int = 96, height: int = 128) -> np.ndarray:
+    """A sheet of paper or a printout: off-white with a heading, lines of text and sometimes a figure (not tiling)."""
+    paper = np.array([rng.uniform(225, 250)] * 3) - rng.uniform(0, 20, 3) * (rng.random() < 0.3)
+    img = np.empty((height, width, 3), np.float32)
+    img[:] = paper
+    margin, pitch = width // 10, max(4, height // int(rng.integers(14, 24)))
+    y = margin + pitch
+    if rng.random() < 0.6:  # a heading
+        cv2.rectangle(img, (margin, margin), (width - margin - int(rng.integers(0, width // 3)), margin + pitch),
+                      _random_colour(rng), -1)  # fmt: skip
+        y += pitch
+    figure = rng.random() < 0.35
+    while y < height - margin:
+        if figure and y > height // 3:  # a chart or photo block across a few lines
+            h = min(int(rng.integers(3, 6)) * pitch, height - margin - y)
+            cv2.rectangle(img, (margin, y), (width - margin, y + h), _random_colour(rng), -1)
+            y, figure = y + h + pitch, False
+            continue
+        end = width - margin - int(rng.integers(0, width // 3))
+        cv2.line(img, (margin, y), (end, y), (55.0, 55.0, 60.0), max(1, pitch // 4))
+        y += pitch
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def clock_face(rng: np.random.Generator, size: int = 96) -> np.ndarray:
+    """A wall clock's face: a pale dial, twelve hour ticks, two hands at a random time, a dark rim (not tiling)."""
+    img = np.full((size, size, 3), rng.uniform(215, 245), np.float32)
+    c, r = size // 2, size // 2 - 2
+    cv2.circle(img, (c, c), r, (35.0, 35.0, 35.0), max(2, size // 16))
+    for k in range(12):
+        a = 2 * np.pi * k / 12
+        p0 = (int(c + 0.75 * r * np.cos(a)), int(c + 0.75 * r * np.sin(a)))
+        p1 = (int(c + 0.88 * r * np.cos(a)), int(c + 0.88 * r * np.sin(a)))
+        cv2.line(img, p0, p1, (30.0, 30.0, 30.0), max(1, size // 32))
+    for length, width in ((0.5, size // 20), (0.75, size // 32)):
+        a = rng.uniform(0, 2 * np.pi)
+        cv2.line(img, (c, c), (int(c + length * r * np.cos(a)), int(c + length * r * np.sin(a))), (20.0, 20.0, 20.0),
+                 max(1, width), cv2.LINE_AA)  # fmt: skip
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def detail_gain(rng: np.random.Generator, shape: tuple[int, int], mid: float, fine: float,
+                specks: float = 0.0, speck_depth: float = 0.35) -> np.ndarray:  # fmt: skip
+    """Wear at several scales as a multiplicative gain: (h, w) float32 around 1.
+
+    Mid-scale blotches (fractal noise, 6 cells per image side and 3 octaves, scaled to +-``mid``), fine grain (one
+    octave of noise per cell size of :data:`GRAIN_TEXELS` pixels, together +-``fine``) and dark specks (the darkest
+    ``specks`` share of a 3-pixel noise, darkened by ``speck_depth``). Made periodic over a square of side
+    ``max(h, w)`` and cropped, so a square texture keeps tiling.
+    """
+    h, w = int(shape[0]), int(shape[1])
+    n = max(h, w)
+    blotch = fractal_noise(rng, n, 6, 3) - 0.5
+    grain = sum(periodic_noise(rng, n, max(2, n // t)) for t in GRAIN_TEXELS) / len(GRAIN_TEXELS) - 0.5
+    gain = (1.0 + 2.0 * mid * blotch) * (1.0 + 2.0 * fine * grain)
+    if specks > 0:
+        dots = periodic_noise(rng, n, max(2, n // 3))
+        gain *= np.where(dots < np.quantile(dots, specks), np.float32(1.0 - speck_depth), np.float32(1.0))
+    return np.ascontiguousarray(gain[:h, :w], dtype=np.float32)
+
+
+def detailed(texture: np.ndarray, rng: np.random.Generator, contrast: float, mid: float, fine: float,
+             specks: float = 0.0, speck_depth: float = 0.35) -> np.ndarray:  # fmt: skip
+    """``texture`` (h, w, 3) uint8 with its deviation from its mean colour scaled by ``contrast`` (> 1: more local
+    contrast) and then multiplied by :func:`detail_gain` (``mid``, ``fine``, ``specks``, ``speck_depth``):
+    (h, w, 3) uint8, tiling when ``texture`` is square and tiles."""
+    img = texture.astype(np.float32)
+    mean = img.reshape(-1, 3).mean(0)
+    img = mean + float(contrast) * (img - mean)
+    img *= detail_gain(rng, img.shape[:2], mid, fine, specks, speck_depth)[..., None]
+    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
 
 
 def scale_contrast(texture: np.ndarray, strength: float) -> np.ndarray:

@@ -125,6 +125,22 @@ def test_a_lit_sequence_is_named_with_plus_lit_before_its_camera_and_fingerprint
         lit[0].with_lighting("dark")
 
 
+def test_a_rich_sequence_is_named_with_plus_rich_after_its_lighting_and_round_trips():
+    rich = get_suite("table1").select(["office0+rich", "living1+rich+lit@hard"]).sequences  # default camera: kinect
+    assert [r.name for r in rich] == ["office0+rich@kinect", "living1+lit+rich@hard"]
+    assert rich[0].describe()["overrides"] == {"camera_effects": "kinect", "detail": "rich"}
+    spec = rich[1].spec()
+    assert (spec.detail, spec.lighting, spec.camera_effects) == ("rich", "lit", "hard")
+    assert spec.trajectory == get_sequence("living1").trajectory
+    for ref in (*rich, resolve_sequence("rot_yaw_30+rich"), resolve_sequence("office0+lit+rich")):
+        assert resolve_sequence(ref.name) == ref and not ref.registered
+    assert rich[1].with_lighting("flat").name == "living1+rich@hard"
+    assert rich[1].with_detail("standard").name == "living1+lit@hard"
+    assert rich[1].with_lighting("flat").with_detail("standard").overrides == (("camera_effects", "hard"),)
+    with pytest.raises(SuiteError, match="unknown detail 'cluttered'; valid: standard, rich"):
+        rich[0].with_detail("cluttered")
+
+
 def test_camera_preset_names_do_not_collide_with_folder_calibrations():
     from eval.sequence_ref import sim_camera_presets
 

@@ -28,14 +28,35 @@ def test_vignette_ratio_and_brightness_change():
     assert stats.brightness_mean == pytest.approx(102.5) and stats.frames == 4
 
 
-def test_a_calibration_sequence_may_be_named_in_its_lit_room():
-    from sim_envs.cli_camera_calibration import sequence_spec
+def test_a_calibration_sequence_may_be_named_in_its_lit_or_rich_room():
+    from sim_envs.cli_camera_calibration import _spec
     from sim_envs.errors import SimEnvError
 
-    assert sequence_spec("office0+lit").lighting == "lit" and sequence_spec("office0").lighting == "flat"
-    assert sequence_spec("office0+lit").trajectory == sequence_spec("office0").trajectory
-    with pytest.raises(SimEnvError, match="lighting must be one of flat, lit"):
-        sequence_spec("office0+dark")
+    assert _spec("office0+lit", 5).lighting == "lit" and _spec("office0", 5).lighting == "flat"
+    assert _spec("office0+lit", 5).trajectory == _spec("office0", 5).trajectory
+    assert _spec("office0+lit+rich", 5).detail == "rich" and _spec("office0+lit+rich", 5).n_frames == 5
+    assert _spec("office0+rich", 5, full_length=True).n_frames == 1500
+    with pytest.raises(SimEnvError, match="variant marks"):
+        _spec("office0+dark", 5)
+
+
+def test_depth_statistics_pool_the_valid_pixels_of_every_frame():
+    from sim_envs.camera_calibration import depth_statistics
+    from sim_envs.cli_camera_calibration import markdown_table
+    from sim_envs.errors import SimEnvError
+
+    a = np.zeros((4, 5), np.float32)
+    a[:2] = np.arange(1, 11, dtype=np.float32).reshape(2, 5)  # 1..10 m valid, the rest none
+    b = np.full((4, 5), np.nan, np.float32)
+    stats = depth_statistics([a, b])
+    assert stats.median == pytest.approx(5.5) and stats.p10 == pytest.approx(1.9) and stats.p90 == pytest.approx(9.1)
+    assert stats.valid_share == pytest.approx(0.25) and stats.frames == 2
+    with pytest.raises(SimEnvError, match="at least one valid depth"):
+        depth_statistics([b])
+    cam = camera_statistics([np.full((8, 8, 3), 100, np.uint8)] * 2)
+    table = markdown_table({"a": cam, "b": cam}, {"a": stats})
+    assert "| depth, median of valid pixels [m] | 5.50 |  |" in table
+    assert "depth" not in markdown_table({"a": cam})
 
 
 def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
@@ -52,3 +73,10 @@ def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
     assert np.isnan(depth_edge_alignment(rgb, np.full((120, 160), 2.0, np.float32)))  # no depth edge
     with pytest.raises(SimEnvError, match="depth of shape"):
         depth_edge_alignment(rgb, depth[:10])
+
+
+def test_the_calibration_command_refuses_a_step_below_one():
+    from sim_envs.cli_camera_calibration import main
+
+    with pytest.raises(SystemExit):
+        main(["--step", "0"])

@@ -1,4 +1,4 @@
-"""The room generator: determinism, styles, structure, non-overlapping furniture, texture density."""
+"""The room generator: determinism, styles, structure, non-overlapping furniture, texture density, rich rooms."""
 
 import numpy as np
 import pytest
@@ -162,3 +162,53 @@ def test_camera_space_helpers_on_a_generated_room(office):
     boxes = office.instance_aabbs()[office.instance_classes() >= SemanticClass.LARGE_STRUCTURE]
     inside_any = ((candidates[free, None] >= boxes[None, :, 0]) & (candidates[free, None] <= boxes[None, :, 1])).all(2)
     assert not inside_any.any()
+
+
+# ------------------------------------------------------------------------------------------------------ rich rooms
+@pytest.fixture(scope="module")
+def rich():
+    return generate_scene("office", 0, detail="rich")
+
+
+def test_a_rich_room_is_the_standard_room_with_more(office, rich):
+    assert rich.detail == "rich" and office.detail == "standard"
+    np.testing.assert_array_equal(rich.room_size, office.room_size)
+    assert rich.lights == office.lights and rich.ambient == office.ambient
+    # the same furniture and structure, at the same poses (only small objects are settled again, among more)
+    kinds = {"floor", "ceiling", "wall", "door", "window", "desk", "chair", "bookshelf", "cabinet", "table", "poster"}
+    same = [(p.name, p.T_world_obj.tobytes()) for p in office.primitives if p.instance_kind in kinds]
+    assert same == [(p.name, p.T_world_obj.tobytes()) for p in rich.primitives if p.instance_kind in kinds]
+    assert rich.n_instances > office.n_instances + 30  # clutter, floor objects, wall decorations
+    new = {p.instance_kind for p in rich.primitives} - {p.instance_kind for p in office.primitives}
+    assert {"frame", "tin", "carton"} <= new
+
+
+def test_rich_room_texture_energy_and_determinism(office, rich):
+    def energy(scene):  # mean absolute horizontal step of the textures, per material
+        return np.mean([np.abs(np.diff(m.texture.astype(np.float32), axis=1)).mean() if m.texture is not None else 0.0
+                        for m in scene.materials()])  # fmt: skip
+
+    assert energy(rich) > 1.5 * energy(office)
+    assert all(m.texture is not None for m in rich.materials())  # plain colours get detail too
+    again = generate_scene("office", 0, detail="rich")
+    a, b = _signature(rich), _signature(again)
+    np.testing.assert_array_equal(a[0], b[0])
+    assert a[2] == b[2] and a[3] == b[3]
+
+
+def test_rich_wall_decorations_hang_flat_on_the_walls(rich):
+    boxes, names = rich.instance_aabbs(), rich.instance_names()
+    hung = 0
+    for box, name in zip(boxes, names, strict=True):
+        if name.rsplit("_", 1)[0] in ("frame", "pinboard", "clock", "calendar", "switch"):
+            hung += 1
+            assert np.minimum(box[1, :2], rich.room_size[:2] - box[0, :2]).min() < 0.06, name  # <= 5 cm out
+            assert 0.7 < box[0, 2] and box[1, 2] < rich.room_size[2] - 0.1, name
+    assert hung >= 10
+
+
+def test_rich_room_at_density_zero_keeps_plain_colours():
+    plain = generate_scene("living", 3, texture_density=0.0, detail="rich")
+    assert all(m.texture is None for m in plain.materials())
+    with pytest.raises(SimEnvError, match="detail must be one of standard, rich"):
+        generate_scene("office", 0, detail="cluttered")

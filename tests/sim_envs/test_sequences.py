@@ -114,3 +114,23 @@ def test_spec_validation_and_value_semantics():
         SequenceSpec("x", "office", 3, "handheld", n_frames=1)
     with pytest.raises(SimEnvError, match="scene_seed"):
         SequenceSpec("x", "bedroom", 12, "handheld", split="train")
+
+
+def test_variant_marks_name_lit_and_rich_rooms():
+    from sim_envs.sequences import VARIANT_MARKS, split_variant, variant_spec
+
+    assert VARIANT_MARKS == {"lit": ("lighting", "lit"), "rich": ("detail", "rich")}
+    assert split_variant("office0+lit+rich") == ("office0+lit", "detail", "rich")
+    assert split_variant("office0") is None and split_variant("office0+dark") is None
+    office = get_sequence("office0")
+    assert variant_spec("office0") is office and office.detail == "standard"
+    for name in ("office0+lit+rich", "office0+rich+lit"):
+        spec = variant_spec(name)
+        assert (spec.name, spec.lighting, spec.detail, spec.trajectory) == (name, "lit", "rich", office.trajectory)
+    assert variant_spec("living1+rich").detail == "rich" and variant_spec("living1+rich").lighting == "flat"
+    with pytest.raises(SimEnvError, match="more than one detail mark"):
+        variant_spec("office0+rich+rich")
+    with pytest.raises(UnknownNameError, match=r"variant marks \+lit, \+rich"):
+        variant_spec("office0+dark")
+    with pytest.raises(SimEnvError, match="detail must be one of standard, rich"):
+        SequenceSpec("x", "office", 3, "handheld", detail="cluttered")

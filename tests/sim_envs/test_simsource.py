@@ -135,3 +135,17 @@ def test_frame_list_source_validates():
         FrameListSource("x", intr.scaled(16, 12), [f])
     with pytest.raises(SimEnvError, match="empty"):
         FrameListSource("x", intr, [])
+
+
+def test_a_rich_sequence_shows_more_detail_along_the_same_trajectory_same_bytes():
+    standard = _short("office0", 20)
+    rich = replace(standard, detail="rich")
+    with SimulatedSequence(standard) as a, SimulatedSequence(rich) as b, SimulatedSequence(rich) as again:
+        np.testing.assert_array_equal(a.poses, b.poses)  # the standard room's trajectory
+        assert b.scene.detail == "rich" and b.scene is cached_scene("office", 1, 1.0, "flat", "rich")
+        assert b.scene.free_space(b.poses[:, :3, 3], margin=0.2).all()  # no clutter in the camera's way
+        fa, fb = a.frame(10), b.frame(10)
+        np.testing.assert_array_equal(fb.rgb, again.frame(10).rgb)
+        np.testing.assert_array_equal(fb.depth, again.frame(10).depth)
+        assert _grad_energy(fb.rgb) > 1.5 * _grad_energy(fa.rgb)
+        assert len(np.unique(fb.instances)) > len(np.unique(fa.instances))

@@ -9,7 +9,7 @@ from sim_envs.materials import SLOTS, MaterialBank
 TILING = [textures.wood, textures.planks, textures.carpet, textures.tiles, textures.wallpaper, textures.fabric,
           textures.paint, textures.concrete]  # fmt: skip
 SINGLE = [textures.poster, textures.book_cover, textures.screen, textures.window_view, textures.whiteboard,
-          textures.door_panel]  # fmt: skip
+          textures.door_panel, textures.page, textures.clock_face]  # fmt: skip
 
 
 @pytest.mark.parametrize("fn", TILING + SINGLE, ids=lambda f: f.__name__)
@@ -56,6 +56,37 @@ def test_scale_contrast():
     half = textures.scale_contrast(img, 0.5)
     np.testing.assert_allclose(half.std(axis=(0, 1)), img.std(axis=(0, 1)) / 2, rtol=0.05)
     assert textures.scale_contrast(img, 1.0) is img
+
+
+def test_detailed_raises_contrast_adds_wear_and_keeps_tiling():
+    paint = textures.paint(np.random.default_rng(2))
+    rich = textures.detailed(paint, np.random.default_rng(5), 2.0, 0.15, 0.25, 0.04)
+    np.testing.assert_array_equal(rich, textures.detailed(paint, np.random.default_rng(5), 2.0, 0.15, 0.25, 0.04))
+    assert rich.shape == paint.shape and rich.dtype == np.uint8
+    assert rich.std(axis=(0, 1)).min() > 3 * paint.std(axis=(0, 1)).max()  # wear at several scales on plain paint
+    np.testing.assert_allclose(rich.reshape(-1, 3).mean(0), paint.reshape(-1, 3).mean(0), rtol=0.08)
+    img = rich.astype(np.float64)  # still tiles: the seam is no rougher than the inside
+    assert np.abs(img[:, 0] - img[:, -1]).mean() <= 2.5 * np.abs(np.diff(img, axis=1)).mean() + 1.0
+    wood = textures.wood(np.random.default_rng(1))
+    contrast = textures.detailed(wood, np.random.default_rng(0), 2.0, 0.0, 0.0)
+    np.testing.assert_allclose(contrast.std(axis=(0, 1)), 2 * wood.std(axis=(0, 1)), rtol=0.02)
+    gain = textures.detail_gain(np.random.default_rng(0), (64, 96), 0.1, 0.1)
+    assert gain.shape == (64, 96) and 0.75 < gain.min() and gain.max() < 1.25
+
+
+def test_enrich_material():
+    from sim_envs.materials import RICH_WALL_STRENGTH, enrich_material
+    from sim_envs.scene import Material
+
+    plain = Material("metal_1", (0.5, 0.5, 0.52), None, 1.0)
+    rich = enrich_material(plain, np.random.default_rng(0))
+    assert rich.name == plain.name and rich.rgb == (1.0, 1.0, 1.0) and rich.tile_m == 1.0
+    np.testing.assert_allclose(rich.texture.reshape(-1, 3).mean(0), np.array(plain.rgb) * 255, rtol=0.06)
+    assert enrich_material(plain, np.random.default_rng(0), texture_density=0.0) is plain
+    wall = Material("wall_1", (1.0, 1.0, 1.0), textures.paint(np.random.default_rng(0)), 2.0)
+    soft = enrich_material(wall, np.random.default_rng(1), strength=RICH_WALL_STRENGTH)
+    full = enrich_material(wall, np.random.default_rng(1))
+    assert soft.texture.std() < full.texture.std()
 
 
 def test_material_bank_density():
