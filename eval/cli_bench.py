@@ -58,8 +58,8 @@ from eval.methods import (
     takes_config,
     with_settings,
 )
-from eval.sequence_ref import dataset_list_file, sim_camera_presets
-from eval.suites import SUITES, get_suite
+from eval.sequence_ref import dataset_list_file
+from eval.suites import SUITES, get_suite, sim_domain
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import MetricError
 
@@ -96,8 +96,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulated sequences: what the camera does to the images, kinect (a hand-held RGB-D "
                              "camera, default), clean (the renderer's bytes) or hard (sim_envs/camera_effects.py; "
                              "a name with @PRESET in --sequences picks one sequence's camera; "
-                             "transfer: the simulated domains, comma-separated presets, each maybe with +lit "
-                             "(clean,kinect,kinect+lit), default the presets); folder "
+                             "transfer: the simulated domains, comma-separated presets, each maybe with +lit and/or "
+                             "+rich (clean,kinect,kinect+lit,kinect+rich), default the presets); folder "
                              "sequences: their calibration, a preset (tum_fr1, tum_fr2, tum_fr3, icl, 7scenes, ...) or "
                              "a camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3]); default: the "
                              "folder's "
@@ -202,6 +202,15 @@ def _frames(text: str) -> int | str:
         raise argparse.ArgumentTypeError(f"must be a number of frames or 'all', got {text!r}") from None
 
 
+def _is_sim_domain(text: str) -> bool:
+    """True when ``text`` names a simulated domain of the transfer suite (:func:`eval.suites.sim_domain`)."""
+    try:
+        sim_domain(text)
+    except SuiteError:
+        return False
+    return True
+
+
 def _image_size(text: str | None):
     """``--image-size``: ``WxH`` -> (W, H), ``native``, or None when not given."""
     if text is None or text == "native":
@@ -293,8 +302,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"--set {' '.join(args.set)}: applied to {', '.join(configurable)} (cnnslam config METHOD --set ... "
                   "prints the result)")
         camera, presets = args.camera, None
-        sim_domains = {p for c in sim_camera_presets() for p in (c, f"{c}+lit")}
-        if suite.kind == "transfer" and camera is not None and set(camera.split(",")) <= sim_domains:
+        if suite.kind == "transfer" and camera is not None and all(_is_sim_domain(c) for c in camera.split(",")):
             camera, presets = None, tuple(args.camera.split(","))  # the simulated part's cameras, e.g. clean,kinect
         suite = suite.select(_names(args.sequences), chosen, args.frames, args.seeds, args.runs,
                              camera=camera, size=_image_size(args.image_size), undistort=args.undistort)  # fmt: skip

@@ -58,8 +58,7 @@ from eval.sequence_ref import (
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import detect_layout
 from sim_envs.errors import SimEnvError
-from sim_envs.scene import LIGHTINGS
-from sim_envs.sequences import TABLE1_SEQUENCES
+from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variant
 from sim_envs.trajectories import ROTATION_AXES
 
 # --------------------------------------------------------------------------------------------------- the suites
@@ -368,16 +367,24 @@ def get_suite(name: str) -> Suite:
     return with_real_folders(suite) if suite.real_folders else suite
 
 
-def sim_domain(name: str) -> tuple[str, str]:
-    """A simulated domain of the transfer report, ``<camera preset>`` or ``<camera preset>+<lighting>``
-    (``kinect+lit``), as ``(camera preset, lighting)``; raises :class:`SuiteError` naming the valid ones."""
-    camera, _, lighting = name.partition("+")
-    if camera not in SIM_CAMERA_PRESETS or (lighting or "flat") not in LIGHTINGS:
-        raise SuiteError(
-            f"unknown simulated domain {name!r}; valid: a camera preset ({', '.join(SIM_CAMERA_PRESETS)}), "
-            f"optionally with +lit (kinect+lit: the rooms lit by lamps with shadows)"
-        )
-    return camera, lighting or "flat"
+def sim_domain(name: str) -> tuple[str, str, str]:
+    """A simulated domain of the transfer report, ``<camera preset>`` with optional room variant marks
+    (``kinect+lit``, ``kinect+rich``, ``kinect+lit+rich``: :data:`sim_envs.sequences.VARIANT_MARKS`), as ``(camera
+    preset, lighting, detail)``; raises :class:`SuiteError` naming the valid ones."""
+    marks = ", ".join(f"+{m}" for m in VARIANT_MARKS)
+    error = SuiteError(f"unknown simulated domain {name!r}; valid: a camera preset ({', '.join(SIM_CAMERA_PRESETS)}), "
+                       f"optionally with the room marks {marks}, each once (kinect+lit: lamps with shadows; "
+                       "kinect+rich: clutter and texture detail)")  # fmt: skip
+    fields: dict[str, str] = {}
+    rest = name
+    while (split := split_variant(rest)) is not None:
+        rest, key, value = split
+        if key in fields:
+            raise error
+        fields[key] = value
+    if rest not in SIM_CAMERA_PRESETS:
+        raise error
+    return rest, fields.get("lighting", "flat"), fields.get("detail", "standard")
 
 
 @dataclass(frozen=True)
@@ -478,12 +485,12 @@ class TransferPart:
 def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECTS,),
                    lengths: Sequence[int | None] | None = None,
                    motions: Sequence[str | Path] = ()) -> list[TransferPart]:
-    """The suites the ``transfer`` suite is made of, compared like for like: for each length of ``lengths``
-    (default: the transfer suite's ``frames``, the bench length, then whole sequences; ``frames`` None: whole
-    only), the ``table1`` suite on its first ``length`` frames through each simulated domain of ``presets`` (a
-    camera preset, or one with ``+lit``, :func:`sim_domain`; domain ``sim:<preset>``), with the transfer suite's
-    methods and seeds (its runs are ``make bench``'s and ``cnnslam bench table1``'s own); and the ``real`` suite on
-    the transfer suite's folder sequences: whole, or cut into non-overlapping windows of ``length`` frames
+    """The suites the ``transfer`` suite is made of, compared like for like: for each length of ``lengths`` (default:
+    the transfer suite's ``frames``, the bench length, then whole sequences; ``frames`` None: whole only), the
+    ``table1`` suite on its first ``length`` frames through each simulated domain of ``presets`` (a camera preset,
+    maybe with room marks ``+lit`` / ``+rich``, :func:`sim_domain`; domain ``sim:<preset>``), with the transfer
+    suite's methods and seeds (its runs are ``make bench``'s and ``cnnslam bench table1``'s own); and the ``real``
+    suite on the transfer suite's folder sequences: whole, or cut into non-overlapping windows of ``length`` frames
     (:func:`window_refs`), each window a sample of the real sequence's domain ``real:<name>``. ``motions``: TUM
     trajectory files (real hand-held motion) replayed in the same rooms (:meth:`SequenceRef.with_motion`), each a
     simulated domain ``sim:<preset>~<file stem>`` of its own beside the preset's, so that the motion's share of the
@@ -499,8 +506,9 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     parts = []
     for length in lengths:
         for p in presets:
-            camera, lighting = sim_domain(p)
-            refs = tuple(r.with_lighting(lighting).with_camera_effects(camera) for r in table1.sequences)
+            camera, lighting, detail = sim_domain(p)
+            refs = tuple(r.with_lighting(lighting).with_detail(detail).with_camera_effects(camera)
+                         for r in table1.sequences)
             part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs, frames=length)
             parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
             for motion in motions:

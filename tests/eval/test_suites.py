@@ -170,6 +170,10 @@ def test_the_transfer_suite_compares_like_with_like(tmp_path):
     assert [r.name for r in parts[5].suite.sequences] == ["realish"] and parts[5].domain_of("realish") == "real:realish"
     assert folder_ref(folder) == windows[0]  # the first window is the whole sequence on its first frames
     assert [p.length for p in transfer_parts(replace(suite, frames=None))] == [None, None]
+    rich = transfer_parts(replace(suite, frames=None), ("kinect+rich", "kinect+rich+lit"))
+    assert [r.name for r in rich[0].suite.sequences][:1] == ["office0+rich@kinect"]
+    assert [r.name for r in rich[1].suite.sequences][:1] == ["office0+lit+rich@kinect"]
+    assert {d for _, d in rich[1].domains} == {"sim:kinect+rich+lit"}
     with pytest.raises(SuiteError, match="unknown simulated domain 'kinect\\+dark'"):
         transfer_parts(get_suite("transfer"), ("kinect+dark",))
 
