@@ -5,7 +5,7 @@ Suites (``--list`` prints them with their sequences and methods): ``table1`` (de
 simulated analogues against the real folders: do their rankings agree?), ``quick``; see
 :mod:`eval.suites`. ``--sequences`` takes sequence names, dataset-list names and paths of real RGB-D folders (TUM
 RGB-D, ICL-NUIM, 7-Scenes, RGB-only; delivered at 320x240 unless ``--image-size``). Runs go to ``--out`` (one
-folder per run, see :mod:`eval.runner`), results to ``--results`` (see :mod:`eval.reports`). A rerun skips finished
+folder per run, see :mod:`eval.run`), results to ``--results`` (see :mod:`eval.reports`). A rerun skips finished
 runs and retries failed ones; methods that cannot run here are skipped and reported.
 
 Examples::

@@ -7,7 +7,7 @@ passing another file of the same shape (:func:`load_methods`).
 
 Two kinds of method:
 
-- ``agent``: an agent of :mod:`sim_envs.agent` run in the environment of each sequence by :mod:`eval.runner`;
+- ``agent``: an agent of :mod:`sim_envs.agent` run in the environment of each sequence by :mod:`eval.run`;
 - ``external``: a third-party SLAM system that ran on an exported sequence (``cnnslam export``, ``cnnslam generate
   rotation --export``) and wrote, per sequence, a TUM trajectory and optionally depth maps into a folder
   (:func:`external_method`; layout in :data:`EXTERNAL_LAYOUT`). Its output is scored exactly like an agent's.

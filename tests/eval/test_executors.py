@@ -27,7 +27,8 @@ from eval.executors import (
     threads_per_job,
 )
 from eval.methods import load_methods
-from eval.runner import RunSpec, execute_run, run_suite
+from eval.run import RunSpec, execute_run
+from eval.runner import run_suite
 from eval.sequence_ref import SequenceRef
 from eval.suites import get_suite
 

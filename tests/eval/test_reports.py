@@ -17,7 +17,8 @@ from eval.reports import (
     sweep_points,
     with_relative_errors,
 )
-from eval.runner import RunOutcome, RunSpec, SuiteRun
+from eval.run import RunSpec
+from eval.runner import RunOutcome, SuiteRun
 from eval.suites import get_suite
 from eval.tables import TABLE1_BLOCKS, table1
 

@@ -10,19 +10,9 @@ import numpy as np
 import pytest
 
 from eval.methods import Method, external_method, load_methods
-from eval.runner import (
-    DONE_FILE,
-    FAILED_FILE,
-    RunResult,
-    RunSpec,
-    execute_run,
-    is_finished,
-    plan_runs,
-    remove_stale_temporaries,
-    run_folder,
-    run_suite,
-    store_result,
-)
+from eval.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, execute_run
+from eval.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.runner import plan_runs, run_suite
 from eval.sequence_ref import SequenceRef
 from eval.suites import get_suite
 from sim_envs.datasets import export_tum_rgbd
