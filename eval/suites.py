@@ -58,7 +58,7 @@ from eval.sequence_ref import (
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import detect_layout
 from sim_envs.errors import SimEnvError
-from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variant
+from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variants
 from sim_envs.trajectories import ROTATION_AXES
 
 # --------------------------------------------------------------------------------------------------- the suites
@@ -375,13 +375,10 @@ def sim_domain(name: str) -> tuple[str, str, str]:
     error = SuiteError(f"unknown simulated domain {name!r}; valid: a camera preset ({', '.join(SIM_CAMERA_PRESETS)}), "
                        f"optionally with the room marks {marks}, each once (kinect+lit: lamps with shadows; "
                        "kinect+rich: clutter and texture detail)")  # fmt: skip
-    fields: dict[str, str] = {}
-    rest = name
-    while (split := split_variant(rest)) is not None:
-        rest, key, value = split
-        if key in fields:
-            raise error
-        fields[key] = value
+    try:
+        rest, fields = split_variants(name)
+    except SimEnvError:
+        raise error from None
     if rest not in SIM_CAMERA_PRESETS:
         raise error
     return rest, fields.get("lighting", "flat"), fields.get("detail", "standard")

@@ -194,16 +194,24 @@ def split_variant(name: str) -> tuple[str, str, str] | None:
     return None
 
 
-def variant_spec(name: str) -> SequenceSpec:
-    """A registered sequence by name, with any variant marks: ``office0+lit`` (lit room), ``office0+rich`` (rich
-    room), ``office0+lit+rich`` (both; marks in any order, each at most once). The spec keeps the given name."""
+def split_variants(name: str) -> tuple[str, dict[str, str]]:
+    """``(rest, {field: value})`` of every variant mark ``name`` ends in (``office0+lit+rich`` -> ``("office0",
+    {"lighting": "lit", "detail": "rich"})``; marks in any order); :class:`SimEnvError` when a field is marked
+    twice."""
     fields: dict[str, str] = {}
     rest = name
     while (split := split_variant(rest)) is not None:
         rest, key, value = split
         if key in fields:
-            raise SimEnvError(f"sequence {name!r}: more than one {key} mark")
+            raise SimEnvError(f"{name!r}: more than one {key} mark")
         fields[key] = value
+    return rest, fields
+
+
+def variant_spec(name: str) -> SequenceSpec:
+    """A registered sequence by name, with any variant marks: ``office0+lit`` (lit room), ``office0+rich`` (rich
+    room), ``office0+lit+rich`` (both; marks in any order, each at most once). The spec keeps the given name."""
+    rest, fields = split_variants(name)
     try:
         spec = get_sequence(rest)
     except UnknownNameError as exc:
