@@ -128,7 +128,7 @@ class CnnSlamAgent:
         res = self._result
         keyframes = [
             KeyframeDepth(timestamp=k.timestamp, depth=k.depth, T_world_cam=k.T_world_kf, uncertainty=k.variance,
-                          labels=k.labels)
+                          labels=k.label_probs if k.label_probs is not None else k.labels)
             for k in res.keyframes
         ]
         extras = dict(res.stats)

@@ -311,6 +311,10 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(options, dict):
             raise CnnSlamError(f"--agent-options must be a JSON object, got {args.agent_options!r}")
         config = GlobalModelConfig(voxel_size=args.voxel)
+        if args.agent == DEFAULT_AGENT:  # its key-frames keep their class probabilities: the replays fuse them again
+            overrides = options.get("config") or {}
+            if isinstance(overrides, dict):
+                options["config"] = {"system.keep_label_probabilities": True, **overrides}
         agent = load_agent(args.agent, **options)
         env = _open_env(args)
         try:

@@ -487,6 +487,10 @@ class SystemConfig:
     # set (image pyramid, gradient masks, tracking points: 2.7 MB at 320x240); older ones drop it and make it again,
     # with the same bytes, when recovery or a pose-graph alignment uses them. Bounds a long sequence's memory.
     working_keyframes: int = 3
+    # Ours (memory): once the global model has fused a key-frame's CNN class probabilities (Sec. 3.5), the key-frame
+    # keeps only their argmax (uint8, 1/8 of the float16 distribution); True keeps the distributions too (e.g. for
+    # `cnnslam map`, whose replays fuse them again). Changes no output but the key-frames' label_probs.
+    keep_label_probabilities: bool = False
 
     def validate(self) -> None:
         if self.seed < 0:

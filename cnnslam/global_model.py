@@ -88,7 +88,6 @@ from cnnslam.surfel_kernels import (
     merge_kernel,
     render_kernel,
     sampled_normals,
-    splat_index_map,  # noqa: F401 - re-exported (model pictures)
 )
 from cnnslam.surfel_store import SurfelStore
 from slamcommon.labels import NO_LABEL  # noqa: F401 - re-exported: an element without label evidence

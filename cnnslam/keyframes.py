@@ -421,10 +421,10 @@ class Keyframe:
     @property
     def labels(self) -> np.ndarray | None:
         """(H, W) uint8 CNN labels, the argmax of the class probabilities (None without a CNN)."""
-        if self._labels is not None:
+        probs = self.label_probs  # read first: keep_labels_only sets the labels before it drops the distribution
+        if probs is None:
             return self._labels
-        probs = self.label_probs
-        return None if probs is None else np.argmax(probs, axis=2).astype(np.uint8)
+        return np.argmax(probs, axis=2).astype(np.uint8)
 
     def keep_labels_only(self) -> None:
         """Keep the argmax of the class probabilities and drop the distribution (1/8 of its memory at C = 4): after

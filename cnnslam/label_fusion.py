@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cnnslam.config import LABEL_WEIGHTINGS, LabelWeighting
 from cnnslam.errors import CnnSlamError
 from cnnslam.surfel_kernels import probability_kernel
 from slamcommon.labels import NO_LABEL
@@ -44,7 +45,7 @@ def class_probability_map(label_probs: np.ndarray | None, size: tuple[int, int],
     return out
 
 
-def label_weights(alpha: np.ndarray, sigma2: np.ndarray, weighting: str, min_sigma: float) -> np.ndarray:
+def label_weights(alpha: np.ndarray, sigma2: np.ndarray, weighting: LabelWeighting, min_sigma: float) -> np.ndarray:
     """The weight w of each measurement's class distribution in :func:`fuse_labels`: Keller's confidence ``alpha``
     (``weighting = "confidence"``), or ``alpha * min_sigma^2 / sigma2`` (``"precision"``: depth variance sigma_d^2 in
     m^2, so a measurement as certain as the floor ``min_sigma`` counts alpha)."""
@@ -52,7 +53,7 @@ def label_weights(alpha: np.ndarray, sigma2: np.ndarray, weighting: str, min_sig
         return alpha
     if weighting == "precision":
         return alpha * (min_sigma**2 / sigma2)
-    raise CnnSlamError(f"label weighting must be 'confidence' or 'precision', got {weighting!r}")
+    raise CnnSlamError(f"label weighting must be one of {', '.join(LABEL_WEIGHTINGS)}, got {weighting!r}")
 
 
 def fuse_labels(evidence: np.ndarray, ids: np.ndarray, probs: np.ndarray, weight: np.ndarray) -> None:

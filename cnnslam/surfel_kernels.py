@@ -59,7 +59,7 @@ def normal_at(V, y, x, s, tol_factor):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True)
 def normal_map_kernel(V, tol):  # pragma: no cover - compiled
-    """:func:`_normal_at` (one-pixel step) at every pixel of the vertex map ``V``: (normals (h, w, 3) float32, zero
+    """:func:`normal_at` (one-pixel step) at every pixel of the vertex map ``V``: (normals (h, w, 3) float32, zero
     where none; valid (h, w) bool)."""
     h, w = V.shape[:2]
     N = np.zeros((h, w, 3), np.float32)
@@ -126,17 +126,6 @@ def splat_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.n
     point covers the pixel centres within its radius of (u, v), and always the pixel it falls in.
     """
     return _splat(u, v, z, radius_px, np.zeros((h, w), np.float32), False)
-
-
-def closest_depth_index_map(u: np.ndarray, v: np.ndarray, z: np.ndarray, radius_px: np.ndarray,
-                            observed: np.ndarray) -> np.ndarray:
-    """Per pixel, the point whose depth is closest to the observed depth there: index (h, w) int32, -1 = none.
-
-    Like :func:`splat_index_map`, but the z-test is replaced by |z - observed[y, x]|, so that a measurement can find
-    its surface behind unconfirmed clutter in front of it; pixels with observed <= 0 get none.
-    """
-    return _splat(u, v, z, radius_px, observed, True)[0]
-
 
 
 # ------------------------------------------------------------------------------------ the steps of fusion
@@ -208,7 +197,7 @@ def render_kernel(pos, nrm, conf, radius, min_conf, R32, t32, R, t, fx, fy, cx, 
 @njit(cache=True, nogil=True)
 def sampled_normals(d, rays, smoothed, jump, step, stride, consistency, adaptive):  # pragma: no cover - compiled
     """Step 1's normals at the pixels fusion samples (every ``stride``-th row and column):
-    cnnslam.icp.adaptivenormal_map_kernel(rays d, rays smoothed, jump, step) there (``adaptive``), or the raw
+    cnnslam.icp.adaptive_normal_map(rays d, rays smoothed, jump, step) there (``adaptive``), or the raw
     cnnslam.icp.normal_map(rays d, jump, 1). Returns (ceil(h / stride), ceil(w / stride), 3) float32."""
     h, w = d.shape
     V = np.empty((h, w, 3), np.float32)

@@ -1,5 +1,5 @@
 """The global model's storage and index, apart from fusion (as DPVO keeps its patch graph apart from the algorithm):
-one row per surfel in columns of fixed types, grown by doubling, compacted in place, and a sorted index of the rows'
+one row per surfel in columns of fixed types, grown by 1.25x, compacted in place, and a sorted index of the rows'
 voxel keys for the hash lookup of fusion's step 4 (:mod:`cnnslam.global_model`). What the rows mean and how they are
 computed is fusion's business; here rows are only stored, found by key, removed and re-indexed.
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cnnslam.errors import CnnSlamError
 from cnnslam.surfel_kernels import compact_1d, compact_2d
 
 SURFEL_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
@@ -80,8 +81,8 @@ class SurfelStore:
         self.evidence = evidence
 
     def append(self, keys: np.ndarray) -> slice:
-        """Room for ``keys.size`` new rows with these voxel keys (unique, none held yet), indexed; returns the slice
-        of the new rows, whose other columns and evidence the caller fills (evidence starts at zero)."""
+        """Room for ``keys.size`` new rows with these voxel keys (sorted, unique, none held yet), indexed; returns the
+        slice of the new rows, whose other columns and evidence the caller fills (evidence starts at zero)."""
         keys = np.asarray(keys, dtype=np.int64)
         k = keys.size
         self._reserve(k)
@@ -122,6 +123,9 @@ class SurfelStore:
         column ``name`` (``"evidence"``: the label evidence) to ``values``. The index must be rebuilt
         (:meth:`reindex`)."""
         overrides = overrides or {}
+        unknown = sorted(set(overrides) - {*self.columns, "evidence"})
+        if unknown:
+            raise CnnSlamError(f"no surfel column {unknown}; columns: {', '.join(self.columns)}, evidence")
         ids = np.asarray(ids, dtype=np.int64)
         for name, arr in (*self.columns.items(), ("evidence", self.evidence)):
             column = arr[ids]

@@ -554,7 +554,8 @@ class CnnSlam:
         if cfg.unstable_confidence > 0:  # Keller's removal of unstable points
             self._model.prune(cfg.unstable_confidence, cfg.unstable_age)
         self._fused.add(keyframe.index)
-        keyframe.keep_labels_only()  # the model holds the distributions now; 1.8 -> 1.3 MB per key-frame
+        if not self.config.system.keep_label_probabilities:  # the model holds the distributions now
+            keyframe.keep_labels_only()  # 1.8 -> 1.2 MB per key-frame
         self._seconds["fusion"] += time.perf_counter() - t0
         if self.observers:
             _notify(self.observers, "keyframe_fused", keyframe.index, keyframe.T_world_kf.copy(), self._model)

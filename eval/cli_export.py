@@ -17,7 +17,8 @@ from sim_envs.errors import SimEnvError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("sequence", help="a registered sequence name (see sim_envs.sequences)")
+    parser.add_argument("sequence", help="a registered sequence name (see sim_envs.sequences), maybe with the room "
+                                         "marks +lit / +rich (office0+rich)")
     parser.add_argument("folder", help="output folder (must not exist or be empty, unless --overwrite)")
     parser.add_argument("--renderer", default="mujoco", help="renderer backend (default: mujoco)")
     parser.add_argument("--frames", type=int, default=None, help="export only the first N frames")
@@ -35,17 +36,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def open_sequence(name: str, renderer: str, camera_effects: str = DEFAULT_CAMERA_EFFECTS, lighting: str = "flat",
                   ) -> Any:
-    """A registered sequence, seen through the ``camera_effects`` preset in its room lit ``lighting``, as a frame
-    source (lazy imports: the registry pulls in scenes and renderers)."""
+    """A registered sequence, maybe with room variant marks (``office0+rich``, ``office0+lit``:
+    :func:`sim_envs.sequences.variant_spec`), seen through the ``camera_effects`` preset in its room lit
+    ``lighting``, as a frame source (lazy imports: the registry pulls in scenes and renderers)."""
     from dataclasses import replace
 
-    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.sequences import variant_spec, with_camera
+    from sim_envs.simsource import SimulatedSequence
 
-    try:
-        from sim_envs.sequences import SimulatedSequence
-    except ImportError:
-        from sim_envs.simsource import SimulatedSequence
-    spec = get_sequence(name)
+    spec = variant_spec(name)
     spec = with_camera(spec, camera_effects) if camera_effects != "clean" else spec
     spec = replace(spec, lighting=lighting) if lighting != "flat" else spec
     return SimulatedSequence(spec, renderer=renderer)

@@ -7,3 +7,7 @@ class EvalError(ValueError):
 
 class SuiteError(EvalError):
     """An unknown suite, sequence or method selection."""
+
+
+class RunnerError(EvalError):
+    """A run that cannot be planned or stored (a bad output folder, an unreadable result)."""

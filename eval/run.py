@@ -4,7 +4,8 @@
 A run (:func:`execute_run`, in a worker process) makes the sequence's environment, runs the method's agent over the
 first ``frames`` frames with :func:`sim_envs.driver.run_episode` (or reads an external system's output), scores it
 with :func:`eval.results.evaluate_episode`, and returns its artifacts as bytes; the parent process writes them
-(:func:`store_result`), so the executor may be a process pool or a Ray cluster without a shared file system.
+(:func:`eval.run_store.store_result`), so the executor may be a process pool or a Ray cluster without a shared file
+system.
 
 Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN_FILES`):
 
@@ -20,12 +21,12 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 - ``trajectory.png`` (top view, axes over time, ATE over time) and ``depth.png`` (up to 3 key-frames' error maps),
   unless plots are off.
 
-A failed run's folder holds only ``failed.json`` (error, traceback, wall time). Writes are atomic: files go to a
-hidden temporary folder that is renamed into place, so an interrupted run leaves no half-written result. Resuming:
-a run whose folder holds a ``metrics.json`` with the same fingerprint (method, sequence definition, seed, frames,
-alignment, renderer, and the SHA-256 of the method's ``inputs`` files, e.g. network weights) is skipped; failed runs
-are retried.
+A failed run's folder holds only ``failed.json`` (error, traceback, wall time). The run's fingerprint
+(:meth:`RunSpec.fingerprint`: method, sequence definition, seed, frames, alignment, renderer, the SHA-256 of the
+method's ``inputs`` files such as network weights, and the agent's source) decides whether a finished run is reused
+(:mod:`eval.runner`); writes are atomic (:mod:`eval.run_store`).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -41,7 +42,7 @@ import numpy as np
 
 from eval.association import associate
 from eval.environment import machine_description
-from eval.errors import EvalError
+from eval.errors import RunnerError
 from eval.map_metrics import map_metrics
 from eval.methods import RUN_SIDE_FILE, TIMING_METRICS, Method
 from eval.results import evaluate_episode, json_ready
@@ -65,10 +66,6 @@ FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames ren
 RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
-
-
-class RunnerError(EvalError):
-    """A run that cannot be planned or stored (a bad output folder, an unreadable result)."""
 
 
 @dataclass(frozen=True)

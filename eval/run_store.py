@@ -11,7 +11,8 @@ import uuid
 from collections.abc import Sequence
 from pathlib import Path
 
-from eval.run import DONE_FILE, FAILED_FILE, RunnerError, RunResult, RunSpec, write_json
+from eval.errors import RunnerError
+from eval.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, write_json
 
 
 # ------------------------------------------------------------------------------------------------ the folders

@@ -16,10 +16,11 @@ from typing import Any
 
 from tqdm import tqdm
 
+from eval.errors import RunnerError
 from eval.executors import Executor, SerialExecutor
 from eval.methods import Method, check_methods
 from eval.results import json_ready, load_run
-from eval.run import DONE_FILE, FRAME_CACHE_DIR, RunnerError, RunResult, RunSpec, RunStatus, execute_run
+from eval.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
 from eval.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
 from eval.suites import Suite
 

@@ -44,7 +44,7 @@ from sim_envs.sequences import (
     gym_id,
     list_sequences,
     rotation_stress_spec,
-    split_variant,
+    split_variants,
 )
 from sim_envs.simsource import SimulatedSequence
 from sim_envs.source import FrameWindow
@@ -60,8 +60,6 @@ FolderSize = tuple[int, int] | Literal["native"]
 
 
 
-# camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
-SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
 
 
 def sim_camera_presets() -> list[str]:
@@ -477,12 +475,14 @@ def resolve_sequence(name: str) -> SequenceRef:
         ref = resolve_sequence(plain)
         if ref.folder is None:
             return ref.with_camera_effects(preset)
-    variant = split_variant(name)
-    if variant is not None:
-        plain, field, value = variant
+    try:
+        plain, marks = split_variants(name)
+    except SimEnvError as exc:
+        raise SuiteError(f"sequence {exc}") from None
+    if marks:
         ref = resolve_sequence(plain)
         if ref.folder is None:
-            return ref.with_lighting(value) if field == "lighting" else ref.with_detail(value)
+            return ref.with_lighting(marks.get("lighting", "flat")).with_detail(marks.get("detail", "standard"))
     if name in list_sequences():
         return SequenceRef(name, base=name)
     match = _ROTATION_NAME.match(name)

@@ -43,7 +43,6 @@ from typing import Any, Literal
 
 from eval.errors import SuiteError
 from eval.sequence_ref import (
-    SIM_CAMERA_PRESETS,
     FolderSize,
     SequenceRef,
     dataset_list_file,
@@ -64,6 +63,8 @@ from sim_envs.trajectories import ROTATION_AXES
 # --------------------------------------------------------------------------------------------------- the suites
 SuiteKind = Literal["runs", "perf", "transfer", "lengths", "preprocessing"]
 
+# camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
+SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
 # the paper's methods, the original ORB-SLAM3 beside our ORB baseline (thirdparty/, out of process), and the oracle
 TABLE1_METHODS: tuple[str, ...] = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "ORB-SLAM3", "oracle")
 # the transfer suite ranks the paper's methods; the oracle is fed ground truth and would win every ranking
@@ -161,9 +162,10 @@ class Suite:
         size: FolderSize | None = None,
         undistort: str | None = None,
     ) -> Suite:
-        """The suite restricted or changed: ``sequences`` (names of the suite's, or any :func:`resolve_sequence`
-        name or folder path), ``methods`` (any method names), ``frames`` (a number, or ``"all"``: whole
-        sequences), ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with ``seeds``); ``camera`` and ``size`` for
+        """The suite restricted or changed: ``sequences`` (names of the suite's, or any
+        :func:`eval.sequence_ref.resolve_sequence` name or folder path), ``methods`` (any method names), ``frames``
+        (a number, or ``"all"``: whole sequences), ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with ``seeds``);
+        ``camera`` and ``size`` for
         every folder sequence (:meth:`SequenceRef.with_folder_options`). Sequences named explicitly drop the suite's
         skipped ones not among them."""
         if runs is not None:

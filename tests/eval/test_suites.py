@@ -139,6 +139,8 @@ def test_a_rich_sequence_is_named_with_plus_rich_after_its_lighting_and_round_tr
     assert rich[1].with_lighting("flat").with_detail("standard").overrides == (("camera_effects", "hard"),)
     with pytest.raises(SuiteError, match="unknown detail 'cluttered'; valid: standard, rich"):
         rich[0].with_detail("cluttered")
+    with pytest.raises(SuiteError, match="more than one lighting mark"):  # parsed as variant_spec parses it
+        resolve_sequence("office0+lit+lit")
 
 
 def test_camera_preset_names_do_not_collide_with_folder_calibrations():
