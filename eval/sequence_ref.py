@@ -57,6 +57,8 @@ _SAFE_NAME = re.compile(r"[^A-Za-z0-9_.+-]")  # what a folder's name may keep in
 DATASETS_ENV = "CNNSLAM_DATASETS"  # a user's list of local dataset folders, instead of the repository's
 DEFAULT_DATASETS_FILE = Path(__file__).resolve().parent.parent / "datasets.toml"
 FolderSize = tuple[int, int] | Literal["native"]
+# the room variants a simulated sequence name may mark, in name order: field -> (default, valid values)
+ROOM_MARKS: dict[str, tuple[str, tuple[str, ...]]] = {"lighting": ("flat", LIGHTINGS), "detail": ("standard", DETAILS)}
 
 
 
@@ -245,43 +247,37 @@ class SequenceRef:
 
     def with_lighting(self, lighting: str) -> SequenceRef:
         """This simulated sequence in the same room lit otherwise (:data:`sim_envs.scene.LIGHTINGS`; ``lit``:
-        :mod:`sim_envs.lighting`), named ``<name>+<lighting>`` before any ``@<camera preset>`` (its own run folders);
-        ``flat`` is the plain name. The trajectory is the same."""
-        if self.folder is not None:
-            raise SuiteError(f"sequence {self.name!r} is a folder: its light is the real room's")
-        if lighting not in LIGHTINGS:
-            raise SuiteError(f"unknown lighting {lighting!r}; valid: {', '.join(LIGHTINGS)}")
-        overrides = dict(self.overrides)
-        base, at, preset = self._camera_suffix()
-        detail = overrides.get("detail", "standard")  # a +<detail> mark stays last: office0+lit+rich
-        tail = f"+{detail}" if detail != "standard" and base.endswith(f"+{detail}") else ""
-        base = base[: len(base) - len(tail)]
-        old = overrides.pop("lighting", "flat")
-        if old != "flat" and base.endswith(f"+{old}"):
-            base = base[: -len(old) - 1]
-        if lighting != "flat":
-            overrides["lighting"] = lighting
-            base = f"{base}+{lighting}"
-        return replace(self, name=f"{base}{tail}{at}{preset}", overrides=tuple(overrides.items()))
+        :mod:`sim_envs.lighting`), named ``<name>+<lighting>`` before any ``+<detail>`` and ``@<camera preset>`` (its
+        own run folders); ``flat`` is the plain name. The trajectory is the same."""
+        return self._with_room_mark("lighting", lighting, "light")
 
     def with_detail(self, detail: str) -> SequenceRef:
         """This simulated sequence in the same room at another detail level (:data:`sim_envs.scene.DETAILS`;
         ``rich``: clutter and texture detail, :mod:`sim_envs.scenegen`), named ``<name>+<detail>`` after any
         ``+<lighting>`` and before any ``@<camera preset>`` (its own run folders); ``standard`` is the plain name. The
         trajectory is the same."""
+        return self._with_room_mark("detail", detail, "detail")
+
+    def _with_room_mark(self, field: str, value: str, what: str) -> SequenceRef:
+        """The room variant ``field`` (:data:`ROOM_MARKS`) set to ``value``; the name printed in the one canonical
+        form ``<base>+<lighting>+<detail>@<preset>``, each mark only when it is not the default."""
         if self.folder is not None:
-            raise SuiteError(f"sequence {self.name!r} is a folder: its detail is the real room's")
-        if detail not in DETAILS:
-            raise SuiteError(f"unknown detail {detail!r}; valid: {', '.join(DETAILS)}")
+            raise SuiteError(f"sequence {self.name!r} is a folder: its {what} is the real room's")
+        default, valid = ROOM_MARKS[field]
+        if value not in valid:
+            raise SuiteError(f"unknown {field} {value!r}; valid: {', '.join(valid)}")
         overrides = dict(self.overrides)
         base, at, preset = self._camera_suffix()
-        old = overrides.pop("detail", "standard")
-        if old != "standard" and base.endswith(f"+{old}"):
-            base = base[: -len(old) - 1]
-        if detail != "standard":
-            overrides["detail"] = detail
-            base = f"{base}+{detail}"
-        return replace(self, name=f"{base}{at}{preset}", overrides=tuple(overrides.items()))
+        marks = {f: overrides.get(f, d) for f, (d, _) in ROOM_MARKS.items()}
+        for f, (d, _) in reversed(ROOM_MARKS.items()):  # strip the marks the name carries, last first
+            if marks[f] != d and base.endswith(f"+{marks[f]}"):
+                base = base[: -len(marks[f]) - 1]
+        marks[field] = value
+        overrides.pop(field, None)
+        if value != default:
+            overrides[field] = value
+        suffix = "".join(f"+{marks[f]}" for f, (d, _) in ROOM_MARKS.items() if marks[f] != d)
+        return replace(self, name=f"{base}{suffix}{at}{preset}", overrides=tuple(overrides.items()))
 
     def with_motion(self, file: str | Path, label: str | None = None, frames: int | None = None) -> SequenceRef:
         """This simulated sequence's room with a recorded camera motion replayed in it instead of its own
