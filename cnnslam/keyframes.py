@@ -422,16 +422,14 @@ class Keyframe:
     def labels(self) -> np.ndarray | None:
         """(H, W) uint8 CNN labels, the argmax of the class probabilities (None without a CNN)."""
         probs = self.label_probs  # read first: keep_labels_only sets the labels before it drops the distribution
-        if probs is None:
-            return self._labels
-        return np.argmax(probs, axis=2).astype(np.uint8)
+        return self._labels if probs is None else _argmax_labels(probs)
 
     def keep_labels_only(self) -> None:
         """Keep the argmax of the class probabilities and drop the distribution (1/8 of its memory at C = 4): after
         the global model has fused them (Sec. 3.5) it holds the distributions; the key-frame keeps the label it gave
         each pixel. Key-frame thread, once the key-frame is frozen."""
         if self.label_probs is not None:
-            self._labels = np.argmax(self.label_probs, axis=2).astype(np.uint8)
+            self._labels = _argmax_labels(self.label_probs)
             self.label_probs = None
 
     @property
@@ -496,3 +494,8 @@ class Keyframe:
 
     def __repr__(self) -> str:
         return f"Keyframe(index={self.index}, timestamp={self.timestamp:.3f}, parent={self.parent})"
+
+
+def _argmax_labels(probs: np.ndarray) -> np.ndarray:
+    """(H, W) uint8 labels: the argmax of (H, W, C) class probabilities."""
+    return np.argmax(probs, axis=2).astype(np.uint8)
