@@ -298,6 +298,7 @@ def _open_env(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cnnslam.config import CnnSlamConfig
     from cnnslam.global_model import GlobalModelConfig
     from cnnslam.model_io import write_ply
     from cnnslam.model_render import render_map_views, save_map_figure
@@ -311,11 +312,10 @@ def run(args: argparse.Namespace) -> int:
         if not isinstance(options, dict):
             raise CnnSlamError(f"--agent-options must be a JSON object, got {args.agent_options!r}")
         config = GlobalModelConfig(voxel_size=args.voxel)
-        if args.agent == DEFAULT_AGENT:  # its key-frames keep their class probabilities: the replays fuse them again
-            overrides = options.get("config") or {}
-            if isinstance(overrides, dict):
-                options["config"] = {"system.keep_label_probabilities": True, **overrides}
         agent = load_agent(args.agent, **options)
+        if isinstance(getattr(agent, "config", None), CnnSlamConfig):  # the paper's agent (any entry point to it):
+            # its key-frames keep their class probabilities, which the replays below fuse again
+            agent.config = agent.config.with_overrides({"system.keep_label_probabilities": True})
         env = _open_env(args)
         try:
             t0 = time.perf_counter()
