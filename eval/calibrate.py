@@ -54,7 +54,7 @@ from eval.environment import machine_description
 from eval.executors import LocalExecutor
 from eval.methods import with_predictor_options
 from eval.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
-from eval.results import json_ready
+from eval.results import RunRecord, json_ready
 from eval.runner import SuiteRun, run_suite
 from eval.suites import Suite
 
@@ -140,7 +140,7 @@ def measure(
     """The run records of ``suite`` under every configuration of ``matrix`` (configuration name -> records); runs
     already finished in a configuration's folder are reused. ``renderer`` and ``timeout_s``: as for every run of
     the suite; the pools are the configurations' own (their job counts are part of the matrix)."""
-    records: dict[str, list[dict[str, Any]]] = {}
+    records: dict[str, list[RunRecord]] = {}
     for config in matrix:
         run = run_configuration(suite, methods, Path(out_root) / "calibrate", config, progress, renderer, timeout_s)
         if on_config is not None:
@@ -149,13 +149,13 @@ def measure(
     return records
 
 
-def run_fingerprints(records: Sequence[Mapping[str, Any]]) -> list[str]:
+def run_fingerprints(records: Sequence[RunRecord]) -> list[str]:
     """The sorted fingerprints of a configuration's runs: what two machines must share for their figures to be
     compared (the same agents, inputs, sequences, seeds and frames)."""
-    return sorted({str(r["metadata"]["fingerprint"]) for r in records})
+    return sorted({str(r.metadata["fingerprint"]) for r in records})
 
 
-def machine_record(suite: Suite, records: Sequence[Mapping[str, Any]], revision: str = "") -> dict[str, Any]:
+def machine_record(suite: Suite, records: Sequence[RunRecord], revision: str = "") -> dict[str, Any]:
     """This machine's reference figures of ``suite`` (:func:`gate_metrics` of the reference configuration's run
     records), with the machine (:func:`eval.environment.machine_description`), the run fingerprints and the git
     revision: what another machine's calibration folds in (:func:`load_machine_records`)."""
@@ -211,7 +211,7 @@ def load_machine_records(folder: str | Path, suite: str, fingerprints: Sequence[
     return usable, left_out
 
 
-def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[Mapping[str, Any]]], description: str,
+def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[RunRecord]], description: str,
                         matrix: Sequence[Perturbation] = MATRIX, k: float = CALIBRATION_K,
                         machines: Mapping[str, Mapping[str, float]] | None = None) -> Baseline:
     """The baseline of the configurations' run records (:func:`measure`): the reference configuration's gated

@@ -63,7 +63,7 @@ from typing import Any, Literal
 import pandas as pd
 
 from eval.errors import EvalError
-from eval.results import json_ready
+from eval.results import ResultsError, RunRecord, json_ready
 
 BASELINE_SCHEMA = "cnnslam-baseline/2"
 # rotation twice: after the SE(3) fit (catches an error in the camera frame, which an orientation-only fit absorbs
@@ -262,18 +262,18 @@ def format_report(report: GateReport, only_changes: bool = False) -> str:
 
 
 # -------------------------------------------------------------------------------------------------------- files
-def suite_metrics(records: Iterable[Mapping[str, Any]]) -> dict[str, float]:
+def suite_metrics(records: Iterable[RunRecord]) -> dict[str, float]:
     """Flatten run records to ``sequence/method/metric`` names, every metric (several runs of a pair: their median,
     NaN runs left out)."""
     values: dict[str, list[float]] = {}
     for rec in records:
-        prefix = f"{rec['sequence']}/{rec.get('method') or rec.get('agent')}/"
-        for name, value in rec["metrics"].items():
+        prefix = f"{rec.sequence}/{rec.method}/"
+        for name, value in rec.metrics.items():
             values.setdefault(prefix + name, []).append(_as_float(value))
     return {k: _median(v) for k, v in values.items()}
 
 
-def gate_metrics(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GATED) -> dict[str, float]:
+def gate_metrics(records: Iterable[RunRecord], gated: Sequence[str] = GATED) -> dict[str, float]:
     """The gated figures of a suite's run records (see the module docstring): per ``sequence/method/metric`` the
     median over the cell's runs of each metric in ``gated`` and of :data:`GATED_COUNTS`, and per method
     ``avg/<method>/<metric>``: the mean of its per-sequence medians, where it has one on every sequence of the
@@ -304,9 +304,11 @@ def _median(values: Sequence[float]) -> float:
 def metrics_from_json(data: Any, source: str = "<data>") -> dict[str, float]:
     """Metrics of a run file's content (see the module docstring for the accepted shapes)."""
     if isinstance(data, list):
-        if not all(isinstance(r, dict) and isinstance(r.get("metrics"), dict) and "sequence" in r for r in data):
-            raise GateError(f"{source}: a JSON list must hold run records (objects with 'sequence' and 'metrics')")
-        return gate_metrics(data)
+        try:
+            records = [RunRecord.from_json(r, f"{source}[{n}]") for n, r in enumerate(data)]
+        except ResultsError as exc:
+            raise GateError(f"{exc} (a JSON list must hold run records)") from exc
+        return gate_metrics(records)
     if isinstance(data, dict):
         metrics = data["metrics"] if isinstance(data.get("metrics"), dict) else data
         out = {}
@@ -401,12 +403,12 @@ def update_baseline(
 
 
 # -------------------------------------------------------------------------------------------------- calibration
-def seed_figures(records: Iterable[Mapping[str, Any]], gated: Sequence[str] = GATED) -> dict[str, dict[str, float]]:
+def seed_figures(records: Iterable[RunRecord], gated: Sequence[str] = GATED) -> dict[str, dict[str, float]]:
     """The gated figures of each seed's runs alone: seed (as a string) -> :func:`gate_metrics` of the records whose
     ``metadata.seed`` is that seed (records without one form the seed ``"-"``)."""
-    by_seed: dict[str, list[Mapping[str, Any]]] = {}
+    by_seed: dict[str, list[RunRecord]] = {}
     for record in records:
-        by_seed.setdefault(str((record.get("metadata") or {}).get("seed", "-")), []).append(record)
+        by_seed.setdefault(str(record.metadata.get("seed", "-")), []).append(record)
     return {seed: gate_metrics(rs, gated) for seed, rs in sorted(by_seed.items())}
 
 

@@ -33,7 +33,7 @@ import pandas as pd
 from eval.environment import machine_label
 from eval.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
 from eval.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
-from eval.results import runs_frame
+from eval.results import RunRecord, runs_frame
 from eval.runner import SuiteRun, suite_records_json
 from eval.suites import SWEEP_AXES
 from eval.tables import (
@@ -110,12 +110,9 @@ def camera_sentence(suite: Any) -> str:
 # --------------------------------------------------------------------------------------------------- long form
 def long_frame(run: SuiteRun) -> pd.DataFrame:
     """All finished runs in long form (:func:`eval.results.runs_frame`) with ``wall_s`` from each run's timing."""
-    records = []
-    for record in run.records:
-        meta = dict(record.get("metadata") or {})
-        meta["wall_s"] = run.timings.get(record["run"], {}).get("wall_s", math.nan)
-        records.append({**record, "metadata": meta})
-    return runs_frame(records, run_ids=[r["run"] for r in run.records])
+    records = [r.replace(metadata={**r.metadata, "wall_s": run.timings.get(r.run, {}).get("wall_s", math.nan)})
+               for r in run.records]  # fmt: skip
+    return runs_frame(records)
 
 
 def write_long_csv(run: SuiteRun, results_dir: str | Path, frame: pd.DataFrame | None = None) -> Path:
@@ -130,7 +127,7 @@ def write_long_csv(run: SuiteRun, results_dir: str | Path, frame: pd.DataFrame |
 def header_markdown(run: SuiteRun, title: str, command: str) -> str:
     """Title, what the suite is, and how it was made."""
     suite = run.suite
-    revisions = sorted({str((r.get("metadata") or {}).get("git_revision")) for r in run.records}) or ["-"]
+    revisions = sorted({str(r.metadata.get("git_revision")) for r in run.records}) or ["-"]
     frames = "whole sequences" if suite.frames is None else f"the first {suite.frames} frames of each sequence"
     return (
         f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
@@ -209,8 +206,8 @@ def methods_markdown(run: SuiteRun) -> str:
     agent's ``uses_ground_truth`` or an external folder's ``method.toml``), so no reader takes them for peers."""
     fed = {}
     for rec in run.records:
-        if rec.get("uses_ground_truth"):
-            fed.setdefault(rec["method"], set()).update(rec.get("ground_truth_used") or ["declared by the agent"])
+        if rec.uses_ground_truth:
+            fed.setdefault(rec.method, set()).update(rec.ground_truth_used or ["declared by the agent"])
     lines = []
     for m in run.methods:
         notes = [f"sensor {m.sensor}"] if m.sensor != "mono" else []
@@ -244,7 +241,7 @@ def alignment_markdown(run: SuiteRun, frame: pd.DataFrame) -> str:
 def failure_frame(run: SuiteRun) -> pd.DataFrame:
     """Per (sequence, method) planned: ``runs``, ``crashed`` (failed or timed out: no record), ``lost`` (finished,
     trajectory metrics, tracked share below :data:`LOST_BELOW_TRACKED_SHARE`), ``failure_rate``."""
-    tracked = {rec["run"]: rec["metrics"].get("tracked_share") for rec in run.records}
+    tracked = {rec.run: rec.metrics.get("tracked_share") for rec in run.records}
     rows: dict[tuple[str, str], dict[str, int]] = {}
     for spec in run.specs:
         outcome = run.outcomes.get(spec.key)
@@ -450,8 +447,8 @@ def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], 
     return [md, *artifacts, write_long_csv(run, results_dir, base), stats, *([figure] if figure is not None else [])]
 
 
-def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray] | None:
-    path = run.out_root / record["run"] / "keyframes.npz"
+def _keyframes_of(run: SuiteRun, record: RunRecord) -> dict[str, np.ndarray] | None:
+    path = run.out_root / str(record.run) / "keyframes.npz"
     if not path.is_file():
         return None
     with np.load(path) as data:
@@ -462,9 +459,9 @@ def _keyframes_of(run: SuiteRun, record: dict[str, Any]) -> dict[str, np.ndarray
 def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
     """For the first sequence where every variant has key-frames: the key-frame of each variant nearest to the
     middle of the run, its depth error map (blue correct, red wrong, grey missing) against the ground truth."""
-    by_sequence: dict[str, dict[str, dict[str, Any]]] = {}
+    by_sequence: dict[str, dict[str, RunRecord]] = {}
     for record in run.records:
-        by_sequence.setdefault(record["sequence"], {})[record["method"]] = record
+        by_sequence.setdefault(record.sequence, {})[record.method] = record
     methods = list(run.suite.methods)
     for ref in run.suite.sequences:
         found = by_sequence.get(ref.name, {})
@@ -477,7 +474,7 @@ def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
             for method in methods:
                 kf = keyframes[method]
                 stamps = kf["timestamps"]
-                frames = int(found[method]["metrics"].get("frames", len(source)))
+                frames = int(found[method].metrics.get("frames", len(source)))
                 middle = float(source.timestamps[min(frames // 2, len(source) - 1)])
                 k = int(np.argmin(np.abs(stamps - middle)))  # the key-frame shown: the one nearest the middle
                 i = match_timestamp(source.timestamps, float(stamps[k]))
@@ -500,19 +497,19 @@ def sweep_points(run: SuiteRun) -> pd.DataFrame:
     share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share``."""
     rows = []
     for record in run.records:
-        meta = record.get("metadata") or {}
+        meta = record.metadata
         axis = meta.get("axis")
         if axis is None:
             continue
         x = meta.get("rotation_share") if axis == "rotation" else meta.get("axis_value")
-        metrics = record["metrics"]
+        metrics = record.metrics
         rows.append(
             {
                 "axis": axis,
                 "x": math.nan if x is None else float(x),
                 "setting": meta.get("axis_value"),
-                "sequence": record["sequence"],
-                "method": record["method"],
+                "sequence": record.sequence,
+                "method": record.method,
                 "ate_rmse": metrics.get("ate_rmse", math.nan),
                 "depth_percent_correct": metrics.get("depth_percent_correct", math.nan),
                 "tracked_share": metrics.get("tracked_share", math.nan),
@@ -695,10 +692,10 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
         rows: dict[str, list[dict[str, float]]] = {}
         problems = []
         for record in run.records:
-            if record.get("sequence") != name:
+            if record.sequence != name:
                 continue
-            folder = run.outcomes[record["run"]].folder
-            own_trajectory = "ate_rmse" in (record.get("metrics") or {})  # REMODE: LSD-BS's poses, not its own
+            folder = run.outcomes[str(record.run)].folder
+            own_trajectory = "ate_rmse" in record.metrics  # REMODE: LSD-BS's poses, not its own
             try:
                 if GROUND_TRUTH_ROW not in rows:
                     rows[GROUND_TRUTH_ROW] = [evaluate_trajectory(reference, trajectory(folder / "groundtruth.tum"))
@@ -707,9 +704,9 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
                     continue
                 flat = evaluate_trajectory(reference, trajectory(folder / "trajectory.tum")).flat_metrics()
             except (OSError, EvalError, ValueError) as exc:
-                problems.append(f"{record['method']} ({record['run']}): {exc}")
+                problems.append(f"{record.method} ({record.run}): {exc}")
                 continue
-            rows.setdefault(str(record["method"]), []).append(flat)
+            rows.setdefault(record.method, []).append(flat)
         lines += ["| method | runs | " + " | ".join(heads) + " |", "|---|---:|" + "---:|" * len(heads)]
         for method, flats in rows.items():
             cells = []

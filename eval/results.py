@@ -1,12 +1,16 @@
-"""One run's evaluation as a JSON-ready record, and many runs gathered in a pandas frame in long form.
+"""One run's evaluation as a typed record, and many runs gathered in a pandas frame in long form.
 
-A run record (what :func:`evaluate_episode` returns and :func:`save_run` writes) is a dict::
+A run record (:class:`RunRecord`: what :func:`evaluate_episode` returns, :func:`save_run` writes and
+:func:`load_run` reads; frozen, changed with :meth:`RunRecord.replace`, as evo's ``core.result.Result`` is one
+object, not a dict edited in place) is written as the JSON object::
 
     {"schema": "cnnslam-run/1", "sequence": str, "method": str, "agent": str, "uses_ground_truth": bool,
      "alignment": {...}, "association": {...}, "rpe": {"delta": float, "unit": str}, "warnings": [str, ...],
      "metrics": {name: float, ...},           # flat scalar metrics (names below)
      "keyframes": [{"timestamp": s, "percent_correct": ..., ...}, ...],
-     "metadata": {name: scalar, ...}}         # run settings (seed, config...), free-form scalars
+     "metadata": {name: scalar, ...},         # run settings (seed, config...), free-form scalars
+     "ground_truth_used": [str, ...],         # only external methods: what their method.toml declares
+     "sensor": str}                           # only suite runs: the method's sensor (mono, rgbd...)
 
 ``alignment`` (:meth:`eval.metrics.TrajectoryMetrics.describe_alignment`): ``requested``, ``used`` (what was done:
 ``se3``, ``sim3``, ``origin``, ``none`` or ``rotation_only``), ``title`` (the same in words), ``scale``,
@@ -34,9 +38,11 @@ Long form (:func:`runs_frame`): one row per (run, metric) with columns ``sequenc
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +73,99 @@ class ResultsError(EvalError):
     """A run record or results file that cannot be read."""
 
 
+@dataclass(frozen=True)
+class RunRecord:
+    """One scored run (the module docstring gives the JSON form and the metric names).
+
+    ``metrics``: flat scalar metrics, NaN where a figure has no value; ``alignment`` / ``association`` / ``rpe``:
+    how the trajectory was scored (:mod:`eval.metrics`); ``keyframes``: per key-frame depth rows; ``metadata``: the
+    run's settings; ``ground_truth_used`` and ``sensor``: written only when set. ``run``: the run's key in its suite
+    (:attr:`eval.run.RunSpec.key`), set when a suite reads the record back; never written to ``metrics.json``.
+    Frozen: derive a changed record with :meth:`replace`.
+    """
+
+    sequence: str
+    method: str
+    agent: str
+    metrics: Mapping[str, float]
+    uses_ground_truth: bool = False
+    alignment: Mapping[str, Any] = field(default_factory=dict)
+    association: Mapping[str, Any] = field(default_factory=dict)
+    rpe: Mapping[str, Any] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+    keyframes: tuple[Mapping[str, Any], ...] = ()
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+    ground_truth_used: tuple[str, ...] | None = None
+    sensor: str | None = None
+    run: str | None = None
+    schema: str = RUN_SCHEMA
+
+    def replace(self, **changes: Any) -> RunRecord:
+        """A copy with ``changes`` (field name -> new value)."""
+        return dataclasses.replace(self, **changes)
+
+    def with_warning(self, warning: str) -> RunRecord:
+        """A copy with ``warning`` appended to :attr:`warnings`."""
+        return self.replace(warnings=(*self.warnings, warning))
+
+    def to_json(self, include_run: bool = False) -> dict[str, Any]:
+        """The JSON object of ``metrics.json`` (key order fixed: the same run gives the same bytes); with
+        ``include_run`` the suite's run key last (a suite's run file, :func:`eval.runner.suite_records_json`)."""
+        out: dict[str, Any] = {
+            "schema": self.schema,
+            "sequence": self.sequence,
+            "method": self.method,
+            "agent": self.agent,
+            "uses_ground_truth": self.uses_ground_truth,
+            "alignment": dict(self.alignment),
+            "association": dict(self.association),
+            "rpe": dict(self.rpe),
+            "warnings": list(self.warnings),
+            "metrics": dict(self.metrics),
+            "keyframes": [dict(k) for k in self.keyframes],
+            "metadata": dict(self.metadata),
+        }
+        if self.ground_truth_used is not None:
+            out["ground_truth_used"] = list(self.ground_truth_used)
+        if self.sensor is not None:
+            out["sensor"] = self.sensor
+        if include_run and self.run is not None:
+            out["run"] = self.run
+        return out
+
+    @classmethod
+    def from_json(cls, data: Any, source: str = "<data>") -> RunRecord:
+        """A record from its JSON object (``metrics.json``, or an element of a suite's run file); null metrics
+        become NaN. Raises :class:`ResultsError` naming ``source`` and what is missing."""
+        if not isinstance(data, Mapping) or not isinstance(data.get("metrics"), Mapping):
+            raise ResultsError(f"{source}: a run record is a JSON object with a 'metrics' object")
+        if "sequence" not in data or not (data.get("method") or data.get("agent")):
+            raise ResultsError(f"{source}: a run record needs 'sequence' and 'method' (or 'agent')")
+        method = str(data.get("method") or data.get("agent"))
+        used = data.get("ground_truth_used")
+        try:
+            metrics = {str(k): math.nan if v is None else float(v) for k, v in data["metrics"].items()}
+        except (TypeError, ValueError) as exc:
+            raise ResultsError(f"{source}: every metric of a run record is a number or null ({exc})") from exc
+        return cls(
+            sequence=str(data["sequence"]),
+            method=method,
+            agent=str(data.get("agent") or method),
+            metrics=metrics,
+            uses_ground_truth=bool(data.get("uses_ground_truth", False)),
+            alignment=dict(data.get("alignment") or {}),
+            association=dict(data.get("association") or {}),
+            rpe=dict(data.get("rpe") or {}),
+            warnings=tuple(str(w) for w in data.get("warnings") or ()),
+            keyframes=tuple(dict(k) for k in data.get("keyframes") or ()),
+            metadata=dict(data.get("metadata") or {}),
+            ground_truth_used=None if used is None else tuple(str(u) for u in used),
+            sensor=None if data.get("sensor") is None else str(data["sensor"]),
+            run=None if data.get("run") is None else str(data["run"]),
+            schema=str(data.get("schema", RUN_SCHEMA)),
+        )
+
+
 # ------------------------------------------------------------------------------------------------- one episode
 def evaluate_episode(
     result: Any,
@@ -77,7 +176,7 @@ def evaluate_episode(
     depth_threshold: float = CORRECT_THRESHOLD,
     method: str | None = None,
     metadata: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
+) -> RunRecord:
     """Score a driver's episode result (duck-typed on the fields of ``sim_envs.driver.EpisodeResult``).
 
     Uses ``sequence``, ``agent``, ``timestamps`` (N,), ``T_world_cam_est`` (N, 4, 4), ``T_world_cam_gt``
@@ -121,20 +220,19 @@ def evaluate_episode(
         sem = metrics_from_confusion(conf)
         metrics.update({f"semantic_{k}": float(v) for k, v in sem.to_dict().items() if k != "n_pixels"})
     agent = str(result.agent)
-    return {
-        "schema": RUN_SCHEMA,
-        "sequence": str(result.sequence),
-        "method": method or agent,
-        "agent": agent,
-        "uses_ground_truth": bool(getattr(result, "uses_ground_truth", False)),
-        "alignment": traj.describe_alignment(),
-        "association": traj.association.describe(),
-        "rpe": traj.describe_rpe(),
-        "warnings": warnings,
-        "metrics": metrics,
-        "keyframes": kf_rows,
-        "metadata": dict(metadata or {}),
-    }
+    return RunRecord(
+        sequence=str(result.sequence),
+        method=method or agent,
+        agent=agent,
+        metrics=metrics,
+        uses_ground_truth=bool(getattr(result, "uses_ground_truth", False)),
+        alignment=traj.describe_alignment(),
+        association=traj.association.describe(),
+        rpe=traj.describe_rpe(),
+        warnings=tuple(warnings),
+        keyframes=tuple(kf_rows),
+        metadata=dict(metadata or {}),
+    )
 
 
 def _timing_metrics(step_seconds: np.ndarray) -> dict[str, float]:
@@ -190,48 +288,43 @@ def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[st
 
 
 # ------------------------------------------------------------------------------------------------------ files
-def save_run(record: Mapping[str, Any], path: str | Path) -> Path:
+def save_run(record: RunRecord, path: str | Path) -> Path:
     """Write a run record as strict JSON (NaN -> null)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(json_ready(record), indent=2, allow_nan=False) + "\n")
+    path.write_text(json.dumps(json_ready(record.to_json()), indent=2, allow_nan=False) + "\n")
     return path
 
 
-def load_run(path: str | Path) -> dict[str, Any]:
+def load_run(path: str | Path) -> RunRecord:
     """Read a run record; null metrics come back as NaN."""
     path = Path(path)
     try:
-        record = json.loads(path.read_text())
+        data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ResultsError(f"{path}: not a readable JSON run record: {exc}") from exc
-    if not isinstance(record, dict) or not isinstance(record.get("metrics"), dict):
-        raise ResultsError(f"{path}: a run record is a JSON object with a 'metrics' object")
-    for key in ("sequence", "method"):
-        if key not in record:
-            raise ResultsError(f"{path}: the run record has no {key!r}")
-    record["metrics"] = {k: math.nan if v is None else float(v) for k, v in record["metrics"].items()}
-    return record
+    return RunRecord.from_json(data, str(path))
 
 
 # ------------------------------------------------------------------------------------------------------- tables
-def runs_frame(records: Iterable[Mapping[str, Any]], run_ids: Iterable[str] | None = None) -> pd.DataFrame:
-    """Many run records in long form: one row per (run, metric); see the module docstring for the columns."""
+def runs_frame(records: Iterable[RunRecord], run_ids: Iterable[str] | None = None) -> pd.DataFrame:
+    """Many run records in long form: one row per (run, metric); see the module docstring for the columns.
+    ``run_ids``: the ``run`` column (default: each record's :attr:`RunRecord.run`, else its position)."""
     rows = []
     ids = list(run_ids) if run_ids is not None else None
     for n, rec in enumerate(records):
         base = {
-            "sequence": rec["sequence"],
-            "method": rec.get("method") or rec.get("agent"),
-            "run": ids[n] if ids is not None else str(n),
-            "agent": rec.get("agent", rec.get("method")),
-            "uses_ground_truth": bool(rec.get("uses_ground_truth", False)),
-            "alignment": (rec.get("alignment") or {}).get("requested"),
-            "alignment_used": (rec.get("alignment") or {}).get("used"),
-            "association": (rec.get("association") or {}).get("rule"),
+            "sequence": rec.sequence,
+            "method": rec.method,
+            "run": ids[n] if ids is not None else (rec.run if rec.run is not None else str(n)),
+            "agent": rec.agent,
+            "uses_ground_truth": rec.uses_ground_truth,
+            "alignment": rec.alignment.get("requested"),
+            "alignment_used": rec.alignment.get("used"),
+            "association": rec.association.get("rule"),
         }
-        meta = {k: v for k, v in (rec.get("metadata") or {}).items() if isinstance(v, str | int | float | bool)}
-        for metric, value in rec["metrics"].items():
+        meta = {k: v for k, v in rec.metadata.items() if isinstance(v, str | int | float | bool)}
+        for metric, value in rec.metrics.items():
             rows.append({**base, **meta, "metric": metric, "value": math.nan if value is None else float(value)})
     if not rows:  # no run scored (all failed): the same columns, a numeric value column
         return pd.DataFrame({c: pd.Series(dtype=float if c == "value" else object) for c in [*LONG_COLUMNS, "run"]})

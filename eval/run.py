@@ -187,12 +187,12 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
     if source_info is not None:
         metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
     record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
-    record["sequence"] = ref.name
-    metrics = dict(record["metrics"])
+    record = record.replace(sequence=ref.name)
+    metrics = dict(record.metrics)
     has_depth = source_info is None or source_info.get("has_depth", True)
     if not has_depth:  # an RGB-only folder: nothing to score key-frame depth against
         metrics = {k: v for k, v in metrics.items() if not k.startswith("depth_")}
-        record["warnings"].append(f"{ref.name} has no ground-truth depth (RGB-only folder): depth metric skipped")
+        record = record.with_warning(f"{ref.name} has no ground-truth depth (RGB-only folder): depth metric skipped")
     model = getattr(episode, "model", None)
     if model is not None and scene is not None and len(model):  # the global model against the scene's surfaces
         t_map = time.perf_counter()
@@ -203,19 +203,18 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
         # the poses were matched by timestamp before scoring (TUM rule): record that, not the index pairing after it
-        record["association"] = episode.extras["association"]
-        record["uses_ground_truth"] = bool(method.uses_ground_truth)
-        record["ground_truth_used"] = list(method.uses_ground_truth)  # as its method.toml declares
-    record["sensor"] = method.sensor
+        record = record.replace(association=episode.extras["association"],
+                                uses_ground_truth=bool(method.uses_ground_truth),
+                                ground_truth_used=tuple(method.uses_ground_truth))  # as its method.toml declares
     timing = {k: metrics[k] for k in TIMING_METRICS if k in metrics}
-    record["metrics"] = method.select_metrics(metrics)
+    record = record.replace(sensor=method.sensor, metrics=method.select_metrics(metrics))
     timing["finish_seconds"] = episode.extras.get("finish_seconds")
     if episode.extras.get("own_wall_s") is not None:
         timing["method_wall_s"] = episode.extras["own_wall_s"]  # the system's own run time (its run.toml)
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
         folder = Path(tmp)
-        write_json(folder / "metrics.json", record)
+        write_json(folder / "metrics.json", record.to_json())
         write_json(folder / "agent_extras.json", episode.extras)
         _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
         _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")

@@ -30,7 +30,7 @@ def is_finished(out_root: str | Path, spec: RunSpec) -> bool:
         record = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError):
         return False
-    return (record.get("metadata") or {}).get("fingerprint") == spec.fingerprint()
+    return isinstance(record, dict) and (record.get("metadata") or {}).get("fingerprint") == spec.fingerprint()
 
 
 def store_result(out_root: str | Path, result: RunResult) -> Path:

@@ -19,7 +19,7 @@ from tqdm import tqdm
 from eval.errors import RunnerError
 from eval.executors import Executor, SerialExecutor
 from eval.methods import Method, check_methods
-from eval.results import json_ready, load_run
+from eval.results import RunRecord, json_ready, load_run
 from eval.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
 from eval.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
 from eval.suites import Suite
@@ -48,7 +48,7 @@ class SuiteRun:
     specs: tuple[RunSpec, ...]
     outcomes: dict[str, RunOutcome]
     skipped_methods: dict[str, str]
-    records: list[dict[str, Any]]
+    records: list[RunRecord]
     timings: dict[str, dict[str, Any]]
     methods: tuple[Method, ...] = ()
 
@@ -176,17 +176,15 @@ def run_suite(
         outcome = outcomes[spec.key]
         if outcome.status in ("failed", "not_run"):
             continue
-        record = load_run(outcome.folder / DONE_FILE)
-        record["run"] = spec.key
-        records.append(record)
+        records.append(load_run(outcome.folder / DONE_FILE).replace(run=spec.key))
         timing_path = outcome.folder / "timing.json"
         timings[spec.key] = json.loads(timing_path.read_text()) if timing_path.is_file() else {}
     ordered = {s.key: outcomes[s.key] for s in specs}
     return SuiteRun(suite, out_root, tuple(specs), ordered, checked.skipped, records, timings, checked.available)
 
 
-def suite_records_json(records: Sequence[Mapping[str, Any]]) -> str:
-    """The run records as one JSON list, in run order (the run file of ``cnnslam regress``)."""
+def suite_records_json(records: Sequence[RunRecord]) -> str:
+    """The run records as one JSON list, in run order, each with its run key (the run file of ``cnnslam regress``)."""
     buffer = io.StringIO()
-    json.dump(json_ready(list(records)), buffer, indent=1, allow_nan=False)
+    json.dump(json_ready([r.to_json(include_run=True) for r in records]), buffer, indent=1, allow_nan=False)
     return buffer.getvalue() + "\n"

@@ -91,13 +91,13 @@ def test_json_metric_names_are_the_run_records(capsys, tmp_path):
         step_seconds=np.zeros(0),
     )
     record = evaluate_episode(episode)
-    run_only = {"tracked_share", "frames"} | {k for k in record["metrics"] if k.startswith("depth_")}
-    assert set(d["metrics"]) == set(record["metrics"]) - run_only
+    run_only = {"tracked_share", "frames"} | {k for k in record.metrics if k.startswith("depth_")}
+    assert set(d["metrics"]) == set(record.metrics) - run_only
     for name, value in d["metrics"].items():  # the same trajectories: the same figures (TUM text rounds them)
-        assert value == pytest.approx(record["metrics"][name], rel=1e-4, abs=1e-6), name
+        assert value == pytest.approx(record.metrics[name], rel=1e-4, abs=1e-6), name
     run_keys = {"schema", "sequence", "method", "agent", "uses_ground_truth", "keyframes", "metadata"}
-    assert set(d) - {"schema", "files"} == set(record) - run_keys
-    assert set(d["alignment"]) == set(record["alignment"]) and d["rpe"] == record["rpe"]
+    assert set(d) - {"schema", "files"} == set(record.to_json()) - run_keys
+    assert set(d["alignment"]) == set(record.alignment) and d["rpe"] == record.rpe
 
 
 def test_text_report_and_plot(capsys, tmp_path):

@@ -16,7 +16,6 @@ Proved here, as the baseline's calibration promises:
 - a doctored run (a worse ATE, a worse depth, a lost run) fails.
 """
 
-import copy
 import math
 from pathlib import Path
 
@@ -71,8 +70,8 @@ def test_the_gate_holds_with_the_network_perturbed_as_on_another_cpu(quick_run, 
              and not math.isclose(v, reference[k], rel_tol=0, abs_tol=0)]  # fmt: skip
     assert moved, "the perturbation changed nothing: the predictor options did not reach the agents"
     # explicit: the perturbed runs are other runs (their fingerprints carry the options), not the same ones
-    fingerprints = {r["metadata"]["fingerprint"] for r in quick_run.records}
-    assert not fingerprints & {r["metadata"]["fingerprint"] for r in perturbed.records}
+    fingerprints = {r.metadata["fingerprint"] for r in quick_run.records}
+    assert not fingerprints & {r.metadata["fingerprint"] for r in perturbed.records}
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +84,7 @@ def injected_runs(tmp_path_factory):
 
 def _as_cnn_slam(run, injected):
     assert not run.failed, [f"{o.key}: {o.error}" for o in run.failed]
-    records = [dict(r, method="CNN-SLAM") for r in run.records if r["method"] == injected]
+    records = [r.replace(method="CNN-SLAM") for r in run.records if r.method == injected]
     assert len(records) == 9  # 3 sequences x 3 runs
     return records
 
@@ -102,21 +101,24 @@ def test_the_gate_catches_an_injected_regression(quick_run, injected_runs, basel
 
 def test_a_change_without_effect_does_not_alarm(quick_run, injected_runs, baseline):
     records = _as_cnn_slam(injected_runs, "half-iterations")
-    reference = [r for r in quick_run.records if r["method"] == "CNN-SLAM"]
-    assert [r["metrics"] for r in records] == [r["metrics"] for r in reference]  # the same bytes, run by run
+    reference = [r for r in quick_run.records if r.method == "CNN-SLAM"]
+    assert [r.metrics for r in records] == [r.metrics for r in reference]  # the same bytes, run by run
     report = compare(baseline, {**gate_metrics(quick_run.records), **gate_metrics(records)})
     assert report.passed, format_report(report, only_changes=True)
 
 
 def test_the_gate_fails_on_a_doctored_run(quick_run, baseline):
-    records = copy.deepcopy(quick_run.records)
     first = get_suite("quick").sequences[0].name  # office0 through the suite's camera
-    cnn = [r for r in records if r["method"] == "CNN-SLAM" and r["sequence"] == first]
-    for r in cnn:  # every run of a cell worse: its median moves
-        r["metrics"]["ate_rmse"] = 1.5 * r["metrics"]["ate_rmse"] + 0.05
-        r["metrics"]["depth_percent_correct"] -= 5.0
-    lost = [r for r in records if r["method"] == "ORB" and r["sequence"] == first]
-    records = [r for r in records if r not in lost]  # runs that crashed: their metrics are missing
+
+    def doctored(r):  # every run of a cell worse: its median moves
+        if r.method != "CNN-SLAM" or r.sequence != first:
+            return r
+        m = r.metrics
+        return r.replace(metrics={**m, "ate_rmse": 1.5 * m["ate_rmse"] + 0.05,
+                                  "depth_percent_correct": m["depth_percent_correct"] - 5.0})
+
+    # the ORB runs of that sequence crashed: their metrics are missing
+    records = [doctored(r) for r in quick_run.records if not (r.method == "ORB" and r.sequence == first)]
     report = compare(baseline, gate_metrics(records))
     status = {row.metric: row.status for row in report.rows}
     assert not report.passed

@@ -154,14 +154,14 @@ def test_runs_on_folders_record_the_source_and_skip_depth_without_depth(folders,
     run = run_suite(suite, METHODS, tmp_path / "runs", plots=True, progress=False)
     assert not run.failed, [o.error for o in run.failed]
     seven, rgb_only = run.records
-    source = seven["metadata"]["source"]
+    source = seven.metadata["source"]
     assert source["layout"] == "7scenes" and source["original_size"] == [64, 48] and source["depth_scale"] == 1000
-    assert seven["metadata"]["sequence_definition"]["folder"] == str(folders["7scenes"].resolve())
-    assert seven["metrics"]["ate_rmse"] == pytest.approx(0.0, abs=1e-9)
-    assert seven["metrics"]["depth_percent_correct"] == pytest.approx(100.0)  # ground truth depth, in mm
-    assert rgb_only["metadata"]["source"]["has_depth"] is False
-    assert not any(k.startswith("depth_") for k in rgb_only["metrics"])  # skipped, not crashed
-    assert any("depth metric skipped" in w for w in rgb_only["warnings"])
+    assert seven.metadata["sequence_definition"]["folder"] == str(folders["7scenes"].resolve())
+    assert seven.metrics["ate_rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert seven.metrics["depth_percent_correct"] == pytest.approx(100.0)  # ground truth depth, in mm
+    assert rgb_only.metadata["source"]["has_depth"] is False
+    assert not any(k.startswith("depth_") for k in rgb_only.metrics)  # skipped, not crashed
+    assert any("depth metric skipped" in w for w in rgb_only.warnings)
     folder = tmp_path / "runs" / "table1" / "seq_rgb_only" / "oracle" / "seed0-frames5"
     assert (folder / "trajectory.png").is_file() and not (folder / "depth.png").exists()
 

@@ -17,6 +17,7 @@ from eval.regress import (
     suite_metrics,
     update_baseline,
 )
+from eval.results import RunRecord
 
 
 @pytest.mark.parametrize(
@@ -76,7 +77,7 @@ def test_files_and_suite_flattening(tmp_path):
         {"sequence": "s1", "method": "A", "metrics": {"ate_rmse": 0.3}},
         {"sequence": "s2", "method": "A", "metrics": {"ate_rmse": None}},
     ]
-    flat = suite_metrics(records)
+    flat = suite_metrics([RunRecord.from_json(r) for r in records])
     assert flat["s1/A/ate_rmse"] == pytest.approx(0.2) and math.isnan(flat["s2/A/ate_rmse"])
     (tmp_path / "list.json").write_text(json.dumps(records))
     assert load_run_metrics(tmp_path / "list.json").keys() == flat.keys()
@@ -135,7 +136,7 @@ def test_command_line_exit_codes(tmp_path, capsys):
 
 def _records(values):
     """Run records from {(sequence, method): [metrics of each run]}."""
-    return [{"sequence": s, "method": m, "metrics": metrics} for (s, m), runs in values.items() for metrics in runs]
+    return [RunRecord(s, m, m, metrics) for (s, m), runs in values.items() for metrics in runs]
 
 
 def test_gate_metrics_are_medians_of_the_gated_figures_plus_suite_averages():
@@ -183,7 +184,7 @@ def test_calibration_counts_how_far_one_run_moved_not_only_the_median():
     from eval.regress import calibrate, gate_metrics, seed_figures
 
     def run(seed, value):
-        return {"sequence": "s", "method": "M", "metadata": {"seed": seed}, "metrics": {"rot_deg_rmse": value}}
+        return RunRecord("s", "M", "M", {"rot_deg_rmse": value}, metadata={"seed": seed})
 
     # one seed jumps to another solution under 'onednn-off'; the median of the three does not move there
     records = {

@@ -17,6 +17,7 @@ from eval.reports import (
     sweep_points,
     with_relative_errors,
 )
+from eval.results import RunRecord
 from eval.run import RunSpec
 from eval.runner import RunOutcome, SuiteRun
 from eval.suites import get_suite
@@ -40,8 +41,7 @@ def fake_run(suite, values, skipped=None, failed=()):
                                         "Boom: it broke" if status == "failed" else None)  # fmt: skip
         if status == "done":
             meta = {"git_revision": "abc", "seed": 0, **metrics.pop("_meta", {})}
-            records.append({"sequence": sequence, "method": method, "metrics": metrics, "metadata": meta,
-                            "run": spec.key})  # fmt: skip
+            records.append(RunRecord(sequence, method, method, metrics, metadata=meta, run=spec.key))
             timings[spec.key] = {"wall_s": 1.5}
     return SuiteRun(suite, Path("/runs"), tuple(specs), outcomes, skipped or {}, records, timings,
                     tuple(table[m] for m in suite.methods))  # fmt: skip
@@ -195,9 +195,7 @@ def test_reports_say_which_alignment_and_which_methods_were_fed_ground_truth(tmp
                                             "ate_sim3_rmse": 0.05})  # fmt: skip
     values[("living1", "LSD")]["ate_alignment_degenerate"] = 1.0
     run = fake_run(suite, values)
-    for rec in run.records:
-        if rec["method"] == "oracle":
-            rec["uses_ground_truth"] = True
+    run.records[:] = [r.replace(uses_ground_truth=True) if r.method == "oracle" else r for r in run.records]
     report_table1(run, tmp_path, "cnnslam bench table1")
     md = (tmp_path / "table1.md").read_text()
     assert "- office0 / CNN-SLAM: rotation-only fallback (evo cannot fit: positions one point) in 1 of 1 runs" in md

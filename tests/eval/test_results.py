@@ -56,9 +56,9 @@ def episode(n=40, seed=0):
 
 def test_evaluate_episode_known_answers():
     rec = evaluate_episode(episode(), method="CNN-SLAM", metadata={"seed": 3})
-    m = rec["metrics"]
-    assert rec["sequence"] == "office0" and rec["method"] == "CNN-SLAM" and rec["agent"] == "my_pkg.agent:Slam"
-    assert rec["association"]["rule"] == "index" and rec["alignment"]["used"] == "se3"
+    m = rec.metrics
+    assert rec.sequence == "office0" and rec.method == "CNN-SLAM" and rec.agent == "my_pkg.agent:Slam"
+    assert rec.association["rule"] == "index" and rec.alignment["used"] == "se3"
     assert m["ate_rmse"] == pytest.approx(0.05, abs=1e-3) and m["ate_pairs"] == 40 and m["frames"] == 40
     assert m["tracked_share"] == pytest.approx(0.75)
     assert m["depth_keyframes"] == 3
@@ -70,16 +70,16 @@ def test_evaluate_episode_known_answers():
     assert m["depth_abs_rel"] == pytest.approx((47 * 0.05 + 24 * 0.0 + 44 * 0.05) / (47 + 24 + 44), rel=1e-5)
     assert m["semantic_pixel_accuracy"] == 1.0 and m["semantic_mean_iou"] == 1.0
     assert m["step_ms_mean"] == pytest.approx(20.5, abs=0.5) and m["fps"] == pytest.approx(1000 / m["step_ms_mean"])
-    assert any("resized" in w for w in rec["warnings"]) and any("no ground-truth frame" in w for w in rec["warnings"])
-    assert len(rec["keyframes"]) == 3 and rec["metadata"] == {"seed": 3}
-    json.dumps(json_ready(rec), allow_nan=False)  # strict JSON
+    assert any("resized" in w for w in rec.warnings) and any("no ground-truth frame" in w for w in rec.warnings)
+    assert len(rec.keyframes) == 3 and rec.metadata == {"seed": 3}
+    json.dumps(json_ready(rec.to_json()), allow_nan=False)  # strict JSON
 
 
 def test_the_record_says_which_alignment_was_used_and_reports_both_ates():
     rec = evaluate_episode(episode())
-    m, a = rec["metrics"], rec["alignment"]
+    m, a = rec.metrics, rec.alignment
     assert a["used"] == "se3" and a["title"].startswith("SE(3) Umeyama") and a["degenerate"] is False
-    assert a["sim3"]["used"] == "sim3" and rec["rpe"] == {"delta": 1.0, "unit": "s"}
+    assert a["sim3"]["used"] == "sim3" and rec.rpe == {"delta": 1.0, "unit": "s"}
     assert m["ate_se3_rmse"] == m["ate_rmse"] and m["ate_sim3_rmse"] <= m["ate_rmse"]
     assert m["ate_alignment_degenerate"] == 0.0 and m["ate_alignment_fallback"] == 0.0
     assert m["rot_deg_orient_rmse"] == pytest.approx(0.0, abs=1e-9)  # only positions are off
@@ -90,27 +90,27 @@ def test_the_record_says_which_alignment_was_used_and_reports_both_ates():
     still.T_world_cam_gt[:, :3, 3] = [1.0, 2.0, 1.5]
     still.T_world_cam_est = still.T_world_cam_gt.copy()
     rec = evaluate_episode(still)
-    assert rec["alignment"]["used"] == "rotation_only" and rec["alignment"]["fallback"] is True
-    assert rec["metrics"]["ate_alignment_fallback"] == 1.0 and rec["metrics"]["ate_alignment_degenerate"] == 1.0
-    assert any("rotation-only" in w for w in rec["warnings"]) and math.isnan(rec["metrics"]["scale"])
+    assert rec.alignment["used"] == "rotation_only" and rec.alignment["fallback"] is True
+    assert rec.metrics["ate_alignment_fallback"] == 1.0 and rec.metrics["ate_alignment_degenerate"] == 1.0
+    assert any("rotation-only" in w for w in rec.warnings) and math.isnan(rec.metrics["scale"])
 
 
 def test_save_load_and_long_form(tmp_path):
     rec = evaluate_episode(episode(), method="CNN-SLAM", metadata={"seed": 3})
-    rec["metrics"]["semantic_iou_small_structure"] = math.nan
+    rec = rec.replace(metrics={**rec.metrics, "semantic_iou_small_structure": math.nan})
     path = save_run(rec, tmp_path / "runs" / "a.json")
     assert "NaN" not in path.read_text()
     back = load_run(path)
-    assert math.isnan(back["metrics"]["semantic_iou_small_structure"])
-    assert back["metrics"]["ate_rmse"] == rec["metrics"]["ate_rmse"]
-    other = dict(rec, sequence="office1", method="LSD")
+    assert math.isnan(back.metrics["semantic_iou_small_structure"])
+    assert back.metrics["ate_rmse"] == rec.metrics["ate_rmse"]
+    other = rec.replace(sequence="office1", method="LSD")
     save_run(other, tmp_path / "runs" / "b.json")
     frame = load_runs([tmp_path / "runs"])
     assert list(frame.columns[:5]) == ["sequence", "method", "metric", "value", "run"]
     assert {"agent", "uses_ground_truth", "alignment", "alignment_used", "association", "seed"} <= set(frame.columns)
-    assert len(frame) == 2 * len(rec["metrics"])
+    assert len(frame) == 2 * len(rec.metrics)
     sel = frame[(frame.sequence == "office1") & (frame.metric == "ate_rmse")]
-    assert sel["method"].tolist() == ["LSD"] and sel["value"].iloc[0] == pytest.approx(rec["metrics"]["ate_rmse"])
+    assert sel["method"].tolist() == ["LSD"] and sel["value"].iloc[0] == pytest.approx(rec.metrics["ate_rmse"])
     assert runs_frame([]).empty
 
 
@@ -123,3 +123,22 @@ def test_load_run_rejects_bad_files(tmp_path):
     (tmp_path / "y.json").write_text('{"metrics": {}}')
     with pytest.raises(ResultsError, match="'sequence'"):
         load_run(tmp_path / "y.json")
+
+
+def test_a_run_record_is_typed_frozen_and_round_trips_in_a_fixed_key_order():
+    import dataclasses
+
+    from eval.results import ResultsError, RunRecord
+
+    rec = evaluate_episode(episode(), method="CNN-SLAM", metadata={"seed": 3})
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rec.method = "LSD"  # type: ignore[misc]
+    out = rec.replace(sensor="mono", run="table1/office0/CNN-SLAM/seed3").to_json()
+    assert list(out) == ["schema", "sequence", "method", "agent", "uses_ground_truth", "alignment", "association",
+                         "rpe", "warnings", "metrics", "keyframes", "metadata", "sensor"]  # the run key stays out
+    written = json.loads(json.dumps(json_ready(out)))
+    back = RunRecord.from_json(written, "mem")
+    assert json_ready(back.to_json()) == written and back.sensor == "mono" and back.run is None
+    assert rec.with_warning("w").warnings[-1] == "w" and "w" not in rec.warnings
+    with pytest.raises(ResultsError, match="mem: a run record needs 'sequence'"):
+        RunRecord.from_json({"metrics": {}}, "mem")

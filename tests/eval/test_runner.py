@@ -143,15 +143,15 @@ def test_a_suite_run_resumes_skips_and_isolates_failures(tmp_path):
                       on_result=seen.append)  # fmt: skip
     assert first.counts() == {"done": 2, "failed": 1}
     assert list(first.skipped_methods) == ["missing"] and "no_such_module" in first.skipped_methods["missing"]
-    assert [r["method"] for r in first.records] == ["oracle", "constant-pose"]
+    assert [r.method for r in first.records] == ["oracle", "constant-pose"]
     assert len(seen) == 3 and "keyframe_every" in first.failed[0].error
     second = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r2")
     assert second.counts() == {"cached": 2, "failed": 1}  # finished runs are kept, the failed one is retried
-    assert second.records[0]["metadata"]["git_revision"] == "r1"
+    assert second.records[0].metadata["git_revision"] == "r1"
     table["constant-pose"] = replace(CONSTANT, kwargs={"tracked": False})  # a changed method runs again
     third = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False)
     assert third.outcomes["quick/office0/constant-pose/seed0-frames6"].status == "done"
-    assert third.records[1]["metrics"]["tracked_share"] == 0.0
+    assert third.records[1].metrics["tracked_share"] == 0.0
 
 
 def test_plots_are_written(tmp_path):
@@ -225,7 +225,7 @@ def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
     shutil.rmtree(tmp_path / "quick" / "office0" / "constant-pose")
     again = run_suite(suite, changed, tmp_path, plots=False, progress=False, check=False, report_only=True)
     assert again.counts() == {"cached": 1, "not_run": 1}  # the oracle's old run taken as is; nothing was run
-    assert not again.failed and [r["method"] for r in again.records] == ["oracle"]
+    assert not again.failed and [r.method for r in again.records] == ["oracle"]
     from eval.reports import failure_frame, status_markdown
 
     assert "1 not run (--report-only" in status_markdown(again) and "Not run (" in status_markdown(again)

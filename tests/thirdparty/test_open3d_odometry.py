@@ -28,7 +28,7 @@ def test_tracks_office0_from_the_sensor_depth():
     assert result.extras["depth_source"] == {"sensor_depth": 30}  # the Kinect-like depth, not the exact one
     assert result.tracked.all()
     assert np.allclose(result.T_world_cam_est[0], np.eye(4))  # the world is the first camera
-    metrics = evaluate_episode(result)["metrics"]
+    metrics = evaluate_episode(result).metrics
     assert metrics["ate_se3_rmse"] < 0.02  # metres: metric scale from the depth, no scale alignment needed
     assert abs(metrics["scale"] - 1.0) < 0.05
 

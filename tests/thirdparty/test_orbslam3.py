@@ -51,7 +51,7 @@ def test_tracks_office0_with_our_vocabulary():
         assert np.allclose(result.T_world_cam_est[:first], np.eye(4))
         R = result.T_world_cam_est[:, :3, :3]
         assert np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-9)
-        metrics = evaluate_episode(result)["metrics"]
+        metrics = evaluate_episode(result).metrics
         attempts.append((extras, float(result.tracked.mean()), metrics["ate_sim3_rmse"]))
         if (extras["maps"] >= 1 and extras["init_frame"] is not None and extras["keyframes"] >= 2
                 and result.tracked.mean() > 0.5 and metrics["ate_sim3_rmse"] < 0.1):  # metres, similarity-aligned
