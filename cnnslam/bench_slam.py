@@ -260,7 +260,7 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
     }
 
 
-def _peak_rss_mib() -> float:
+def peak_rss_mib() -> float:
     """This process's peak resident memory so far, MiB (``getrusage``; Linux reports KiB, macOS bytes)."""
     import resource
     import sys
@@ -285,7 +285,7 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
                    name=f"{sequence}-{n_frames}")
     name, pred = _make_predictor(predictor)
     figures: dict[str, Any] = {"sequence": spec.name, "camera": camera, "frames": int(n_frames), "predictor": name,
-                               "peak_rss_mib_start": _peak_rss_mib()}
+                               "peak_rss_mib_start": peak_rss_mib()}
     marks = sorted({int(c) for c in checkpoints if 0 < int(c) < n_frames} | {int(n_frames)})
     start = time.perf_counter()
     with SimulatedSequence(spec) as source:
@@ -294,13 +294,13 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
             frame = source.frame(i)
             slam.process(frame.rgb, float(frame.timestamp))
             if i + 1 in marks:
-                figures[f"peak_rss_mib_at_{i + 1}"] = _peak_rss_mib()
+                figures[f"peak_rss_mib_at_{i + 1}"] = peak_rss_mib()
                 figures[f"keyframes_at_{i + 1}"] = len(slam.keyframes)
                 if slam._model is not None:  # read between frames: the key-frame thread may be fusing
                     figures[f"model_mib_at_{i + 1}"] = slam._model.nbytes / 2**20
                     figures[f"model_surfels_at_{i + 1}"] = len(slam._model)
         result = slam.finish()
-    figures["peak_rss_mib_after_finish"] = _peak_rss_mib()
+    figures["peak_rss_mib_after_finish"] = peak_rss_mib()
     if result.model is not None:  # the global model the key-frame thread fused (Sec. 3.5)
         figures["model_surfels"] = len(result.model)
         figures["model_mib"] = result.model.nbytes / 2**20

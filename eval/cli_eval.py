@@ -42,11 +42,11 @@ if "numpy" not in sys.modules:
 from eval.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.errors import EvalError
 from eval.metrics import ErrorStatistics, RpeUnit, TrajectoryMetrics, evaluate_trajectory
-from eval.strict_json import json_ready
 from eval.trajectory import PoseTrajectory
 from eval.tum_reader import DUPLICATE_POLICIES
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from slamcommon.errors import MetricError
+from slamcommon.strict_json import json_ready
 
 EVAL_SCHEMA = "cnnslam-eval/1"
 

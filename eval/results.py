@@ -53,7 +53,6 @@ import pandas as pd
 from eval.association import AssociationRule
 from eval.errors import EvalError
 from eval.metrics import RpeUnit, evaluate_trajectory
-from eval.strict_json import json_ready
 from eval.trajectory import PoseTrajectory
 from sim_envs.frames import NUM_CLASSES
 from slamcommon.alignment import AlignmentMethod
@@ -64,6 +63,7 @@ from slamcommon.depth_metrics import (
     depth_metrics,
 )
 from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
+from slamcommon.strict_json import json_ready
 
 RUN_SCHEMA = "cnnslam-run/1"
 LONG_COLUMNS = ["sequence", "method", "metric", "value"]

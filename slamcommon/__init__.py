@@ -6,5 +6,6 @@ the agent. What lives here is what both sides must agree on to the bit:
 - :mod:`slamcommon.labels`: the semantic classes and the "no label" / "no depth" markers of ground truth;
 - :mod:`slamcommon.se3`: the inverse and the relative pose of rigid transforms ``T_a_b`` (4x4, OpenCV camera axes);
 - :mod:`slamcommon.depth_metrics`: the paper's correct depth (Sec. 4.1) and the usual depth accuracies;
-- :mod:`slamcommon.semantic_metrics`: the confusion matrix, pixel accuracy and IoU of label maps.
+- :mod:`slamcommon.semantic_metrics`: the confusion matrix, pixel accuracy and IoU of label maps;
+- :mod:`slamcommon.strict_json`: strict JSON of records (NaN/inf as null, numpy values as Python ones).
 """

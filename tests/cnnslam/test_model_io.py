@@ -128,7 +128,7 @@ def test_map_command_end_to_end(tmp_path):
 def test_evidence_maps_hold_the_ground_truth_one_hot_and_whether_the_cnn_was_right():
     from types import SimpleNamespace
 
-    from cnnslam.cli_map import evidence_maps
+    from cnnslam.map_replay import evidence_maps
 
     probs = np.zeros((2, 2, 4), np.float32)
     probs[..., 1] = 1.0  # the CNN says class 1 everywhere

@@ -1,5 +1,6 @@
-"""Strict JSON for the judge's records: NaN/inf become null, numpy values Python ones (numpy only, so that
-``cnnslam eval --json`` does not import pandas and OpenCV through :mod:`eval.results`, which re-exports it)."""
+"""Strict JSON for records on either side (the judge's run records, ``cnnslam map``'s metrics): NaN/inf become
+null, numpy values Python ones (numpy only, so that ``cnnslam eval --json`` does not import pandas and OpenCV through
+:mod:`eval.results`, which re-exports it)."""
 
 from __future__ import annotations
 
