@@ -549,16 +549,22 @@ class GlobalModel:
         if not deltas or not len(self.store):
             return ReplacementStats(len(deltas), 0, 0, 0.0, 0.0)
         anchors = self._col("anchor")
-        table = np.full(max(max(deltas), int(anchors.max(initial=0))) + 2, -1, np.int64)
+        # 32-bit temporaries, freed as soon as they are used: after a long episode N is millions of surfels and
+        # this runs at the end of the episode, beside everything it kept
+        table = np.full(max(max(deltas), int(anchors.max(initial=0))) + 2, -1, np.int32)
         stack = np.stack(list(deltas.values()))
-        table[list(deltas)] = np.arange(len(deltas))
-        which = np.where(anchors >= 0, table[np.clip(anchors, 0, None)], -1)
-        moved = np.flatnonzero(which >= 0)
+        table[list(deltas)] = np.arange(len(deltas), dtype=np.int32)
+        which = np.clip(anchors, 0, None)
+        np.take(table, which, out=which)
+        which[anchors < 0] = -1
+        moved = np.flatnonzero(which >= 0).astype(np.int32)
         if moved.size == 0:
             return ReplacementStats(len(deltas), 0, 0, 0.0, 0.0)
-        # key-frame by key-frame (no (N, 4, 4) stack: after a long episode N is millions of surfels)
-        moved = moved[np.argsort(which[moved], kind="stable")]
         which = which[moved]
+        # key-frame by key-frame (no (N, 4, 4) stack)
+        order = np.argsort(which, kind="stable")
+        moved, which = moved[order], which[order]
+        del order
         bounds = np.flatnonzero(np.r_[True, np.diff(which) != 0, True])
         n_moved, disp_max, disp_sum = int(moved.size), 0.0, 0.0
         D = self.store.columns
@@ -591,6 +597,7 @@ class GlobalModel:
 
     def _rebuild_index(self, merge: bool) -> None:
         """Sort the keys again; with ``merge``, surfels sharing a key are combined into one (weights add)."""
+        self.store.drop_index()  # rebuilt below; not kept beside the re-hash's temporaries
         order, first = self.store.key_runs()
         if merge and not first.all():
             self._combine(order, first)

@@ -128,12 +128,14 @@ class SurfelStore:
             raise CnnSlamError(f"no surfel column {unknown}; columns: {', '.join(self.columns)}, evidence")
         ids = np.asarray(ids, dtype=np.int64)
         for name, arr in (*self.columns.items(), ("evidence", self.evidence)):
-            column = arr[ids]
-            if name in overrides:
-                js, values = overrides[name]
-                column[js] = values
-            arr[: ids.size] = column
-            del column
+            js, values = overrides.get(name, (None, None))
+            for j in range(arr.shape[1]) if arr.ndim == 2 else (None,):  # one component at a time: the transient
+                target = arr if j is None else arr[:, j]                  # is one (N,) copy, not (N, 3) or (N, C)
+                column = target[ids]
+                if js is not None:  # the values as they would be assigned to the whole rows
+                    column[js] = values if j is None else np.broadcast_to(values, (len(js), arr.shape[1]))[:, j]
+                target[: ids.size] = column
+                del column
         self._size = ids.size
 
     def key_runs(self) -> tuple[np.ndarray, np.ndarray]:
@@ -146,6 +148,12 @@ class SurfelStore:
         first[:1] = True
         np.not_equal(sk[1:], sk[:-1], out=first[1:])
         return order, first
+
+    def drop_index(self) -> None:
+        """Release the key index (before a re-hash that rebuilds it: the old index need not live beside the
+        re-hash's temporaries); :meth:`ids_of_keys` finds nothing until :meth:`reindex`."""
+        self._sorted_keys = np.zeros(0, np.int64)
+        self._sorted_ids = np.zeros(0, np.int64)
 
     def reindex(self, order: np.ndarray | None = None) -> None:
         """Rebuild the key index from the key column; ``order``: the rows already sorted by key (else sorted here,
