@@ -101,7 +101,7 @@ def correlations_markdown(corr: pd.DataFrame) -> str:
 def _part_line(part: TransferPart, run: SuiteRun) -> str:
     suite = run.suite
     frames = "whole sequences" if suite.frames is None else f"first {suite.frames} frames"
-    revisions = sorted({str((r.get("metadata") or {}).get("git_revision")) for r in run.records}) or ["-"]
+    revisions = sorted({str(r.metadata.get("git_revision")) for r in run.records}) or ["-"]
     domains: dict[str, list[str]] = {}
     for name, domain in part.domains:
         domains.setdefault(domain, []).append(name)
