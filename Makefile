@@ -23,6 +23,8 @@ BENCH_RUNS ?= 1
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev]'
+	# numba's kernels compiled once into its cache (a run that compiles keeps the JIT's ~95 MiB; cnnslam/warmup.py)
+	$(BIN)/python -m cnnslam.warmup || echo "numba warm-up skipped: the first run compiles the kernels"
 	touch $(STAMP)
 
 venv: $(STAMP)

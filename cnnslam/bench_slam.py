@@ -269,13 +269,34 @@ def peak_rss_mib() -> float:
     return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
 
 
+def numba_cache_counts() -> dict[str, int]:
+    """How this process got the numba kernels of the loaded ``cnnslam`` modules: signatures compiled here (a cold
+    cache: the JIT's memory stays in the process) and signatures loaded from numba's on-disk cache."""
+    import sys
+
+    from numba.core.registry import CPUDispatcher
+
+    seen: set[int] = set()
+    compiled = loaded = 0
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("cnnslam") or module is None:
+            continue
+        for obj in vars(module).values():
+            if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
+                seen.add(id(obj))
+                compiled += sum(obj.stats.cache_misses.values())
+                loaded += sum(obj.stats.cache_hits.values())
+    return {"numba_signatures_compiled": compiled, "numba_signatures_from_cache": loaded}
+
+
 def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoints: tuple[int, ...] = (1000, 3000),
                      predictor: str = "auto", camera: str = "kinect") -> dict[str, Any]:
     """Peak resident memory of a long episode, rendering included: ``sequence``'s room and hand-held path stretched
     to ``n_frames`` frames through ``camera``, rendered one frame at a time and handed to the two-thread system as
     an agent would. Figures: peak RSS (MiB) after each checkpoint's frame and after ``finish``; key-frames made;
     MiB per 1000 frames between the first checkpoint and the end; the global model's surfels and the MiB its arrays
-    hold (allocated capacity, index included)."""
+    hold (allocated capacity, index included); how many numba signatures were compiled in the process or loaded
+    from its cache (:func:`numba_cache_counts`: compiling adds the JIT's memory to the peak)."""
     from dataclasses import replace
 
     from sim_envs.sequences import get_sequence, with_camera
@@ -305,6 +326,7 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
         figures["model_surfels"] = len(result.model)
         figures["model_mib"] = result.model.nbytes / 2**20
     figures["tracked_share"] = result.stats["tracked_share"]
+    figures.update(numba_cache_counts())  # a cold cache compiles in this process: its memory is in the peak
     figures["wall_s"] = time.perf_counter() - start
     first, last = marks[0], marks[-1]
     if last > first:
