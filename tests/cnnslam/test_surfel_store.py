@@ -49,3 +49,17 @@ def test_key_runs_put_the_strongest_anchor_first():
     assert len(store) == 2 and store.ids_of_keys(np.array([5, 7])).tolist() == [0, 1]
     assert store.column("radius").tolist() == [0.0, 9.0] and store.live_evidence()[:, 0].tolist() == [1.0, 0.0]
     assert store.column("anchor_weight").tolist() == [1.0, 3.0]  # the strongest anchor led its run
+
+
+def test_drop_index_forgets_the_keys_until_reindex_and_gather_copies_by_component():
+    store = SurfelStore(num_classes=3)
+    rows = store.append(np.array([4, 8, 9]))
+    store.columns["position"][rows] = np.arange(9, dtype=np.float32).reshape(3, 3)
+    store.evidence[rows] = np.arange(9, dtype=np.float32).reshape(3, 3) + 10
+    store.drop_index()
+    assert store.ids_of_keys(np.array([4, 8, 9])).tolist() == [-1, -1, -1]
+    store.gather(np.array([2, 0]), {"evidence": (np.array([1]), np.array([[7.0, 8.0, 9.0]]))})
+    store.reindex()
+    assert store.ids_of_keys(np.array([4, 9, 8])).tolist() == [1, 0, -1]
+    assert store.column("position").tolist() == [[6, 7, 8], [0, 1, 2]]
+    assert store.live_evidence().tolist() == [[16, 17, 18], [7, 8, 9]]
