@@ -4,7 +4,6 @@ folder renamed into place; what a killed process left behind is cleaned up by :f
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import uuid
@@ -12,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from eval.errors import RunnerError
+from eval.results import ResultsError, load_run
 from eval.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, write_json
 
 
@@ -22,15 +22,16 @@ def run_folder(out_root: str | Path, spec: RunSpec) -> Path:
 
 
 def is_finished(out_root: str | Path, spec: RunSpec) -> bool:
-    """True when the run's folder holds a readable ``metrics.json`` with this run's fingerprint."""
+    """True when the run's folder holds a readable ``metrics.json`` (:func:`eval.results.load_run`) with this run's
+    fingerprint."""
     path = run_folder(out_root, spec) / DONE_FILE
     if not path.is_file():
         return False
     try:
-        record = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
+        record = load_run(path)
+    except ResultsError:
         return False
-    return isinstance(record, dict) and (record.get("metadata") or {}).get("fingerprint") == spec.fingerprint()
+    return record.metadata.get("fingerprint") == spec.fingerprint()
 
 
 def store_result(out_root: str | Path, result: RunResult) -> Path:
