@@ -12,7 +12,11 @@ real RGB-D folder (``real:<name>``). Per domain, metric and method:
   simulated domain's ranks and each real domain's, with the number of methods n and the two-sided p-values (with
   n = 5 methods, scipy's p is below 0.05 only for rho >= 0.9: read the figures as agreement, not significance);
 - **which camera predicts real data best** (:func:`best_predictor`): the simulated domain with the highest mean
-  Spearman rho over the metrics and real domains.
+  Spearman rho over the metrics and real domains;
+- **what a perfect simulator would score** (:func:`holdout_agreement`): the agreement of the simulator with
+  itself, k of its sequences held out against the others. A real recording is one more sample of the methods'
+  sequence-to-sequence spread, so a rho against k real recordings can be no more reliable than this; it is the
+  ceiling a sim-to-real coefficient is read against, and says how many real recordings a target needs.
 
 Methods fed ground truth (the oracle) are left out of the rankings: they win by construction. The numeric core
 does no I/O; :mod:`eval.reports` writes ``transfer.{md,csv,png}``.
@@ -20,6 +24,7 @@ does no I/O; :mod:`eval.reports` writes ``transfer.{md,csv,png}``.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -154,6 +159,92 @@ def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
         return None
     mean = finite.groupby("sim")["spearman"].mean().sort_values(ascending=False, kind="stable")
     return str(mean.index[0]), float(mean.iloc[0])
+
+
+HOLDOUT_MAX_SPLITS = 5000  # above this many k-of-n splits, holdout_agreement draws this many at random
+
+
+def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4),
+                      metrics: Sequence[TransferMetric] = TRANSFER_METRICS, target: float = 0.8,
+                      observed: pd.DataFrame | None = None, max_splits: int = HOLDOUT_MAX_SPLITS,
+                      seed: int = 0) -> pd.DataFrame:
+    """The agreement a perfect simulator would show with k real recordings: the simulator against itself.
+
+    If the real world were the simulator, a real recording would be one more simulated sequence: its ranking of the
+    methods would differ from the simulator's average ranking only by the methods' sequence-to-sequence spread. So,
+    per simulated domain of ``frame`` (as :func:`domain_scores` takes it), metric and k in ``held_out``: every way
+    (at most ``max_splits``, drawn at random with ``seed`` beyond that) of holding out k of the domain's sequences;
+    each method's score on the held-out ones and on the rest (mean of the cells' medians over runs, as
+    :func:`domain_scores`); Spearman's rho between the two rankings, over the methods with a finite score on every
+    sequence. Its distribution is the ceiling for a sim-to-real rho against k independent real recordings: a
+    coefficient inside it shows no sim-to-real gap beyond the sampling of sequences, and a ``target`` whose median
+    split misses it cannot be met reliably with k real recordings, however good the simulator.
+
+    Columns: sim, metric, held_out (k), n (methods), splits, rho_median, rho_q25, rho_q75, share_target (share of
+    splits with rho >= ``target``); with ``observed`` (:func:`rank_correlations`' columns sim, metric, spearman,
+    one row per (sim, metric), e.g. for one real domain) also ``observed`` and ``observed_percentile``: the share
+    of splits below the observed rho, ties counting half (50: as typical as a held-out simulated sequence). A k that
+    leaves no sequence on either side is skipped; splits where a side ranks all methods equal are left out.
+    """
+    need = {"domain", "sequence", "method", "metric", "value"}
+    if missing := need - set(frame.columns):
+        raise EvalError(f"a transfer frame needs columns {sorted(need)}; missing {sorted(missing)}")
+    if any(int(k) < 1 for k in held_out) or max_splits < 1:
+        raise EvalError(f"holdout_agreement: held_out must be >= 1 and max_splits >= 1, got {list(held_out)}, "
+                        f"{max_splits}")  # fmt: skip
+    sims = frame[frame["domain"].astype(str).str.startswith(SIM_PREFIX)]
+    cells = (sims[sims["metric"].isin([m.name for m in metrics])]
+             .groupby(["domain", "metric", "method", "sequence"])["value"].median())  # fmt: skip
+    seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
+        if observed is not None else {}  # fmt: skip
+    rows = []
+    for metric in metrics:
+        for sim in sorted(sims["domain"].unique()):
+            try:
+                table = cells.loc[(sim, metric.name)].unstack("sequence")
+            except KeyError:
+                continue
+            table = table[np.isfinite(table.to_numpy()).all(axis=1)]
+            values = (-1.0 if metric.higher_is_better else 1.0) * table.to_numpy(dtype=float)  # lower is better
+            n_seq = values.shape[1]
+            for k in (int(k) for k in held_out):
+                if k >= n_seq or len(table) < 3:
+                    continue
+                rng = np.random.default_rng([seed, len(rows)])
+                rho = _holdout_rhos(values, k, max_splits, rng)
+                rho = rho[np.isfinite(rho)]
+                row = {"sim": sim, "metric": metric.name, "held_out": k, "n": len(table), "splits": len(rho),
+                       "rho_median": math.nan, "rho_q25": math.nan, "rho_q75": math.nan,
+                       "share_target": math.nan}  # fmt: skip
+                if len(rho):
+                    row["rho_median"], row["rho_q25"], row["rho_q75"] = (float(x) for x in
+                                                                         np.percentile(rho, [50, 25, 75]))
+                    row["share_target"] = float(np.mean(rho >= target - 1e-12))
+                if observed is not None:
+                    obs = seen.get((sim, metric.name), math.nan)
+                    row["observed"] = obs
+                    row["observed_percentile"] = (100.0 * (np.mean(rho < obs - 1e-12)
+                                                           + 0.5 * np.mean(np.abs(rho - obs) <= 1e-12))
+                                                  if len(rho) and np.isfinite(obs) else math.nan)  # fmt: skip
+                rows.append(row)
+    columns = ["sim", "metric", "held_out", "n", "splits", "rho_median", "rho_q25", "rho_q75", "share_target"]
+    return pd.DataFrame(rows, columns=columns + (["observed", "observed_percentile"] if observed is not None else []))
+
+
+def _holdout_rhos(values: np.ndarray, k: int, max_splits: int, rng: np.random.Generator) -> np.ndarray:
+    """Spearman's rho, per split, between the methods' mean over k held-out columns (sequences) of ``values``
+    (methods, sequences; lower is better) and their mean over the other columns: every k-subset, or ``max_splits``
+    drawn at random when there are more (NaN where a side ranks all methods equal)."""
+    n = values.shape[1]
+    if math.comb(n, k) <= max_splits:
+        held = np.zeros((math.comb(n, k), n), dtype=bool)
+        for i, subset in enumerate(itertools.combinations(range(n), k)):
+            held[i, list(subset)] = True
+    else:
+        held = np.argsort(rng.random((max_splits, n)), axis=1) < k
+    mean_held = held @ values.T / k  # (splits, methods)
+    mean_rest = ~held @ values.T / (n - k)
+    return _rowwise_pearson(stats.rankdata(mean_held, axis=1), stats.rankdata(mean_rest, axis=1))
 
 
 BOOTSTRAP_DRAWS = 2000  # resamples of a bootstrap interval (percentile method; its 2.5 % tails rest on 50 draws)

@@ -203,7 +203,15 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     assert corr.loc["whole", ["rho_low", "rho_high"]].tolist() == pytest.approx([-1.0, -1.0])
     md = (tmp_path / "transfer.md").read_text()
     assert "### Length: 10" in md and "### Length: whole" in md and "| 10 | sim:kinect | real:kitchen |" in md
-    assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png"}
+    assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png",
+                                       "transfer_ceiling.csv"}  # fmt: skip
+    # both simulated sequences rank alike, so a perfect simulator scores +1 against one recording; the windows'
+    # +1 sits in the middle of that (percentile 50), the whole sequence's -1 below all of it (0)
+    assert corr.loc["10", ["ceiling_median", "ceiling_percentile"]].tolist() == pytest.approx([1.0, 50.0])
+    assert corr.loc["whole", ["ceiling_median", "ceiling_percentile"]].tolist() == pytest.approx([1.0, 0.0])
+    assert "## What a perfect simulator would score" in md
+    ceiling = pd.read_csv(tmp_path / "transfer_ceiling.csv", dtype={"length": str})
+    assert set(ceiling["held_out"]) == {1} and set(ceiling["length"]) == {"10", "whole"}  # 2 sequences: k = 1 only
 
 
 def test_intervals_survive_a_real_domain_that_misses_a_method(tmp_path):
@@ -224,3 +232,61 @@ def test_intervals_survive_a_real_domain_that_misses_a_method(tmp_path):
     assert corr.loc["real:x", "n"] == corr.loc["real:y", "n"] == 3
     assert corr.loc["real:x", ["rho_low", "rho_high"]].tolist() == pytest.approx([1.0, 1.0])
     assert corr.loc["real:y", ["rho_low", "rho_high"]].tolist() == pytest.approx([1.0, 1.0])
+
+
+def _holdout_frame(per_sequence: list[tuple[float, ...]], methods: str = "ABC") -> pd.DataFrame:
+    """One simulated domain; sequence i gives method j the value per_sequence[i][j] (one run per cell)."""
+    return pd.DataFrame([{"domain": "sim:kinect", "sequence": f"s{i}", "method": m, "metric": "ate_se3_rmse",
+                          "value": v} for i, values in enumerate(per_sequence)
+                         for m, v in zip(methods, values, strict=True)])  # fmt: skip
+
+
+def test_a_simulator_that_ranks_alike_everywhere_is_its_own_perfect_match():
+    from eval.transfer import holdout_agreement
+
+    frame = _holdout_frame([(1.0 + s, 2.0 + s, 3.0 + s, 4.0 + s) for s in range(6)], methods="ABCD")
+    table = holdout_agreement(frame, (1, 2, 3), [ATE]).set_index("held_out")
+    assert table["splits"].tolist() == [6, 15, 20]  # every k-of-6 split: C(6, k)
+    assert table["rho_median"].tolist() == pytest.approx([1.0, 1.0, 1.0])
+    assert table["share_target"].tolist() == pytest.approx([1.0, 1.0, 1.0])
+
+
+def test_holdout_agreement_of_one_swapped_sequence_has_the_hand_computed_rhos():
+    """s0, s1 rank A < B < C, s2 swaps B and C. Holding out s0 (or s1): the rest's means tie B and C, ranks
+    (1, 2.5, 2.5) against (1, 2, 3): rho = 1.5 / sqrt(2 * 1.5) = 0.866. Holding out s2: (1, 3, 2) against
+    (1, 2, 3): rho = 0.5. An observed 0.866 is above one split and ties two: percentile (1 + 2 / 2) / 3."""
+    from eval.transfer import holdout_agreement
+
+    frame = _holdout_frame([(1.0, 2.0, 3.0), (1.0, 2.0, 3.0), (1.0, 3.0, 2.0)])
+    observed = pd.DataFrame([{"sim": "sim:kinect", "metric": "ate_se3_rmse", "spearman": math.sqrt(0.75)}])
+    row = holdout_agreement(frame, (1,), [ATE], observed=observed).iloc[0]
+    assert row["splits"] == 3 and row["rho_median"] == pytest.approx(math.sqrt(0.75))
+    assert row["rho_q25"] == pytest.approx((0.5 + math.sqrt(0.75)) / 2)  # numpy's linear percentile of 3 values
+    assert row["share_target"] == pytest.approx(2 / 3)
+    assert row["observed_percentile"] == pytest.approx(100 * 2 / 3)
+    # a higher-is-better metric reverses every ranking on both sides: the same rhos
+    flipped = holdout_agreement(frame.assign(metric="depth_percent_correct"), (1,), [DEPTH]).iloc[0]
+    assert flipped["rho_median"] == pytest.approx(math.sqrt(0.75))
+
+
+def test_holdout_agreement_of_noise_is_near_zero_and_draws_splits_when_there_are_many():
+    from eval.transfer import holdout_agreement
+
+    rng = np.random.default_rng(3)
+    frame = _holdout_frame([tuple(rng.uniform(0, 1, 6)) for _ in range(12)], methods="ABCDEF")
+    table = holdout_agreement(frame, (1, 6), [ATE], max_splits=300).set_index("held_out")
+    assert table.loc[1, "splits"] == 12 and table.loc[6, "splits"] == 300  # C(12, 6) = 924 > 300: drawn
+    assert abs(table.loc[6, "rho_median"]) < 0.4 and table.loc[6, "share_target"] < 0.1
+    again = holdout_agreement(frame, (1, 6), [ATE], max_splits=300)
+    assert again.equals(table.reset_index()[again.columns])  # seeded: the same draws
+
+
+def test_holdout_agreement_skips_what_cannot_be_split_and_names_bad_arguments():
+    from eval.transfer import holdout_agreement
+
+    frame = _holdout_frame([(1.0, 2.0, 3.0), (1.0, 2.0, 3.0)])
+    assert holdout_agreement(frame, (1, 2), [ATE])["held_out"].tolist() == [1]  # k = 2 leaves no rest
+    with pytest.raises(EvalError, match="held_out must be >= 1"):
+        holdout_agreement(frame, (0,), [ATE])
+    with pytest.raises(EvalError, match="missing"):
+        holdout_agreement(frame.drop(columns="domain"), (1,), [ATE])
