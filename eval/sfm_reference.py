@@ -10,10 +10,10 @@ can be read.
 
 What it computes:
 
-- :func:`reconstruct`: COLMAP's incremental SfM on the given images (SIFT, sequential matching, one shared camera
-  whose focal length and radial distortion are refined in the bundle adjustment; the initial focal length is
-  COLMAP's own guess, 1.2 x the image width, so nothing from the folder's stated camera goes in). Returns the largest
-  model.
+- :func:`reconstruct` (:mod:`slamcommon.sfm`, shared with COLMAP the method): COLMAP's incremental SfM on the
+  given images (SIFT, sequential matching, one shared camera whose focal length and radial distortion are refined
+  in the bundle adjustment; the initial focal length is COLMAP's own guess, 1.2 x the image width, so nothing from
+  the folder's stated camera goes in). Returns the largest model.
 - :func:`colmap_to_opencv_camera`: that camera in OpenCV's convention (pixel centres at integers: COLMAP puts them at
   +0.5, so ``cx = cx_colmap - 0.5``), radial ``k1 k2`` in OpenCV's order ``k1 k2 p1 p2 k3``.
 - :func:`metric_scale`: SfM has no scale; the median over all observations of sensor depth / SfM depth of the
@@ -28,7 +28,6 @@ COLMAP's database and model under a work folder.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,18 +35,19 @@ from typing import Any
 
 import numpy as np
 
-from eval.errors import EvalError
 from sim_envs.camera import CameraModel, Intrinsics
+from slamcommon.sfm import CAMERA_MODELS as SFM_CAMERA_MODELS
+from slamcommon.sfm import (  # noqa: F401  (the reference's pipeline, re-exported for its users)
+    COLMAP_PIXEL_OFFSET,
+    DEFAULT_CAMERA_MODEL,
+    DEFAULT_OVERLAP,
+    SfmError,
+    model_poses,
+    reconstruct,
+)
 
-# COLMAP camera models with a single radial polynomial we can hand to OpenCV (k1, k2 in OpenCV's meaning)
-CAMERA_MODELS: tuple[str, ...] = ("SIMPLE_RADIAL", "RADIAL", "OPENCV")
-DEFAULT_CAMERA_MODEL = "RADIAL"
-DEFAULT_OVERLAP = 10  # sequential matching: each image against its next 10
-COLMAP_PIXEL_OFFSET = 0.5  # COLMAP's pixel centres are at +0.5 (image corner at 0), OpenCV's at integers
-
-
-class SfmError(EvalError):
-    """Structure from motion could not make a reference (pycolmap missing, too few images registered, ...)."""
+# COLMAP camera models the reference self-calibrates: those with a single radial polynomial OpenCV can use
+CAMERA_MODELS: tuple[str, ...] = tuple(m for m in SFM_CAMERA_MODELS if m != "PINHOLE")
 
 
 @dataclass
@@ -119,90 +119,6 @@ def metric_scale(sfm_depth: np.ndarray, sensor_depth: np.ndarray, min_observatio
     return float(np.median(b[ok] / a[ok])), n
 
 
-def _pycolmap() -> Any:
-    try:
-        import pycolmap
-    except ImportError as exc:  # an optional dependency: only this reference needs it
-        raise SfmError("the SfM reference needs pycolmap: pip install 'cnnslam[sfm]' (or pycolmap>=3.12)") from exc
-    return pycolmap
-
-
-def reconstruct(
-    image_paths: Sequence[str | Path],
-    workdir: str | Path,
-    *,
-    camera_model: str = DEFAULT_CAMERA_MODEL,
-    overlap: int = DEFAULT_OVERLAP,
-    threads: int = 2,
-    seed: int = 0,
-    fixed_camera: Sequence[float] | None = None,
-    verbose: bool = False,
-    on_stage: Callable[[str], None] | None = None,
-    on_image: Callable[[], None] | None = None,
-) -> Any:
-    """COLMAP's incremental SfM on ``image_paths`` (in sequence order), one shared camera of ``camera_model`` whose
-    focal length and distortion are refined; SIFT features, sequential matching over ``overlap`` neighbours.
-
-    Writes ``workdir/images`` (links to the images), ``workdir/database.db`` and ``workdir/sparse``. Returns the
-    model (a ``pycolmap.Reconstruction``) with the most registered images. ``fixed_camera``: COLMAP parameters of
-    ``camera_model`` (COLMAP's pixel convention) to hold fixed instead of self-calibrating. ``on_stage`` is called
-    with each stage's name as it finishes, ``on_image`` each time the mapper registers an image (for a progress
-    bar).
-    """
-    pycolmap = _pycolmap()
-    if camera_model not in CAMERA_MODELS:
-        raise SfmError(f"camera model {camera_model!r}: valid {', '.join(CAMERA_MODELS)}")
-    paths = [Path(p).resolve() for p in image_paths]
-    if len(paths) < 3:
-        raise SfmError(f"structure from motion needs at least 3 images, got {len(paths)}")
-    missing = [str(p) for p in paths if not p.is_file()]
-    if missing:
-        raise SfmError(f"{len(missing)} image(s) not found, first: {missing[0]}")
-    work = Path(workdir)
-    images = work / "images"
-    images.mkdir(parents=True, exist_ok=True)
-    for i, p in enumerate(paths):  # numbered links: COLMAP sorts by name, and names must be unique
-        link = images / f"{i:06d}{p.suffix.lower()}"
-        if link.is_symlink() or link.exists():
-            link.unlink()
-        os.symlink(p, link)
-    database = work / "database.db"
-    if database.exists():
-        database.unlink()
-    pycolmap.logging.minloglevel = 0 if verbose else 2
-    reader = pycolmap.ImageReaderOptions()
-    reader.camera_model = camera_model
-    if fixed_camera is not None:
-        reader.camera_params = ",".join(repr(float(v)) for v in fixed_camera)
-    extraction = pycolmap.FeatureExtractionOptions()
-    extraction.num_threads = threads
-    pycolmap.extract_features(
-        database, images, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
-        extraction_options=extraction, device=pycolmap.Device.cpu,
-    )  # fmt: skip
-    if on_stage:
-        on_stage("features")
-    pairing = pycolmap.SequentialPairingOptions()
-    pairing.overlap = overlap
-    pycolmap.match_sequential(database, pairing_options=pairing, device=pycolmap.Device.cpu)
-    if on_stage:
-        on_stage("matches")
-    options = pycolmap.IncrementalPipelineOptions()
-    options.num_threads = threads
-    options.random_seed = seed
-    if fixed_camera is not None:
-        options.ba_refine_focal_length = False
-        options.ba_refine_extra_params = False
-    models = pycolmap.incremental_mapping(
-        database, images, work / "sparse", options=options, next_image_callback=on_image
-    )
-    if on_stage:
-        on_stage("mapping")
-    if not models:
-        raise SfmError(f"COLMAP registered no model from {len(paths)} images (too little texture or overlap?)")
-    return max(models.values(), key=lambda r: r.num_reg_images())
-
-
 def reference_trajectory(
     model: Any,
     timestamps: Sequence[float],
@@ -215,14 +131,8 @@ def reference_trajectory(
     resolution; when given, the poses are scaled to metres by :func:`metric_scale`.
     """
     stamps = np.asarray(timestamps, dtype=np.float64)
-    rows = []
-    for image in model.images.values():
-        index = int(Path(image.name).stem)
-        pose = image.cam_from_world() if callable(image.cam_from_world) else image.cam_from_world
-        T_cam_world = np.eye(4)
-        T_cam_world[:3] = pose.matrix()
-        rows.append((index, image, np.linalg.inv(T_cam_world)))
-    rows.sort(key=lambda r: r[0])
+    images = {int(Path(image.name).stem): image for image in model.images.values()}
+    rows = [(index, images[index], T) for index, T in model_poses(model)]
     if len(rows) < 3:
         raise SfmError(f"COLMAP registered {len(rows)} of {len(stamps)} images; a reference needs at least 3")
     camera = next(iter(model.cameras.values()))

@@ -10,7 +10,9 @@ An agent is any object with ``reset``, ``step`` and ``finish`` (duck-typed; it n
   frame, 0 if the agent considers itself lost).
 - ``finish() -> AgentOutput`` (or a dict with the same fields): key-frames with the agent's final depth maps and
   poses, for the depth metric, and optionally the agent's global 3D model (:class:`MapModel`, the paper's Sec. 3.5
-  map with its fused labels), for the reconstruction and label metrics.
+  map with its fused labels), for the reconstruction and label metrics, and optionally its final trajectory
+  (:class:`FinalTrajectory`): an offline method (structure from motion) or a system that revises its poses at the
+  end hands back the poses it would write to a TUM file, and the judge scores those instead of the per-step answers.
 
 Agents are named by ``"module:Class"`` strings and built with keyword arguments (:func:`load_agent`), so a user's
 agent plugs in exactly like ours. An agent whose class sets ``uses_ground_truth = True`` (the oracle, scale
@@ -74,13 +76,47 @@ class MapModel:
 
 
 @dataclass(frozen=True)
+class FinalTrajectory:
+    """An agent's final estimate of the episode's poses, handed back by ``finish()``: what an offline or globally
+    optimised system writes as its trajectory file.
+
+    timestamps: (M,) float64 seconds, each matching an observation's (within the driver's key-frame tolerance);
+    T_world_cam: (M, 4, 4) float64 camera-to-world, OpenCV camera axes, the agent's world frame and scale;
+    tracked: optional (M,) bool, False for a pose the agent only filled in (held or interpolated across frames it
+    could not place); default all True. The driver puts these poses in place of the per-step answers of the frames
+    they name, and those frames' tracked flags in place of theirs: a frame with no pose here is not tracked (it
+    keeps its per-step answer, so the trajectory stays whole).
+    """
+
+    timestamps: np.ndarray
+    T_world_cam: np.ndarray
+    tracked: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        stamps, T = np.asarray(self.timestamps), np.asarray(self.T_world_cam)
+        if stamps.ndim != 1 or T.shape != (len(stamps), 4, 4):
+            raise SimEnvError(f"FinalTrajectory needs timestamps (M,) and T_world_cam (M, 4, 4), got {stamps.shape} "
+                              f"and {T.shape}")  # fmt: skip
+        if not (np.isfinite(stamps).all() and np.isfinite(T).all()):
+            raise SimEnvError("FinalTrajectory holds NaN or inf")
+        if self.tracked is not None and np.asarray(self.tracked).shape != stamps.shape:
+            raise SimEnvError(f"FinalTrajectory.tracked must be (M,) = {stamps.shape} bool, got "
+                              f"{np.asarray(self.tracked).shape}")  # fmt: skip
+
+    def __len__(self) -> int:
+        return int(np.asarray(self.timestamps).shape[0])
+
+
+@dataclass(frozen=True)
 class AgentOutput:
     """What an agent hands back at the end of an episode. ``model``: its global 3D model, if it builds one;
-    ``extras``: free-form, JSON-serialisable diagnostics."""
+    ``trajectory``: its final poses, if it revises them (:class:`FinalTrajectory`); ``extras``: free-form,
+    JSON-serialisable diagnostics."""
 
     keyframes: list[KeyframeDepth] = field(default_factory=list)
     extras: dict[str, Any] = field(default_factory=dict)
     model: MapModel | None = None
+    trajectory: FinalTrajectory | None = None
 
 
 @runtime_checkable

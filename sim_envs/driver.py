@@ -2,7 +2,9 @@
 
 :func:`run_episode` resets the env, feeds every observation to the agent, checks each action, records the estimated
 and ground-truth trajectories and the agent's own time per step, collects the agent's key-frames from ``finish()``,
-and fetches the ground-truth frame of each key-frame from ``env.unwrapped.source`` after the episode.
+and fetches the ground-truth frame of each key-frame from ``env.unwrapped.source`` after the episode. An agent that
+hands back a final trajectory (:class:`~sim_envs.agent.FinalTrajectory`) has its poses put in place of the per-step
+answers (:func:`apply_final_trajectory`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from sim_envs.agent import AgentOutput, KeyframeDepth, MapModel
+from sim_envs.agent import AgentOutput, FinalTrajectory, KeyframeDepth, MapModel
 from sim_envs.camera import Intrinsics
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
@@ -125,6 +127,13 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
     keyframes, keyframe_gt, unmatched = _match_keyframes(output.keyframes, source, name)
     if unmatched:
         extras["unmatched_keyframes"] = unmatched
+    est_poses, tracked_flags = np.stack(est), np.asarray(tracked, dtype=bool)
+    if output.trajectory is not None:
+        est_poses, tracked_flags, matched, unmatched_poses = apply_final_trajectory(
+            output.trajectory, np.asarray(stamps, dtype=np.float64), est_poses, name)  # fmt: skip
+        extras["final_trajectory"] = {"poses": len(output.trajectory), "frames_matched": matched}
+        if unmatched_poses:
+            extras["final_trajectory"]["unmatched_timestamps"] = unmatched_poses
     spec = getattr(env, "spec", None)
     return EpisodeResult(
         sequence=source.name,
@@ -133,8 +142,8 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
         intrinsics=source.intrinsics,
         frame_indices=np.asarray(indices, dtype=np.int64),
         timestamps=np.asarray(stamps, dtype=np.float64),
-        T_world_cam_est=np.stack(est),
-        tracked=np.asarray(tracked, dtype=bool),
+        T_world_cam_est=est_poses,
+        tracked=tracked_flags,
         T_world_cam_gt=np.stack(gt),
         keyframes=keyframes,
         keyframe_gt=keyframe_gt,
@@ -143,6 +152,33 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
         extras=extras,
         model=output.model,
     )
+
+
+def apply_final_trajectory(trajectory: FinalTrajectory, timestamps: np.ndarray, poses: np.ndarray,
+                           agent: str) -> tuple[np.ndarray, np.ndarray, int, list[float]]:
+    """An episode's poses and tracked flags once the agent's final trajectory replaces its per-step answers.
+
+    ``timestamps`` (N,) seconds and ``poses`` (N, 4, 4) are the episode's steps. Each pose of ``trajectory`` goes
+    to the step whose timestamp it matches (:func:`match_timestamp`) with the trajectory's tracked flag (default
+    True); the other steps keep their per-step pose and are not tracked. Each pose is checked as an action is
+    (finite, rigid).
+    Returns (poses, tracked, steps matched, timestamps of the trajectory that match no step).
+    """
+    out = np.array(poses, dtype=np.float64, copy=True)
+    tracked = np.zeros(len(out), dtype=bool)
+    unmatched: list[float] = []
+    stamps = np.asarray(trajectory.timestamps, dtype=np.float64)
+    flags = np.ones(len(stamps), dtype=bool) if trajectory.tracked is None else np.asarray(trajectory.tracked, bool)
+    matched = 0
+    for k, (t, T) in enumerate(zip(stamps, np.asarray(trajectory.T_world_cam), strict=True)):
+        i = match_timestamp(timestamps, float(t))
+        if i is None:
+            unmatched.append(float(t))
+            continue
+        out[i], _ = _check_action({"T_world_cam": T}, agent, i, k)
+        tracked[i] = bool(flags[k])
+        matched += 1
+    return out, tracked, matched, unmatched
 
 
 def _check_action(action: Any, agent: str, step: int, frame: int) -> tuple[np.ndarray, bool]:
@@ -186,18 +222,24 @@ def _agent_output(output: Any, agent: str) -> AgentOutput:
     accepted; so are key-frames given as dicts of :class:`KeyframeDepth` fields and a model as a dict of
     :class:`MapModel` fields)."""
     if isinstance(output, dict):
-        unknown = sorted(set(output) - {"keyframes", "extras", "model"})
+        unknown = sorted(set(output) - {"keyframes", "extras", "model", "trajectory"})
         if unknown:
             raise SimEnvError(f"agent {agent!r}: finish() returned unknown key(s) {unknown}; valid: keyframes, extras, "
-                              "model")
+                              "model, trajectory")
         model = output.get("model")
         if isinstance(model, dict):
             try:
                 model = MapModel(**model)
             except TypeError as exc:
                 raise SimEnvError(f"agent {agent!r}: 'model' is not a valid MapModel: {exc}") from exc
+        trajectory = output.get("trajectory")
+        if isinstance(trajectory, dict):
+            try:
+                trajectory = FinalTrajectory(**trajectory)
+            except TypeError as exc:
+                raise SimEnvError(f"agent {agent!r}: 'trajectory' is not a valid FinalTrajectory: {exc}") from exc
         output = AgentOutput(keyframes=list(output.get("keyframes", [])), extras=dict(output.get("extras", {})),
-                             model=model)
+                             model=model, trajectory=trajectory)
     if not isinstance(output, AgentOutput):
         got = type(output).__name__
         raise SimEnvError(f"agent {agent!r}: finish() must return an AgentOutput or a dict, got {got}")
@@ -220,7 +262,11 @@ def _agent_output(output: Any, agent: str) -> AgentOutput:
     if output.model is not None and not isinstance(output.model, MapModel):
         raise SimEnvError(f"agent {agent!r}: 'model' must be a MapModel (points, labels, normals, colours), got "
                           f"{type(output.model).__name__}")
-    return AgentOutput(keyframes=keyframes, extras=dict(output.extras), model=output.model)
+    if output.trajectory is not None and not isinstance(output.trajectory, FinalTrajectory):
+        raise SimEnvError(f"agent {agent!r}: 'trajectory' must be a FinalTrajectory (timestamps, T_world_cam), got "
+                          f"{type(output.trajectory).__name__}")
+    return AgentOutput(keyframes=keyframes, extras=dict(output.extras), model=output.model,
+                       trajectory=output.trajectory)
 
 
 def match_timestamp(stamps: np.ndarray, t: float, tolerance: float = KEYFRAME_TIME_TOLERANCE) -> int | None:

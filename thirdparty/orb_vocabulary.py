@@ -222,15 +222,18 @@ def training_frames(sequences: Sequence[str] = TRAINING_SEQUENCES, per_sequence:
                     camera: str = "kinect") -> Iterator[np.ndarray]:
     """``per_sequence`` evenly spaced RGB frames of each sequence seen through ``camera`` (a camera preset of
     :mod:`sim_envs.camera_effects`). Only sequences of the TRAINING split: ValueError for any other."""
-    from eval.sequence_ref import resolve_sequence
+    from dataclasses import replace
+
     from sim_envs.sequences import get_sequence
+    from sim_envs.simsource import SimulatedSequence
 
     for name in sequences:
-        ref = resolve_sequence(f"{name}@{camera}")
-        if ref.base is None or get_sequence(ref.base).split != "train":
+        spec = get_sequence(name)
+        if spec.split != "train":
             raise ValueError(f"{name!r} is not a sequence of the training split; the vocabulary is built from "
                              "training frames only (test sequences and real data are test data)")
-        source = ref.make_source()
+        # the sequence as the suites name it, ``name@camera`` (the world reads the camera preset from the spec)
+        source = SimulatedSequence(replace(spec, name=f"{name}@{camera}", camera_effects=camera))
         n = len(source)
         for i in np.linspace(0, n - 1, per_sequence).round().astype(int):
             yield source.frame(int(i)).rgb

@@ -158,3 +158,51 @@ def test_match_timestamp_takes_the_nearest_within_the_tolerance():
     assert match_timestamp(stamps, 1 / 30 + 0.5 * KEYFRAME_TIME_TOLERANCE) == 1
     assert match_timestamp(stamps, 1 / 30 + 2 * KEYFRAME_TIME_TOLERANCE) is None
     assert match_timestamp(np.array([]), 0.0) is None
+
+
+class _OfflineAgent:
+    """Answers the identity, untracked, at every step; at the end hands back poses for some frames: frames 0-4 with
+    their true pose (frame 4 only filled in), one timestamp that matches no frame."""
+
+    name = "offline"
+
+    def __init__(self, poses: np.ndarray, stamps: np.ndarray) -> None:
+        self._poses, self._stamps = poses, stamps
+
+    def reset(self, intrinsics, image_size):
+        pass
+
+    def step(self, observation):
+        return {"T_world_cam": np.eye(4), "tracked": 0}
+
+    def finish(self):
+        from sim_envs.agent import FinalTrajectory
+
+        stamps = np.append(self._stamps[:5], 999.0)
+        poses = np.concatenate([self._poses[:5], np.eye(4)[None]])
+        return {"trajectory": FinalTrajectory(stamps, poses, tracked=np.array([1, 1, 1, 1, 0, 1], bool))}
+
+
+def test_a_final_trajectory_replaces_the_per_step_answers_of_the_frames_it_names():
+    source = _source()
+    result = run_episode(SlamEnv(source=source), _OfflineAgent(source.poses, 100.0 + np.arange(N) / 30),
+                         progress=False)  # fmt: skip
+    np.testing.assert_array_equal(result.T_world_cam_est[:5], source.poses[:5])
+    np.testing.assert_array_equal(result.T_world_cam_est[5:], np.broadcast_to(np.eye(4), (N - 5, 4, 4)))
+    assert result.tracked.tolist() == [True] * 4 + [False] * (N - 4)  # frame 4 filled in, 5.. not named
+    assert result.extras["final_trajectory"] == {"poses": 6, "frames_matched": 5, "unmatched_timestamps": [999.0]}
+
+
+def test_a_bad_final_trajectory_gets_one_clear_error():
+    from sim_envs.agent import FinalTrajectory
+
+    with pytest.raises(SimEnvError, match=r"timestamps \(M,\) and T_world_cam \(M, 4, 4\)"):
+        FinalTrajectory(np.zeros(3), np.zeros((2, 4, 4)))
+    with pytest.raises(SimEnvError, match="tracked must be"):
+        FinalTrajectory(np.zeros(1), np.eye(4)[None], tracked=np.ones(2, bool))
+    source = _source()
+    bad = np.eye(4)
+    bad[:3, :3] *= 2.0  # not a rotation
+    agent = _OfflineAgent(np.stack([bad] * N), 100.0 + np.arange(N) / 30)
+    with pytest.raises(SimEnvError, match="not a rigid transform"):
+        run_episode(SlamEnv(source=source), agent, progress=False)

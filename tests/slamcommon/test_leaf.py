@@ -26,6 +26,7 @@ def imported_packages(package: str) -> dict[str, set[str]]:
     ("slamcommon", {"sim_envs", "cnnslam", "eval", "thirdparty"}),  # the leaf
     ("sim_envs", {"cnnslam", "eval", "thirdparty"}),  # the world knows nothing of SLAM or its judge
     ("cnnslam", {"eval"}),  # the agent never imports the judge
+    ("thirdparty", {"eval"}),  # nor do the third-party systems plugged in as agents
 ])
 def test_no_arrow_goes_back(package, forbidden):
     found = imported_packages(package)
