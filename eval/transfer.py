@@ -162,6 +162,7 @@ def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
 
 
 HOLDOUT_MAX_SPLITS = 5000  # above this many k-of-n splits, holdout_agreement draws this many at random
+ALL_METRICS = "all"  # holdout_agreement's row for every metric at once
 
 
 def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4),
@@ -181,10 +182,13 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
     split misses it cannot be met reliably with k real recordings, however good the simulator.
 
     Columns: sim, metric, held_out (k), n (methods), splits, rho_median, rho_q25, rho_q75, share_target (share of
-    splits with rho >= ``target``); with ``observed`` (:func:`rank_correlations`' columns sim, metric, spearman,
-    one row per (sim, metric), e.g. for one real domain) also ``observed`` and ``observed_percentile``: the share
-    of splits below the observed rho, ties counting half (50: as typical as a held-out simulated sequence). A k that
-    leaves no sequence on either side is skipped; splits where a side ranks all methods equal are left out.
+    splits with rho >= ``target``); where several metrics are ranked, a row with metric :data:`ALL_METRICS` gives
+    the share of splits (the same splits for every metric) where every metric reaches ``target`` at once (a split
+    undefined for a metric counts as missing it). With ``observed`` (:func:`rank_correlations`' columns sim,
+    metric, spearman, one row per (sim, metric), e.g. for one real domain) also ``observed`` and
+    ``observed_percentile``: the share of splits below the observed rho, ties counting half (50: as typical as a
+    held-out simulated sequence). A k that leaves no sequence on either side is skipped; splits where a side ranks
+    all methods equal are left out of a metric's figures.
     """
     need = {"domain", "sequence", "method", "metric", "value"}
     if missing := need - set(frame.columns):
@@ -198,21 +202,27 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
     seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
         if observed is not None else {}  # fmt: skip
     rows = []
-    for metric in metrics:
-        for sim in sorted(sims["domain"].unique()):
+    for sim in sorted(sims["domain"].unique()):
+        sequences = sorted(sims.loc[sims["domain"] == sim, "sequence"].unique())
+        tables = {}
+        for metric in metrics:
             try:
-                table = cells.loc[(sim, metric.name)].unstack("sequence")
+                table = cells.loc[(sim, metric.name)].unstack("sequence").reindex(columns=sequences)
             except KeyError:
                 continue
             table = table[np.isfinite(table.to_numpy()).all(axis=1)]
-            values = (-1.0 if metric.higher_is_better else 1.0) * table.to_numpy(dtype=float)  # lower is better
-            n_seq = values.shape[1]
-            for k in (int(k) for k in held_out):
-                if k >= n_seq or len(table) < 3:
-                    continue
-                rng = np.random.default_rng([seed, len(rows)])
-                rho = _holdout_rhos(values, k, max_splits, rng)
-                rho = rho[np.isfinite(rho)]
+            if len(table) >= 3:
+                tables[metric] = table
+        for k in (int(k) for k in held_out):
+            if k >= len(sequences) or not tables:
+                continue
+            held = _split_masks(len(sequences), k, max_splits, np.random.default_rng([seed, k]))
+            reached = np.ones(len(held), dtype=bool)
+            for metric, table in tables.items():
+                values = (-1.0 if metric.higher_is_better else 1.0) * table.to_numpy(dtype=float)  # lower is better
+                all_rho = _holdout_rhos(values, held)
+                reached &= np.nan_to_num(all_rho, nan=-np.inf) >= target - 1e-12
+                rho = all_rho[np.isfinite(all_rho)]
                 row = {"sim": sim, "metric": metric.name, "held_out": k, "n": len(table), "splits": len(rho),
                        "rho_median": math.nan, "rho_q25": math.nan, "rho_q75": math.nan,
                        "share_target": math.nan}  # fmt: skip
@@ -227,23 +237,32 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
                                                            + 0.5 * np.mean(np.abs(rho - obs) <= 1e-12))
                                                   if len(rho) and np.isfinite(obs) else math.nan)  # fmt: skip
                 rows.append(row)
+            if len(tables) > 1:  # the same splits for every metric: the share where all of them reach the target
+                rows.append({"sim": sim, "metric": ALL_METRICS, "held_out": k, "n": min(len(t) for t in
+                             tables.values()), "splits": len(held), "rho_median": math.nan, "rho_q25": math.nan,
+                             "rho_q75": math.nan, "share_target": float(reached.mean())})  # fmt: skip
     columns = ["sim", "metric", "held_out", "n", "splits", "rho_median", "rho_q25", "rho_q75", "share_target"]
     return pd.DataFrame(rows, columns=columns + (["observed", "observed_percentile"] if observed is not None else []))
 
 
-def _holdout_rhos(values: np.ndarray, k: int, max_splits: int, rng: np.random.Generator) -> np.ndarray:
-    """Spearman's rho, per split, between the methods' mean over k held-out columns (sequences) of ``values``
-    (methods, sequences; lower is better) and their mean over the other columns: every k-subset, or ``max_splits``
-    drawn at random when there are more (NaN where a side ranks all methods equal)."""
-    n = values.shape[1]
+def _split_masks(n: int, k: int, max_splits: int, rng: np.random.Generator) -> np.ndarray:
+    """(splits, n) bool masks of k held-out sequences among n: every k-subset in lexicographic order, or
+    ``max_splits`` drawn at random (with ``rng``) when there are more."""
     if math.comb(n, k) <= max_splits:
         held = np.zeros((math.comb(n, k), n), dtype=bool)
         for i, subset in enumerate(itertools.combinations(range(n), k)):
             held[i, list(subset)] = True
-    else:
-        held = np.argsort(rng.random((max_splits, n)), axis=1) < k
+        return held
+    return np.argsort(rng.random((max_splits, n)), axis=1) < k
+
+
+def _holdout_rhos(values: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """Spearman's rho, per split (a row of ``held``, :func:`_split_masks`), between the methods' mean over the
+    held-out columns (sequences) of ``values`` (methods, sequences; lower is better) and their mean over the other
+    columns (NaN where a side ranks all methods equal)."""
+    k = held.sum(axis=1, keepdims=True)
     mean_held = held @ values.T / k  # (splits, methods)
-    mean_rest = ~held @ values.T / (n - k)
+    mean_rest = ~held @ values.T / (held.shape[1] - k)
     return _rowwise_pearson(stats.rankdata(mean_held, axis=1), stats.rankdata(mean_rest, axis=1))
 
 

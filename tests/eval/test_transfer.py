@@ -290,3 +290,16 @@ def test_holdout_agreement_skips_what_cannot_be_split_and_names_bad_arguments():
         holdout_agreement(frame, (0,), [ATE])
     with pytest.raises(EvalError, match="missing"):
         holdout_agreement(frame.drop(columns="domain"), (1,), [ATE])
+
+
+def test_the_joint_row_counts_the_splits_where_every_metric_reaches_the_target():
+    """ATE swaps B and C on s2, depth (higher is better) on s0: ATE reaches 0.8 holding out s0 or s1 (0.866), not
+    s2 (0.5); depth holding out s1 or s2, not s0. Both at once: only holding out s1, one split in three."""
+    from eval.transfer import ALL_METRICS, holdout_agreement
+
+    ate = _holdout_frame([(1.0, 2.0, 3.0), (1.0, 2.0, 3.0), (1.0, 3.0, 2.0)])
+    depth = _holdout_frame([(3.0, 1.0, 2.0), (3.0, 2.0, 1.0), (3.0, 2.0, 1.0)]).assign(metric="depth_percent_correct")
+    table = holdout_agreement(pd.concat([ate, depth]), (1,), [ATE, DEPTH]).set_index("metric")
+    assert table.loc["ate_se3_rmse", "share_target"] == pytest.approx(2 / 3)
+    assert table.loc["depth_percent_correct", "share_target"] == pytest.approx(2 / 3)
+    assert table.loc[ALL_METRICS, ["splits", "share_target"]].tolist() == pytest.approx([3, 1 / 3])
