@@ -47,7 +47,7 @@ from sim_envs.sequences import (
     split_variants,
 )
 from sim_envs.simsource import SimulatedSequence
-from sim_envs.source import FrameWindow
+from sim_envs.source import WINDOW_VERSION, FrameWindow
 from sim_envs.trajectories import parse_axes
 from sim_envs.variants import VariantSequence
 
@@ -193,7 +193,9 @@ class SequenceRef:
             return {
                 "name": self.name,
                 "env_id": self.env_id,
-                **({"start": self.start} if self.start else {}),  # absent at 0: earlier runs keep their fingerprint
+                # absent at 0: earlier runs keep their fingerprint; a window names its reader's version (2: the
+                # images of frame start + i; 1, unnamed, read frame i's images with start + i's poses)
+                **({"start": self.start, "window": WINDOW_VERSION} if self.start else {}),
                 "folder": self.folder,
                 "camera": self.camera,
                 "size": self.size if self.size == "native" else list(self.size),
@@ -212,7 +214,7 @@ class SequenceRef:
             "added_pan_deg_s": self.added_pan_deg_s,
             "axis": self.axis,
             "axis_value": self.axis_value,
-            **({"start": self.start} if self.start else {}),
+            **({"start": self.start, "window": WINDOW_VERSION} if self.start else {}),
             **({"motion_sha256": _file_sha256(dict(self.overrides)["trajectory_params"])}
                if dict(self.overrides).get("trajectory") == "replay" else {}),  # fmt: skip
         }

@@ -35,15 +35,22 @@ class FrameSource(Protocol):
     def close(self) -> None: ...
 
 
+WINDOW_VERSION = "cnnslam-window/2"  # in a window's description; 2: every per-frame reader offset by start
+
+
 class FrameWindow:
     """Frames ``start .. start + length - 1`` of ``source`` as a source of their own (a window of a sequence: a
     real sequence cut into samples of a simulated sequence's length).
 
     Window frame i is source frame ``start + i``, with its own index set to i; timestamps and poses are the source's,
-    sliced (times and world frame unchanged, so a window's trajectory is scored in the source's world frame).
+    sliced (times and world frame unchanged, so a window's trajectory is scored in the source's world frame). The
+    per-frame readers a source may have besides ``frame`` (``rgb``, ``raw_rgb``, ``depth``: the env reads ``rgb``
+    alone when it hands out no ground truth) are offset the same way, and only those the source has exist.
     ``length`` None: to the end; ``name``: the window's (default the source's). Anything else (``intrinsics``,
     ``describe``, ...) is the source's.
     """
+
+    PER_FRAME_READERS = ("rgb", "raw_rgb", "depth")  # a source's methods (index) -> array besides frame()
 
     def __init__(self, source: FrameSource, start: int, length: int | None = None, name: str | None = None) -> None:
         total = len(source)
@@ -64,12 +71,18 @@ class FrameWindow:
     def __getattr__(self, name: str) -> Any:  # name, intrinsics, describe, ...
         if name.startswith("__") or name == "_source":
             raise AttributeError(name)
-        return getattr(self._source, name)
+        value = getattr(self._source, name)
+        if name in self.PER_FRAME_READERS and callable(value):  # window index -> the source's frame start + i
+            return lambda index, _read=value: _read(self.start + self._check(index))
+        return value
 
-    def frame(self, index: int) -> Frame:
+    def _check(self, index: int) -> int:
         if not 0 <= int(index) < len(self):
             raise IndexError(f"frame {index} of a {len(self)}-frame window")
-        return replace(self._source.frame(self.start + int(index)), index=int(index))
+        return int(index)
+
+    def frame(self, index: int) -> Frame:
+        return replace(self._source.frame(self.start + self._check(index)), index=int(index))
 
     def close(self) -> None:
         self._source.close()

@@ -198,7 +198,20 @@ def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
     assert b.index == 2 and b.timestamp == a.timestamp
     np.testing.assert_array_equal(a.rgb, b.rgb)
     np.testing.assert_array_equal(a.depth, b.depth)
-    assert "start" in windows[1].describe() and "start" not in whole.describe()
+    # the per-frame readers too: the env reads rgb() alone when it hands out no ground truth (it once read frame i's
+    # image of the whole with frame start + i's pose)
+    np.testing.assert_array_equal(win.rgb(2), a.rgb)
+    np.testing.assert_array_equal(win.depth(2), src.depth(7))
+    env = windows[1].make_env()
+    obs, info = env.reset()
+    for _ in range(2):
+        obs, _, _, _, info = env.step({"T_world_cam": np.eye(4), "tracked": 0})
+    np.testing.assert_array_equal(obs["rgb"], a.rgb)
+    np.testing.assert_array_equal(info["gt_T_world_cam"], src.poses[7])
+    env.close()
+    with pytest.raises(IndexError):
+        win.rgb(7)
+    assert windows[1].describe()["window"] == "cnnslam-window/2" and "start" not in whole.describe()
     with pytest.raises(SuiteError, match="start must be a frame index >= 0"):
         replace(whole, start=-1)
     with pytest.raises(SuiteError, match="already a window"):
