@@ -217,6 +217,16 @@ def _check_action(action: Any, agent: str, step: int, frame: int) -> tuple[np.nd
     return T, bool(tracked_int)
 
 
+def _from_fields(value: Any, cls: type, key: str, agent: str) -> Any:
+    """``value`` built as ``cls`` when finish() gave it as a dict of the class's fields; anything else as it is."""
+    if not isinstance(value, dict):
+        return value
+    try:
+        return cls(**value)
+    except TypeError as exc:
+        raise SimEnvError(f"agent {agent!r}: {key!r} is not a valid {cls.__name__}: {exc}") from exc
+
+
 def _agent_output(output: Any, agent: str) -> AgentOutput:
     """``finish()``'s result as an :class:`AgentOutput` (a dict with ``keyframes`` / ``extras`` / ``model`` is
     accepted; so are key-frames given as dicts of :class:`KeyframeDepth` fields and a model as a dict of
@@ -226,20 +236,9 @@ def _agent_output(output: Any, agent: str) -> AgentOutput:
         if unknown:
             raise SimEnvError(f"agent {agent!r}: finish() returned unknown key(s) {unknown}; valid: keyframes, extras, "
                               "model, trajectory")
-        model = output.get("model")
-        if isinstance(model, dict):
-            try:
-                model = MapModel(**model)
-            except TypeError as exc:
-                raise SimEnvError(f"agent {agent!r}: 'model' is not a valid MapModel: {exc}") from exc
-        trajectory = output.get("trajectory")
-        if isinstance(trajectory, dict):
-            try:
-                trajectory = FinalTrajectory(**trajectory)
-            except TypeError as exc:
-                raise SimEnvError(f"agent {agent!r}: 'trajectory' is not a valid FinalTrajectory: {exc}") from exc
         output = AgentOutput(keyframes=list(output.get("keyframes", [])), extras=dict(output.get("extras", {})),
-                             model=model, trajectory=trajectory)
+                             model=_from_fields(output.get("model"), MapModel, "model", agent),
+                             trajectory=_from_fields(output.get("trajectory"), FinalTrajectory, "trajectory", agent))
     if not isinstance(output, AgentOutput):
         got = type(output).__name__
         raise SimEnvError(f"agent {agent!r}: finish() must return an AgentOutput or a dict, got {got}")
