@@ -175,7 +175,7 @@ def apply_final_trajectory(trajectory: FinalTrajectory, timestamps: np.ndarray, 
         if i is None:
             unmatched.append(float(t))
             continue
-        out[i], _ = _check_action({"T_world_cam": T}, agent, i, k)
+        out[i], _ = _check_action({"T_world_cam": T}, agent, i, i)  # named by the step it replaces
         tracked[i] = bool(flags[k])
         matched += 1
     return out, tracked, matched, unmatched
