@@ -55,6 +55,15 @@ TRANSFER_METRICS: tuple[TransferMetric, ...] = (
 )
 
 
+FRAME_COLUMNS = ("domain", "sequence", "method", "metric", "value")  # a transfer frame: one row per run and metric
+
+
+def _check_frame(frame: pd.DataFrame) -> None:
+    """One clear error when ``frame`` lacks a column of :data:`FRAME_COLUMNS`."""
+    if missing := set(FRAME_COLUMNS) - set(frame.columns):
+        raise EvalError(f"a transfer frame needs columns {sorted(FRAME_COLUMNS)}; missing {sorted(missing)}")
+
+
 def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS) -> pd.DataFrame:
     """Scores per (domain, metric, method) from a long frame of runs.
 
@@ -63,9 +72,7 @@ def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANS
     sequences (how many the score averages), runs: the median over each cell's runs, then the mean over the
     domain's sequences; a method lacking a finite value on one of the domain's sequences gets no row.
     """
-    need = {"domain", "sequence", "method", "metric", "value"}
-    if missing := need - set(frame.columns):
-        raise EvalError(f"a transfer frame needs columns {sorted(need)}; missing {sorted(missing)}")
+    _check_frame(frame)
     names = [m.name for m in metrics]
     sub = frame[frame["metric"].isin(names)]
     cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"]
@@ -161,12 +168,13 @@ def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
     return str(mean.index[0]), float(mean.iloc[0])
 
 
+TRANSFER_TARGET = 0.8  # the Spearman rho the transfer target asks of every metric (issue [transfer])
 HOLDOUT_MAX_SPLITS = 5000  # above this many k-of-n splits, holdout_agreement draws this many at random
 ALL_METRICS = "all"  # holdout_agreement's row for every metric at once
 
 
 def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4),
-                      metrics: Sequence[TransferMetric] = TRANSFER_METRICS, target: float = 0.8,
+                      metrics: Sequence[TransferMetric] = TRANSFER_METRICS, target: float = TRANSFER_TARGET,
                       observed: pd.DataFrame | None = None, max_splits: int = HOLDOUT_MAX_SPLITS,
                       seed: int = 0) -> pd.DataFrame:
     """The agreement a perfect simulator would show with k real recordings: the simulator against itself.
@@ -190,9 +198,7 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
     held-out simulated sequence). A k that leaves no sequence on either side is skipped; splits where a side ranks
     all methods equal are left out of a metric's figures.
     """
-    need = {"domain", "sequence", "method", "metric", "value"}
-    if missing := need - set(frame.columns):
-        raise EvalError(f"a transfer frame needs columns {sorted(need)}; missing {sorted(missing)}")
+    _check_frame(frame)
     if any(int(k) < 1 for k in held_out) or max_splits < 1:
         raise EvalError(f"holdout_agreement: held_out must be >= 1 and max_splits >= 1, got {list(held_out)}, "
                         f"{max_splits}")  # fmt: skip
@@ -281,9 +287,7 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
     real_samples, rho_low, rho_high (NaN when fewer than 3 methods, or no draw defines rho), defined (share of draws
     where rho is defined: not all ranks tied). ``seed`` fixes the draws: the same frame gives the same interval.
     """
-    need = {"domain", "sequence", "method", "metric", "value"}
-    if missing := need - set(frame.columns):
-        raise EvalError(f"a transfer frame needs columns {sorted(need)}; missing {sorted(missing)}")
+    _check_frame(frame)
     if not 0 < level < 1 or draws < 1:
         raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
     cells = (frame[frame["metric"].isin([m.name for m in metrics])]

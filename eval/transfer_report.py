@@ -32,6 +32,7 @@ from eval.transfer import (
     BOOTSTRAP_DRAWS,
     REAL_PREFIX,
     TRANSFER_METRICS,
+    TRANSFER_TARGET,
     best_predictor,
     bootstrap_correlations,
     domain_scores,
@@ -120,7 +121,6 @@ def _part_line(part: TransferPart, run: SuiteRun) -> str:
             f"seed), runs under `{run.out_root}/{suite.name}/`, revision {', '.join(revisions)}; {seqs}")
 
 
-TRANSFER_TARGET = 0.8  # the Spearman rho the transfer target asks of every metric (issue [transfer])
 HELD_OUT = (1, 2, 3, 4)  # real recordings the perfect-simulator table considers
 
 
