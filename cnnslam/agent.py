@@ -18,8 +18,10 @@ Keyword arguments (both classes; all optional)::
 
 The agent reports T_world_cam of every frame as it goes (the world frame is the first camera); ``finish()`` returns
 the key-frames with their refined depth, pose-graph-optimised pose, depth variance and the CNN's class probabilities,
-and the global model its key-frame thread fused (``AgentOutput.model``), and keeps the final trajectory (every frame
-re-expressed through its key-frame's optimised pose) for :meth:`CnnSlamAgent.save_trajectory`.
+and the global model its key-frame thread fused (``AgentOutput.model``), and hands back the final trajectory (every
+frame re-expressed through its key-frame's optimised pose, what :meth:`CnnSlamAgent.save_trajectory` writes) as
+``AgentOutput.trajectory``, which the judge scores in place of the per-step answers (``system.output_trajectory =
+"online"`` scores the per-step answers instead).
 """
 
 from __future__ import annotations
@@ -120,7 +122,7 @@ class CnnSlamAgent:
     def finish(self) -> Any:
         """End the episode: an ``AgentOutput`` with the refined key-frames, the global model (its surfels' positions,
         fused labels, normals and colours) and JSON-serialisable extras."""
-        from sim_envs.agent import AgentOutput, KeyframeDepth, MapModel
+        from sim_envs.agent import AgentOutput, FinalTrajectory, KeyframeDepth, MapModel
 
         if self._system is None:
             raise CnnSlamError("finish() before reset()")
@@ -141,7 +143,10 @@ class CnnSlamAgent:
             cloud = res.model.snapshot()
             model = MapModel(points=cloud.positions, labels=cloud.labels, normals=cloud.normals,
                              colours=cloud.colours)
-        return AgentOutput(keyframes=keyframes, extras=extras, model=model)
+        trajectory = None
+        if self.config.system.output_trajectory == "final":  # what save_trajectory() writes; else the per-step poses
+            trajectory = FinalTrajectory(res.timestamps, res.T_world_cam, res.tracked)
+        return AgentOutput(keyframes=keyframes, extras=extras, model=model, trajectory=trajectory)
 
     @property
     def result(self) -> SlamResult | None:

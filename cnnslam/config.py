@@ -34,12 +34,14 @@ RefinementDensity = Literal["dense", "semi_dense"]
 MotionModel = Literal["constant_velocity", "last_pose"]
 AblationName = Literal["raw", "adjusted", "refined"]
 BaselineName = Literal["cnn_slam", "lsd", "lsd_constant", "lsd_bs"]
+OutputTrajectory = Literal["final", "online"]
 
 DEPTH_SOURCES: tuple[str, ...] = get_args(DepthSource)
 REFINEMENT_DENSITIES: tuple[str, ...] = get_args(RefinementDensity)
 MOTION_MODELS: tuple[str, ...] = get_args(MotionModel)
 ABLATIONS: tuple[str, ...] = get_args(AblationName)
 BASELINES: tuple[str, ...] = get_args(BaselineName)
+OUTPUT_TRAJECTORIES: tuple[str, ...] = get_args(OutputTrajectory)
 
 
 def _positive(section: str, name: str, value: float, allow_zero: bool = False) -> None:
@@ -491,8 +493,14 @@ class SystemConfig:
     # keeps only their argmax (uint8, 1/8 of the float16 distribution); True keeps the distributions too (e.g. for
     # `cnnslam map`, whose replays fuse them again). Changes no output but the key-frames' label_probs.
     keep_label_probabilities: bool = False
+    # Which trajectory the agent hands back at the end (ours; the paper does not say which one Table 1 scores):
+    # "final", every frame re-expressed through its key-frame's pose-graph-optimised pose (T_world_kf T_kf_cur), what
+    # the system writes as its TUM file (:meth:`cnnslam.agent.CnnSlamAgent.save_trajectory`) and what LSD-SLAM's
+    # key-frame graph gives; "online", the poses answered frame by frame while tracking.
+    output_trajectory: OutputTrajectory = "final"
 
     def validate(self) -> None:
+        _choice("system", "output_trajectory", self.output_trajectory, OUTPUT_TRAJECTORIES)
         if self.seed < 0:
             raise CnnSlamError(f"system.seed must be >= 0, got {self.seed}")
         if self.working_keyframes < 0:

@@ -38,6 +38,23 @@ def test_short_episode_end_to_end(tmp_path) -> None:
     stamps, poses = read_tum_trajectory(path)
     np.testing.assert_allclose(stamps, result.timestamps)
     assert poses.shape == (45, 4, 4)
+    # the judge scores what the system writes as its trajectory file: the final (pose-graph) poses
+    np.testing.assert_allclose(result.T_world_cam_est, agent.result.T_world_cam)
+    np.testing.assert_allclose(poses, agent.result.T_world_cam, atol=1e-6)
+    assert result.extras["final_trajectory"]["frames_matched"] == 45
+
+
+@pytest.mark.parametrize("which", ["final", "online"])
+def test_the_trajectory_handed_back_is_the_configured_one(which: str) -> None:
+    env = gym.make("sim_envs/office0-v0", max_frames=30)
+    agent = CnnSlamAgent(predictor=_ConstantDepthNet(), threads=False,
+                         config={"system.output_trajectory": which, "keyframes.score_threshold": 0.3})
+    result = run_episode(env, agent, progress=False)
+    env.close()
+    res = agent.result
+    expected = res.T_world_cam if which == "final" else res.T_world_cam_online
+    np.testing.assert_allclose(result.T_world_cam_est, expected)
+    assert ("final_trajectory" in result.extras) == (which == "final")
 
 
 class _ConstantDepthNet:
