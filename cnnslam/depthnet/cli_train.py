@@ -77,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--lighting", nargs="+", default=list(GenerationConfig.lighting), metavar="LIGHTING",
                    help="the rooms' lighting, one drawn per room: flat (default) or lit (lamps, shadows, bright "
                         "windows, highlights; mujoco renderer)")
+    g.add_argument("--detail", nargs="+", default=list(GenerationConfig.detail), metavar="DETAIL",
+                   help="the rooms' detail, one drawn per room: standard (default) or rich (clutter, texture detail)")
 
     f = sub.add_parser("fit", help="train (or resume) and write weights + manifest")
     d = TrainConfig()
@@ -101,6 +103,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     f.add_argument("--depth-activation", choices=("softplus", "exp"), default=d.model.depth_activation)
     f.add_argument("--depth-space", choices=("linear", "log"), default=d.depth_space,
                    help="berHu on depth (FCRN) or on log depth")
+    f.add_argument("--silog-weight", type=float, default=d.silog_weight,
+                   help="weight of the scale-invariant log loss (Eigen et al.; 0 = off)")
+    f.add_argument("--gradient-weight", type=float, default=d.gradient_weight,
+                   help="weight of the multi-scale gradient-matching loss on log depth (MiDaS; 0 = off)")
+    f.add_argument("--camera-augment", type=float, default=d.augment.p_camera, metavar="P",
+                   help="share of samples through a camera pipeline (vignetting, motion blur, shot noise, JPEG)")
+    f.add_argument("--device", choices=("cpu", "cuda"), default=d.device, help="where to train (cuda: a GPU)")
+    f.add_argument("--loader-workers", type=int, default=d.loader_workers,
+                   help="processes preparing the coming batches (1: one thread)")
     f.add_argument("--warmup", type=int, default=d.warmup_steps)
     f.add_argument("--seed", type=int, default=d.seed)
     f.add_argument("--threads", type=int, default=d.num_threads)
@@ -132,6 +143,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     e = sub.add_parser("export", help="copy a run's weights + manifest to the shipped default")
     e.add_argument("--run", type=Path, default=Path(d.out_dir))
 
+    rc = sub.add_parser("recipe", help="retrain the shipped network from nothing: render its data, fit (resumable)")
+    rc.add_argument("--root", type=Path, default=Path("data/depthnet/shipped"),
+                    help="folder of the recipe's data (data/) and run (run/)")
+    rc.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="where to train (cuda: a GPU)")
+    rc.add_argument("--render-workers", type=int, default=2, help="render processes")
+    rc.add_argument("--loader-workers", type=int, default=1, help="processes preparing the coming batches")
+    rc.add_argument("--threads", type=int, default=2, help="torch intra-op threads")
+    rc.add_argument("--no-progress", action="store_true", help="no progress bars")
+    rc.add_argument("--export", action="store_true", help="copy the result to the shipped default weights")
+
 
 def _progress(desc: str) -> Any:
     from tqdm import tqdm
@@ -142,7 +163,7 @@ def _progress(desc: str) -> Any:
 def _generate(args: argparse.Namespace) -> int:
     cfg = GenerationConfig(n_scenes=args.scenes, views_per_scene=args.views, data_seed=args.seed,
                            focal_scale=tuple(args.focal_scale), camera_effects=tuple(args.camera_effects),
-                           lighting=tuple(args.lighting))
+                           lighting=tuple(args.lighting), detail=tuple(args.detail))
     args.root.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     train_dirs = generate_dataset(args.root, "train", cfg, args.workers, _progress("train shards"))
@@ -195,9 +216,13 @@ def _fit(args: argparse.Namespace) -> int:
         downsample=args.downsample,
         depth_space=args.depth_space,
         warmup_steps=args.warmup,
+        silog_weight=args.silog_weight,
+        gradient_weight=args.gradient_weight,
+        device=args.device,
+        loader_workers=args.loader_workers,
         model=ModelConfig(trunk_depth=args.trunk_depth, base_width=args.base_width, dropout=args.dropout,
                           skips=args.skips, depth_activation=args.depth_activation),
-        augment=replace(AugmentConfig(), crop=(args.crop[0], args.crop[1])),
+        augment=replace(AugmentConfig(), crop=(args.crop[0], args.crop[1]), p_camera=args.camera_augment),
     )
     result = train(cfg, resume=not args.restart, progress=not args.no_progress)
     v = result.validation
@@ -284,8 +309,25 @@ def _validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _recipe(args: argparse.Namespace) -> int:
+    from cnnslam.depthnet.recipe import SHIPPED, run_recipe
+
+    res = run_recipe(SHIPPED, args.root, device=args.device, render_workers=args.render_workers,
+                     loader_workers=args.loader_workers, threads=args.threads,
+                     progress=None if args.no_progress else _progress("shards"), train_progress=not args.no_progress)
+    v = res.fit.validation
+    print(f"recipe {SHIPPED.name}: data {res.seconds['generate'] / 60:.1f} min, fit {res.seconds['fit'] / 3600:.2f} h "
+          f"({res.fit.steps} steps, {args.device}); held-out val: AbsRel {v['abs_rel']:.3f}, within 10 % "
+          f"{100 * v['within_10pct']:.1f} %; weights {res.fit.weights}")
+    if args.export:
+        _export(res.fit.weights.parent)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Dispatch the action."""
+    if args.action == "recipe":
+        return _recipe(args)
     if args.action == "generate-data":
         return _generate(args)
     if args.action == "fit":

@@ -180,6 +180,9 @@ class GenerationConfig:
     # view; the shipped stages' data) or "lit" (lamps with shadows, bright windows, highlights; sim_envs.lighting,
     # MuJoCo renderer only). The room's geometry, textures and labels are the same either way.
     lighting: tuple[str, ...] = ("flat",)
+    # Ours: the rooms' detail (sim_envs.scene.DETAILS), one drawn per room: "standard" (the shipped stages' data) or
+    # "rich" (the same room with clutter on its surfaces and texture detail at several scales).
+    detail: tuple[str, ...] = ("standard",)
 
     def __post_init__(self) -> None:
         lo, hi = (float(v) for v in self.focal_scale)
@@ -195,6 +198,10 @@ class GenerationConfig:
 
         if not self.lighting or not set(self.lighting) <= set(LIGHTINGS):
             raise CnnSlamError(f"lighting must name one or more of {', '.join(LIGHTINGS)}, got {self.lighting!r}")
+        from sim_envs.scene import DETAILS
+
+        if not self.detail or not set(self.detail) <= set(DETAILS):
+            raise CnnSlamError(f"detail must name one or more of {', '.join(DETAILS)}, got {self.detail!r}")
         if "lit" in self.lighting and self.backend != "mujoco":
             raise CnnSlamError(f"lit rooms are drawn by the mujoco renderer only, not {self.backend!r}")
         if not (self.max_speed >= 0 and self.max_angular_speed_deg >= 0):
@@ -219,6 +226,10 @@ class GenerationConfig:
     def draw_lighting(self, scene_seed: int) -> str:
         """One room's lighting, from its own generator (so the views and camera drawn are those of a flat room)."""
         return self._draw_per_room(self.lighting, scene_seed, stream=3)
+
+    def draw_detail(self, scene_seed: int) -> str:
+        """One room's detail, from its own generator (so the views, camera and lighting drawn are unchanged)."""
+        return self._draw_per_room(self.detail, scene_seed, stream=4)
 
     def _draw_per_room(self, options: tuple[str, ...], scene_seed: int, stream: int) -> str:
         """One of ``options`` for a room, uniformly from ``default_rng((data_seed, scene_seed, stream))``; a single
@@ -324,7 +335,8 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
     effects = replace(camera_effects_preset(camera_name), distortion=(0.0,) * 5)
     camera_rng = np.random.default_rng((cfg.data_seed, job.scene_seed, 2))
     lighting = cfg.draw_lighting(job.scene_seed)
-    scene = generate_scene(job.style, job.scene_seed, texture_density=density, lighting=lighting)
+    detail = cfg.draw_detail(job.scene_seed)
+    scene = generate_scene(job.style, job.scene_seed, texture_density=density, lighting=lighting, detail=detail)
     nominal = cfg.intrinsics()
     intr = replace(nominal, fx=nominal.fx * focal_scale, fy=nominal.fy * focal_scale)
     geometry = sensor_geometry(intr, effects) if effects.any else None
@@ -368,6 +380,7 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
         "focal_scale": focal_scale,  # rendered with fx, fy = focal_scale x the above
         "camera_effects": camera_name,
         "lighting": lighting,
+        "detail": detail,
         "width": w,
         "height": h,
         "depth_scale": DEPTH_SCALE,
@@ -380,9 +393,31 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
     tmp.mkdir(parents=True)
     for name, arr in (("rgb", rgb), ("depth", depth), ("labels", labels), ("poses", poses)):
         np.save(tmp / f"{name}.npy", arr)
+    for name, arr in half_resolution_arrays(rgb, depth, labels, focal_scale).items():
+        np.save(tmp / f"{name}.npy", arr)
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
     os.replace(tmp, final)
     return meta
+
+
+HALF = 2  # the shipped network's downsampling factor: its copies of a shard are stored beside the full resolution
+
+
+def half_resolution_arrays(rgb: np.ndarray, depth_units: np.ndarray, labels: np.ndarray, focal_scale: float,
+                           ) -> dict[str, np.ndarray]:
+    """A shard at the shipped network's resolution (1 / :data:`HALF`), exactly as :class:`RenderedDataset` would
+    make each frame on reading (depth in metres divided by the room's focal scale, then
+    :func:`downsample_ground_truth`; images by :func:`downsample_rgb`), so that reading costs no resampling:
+    ``rgb_d2`` (N, h, w, 3) uint8, ``depth_d2`` (N, h, w) float32 metres (0 = none), ``labels_d2`` (N, h, w) uint8.
+    """
+    scale = np.float32(DEPTH_SCALE * focal_scale)
+    pairs = [downsample_ground_truth(d.astype(np.float32) / scale, lab, HALF) for d, lab in zip(depth_units, labels,
+                                                                                              strict=True)]
+    return {
+        f"rgb_d{HALF}": np.stack([downsample_rgb(im, HALF) for im in rgb]),
+        f"depth_d{HALF}": np.stack([p[0] for p in pairs]).astype(np.float32),
+        f"labels_d{HALF}": np.stack([p[1] for p in pairs]).astype(np.uint8),
+    }
 
 
 def _render_shard_worker(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
@@ -493,6 +528,12 @@ class RenderedDataset(Dataset):
         self._arrays = [
             {name: np.load(p / f"{name}.npy", mmap_mode="r") for name in ("rgb", "depth", "labels")} for p in shards
         ]
+        # shards that hold their copies at the network's resolution are read from them (the same arrays, made once)
+        self._half = [
+            {name: np.load(p / f"{name}_d{HALF}.npy", mmap_mode="r") for name in ("rgb", "depth", "labels")}
+            if self.downsample == HALF and (p / f"labels_d{HALF}.npy").is_file() else None
+            for p in shards
+        ]
         self.focal_scales = np.array([float(m.get("focal_scale", 1.0)) for m in self.metas])
         counts = np.array([len(a["rgb"]) for a in self._arrays])
         self._offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -516,6 +557,9 @@ class RenderedDataset(Dataset):
             raise IndexError(f"index {index} out of range for {len(self)} frames")
         s = int(np.searchsorted(self._offsets, index, side="right") - 1)
         j = index - int(self._offsets[s])
+        half = self._half[s]
+        if half is not None:
+            return Sample(np.array(half["rgb"][j]), np.array(half["depth"][j]), np.array(half["labels"][j]))
         arr = self._arrays[s]
         depth = np.asarray(arr["depth"][j], dtype=np.float32) / np.float32(self.depth_scale * self.focal_scales[s])
         rgb, labels = np.array(arr["rgb"][j]), np.array(arr["labels"][j])
@@ -564,6 +608,17 @@ class AugmentConfig:
     p_channel_shuffle: float = 0.15
     noise_std: tuple[float, float] = (0.0, 6.0)  # Gaussian noise std, 8-bit intensity levels
     p_blur: float = 0.15  # a 3x3 box blur (defocus / motion)
+    # A real camera's pipeline on top of the jitter above (ours; :func:`camera_pipeline`), applied to a share
+    # ``p_camera`` of the samples (0: off, the first shipped networks' augmentation): vignetting (relative fall-off v
+    # at the corners), linear motion blur of a random direction (length in pixels at the network's resolution), shot
+    # noise (std = k sqrt(intensity), intensities in [0, 1]), and JPEG compression at a random quality.
+    p_camera: float = 0.0
+    vignetting: tuple[float, float] = (0.0, 0.45)
+    p_motion_blur: float = 0.5
+    motion_blur_px: tuple[float, float] = (1.0, 5.0)
+    shot_noise: tuple[float, float] = (0.0, 0.04)
+    p_jpeg: float = 0.6
+    jpeg_quality: tuple[int, int] = (35, 95)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form for the manifest."""
@@ -595,11 +650,54 @@ def augment(sample: Sample, rng: np.random.Generator, cfg: AugmentConfig) -> Sam
         import cv2
 
         rgb = cv2.blur(np.ascontiguousarray(rgb), (3, 3))
+    if cfg.p_camera > 0 and rng.random() < cfg.p_camera:
+        rgb = camera_pipeline(np.ascontiguousarray(rgb), rng, cfg)
     sigma = rng.uniform(*cfg.noise_std) / 255.0
     if sigma > 0:
         rgb = rgb + rng.normal(0.0, sigma, rgb.shape).astype(np.float32)
     out = np.clip(np.round(rgb * 255.0), 0, 255).astype(np.uint8)
+    if cfg.p_camera > 0 and rng.random() < cfg.p_camera * cfg.p_jpeg:
+        out = jpeg_roundtrip(out, int(rng.integers(cfg.jpeg_quality[0], cfg.jpeg_quality[1] + 1)))
     return Sample(np.ascontiguousarray(out), np.ascontiguousarray(depth), np.ascontiguousarray(labels))
+
+
+def camera_pipeline(rgb: np.ndarray, rng: np.random.Generator, cfg: AugmentConfig) -> np.ndarray:
+    """A real camera's effects on an (H, W, 3) float32 image in [0, 1] (ours, after ``sim_envs.camera_effects``
+    but cheap enough for every training sample): vignetting ``1 - v q`` (q = 0 at the centre, 1 at the corners: the
+    squared distance from the centre in half-widths and half-heights, halved), a linear motion
+    blur of length ``motion_blur_px`` at a uniform angle (with probability ``p_motion_blur``), and shot noise of std
+    ``k sqrt(I)``. Geometry is unchanged (ground truth stays valid)."""
+    import cv2
+
+    h, w = rgb.shape[:2]
+    v = np.float32(rng.uniform(*cfg.vignetting))
+    if v > 0:
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        r2 = ((xx - (w - 1) / 2) / ((w - 1) / 2)) ** 2 + ((yy - (h - 1) / 2) / ((h - 1) / 2)) ** 2
+        rgb = rgb * (1.0 - v * r2 / 2.0)[..., None]
+    if rng.random() < cfg.p_motion_blur:
+        length = float(rng.uniform(*cfg.motion_blur_px))
+        angle = float(rng.uniform(0.0, np.pi))
+        size = int(np.ceil(length)) | 1
+        kernel = np.zeros((size, size), np.float32)
+        c = size // 2
+        for t in np.linspace(-length / 2, length / 2, 4 * size):
+            kernel[int(round(c + t * np.sin(angle))), int(round(c + t * np.cos(angle)))] += 1.0
+        rgb = cv2.filter2D(np.ascontiguousarray(rgb), -1, kernel / kernel.sum(), borderType=cv2.BORDER_REFLECT)
+    k = np.float32(rng.uniform(*cfg.shot_noise))
+    if k > 0:
+        rgb = rgb + (k * np.sqrt(np.clip(rgb, 0.0, 1.0))) * rng.standard_normal(rgb.shape).astype(np.float32)
+    return rgb.astype(np.float32)
+
+
+def jpeg_roundtrip(rgb: np.ndarray, quality: int) -> np.ndarray:
+    """(H, W, 3) uint8 RGB compressed as JPEG at ``quality`` (1..100) and decoded again (OpenCV)."""
+    import cv2
+
+    ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise CnnSlamError("JPEG encoding failed")
+    return np.ascontiguousarray(cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
 
 
 def collate(samples: Sequence[Sample]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -19,7 +19,7 @@ import os
 import platform
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -55,6 +55,10 @@ class TrainConfig:
     weight_decay: float = 1e-4
     semantic_weight: float = 0.5  # total loss = berHu + semantic_weight * cross-entropy
     depth_space: str = "log"  # berHu on log depth ("log", ours) or on depth ("linear", FCRN); see loss.py
+    # Scale-invariant terms added to the depth loss (ours, after Eigen et al. 2014 and MiDaS; see loss.py): 0 = off,
+    # the first shipped networks' loss.
+    silog_weight: float = 0.0
+    gradient_weight: float = 0.0
     grad_clip: float = 5.0  # global gradient-norm clip
     seed: int = 0  # weight init, dropout and the batch stream
     checkpoint_every: int = 250
@@ -62,6 +66,11 @@ class TrainConfig:
     val_frames: int = 240  # held-out training-split frames for validation (evenly spaced over the val split)
     log_every: int = 25
     num_threads: int = 2  # torch intra-op threads (the machine's 2 cores)
+    # Where the network trains: "cpu" or "cuda" (a GPU, where one is lent; bf16 autocast). The batches are the same
+    # on either (drawn on the CPU from (seed, step)); the arithmetic differs in its last bits.
+    device: str = "cpu"
+    # Processes that read and augment the coming batches ahead of the optimiser (1: one thread, as on 2 cores).
+    loader_workers: int = 1
     max_shards: int | None = None  # use only the first shards (smoke tests)
     downsample: int = 2  # the network works at 1 / downsample of the rendered 320x240 (160x120; see model.py)
     # Ours: start from these weights (a file of save_weights, same architecture) instead of a random init, e.g. to
@@ -72,6 +81,11 @@ class TrainConfig:
         for name in ("batch_size", "steps", "checkpoint_every", "val_every", "log_every", "num_threads"):
             if int(getattr(self, name)) < 1:
                 raise CnnSlamError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        if self.device not in ("cpu", "cuda"):
+            raise CnnSlamError(f"device must be 'cpu' or 'cuda', got {self.device!r}")
+        if self.silog_weight < 0 or self.gradient_weight < 0:
+            raise CnnSlamError(f"silog_weight and gradient_weight must be >= 0, got {self.silog_weight}, "
+                               f"{self.gradient_weight}")
         if self.depth_space not in ("linear", "log"):
             raise CnnSlamError(f"depth_space must be 'linear' or 'log', got {self.depth_space!r}")
         if not (self.lr > 0 and 0 <= self.min_lr <= self.lr):
@@ -112,8 +126,9 @@ def evaluate(
     conf = np.zeros((model.config.num_classes, model.config.num_classes + 1), np.int64)
     for start in range(0, len(indices), batch_size):
         rgb, depth, labels = collate([dataset[i] for i in indices[start : start + batch_size]])
-        pred, logits = model(normalize_rgb(rgb))
-        pred_np, lab_np = pred[:, 0].numpy(), logits.argmax(1).numpy()
+        device = next(model.parameters()).device
+        pred, logits = model(normalize_rgb(rgb.to(device)))
+        pred_np, lab_np = pred[:, 0].float().cpu().numpy(), logits.argmax(1).cpu().numpy()
         for k in range(len(pred_np)):
             per_frame.append(depth_metrics(pred_np[k], depth[k, 0].numpy()))
             conf += confusion_matrix(lab_np[k], labels[k].numpy(), model.config.num_classes)
@@ -152,6 +167,63 @@ def _append_log(path: Path, record: dict[str, Any]) -> None:
         f.write(json.dumps(record) + "\n")
 
 
+_WORKER_DATASET: RenderedDataset | None = None
+
+
+def _init_batch_worker(root: str, max_shards: int | None, downsample: int) -> None:
+    """Open the training split once per loader process (memory-mapped: the shards are shared, not copied)."""
+    global _WORKER_DATASET
+    torch.set_num_threads(1)
+    _WORKER_DATASET = RenderedDataset(root, "train", max_shards, downsample)
+
+
+def _batch_in_worker(seed: int, step: int, batch_size: int, augment: AugmentConfig,
+                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    assert _WORKER_DATASET is not None
+    return training_batch(_WORKER_DATASET, np.random.default_rng((seed, step)), batch_size, augment)
+
+
+class _BatchStream:
+    """The batches of steps start, start + 1, ... (each a function of (seed, step) alone), produced ahead of the
+    optimiser by one thread or by ``cfg.loader_workers`` processes; the same batches either way."""
+
+    def __init__(self, cfg: TrainConfig, dataset: RenderedDataset, start: int) -> None:
+        self.cfg, self.dataset, self.next_step = cfg, dataset, start
+        if cfg.loader_workers > 1:
+            import multiprocessing
+
+            self.pool: Any = ProcessPoolExecutor(
+                cfg.loader_workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_batch_worker,
+                initargs=(cfg.data_root, cfg.max_shards, cfg.downsample))
+            self.ahead = 2 * cfg.loader_workers
+        else:
+            self.pool, self.ahead = ThreadPoolExecutor(max_workers=1), 1
+        self.pending: list[Any] = []
+        self._fill()
+
+    def _submit(self, step: int) -> Any:
+        cfg = self.cfg
+        if cfg.loader_workers > 1:
+            return self.pool.submit(_batch_in_worker, cfg.seed, step, cfg.batch_size, cfg.augment)
+        return self.pool.submit(training_batch, self.dataset, np.random.default_rng((cfg.seed, step)),
+                                cfg.batch_size, cfg.augment)
+
+    def _fill(self) -> None:
+        while len(self.pending) < self.ahead and self.next_step < self.cfg.steps:
+            self.pending.append(self._submit(self.next_step))
+            self.next_step += 1
+
+    def next(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        batch = self.pending.pop(0).result()
+        self._fill()
+        return batch
+
+    def close(self) -> None:
+        for fut in self.pending:
+            fut.cancel()
+        self.pool.shutdown(wait=True)
+
+
 def _val_indices(n: int, k: int) -> list[int]:
     return sorted({int(i) for i in np.linspace(0, n - 1, min(k, n)).round()})
 
@@ -179,8 +251,11 @@ def train(
         raise CnnSlamError("the val split was rendered with another camera than the train split")
     val_idx = _val_indices(len(val_set), cfg.val_frames)
 
+    if cfg.device == "cuda" and not torch.cuda.is_available():
+        raise CnnSlamError("device 'cuda' asked for, but torch sees no GPU here; use device 'cpu'")
+    device = torch.device(cfg.device)
     torch.manual_seed(cfg.seed)
-    model = DepthSemanticNet(cfg.model)
+    model = DepthSemanticNet(cfg.model).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     step, elapsed, history = 0, 0.0, []
     if resume and ckpt_path.is_file():
@@ -191,7 +266,7 @@ def train(
         if saved.model != cfg.model:
             raise CnnSlamError(f"{ckpt_path} was trained with {saved.model}, not {cfg.model}; use another out_dir")
         model.load_state_dict(ckpt["model"])
-        opt.load_state_dict(ckpt["optimizer"])
+        opt.load_state_dict(ckpt["optimizer"])  # its state follows the parameters' device
         torch.set_rng_state(ckpt["torch_rng"])
         step, elapsed, history = int(ckpt["step"]), float(ckpt["elapsed_s"]), list(ckpt["val_history"])
     else:
@@ -204,6 +279,7 @@ def train(
                                    f"{cfg.model}; pass the matching architecture")
             model.load_state_dict(start.model.state_dict())
     model.train()
+    autocast = torch.autocast("cuda", dtype=torch.bfloat16, enabled=cfg.device == "cuda")
 
     def checkpoint() -> None:
         _atomic_torch_save(
@@ -228,25 +304,21 @@ def train(
         _append_log(log_path, record)
         return metrics
 
-    def batch_of(s: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        return training_batch(train_set, np.random.default_rng((cfg.seed, s)), cfg.batch_size, cfg.augment)
-
     bar = tqdm(total=cfg.steps, initial=step, disable=not progress, desc="train", dynamic_ncols=True)
     acc = {"loss": 0.0, "depth": 0.0, "semantic": 0.0, "n": 0}
-    # the next batch is read and augmented in a thread while this step computes (numpy and file reads release
-    # the GIL); batches depend only on (seed, step), so prefetching changes nothing in the result
-    loader = ThreadPoolExecutor(max_workers=1)
-    pending = loader.submit(batch_of, step)
+    # the coming batches are read and augmented ahead (a thread, or loader processes) while this step computes;
+    # batches depend only on (seed, step), so prefetching changes nothing in the result
+    loader = _BatchStream(cfg, train_set, step)
     t_last = time.perf_counter()
     while step < cfg.steps:
-        rgb, depth, labels = pending.result()
-        if step + 1 < cfg.steps:
-            pending = loader.submit(batch_of, step + 1)
+        rgb, depth, labels = (t.to(device, non_blocking=True) for t in loader.next())
         lr = learning_rate(step, cfg)
         for group in opt.param_groups:
             group["lr"] = lr
-        pred, logits = model(normalize_rgb(rgb))
-        terms = total_loss(pred, logits, depth, labels, cfg.semantic_weight, cfg.depth_space)
+        with autocast:
+            pred, logits = model(normalize_rgb(rgb))
+        terms = total_loss(pred.float(), logits.float(), depth, labels, cfg.semantic_weight, cfg.depth_space,
+                           cfg.silog_weight, cfg.gradient_weight)
         if not torch.isfinite(terms.total):
             raise CnnSlamError(f"non-finite loss at step {step}; lower lr (now {lr:.2e})")
         opt.zero_grad(set_to_none=True)
@@ -280,13 +352,14 @@ def train(
             checkpoint()
             t_last = time.perf_counter()
     bar.close()
-    loader.shutdown(wait=True)
+    loader.close()
 
     if not history or history[-1]["step"] != step:
         validate()
         checkpoint()
     final_val = {k: v for k, v in history[-1].items() if k not in ("kind", "seconds")}
     meta = {"steps": step, "data_seed": train_set.metas[0]["data_seed"]}
+    model.to("cpu")
     weights = save_weights(out / "weights.pt", model, train_set.train_focal, train_set.image_size, meta)
     manifest = build_manifest(cfg, model, train_set, val_set, step, elapsed, final_val, weights)
     manifest_path = out / "manifest.json"
@@ -342,5 +415,7 @@ def build_manifest(
         "initialised_from": start_manifest(cfg.init_weights),
         "validation_heldout_train_split": validation,
         "validation_test_sequences": None,
-        "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": cfg.num_threads},
+        "environment": {"torch": torch.__version__, "python": platform.python_version(), "threads": cfg.num_threads,
+                        "device": torch.cuda.get_device_name(0) if cfg.device == "cuda" else platform.processor()
+                        or platform.machine(), "loader_workers": cfg.loader_workers},
     }

@@ -16,11 +16,14 @@ from cnnslam.depthnet.data import (
     Sample,
     ViewConfig,
     augment,
+    camera_pipeline,
     camera_rotation,
     camera_velocity,
     downsample_ground_truth,
     downsample_rgb,
     generate_dataset,
+    half_resolution_arrays,
+    jpeg_roundtrip,
     sample_view_pose,
     scene_seeds,
     shard_jobs,
@@ -247,3 +250,63 @@ def test_downsampled_rgb_is_the_block_mean() -> None:
     out = downsample_rgb(rgb, 2)
     assert out.shape == (2, 3, 3)
     np.testing.assert_array_equal(out, 50)
+
+
+def test_camera_pipeline_keeps_geometry_and_is_seeded() -> None:
+    s = _sample()
+    cfg = AugmentConfig(p_camera=1.0, vignetting=(0.4, 0.4), p_motion_blur=1.0, motion_blur_px=(3.0, 3.0),
+                        shot_noise=(0.0, 0.0))
+    img = np.full((24, 32, 3), 0.5, np.float32)
+    out = camera_pipeline(img, np.random.default_rng(0), cfg)
+    assert out.shape == img.shape and out.dtype == np.float32
+    # vignetting: the centre keeps its value, the corners lose v = 40 % (blur of a smooth field changes little)
+    assert out[12, 16, 0] == pytest.approx(0.5, abs=0.01) and out[0, 0, 0] == pytest.approx(0.3, abs=0.02)
+    # a motion blur of a vertical edge spreads it over about its length, keeps the mean
+    edge = np.zeros((24, 32, 3), np.float32)
+    edge[:, 16:] = 1.0
+    flat = replace(cfg, vignetting=(0.0, 0.0))
+    blurred = camera_pipeline(edge, np.random.default_rng(3), flat)
+    assert blurred.mean() == pytest.approx(edge.mean(), abs=0.02)
+    a = augment(s, np.random.default_rng(5), replace(cfg, crop=(24, 32), shot_noise=(0.02, 0.02)))
+    b = augment(s, np.random.default_rng(5), replace(cfg, crop=(24, 32), shot_noise=(0.02, 0.02)))
+    np.testing.assert_array_equal(a.rgb, b.rgb)  # seeded
+    assert a.depth.shape == s.depth.shape and a.labels.shape == s.labels.shape
+
+
+def test_jpeg_roundtrip_loses_detail_at_low_quality() -> None:
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (48, 64, 3)).astype(np.uint8)
+    hi, lo = jpeg_roundtrip(img, 95), jpeg_roundtrip(img, 20)
+    assert hi.shape == img.shape and hi.dtype == np.uint8
+    err_hi = np.abs(hi.astype(int) - img).mean()
+    err_lo = np.abs(lo.astype(int) - img).mean()
+    assert err_hi < err_lo
+
+
+def test_half_resolution_copies_are_what_reading_makes(tmp_path: Path) -> None:
+    cfg = GenerationConfig(n_scenes=1, views_per_scene=2, width=64, height=48, data_seed=3, focal_scale=(1.2, 1.2))
+    (shard,) = generate_dataset(tmp_path, "train", cfg, workers=0)
+    for name in ("rgb_d2", "depth_d2", "labels_d2"):
+        assert (shard / f"{name}.npy").is_file()
+    fast = RenderedDataset(tmp_path, "train", downsample=2)
+    arrays = half_resolution_arrays(np.load(shard / "rgb.npy"), np.load(shard / "depth.npy"),
+                                    np.load(shard / "labels.npy"), 1.2)
+    for name in ("rgb_d2", "depth_d2", "labels_d2"):
+        (shard / f"{name}.npy").unlink()  # the same dataset read the slow way: every frame resampled on reading
+    slow = RenderedDataset(tmp_path, "train", downsample=2)
+    for i in range(2):
+        assert fast[i].rgb.shape == (24, 32, 3)
+        for field in ("rgb", "depth", "labels"):
+            np.testing.assert_array_equal(getattr(fast[i], field), getattr(slow[i], field))
+        np.testing.assert_array_equal(arrays["depth_d2"][i], slow[i].depth)
+
+
+def test_rich_rooms_are_drawn_per_room_and_recorded(tmp_path: Path) -> None:
+    mixed = GenerationConfig(detail=("standard", "rich"))
+    assert {mixed.draw_detail(seed) for seed in range(40)} == {"standard", "rich"}
+    assert GenerationConfig().draw_detail(123) == "standard"  # one option draws nothing
+    rich = GenerationConfig(n_scenes=1, views_per_scene=1, width=64, height=48, data_seed=3, detail=("rich",))
+    (shard,) = generate_dataset(tmp_path, "train", rich, workers=0)
+    assert json.loads((shard / "meta.json").read_text())["detail"] == "rich"
+    with pytest.raises(CnnSlamError, match="detail must name"):
+        GenerationConfig(detail=("baroque",))

@@ -81,3 +81,42 @@ def test_total_loss_weights_semantic_term() -> None:
     # all errors 1 -> c = 0.2 -> berHu = (1 + 0.04) / 0.4 = 2.6
     assert float(terms.depth) == pytest.approx(2.6)
     assert float(terms.total) == pytest.approx(2.6 + 0.5 * math.log(4))
+
+
+def test_scale_invariant_log_loss_known_values() -> None:
+    from cnnslam.depthnet.loss import scale_invariant_log_loss
+
+    g = torch.rand(2, 1, 8, 10) + 0.5
+    # a pure scale factor k: mean(R^2) - lam mean(R)^2 = (1 - lam) log(k)^2
+    assert float(scale_invariant_log_loss(2.0 * g, g, lam=0.5)) == pytest.approx(0.5 * math.log(2.0) ** 2, rel=1e-5)
+    assert float(scale_invariant_log_loss(2.0 * g, g, lam=1.0)) == pytest.approx(0.0, abs=1e-6)
+    # shape errors are not scale-invariant: log error +-e on two halves gives e^2 whatever lam
+    d = g.clone()
+    d[..., :5] *= math.exp(0.1)
+    d[..., 5:] *= math.exp(-0.1)
+    assert float(scale_invariant_log_loss(d, g, lam=1.0)) == pytest.approx(0.01, rel=1e-4)
+    # pixels without ground truth are ignored, an image without any counts nothing
+    g2 = g.clone()
+    g2[1] = 0.0
+    assert float(scale_invariant_log_loss(2.0 * g, g2, lam=0.0)) == pytest.approx(math.log(2.0) ** 2, rel=1e-5)
+
+
+def test_gradient_matching_loss_known_values() -> None:
+    from cnnslam.depthnet.loss import gradient_matching_loss
+
+    g = torch.rand(1, 1, 16, 16) + 0.5
+    assert float(gradient_matching_loss(3.0 * g, g)) == pytest.approx(0.0, abs=1e-6)  # blind to the global scale
+    # a log-depth step of 0.2 between the two halves (columns 7 | 8): one pair per row on level 0 (16 rows of 15 x
+    # pairs + 15 rows of 16 y pairs = 480 pairs) -> 16 * 0.2 / 480
+    d = g.clone()
+    d[..., 8:] *= math.exp(0.2)
+    level0 = 16 * 0.2 / 480
+    loss = float(gradient_matching_loss(d, g, scales=1))
+    assert loss == pytest.approx(level0, rel=1e-4)
+    # pairs touching an invalid pixel are left out
+    g_hole = g.clone()
+    g_hole[..., 7] = 0.0
+    assert float(gradient_matching_loss(d, g_hole, scales=1)) == pytest.approx(0.0, abs=1e-6)
+    t = total_loss(d, torch.zeros(1, 4, 16, 16), g, torch.full((1, 16, 16), 255), 0.5, "log", 0.5, 0.5)
+    assert t.gradient is not None and t.silog is not None
+    assert float(t.depth) == pytest.approx(float(berhu_loss(d, g, space="log") + 0.5 * t.silog + 0.5 * t.gradient))

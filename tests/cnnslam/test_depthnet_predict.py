@@ -110,12 +110,12 @@ def test_shipped_weights_load_and_predict() -> None:
 
 def test_shipped_manifest_fields() -> None:
     manifest = json.loads(DEFAULT_MANIFEST.read_text())
-    total_steps, stage = 0, manifest
+    total_samples, stage = 0, manifest
     while stage is not None:  # a fine-tune records the manifest of the run it started from
         assert stage["steps"] > 0 and stage["wall_time_s"] > 0
-        total_steps += stage["steps"]
+        total_samples += stage["steps"] * stage["training"]["batch_size"]
         stage = (stage.get("initialised_from") or {}).get("manifest")
-    assert total_steps >= 10_000
+    assert total_samples >= 160_000  # training images seen, all stages together
     for key in ("data_seed", "steps", "wall_time_s", "validation_heldout_train_split", "validation_test_sequences",
                 "train_focal", "train_size", "architecture", "training", "data"):
         assert key in manifest, key

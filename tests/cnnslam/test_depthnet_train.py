@@ -4,6 +4,7 @@ manifest and resumes from its checkpoint. No rendering: shards are written direc
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from cnnslam.depthnet.loss import total_loss
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, normalize_rgb
 from cnnslam.depthnet.train import TrainConfig, learning_rate, train
 from cnnslam.depthnet.weights_io import load_weights
+from cnnslam.errors import CnnSlamError
 
 TINY = ModelConfig(trunk_depth=18, base_width=8, decoder_min_channels=8, dropout=0.0)
 NYU_64 = [103.77, 103.89, 64.9, 50.5]  # any fixed camera
@@ -177,3 +179,38 @@ def test_init_weights_starts_a_fine_tune_from_a_trained_network(fake_data: Path,
     with pytest.raises(CnnSlamError, match="holds a"):
         train(replace(_cfg(fake_data, tmp_path / "bad", 1), model=other, init_weights=str(base.weights)),
               progress=False)
+
+
+@pytest.mark.slow
+def test_loader_processes_give_the_batches_of_the_thread(fake_data: Path, tmp_path: Path) -> None:
+    from cnnslam.depthnet.train import _BatchStream
+
+    base = replace(_cfg(fake_data, tmp_path / "run", 3), augment=replace(AugmentConfig(), crop=(16, 24), p_camera=0.5))
+    ds = RenderedDataset(fake_data, "train", None, base.downsample)
+    one = _BatchStream(base, ds, 0)
+    two = _BatchStream(replace(base, loader_workers=2), ds, 0)
+    try:
+        for _ in range(3):
+            for a, b in zip(one.next(), two.next(), strict=True):
+                assert torch.equal(a, b)
+    finally:
+        one.close()
+        two.close()
+
+
+def test_train_config_checks_its_device_and_loss_weights(fake_data: Path, tmp_path: Path) -> None:
+    with pytest.raises(CnnSlamError, match="device must be"):
+        TrainConfig(device="tpu")
+    with pytest.raises(CnnSlamError, match="gradient_weight"):
+        TrainConfig(gradient_weight=-1.0)
+    if not torch.cuda.is_available():
+        with pytest.raises(CnnSlamError, match="no GPU"):
+            train(replace(_cfg(fake_data, tmp_path / "run", 1), device="cuda"), progress=False)
+
+
+def test_scale_invariant_terms_enter_the_logged_loss(fake_data: Path, tmp_path: Path) -> None:
+    cfg = replace(_cfg(fake_data, tmp_path / "run", 2), silog_weight=0.5, gradient_weight=0.5)
+    result = train(cfg, progress=False)
+    manifest = json.loads(result.manifest.read_text())
+    assert manifest["training"]["silog_weight"] == 0.5 and manifest["training"]["gradient_weight"] == 0.5
+    assert TrainConfig.from_dict(manifest["training"]) == cfg
