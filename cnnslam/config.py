@@ -222,6 +222,12 @@ class DepthConfig:
     # CNN's scales at every key-frame so far (in the first key-frame's units), so that the absolute scale follows
     # the network's long-run median rather than the first key-frame's (ours).
     prediction_scale_reference: str = "map"
+    # Where the CNN's scale is measured against the map: "all" pixels both key-frames see (the map there is mostly
+    # the propagated CNN depth of earlier key-frames), or "stereo": only those where the neighbour's depth took at
+    # least ``stereo_min_observations`` frames' small-baseline stereo (eq. 10-11), the images' own geometry at the map's
+    # scale (ours, after DeepRelativeFusion, Loo et al. IROS 2021, which fits CNN depth to the SLAM's semi-dense depth).
+    prediction_scale_pixels: str = "all"
+    stereo_min_observations: int = 3
     # Depth of the "constant" source (m) for the first key-frame; LSD-like inverse-depth variance below.
     constant_depth: float = 1.0
     # LSD initializeRandomly: inverse depth uniform in [0.5, 1.5] 1/m ...
@@ -237,6 +243,9 @@ class DepthConfig:
                      "random_inverse_depth_variance", "ground_truth_inverse_depth_variance"):
             _positive("depth", name, getattr(self, name))
         _choice("depth", "prediction_scale_reference", self.prediction_scale_reference, ("map", "running_median"))
+        _choice("depth", "prediction_scale_pixels", self.prediction_scale_pixels, ("all", "stereo"))
+        if self.stereo_min_observations < 1:
+            raise CnnSlamError(f"depth.stereo_min_observations must be >= 1, got {self.stereo_min_observations}")
         for name in ("scale_anchoring", "prediction_scale_alignment"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise CnnSlamError(f"depth.{name} must be in [0, 1], got {getattr(self, name)!r}")

@@ -165,14 +165,16 @@ def init_cnn_keyframe(
     T_neighbour_new: np.ndarray | None = None,
     neighbour_log_scale: float = 0.0,
     scale_history: Sequence[float] = (),
+    neighbour_stereo_count: np.ndarray | None = None,
 ) -> KeyframeInit:
     """A CNN key-frame's depth and uncertainty: eq. 6, then eq. 7-9 against the nearest key-frame.
 
     cnn_depth: (H, W) metres (after eq. 5 or raw, as configured); neighbour_depth / neighbour_variance: the nearest
     key-frame's refined maps (metres, m^2), None for the first key-frame; T_neighbour_new: (4, 4) maps the new
     key-frame's coordinates into the neighbour's (T_kj_ki of the paper). neighbour_log_scale: the neighbour's
-    ``log_scale``; scale_history: the ``cnn_log_scale`` of every earlier key-frame (both only for
-    ``depth.prediction_scale_alignment``).
+    ``log_scale``; scale_history: the ``cnn_log_scale`` of every earlier key-frame; neighbour_stereo_count: the
+    neighbour's :attr:`KeyframeMaps.stereo_count` (the last three only for ``depth.prediction_scale_alignment``; the
+    count only with ``depth.prediction_scale_pixels = "stereo"``).
     """
     d_new = np.asarray(cnn_depth, dtype=np.float64)
     if d_new.ndim != 2 or not (d_new > 0).any():
@@ -187,7 +189,11 @@ def init_cnn_keyframe(
                                                                  intrinsics, T_neighbour_new)
     a, q = 1.0, neighbour_log_scale
     if config.prediction_scale_alignment > 0:
-        q += math.log(scale_anchor(d_new, d_j_in_i, matched, 1.0))  # the CNN's log scale, first key-frame units
+        where = matched
+        if config.prediction_scale_pixels == "stereo":  # only where the neighbour's depth is the stereo's
+            where = matched & stereo_pixels(d_new, neighbour_stereo_count, intrinsics, T_neighbour_new,
+                                            config.stereo_min_observations)
+        q += math.log(scale_anchor(d_new, d_j_in_i, where, 1.0))  # the CNN's log scale, first key-frame units
         median = config.prediction_scale_reference == "running_median"
         target = float(np.median([*scale_history, q])) if median else neighbour_log_scale
         a = math.exp(config.prediction_scale_alignment * (q - target))
@@ -219,6 +225,22 @@ def init_cnn_keyframe(
     change = float(np.abs(depth - d_new)[matched].mean()) if matched.any() else 0.0
     return KeyframeInit(depth.astype(np.float32), var.astype(np.float32), share, change, k, 1.0 / a, q,
                         q - math.log(a))
+
+
+def stereo_pixels(depth_new: np.ndarray, neighbour_stereo_count: np.ndarray | None, intrinsics: np.ndarray,
+                  T_neighbour_new: np.ndarray, min_observations: int) -> np.ndarray:
+    """(H, W) bool: the pixels of a new key-frame whose point, seen in the neighbour (T_neighbour_new maps the new
+    key-frame's coordinates into the neighbour's), landed where the neighbour's depth took at least
+    ``min_observations`` frames' small-baseline stereo (eq. 10-11; :attr:`KeyframeMaps.stereo_count`). There the
+    map's depth is the images' own geometry, not a propagated CNN prediction (ours, after DeepRelativeFusion's
+    fit of CNN depth to the SLAM's semi-dense depth). All False without a count.
+    """
+    d = np.asarray(depth_new, dtype=np.float64)
+    if neighbour_stereo_count is None:
+        return np.zeros(d.shape, bool)
+    uv, _ = warp_keyframe_pixels(d, intrinsics, T_neighbour_new)
+    count, inside = sample_nearest(np.asarray(neighbour_stereo_count, dtype=np.float64), uv)
+    return inside & (count >= min_observations)
 
 
 def _neighbour_seen_from(d_new: np.ndarray, neighbour_depth: np.ndarray, neighbour_variance: np.ndarray,
@@ -337,14 +359,16 @@ def init_first_keyframe_without_cnn(
 class KeyframeMaps:
     """A key-frame's depth D (m, (H, W) float32, 0 = none), uncertainty U (m^2, (H, W) float32, inf = none) and the
     tracking points built from them (None while released: :meth:`Keyframe.release_working_set`), with their mean
-    inverse depth (1/m, LSD's meanIdepth, kept when the points are released). Immutable: refinement publishes a new
-    instance (one atomic attribute swap), so a reader in another thread always sees a depth, variance and reference
-    that belong together."""
+    inverse depth (1/m, LSD's meanIdepth, kept when the points are released), and ``stereo_count``: (H, W) uint16,
+    how many frames' small-baseline stereo observations eq. 10-11 fused into each pixel (None before the first).
+    Immutable: refinement publishes a new instance (one atomic attribute swap), so a reader in another thread always
+    sees a depth, variance and reference that belong together."""
 
     depth: np.ndarray
     variance: np.ndarray
     reference: TrackingReference | None
     mean_inverse_depth: float = math.nan
+    stereo_count: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.reference is not None:
@@ -457,7 +481,7 @@ class Keyframe:
         reference = self._need_builder().reference(self.pyramid, maps.depth, maps.variance, self.gradient_masks)
         with self._maps_lock:
             if self.maps is maps:
-                self.maps = KeyframeMaps(maps.depth, maps.variance, reference)
+                self.maps = KeyframeMaps(maps.depth, maps.variance, reference, stereo_count=maps.stereo_count)
         return reference
 
     @property
@@ -480,7 +504,7 @@ class Keyframe:
         with self._maps_lock:
             maps = self.maps
             if maps.reference is not None:
-                self.maps = KeyframeMaps(maps.depth, maps.variance, None, maps.mean_inverse_depth)
+                self.maps = KeyframeMaps(maps.depth, maps.variance, None, maps.mean_inverse_depth, maps.stereo_count)
 
     @property
     def working_set_held(self) -> bool:

@@ -432,6 +432,7 @@ class RefinementStats:
     dropped: int
     status_counts: dict[str, int]
     rejected: int = 0  # observations failing the outlier gate (not fused)
+    fused_mask: np.ndarray | None = None  # (H, W) bool: the pixels whose depth took this frame's observation
 
 
 def refine_keyframe(
@@ -476,5 +477,5 @@ def refine_keyframe(
         new_d[drop] = 0.0
         new_u[drop] = np.inf
     stats = RefinementStats(int(obs.sum()), int(fuse.sum()), int(create.sum()), dropped, observation.counts(),
-                            rejected)
+                            rejected, fuse | create)
     return new_d, new_u, stats

@@ -460,7 +460,11 @@ class CnnSlam:
         self._counters["observed_pixels"] += stats.observed
         self._counters["refined_pixels"] += stats.fused + stats.created
         reference = build_tracking_reference(keyframe.pyramid, depth, variance, cfg.tracking, keyframe.gradient_masks)
-        keyframe.set_maps(KeyframeMaps(depth, variance, reference))
+        count = maps.stereo_count
+        if stats.fused_mask is not None and stats.fused_mask.any():
+            count = np.zeros(depth.shape, np.uint16) if count is None else count.copy()
+            count[stats.fused_mask & (count < np.iinfo(np.uint16).max)] += 1
+        keyframe.set_maps(KeyframeMaps(depth, variance, reference, stereo_count=count))
 
     def _release_working_sets(self) -> None:
         """Keep the tracking working sets (pyramid, masks, tracking points) of the active key-frame and the
@@ -506,7 +510,8 @@ class CnnSlam:
                 parent_maps = parent.maps
                 init = init_cnn_keyframe(pred.depth, self.intrinsics, cfg.depth, parent_maps.depth,
                                          parent_maps.variance, T_parent_new,
-                                         self._kf_log_scale.get(parent.index, 0.0), self._cnn_log_scales)
+                                         self._kf_log_scale.get(parent.index, 0.0), self._cnn_log_scales,
+                                         parent_maps.stereo_count)
             self._cnn_log_scales.append(init.cnn_log_scale)
         elif parent is None:
             mask = None

@@ -19,6 +19,7 @@ from cnnslam.keyframes import (
     propagate_keyframe,
     propagated_uncertainty,
     scale_anchor,
+    stereo_pixels,
 )
 
 K = np.array([240.6, 240.0, 159.5, 119.5])
@@ -161,6 +162,33 @@ def test_prediction_scale_alignment_towards_the_running_median_of_the_cnn() -> N
     assert shifted.cnn_log_scale == pytest.approx(0.5 + r, abs=1e-4) and shifted.prediction_scale == pytest.approx(1)
     with pytest.raises(CnnSlamError, match="prediction_scale_reference"):
         DepthConfig(prediction_scale_reference="cnn").validate()
+
+
+def test_prediction_scale_measured_where_the_neighbour_took_stereo() -> None:
+    """Left half of the neighbour refined by stereo (the map says 2.7 m there), right half only the propagated CNN (it
+    says 2.97 m, like the new CNN): measured on every pixel the CNN seems half right; on the stereo pixels alone its
+    10 % error shows."""
+    T_j_i = np.eye(4)  # the same view: pixel u of the new key-frame lands on pixel u of the neighbour
+    d_j = np.full((240, 320), 2.97, np.float32)
+    d_j[:, :160] = 2.7
+    u_j = np.full((240, 320), 0.01, np.float32)
+    count = np.zeros((240, 320), np.uint16)
+    count[:, :160] = 5
+    count[:, 150:160] = 2  # too few observations
+    d_cnn = np.full((240, 320), 2.97, np.float32)
+    mask = stereo_pixels(d_cnn, count, K, T_j_i, 3)
+    assert mask[:, :150].all() and not mask[:, 150:].any()
+    assert not stereo_pixels(d_cnn, None, K, T_j_i, 3).any()  # no stereo yet: none
+    every = DepthConfig(prediction_scale_alignment=1.0)
+    stereo = DepthConfig(prediction_scale_alignment=1.0, prediction_scale_pixels="stereo")
+    a = init_cnn_keyframe(d_cnn, K, every, d_j, u_j, T_j_i, neighbour_stereo_count=count)
+    b = init_cnn_keyframe(d_cnn, K, stereo, d_j, u_j, T_j_i, neighbour_stereo_count=count)
+    assert 1 / 1.1 < a.prediction_scale <= 1.0  # the median over both halves
+    assert b.prediction_scale == pytest.approx(1 / 1.1, rel=1e-4)  # the stereo's scale
+    with pytest.raises(CnnSlamError, match="prediction_scale_pixels"):
+        DepthConfig(prediction_scale_pixels="edges").validate()
+    with pytest.raises(CnnSlamError, match="stereo_min_observations"):
+        DepthConfig(stereo_min_observations=0).validate()
 
 
 def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:

@@ -40,6 +40,7 @@ def test_refine_keyframe_fuses_creates_and_keeps() -> None:
     np.testing.assert_allclose(new_d, [[2.16, 3.0, 1.5]], rtol=1e-6)  # fused, unchanged, created
     np.testing.assert_allclose(new_u, [[0.008, 0.09, 0.02]], rtol=1e-6)
     assert (stats.observed, stats.fused, stats.created) == (2, 1, 1)
+    np.testing.assert_array_equal(stats.fused_mask, [[True, False, True]])  # what took this frame's stereo
     np.testing.assert_array_equal(d, [[2.0, 3.0, 0.0]])  # inputs untouched
 
 

@@ -132,6 +132,22 @@ def test_prediction_scale_alignment_keeps_the_key_frames_at_one_scale(room, room
     assert spread(aligned) < 0.7 * spread(CFG)  # 0.004 against 0.019 here
 
 
+def test_key_frames_count_the_stereo_they_took(room, room_sequence) -> None:
+    """Every key-frame refined by its frames knows, per pixel, how many frames' stereo it took (eq. 10-11): more at
+    textured pixels (strong gradients) than on flat ones, never more than the frames tracked on it."""
+    predictor = DegradedGroundTruthPredictor(train_focal=259.58, seed=7)
+    slam = CnnSlam(CFG, room.intrinsics, (240, 320), predictor)
+    for k, (rgb, depth, _) in enumerate(room_sequence):
+        slam.process(rgb, k / 30.0, GroundTruthHint(depth))
+    kf = slam.keyframes[0]
+    count = kf.maps.stereo_count
+    assert count is not None and count.dtype == np.uint16 and count.shape == (240, 320)
+    assert 0 < count.max() <= kf.frames_tracked
+    g = kf.pyramid.grad_x[0] ** 2 + kf.pyramid.grad_y[0] ** 2
+    assert count[g > np.percentile(g, 90)].mean() > count[g < np.percentile(g, 10)].mean()
+    slam.finish()
+
+
 def test_released_working_sets_are_made_again_with_the_same_bytes(room, room_sequence) -> None:
     """Key-frames older than the newest ``system.working_keyframes`` drop their pyramid and tracking points and make
     them again on use (alignments, recovery after the lost frame): the run's bytes are those of a run that keeps
