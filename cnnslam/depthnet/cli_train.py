@@ -143,6 +143,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     e = sub.add_parser("export", help="copy a run's weights + manifest to the shipped default")
     e.add_argument("--run", type=Path, default=Path(d.out_dir))
 
+    ds = sub.add_parser("data-statistics", help="image statistics and depth distributions of the training rooms, the "
+                                                "simulated test sequences and real folders -> results/depthnet_data.md")
+    ds.add_argument("folders", nargs="*", type=Path, help="real RGB-D folders to compare with (test data)")
+    ds.add_argument("--root", type=Path, default=Path("data/depthnet/shipped"),
+                    help="the recipe's folder; its first --rooms training rooms are rendered there if missing")
+    ds.add_argument("--rooms", type=int, default=40, help="training rooms sampled (the recipe's first ones)")
+    ds.add_argument("--frames", type=int, default=200, help="frames per domain")
+    ds.add_argument("--camera", default=DEFAULT_CAMERA_EFFECTS, metavar="PRESET",
+                    help="the world's camera of the simulated test sequences")
+    ds.add_argument("--results", type=Path, default=Path("results"))
+
     rc = sub.add_parser("recipe", help="retrain the shipped network from nothing: render its data, fit (resumable)")
     rc.add_argument("--root", type=Path, default=Path("data/depthnet/shipped"),
                     help="folder of the recipe's data (data/) and run (run/)")
@@ -309,6 +320,42 @@ def _validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _data_statistics(args: argparse.Namespace) -> int:
+    from cnnslam.depthnet.data import generate_dataset
+    from cnnslam.depthnet.data_report import (
+        data_statistics_markdown,
+        domain_statistics,
+        source_frames,
+        training_frames,
+    )
+    from cnnslam.depthnet.recipe import SHIPPED
+    from cnnslam.depthnet.validate import VALIDATION_SEQUENCES
+    from sim_envs.datasets import load_rgbd_folder
+    from sim_envs.errors import SimEnvError
+    from sim_envs.sequences import get_sequence, with_camera
+    from sim_envs.simsource import SimulatedSequence
+
+    try:
+        folders = [load_rgbd_folder(f) for f in args.folders]
+    except SimEnvError as exc:
+        print(f"cnnslam train data-statistics: error: {exc}", file=sys.stderr)
+        return 2
+    data = args.root / "data"
+    generate_dataset(data, "train", replace(SHIPPED.generation, n_scenes=args.rooms), 2, _progress("rooms"))
+    rows = [domain_statistics(f"training rooms ({SHIPPED.name}, first {args.rooms})",
+                              training_frames(data, args.frames))]
+    per_seq = max(2, args.frames // len(VALIDATION_SEQUENCES))
+    sim = (pair for name in VALIDATION_SEQUENCES
+           for pair in source_frames(SimulatedSequence(with_camera(get_sequence(name), args.camera)), per_seq))
+    rows.append(domain_statistics(f"simulated test sequences ({args.camera})", sim))
+    rows += [domain_statistics(f"{src.name} (real)", source_frames(src, args.frames)) for src in folders]
+    args.results.mkdir(parents=True, exist_ok=True)
+    out = args.results / "depthnet_data.md"
+    out.write_text(data_statistics_markdown(rows))
+    print(f"wrote {out}")
+    return 0
+
+
 def _recipe(args: argparse.Namespace) -> int:
     from cnnslam.depthnet.recipe import SHIPPED, run_recipe
 
@@ -328,6 +375,8 @@ def run(args: argparse.Namespace) -> int:
     """Dispatch the action."""
     if args.action == "recipe":
         return _recipe(args)
+    if args.action == "data-statistics":
+        return _data_statistics(args)
     if args.action == "generate-data":
         return _generate(args)
     if args.action == "fit":

@@ -2,9 +2,10 @@
 
 ``cnnslam train recipe`` runs :func:`run_recipe` with :data:`SHIPPED` (one command retrains the shipped network; the
 README says how long it takes on 2 CPU cores and on a GPU). Every step is resumable (finished shards are skipped, the
-fit continues from its checkpoint), and every output is a function of the recipe alone: the same recipe gives the
-same data bytes on any machine, and the same weights up to the last bits of the arithmetic (a GPU's bf16 or
-another CPU's kernels differ there).
+fit continues from its checkpoint), and every output is a function of the recipe alone: the same recipe and renderer
+give the same data bytes (another OpenGL implementation, e.g. a GPU's against Mesa's llvmpipe, rasterises a few edge
+pixels differently), and the batches are the same on any machine (the weights then differ in the last bits of the
+arithmetic: a GPU's bf16 or another CPU's kernels).
 
 What the recipe is made of, and why (ours; real frames are never used: they are test data):
 
