@@ -21,17 +21,21 @@ def register(name: str, module: str, help_text: str) -> None:
     SUBCOMMANDS[name] = (module, help_text)
 
 
-register("eval", "eval.cli_eval", "score an estimated trajectory against ground truth (like evo_ape)")
-register("regress", "eval.cli_regress", "compare a run's metrics with a committed baseline (regression gate)")
-register("export", "eval.cli_export", "write a registered sequence as a TUM RGB-D folder")
-register("reference", "eval.cli_reference", "an SfM reference (COLMAP, self-calibrated camera) for a real RGB-D folder")
+register("eval", "eval.commands.cli_eval", "score an estimated trajectory against ground truth (like evo_ape)")
+register("regress", "eval.commands.cli_regress", "compare a run's metrics with a committed baseline (regression gate)")
+register("export", "eval.commands.cli_export", "write a registered sequence as a TUM RGB-D folder")
+register("reference", "eval.commands.cli_reference",
+         "an SfM reference (COLMAP, self-calibrated camera) for a real RGB-D folder")
 register("contact-sheet", "sim_envs.cli_contact_sheet", "render RGB / depth / labels of named sequences to a PNG")
 register("bench-render", "sim_envs.bench_render", "render throughput of the MuJoCo and pyrender renderers (fps)")
 register("train", "cnnslam.depthnet.cli_train", "depth network: generate data, train, validate, export")
 register("bench-slam", "cnnslam.bench_slam", "CNN-SLAM speed: tracking and whole-system frames per second")
-register("bench", "eval.cli_bench", "run a benchmark suite (table1, lengths, transfer, preprocessing, quick, ...)")
-register("generate", "eval.cli_generate", "generate rotation stress sequences (and export them as TUM RGB-D folders)")
-register("config", "eval.cli_config", "print the exact configuration a method's runs use (with --set overrides)")
+register("bench", "eval.commands.cli_bench",
+         "run a benchmark suite (table1, lengths, transfer, preprocessing, quick, ...)")
+register("generate", "eval.commands.cli_generate",
+         "generate rotation stress sequences (and export them as TUM RGB-D folders)")
+register("config", "eval.commands.cli_config",
+         "print the exact configuration a method's runs use (with --set overrides)")
 register("map", "cnnslam.cli_map", "run an agent, fuse its key-frames into the global model: PLY, pictures, metrics")
 
 

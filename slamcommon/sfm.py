@@ -1,6 +1,6 @@
 """COLMAP's incremental structure from motion (through pycolmap), shared by the judge and the agents.
 
-Two users: the SfM reference of real folders (:mod:`eval.sfm_reference`, ``cnnslam reference``: self-calibrated
+Two users: the SfM reference of real folders (:mod:`eval.metrics.sfm_reference`, ``cnnslam reference``: self-calibrated
 camera, a second reference beside a folder's ground truth) and COLMAP as a benchmark method
 (:mod:`thirdparty.colmap_sfm`: the offline baseline of a monocular SLAM benchmark, with the camera given). Both run
 the same pipeline, :func:`reconstruct`, and read poses with :func:`model_poses`. pycolmap is optional (the ``sfm``

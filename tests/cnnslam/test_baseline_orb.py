@@ -11,8 +11,8 @@ import pytest
 
 from cnnslam.baselines.orb import OrbSlam, OrbSlamAgent
 from cnnslam.errors import CnnSlamError
-from eval.metrics import evaluate_trajectory
-from eval.trajectory import PoseTrajectory
+from eval.metrics.trajectory import PoseTrajectory
+from eval.metrics.trajectory_metrics import evaluate_trajectory
 from sim_envs.agent import load_agent
 from sim_envs.driver import run_episode
 from sim_envs.env import SlamEnv
