@@ -35,11 +35,17 @@ class SfmError(MetricError):
     """Structure from motion could not run or registered nothing (pycolmap missing, too few images, ...)."""
 
 
+class SfmUnavailableError(SfmError):
+    """COLMAP itself cannot run here (pycolmap missing or failing to import): a caller that turns a reconstruction
+    that registered nothing into a result must not do so for this."""
+
+
 def _pycolmap() -> Any:
     try:
         import pycolmap
     except ImportError as exc:  # an optional dependency (the sfm extra)
-        raise SfmError("structure from motion needs pycolmap: pip install 'cnnslam[sfm]' (or pycolmap>=3.12)") from exc
+        raise SfmUnavailableError("structure from motion needs pycolmap: pip install 'cnnslam[sfm]' (or "
+                                  "pycolmap>=3.12)") from exc
     return pycolmap
 
 

@@ -177,11 +177,10 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     report must give +1 for the first pair and -1 for the second, never mixing the lengths."""
     from dataclasses import replace
 
-    from tests.eval.reports.test_suite_reports import fake_run
-
     from eval.bench.sequence_ref import SequenceRef
     from eval.bench.suites import TransferPart, get_suite
     from eval.reports.transfer_report import report_transfer
+    from tests.eval.reports.test_suite_reports import fake_run
 
     methods = ("CNN-SLAM", "LSD", "ORB")
     sims = tuple(SequenceRef(f"{n}@kinect", base=n, overrides={"camera_effects": "kinect"})
