@@ -233,3 +233,53 @@ def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[RunRecord]]
     figures.update(machines)
     runs = {name: seed_figures(rs) for name, rs in records.items()}
     return calibrate(figures, matrix[0].name, k=k, description=description, how=how, runs=runs)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """What :func:`calibrate_suite` made: each configuration's runs (name -> :class:`SuiteRun`), the runs that failed
+    (one line each; then no baseline is written), the ``baseline`` written to ``baseline_path`` (None when runs
+    failed), this machine's record file, the other machines' records left out and why, and one summary line."""
+
+    runs: dict[str, SuiteRun]
+    failed: tuple[str, ...]
+    baseline_path: Path
+    baseline: Baseline | None = None
+    machine_file: Path | None = None
+    left_out: tuple[str, ...] = ()
+    summary: str = ""
+
+
+def calibrate_suite(suite: Suite, methods: Mapping[str, Any], out_root: str | Path, baseline_path: str | Path,
+                    description: str, *, renderer: str = "mujoco", timeout_s: float | None = None,
+                    progress: bool = True, revision: str = "") -> Calibration:
+    """``--calibrate`` as a call: the suite under every configuration of :data:`MATRIX` (:func:`measure`), this
+    machine's reference figures recorded in ``<baseline dir>/machines/<suite>/``, and the baseline with tolerances
+    from the spread over the matrix and the other machines' records of the same runs written to ``baseline_path``
+    (:func:`calibrated_baseline`). Nothing is written when a run failed."""
+    from eval.bench.regress import save_baseline
+
+    runs: dict[str, SuiteRun] = {}
+    failed: list[str] = []
+
+    def note(config: Perturbation, run: SuiteRun) -> None:
+        runs[config.name] = run
+        failed.extend(f"{config.name}: {o.key}: {o.error}" for o in run.failed)
+
+    records = measure(suite, methods, out_root, progress=progress, on_config=note, renderer=renderer,
+                      timeout_s=timeout_s)  # fmt: skip
+    path = Path(baseline_path)
+    if failed:
+        return Calibration(runs, tuple(failed), path, summary=f"not writing a baseline: {len(failed)} run(s) failed")
+    own = save_machine_record(machine_record(suite, records[MATRIX[0].name], revision), path.parent / "machines" /
+                              suite.name)  # fmt: skip
+    machines, left_out = load_machine_records(own.parent, suite.name, run_fingerprints(records[MATRIX[0].name]),
+                                              exclude=own.name)  # fmt: skip
+    baseline = calibrated_baseline(suite, records, description, MATRIX, machines=machines)
+    save_baseline(baseline, path)
+    holdout = baseline.calibration["holdout"]
+    summary = (f"wrote {path}: {len(baseline.metrics)} gated figures, {len(baseline.calibrated)} calibrated; held-out "
+               f"false alarms {holdout['alarms']} of {holdout['comparisons']} comparisons "
+               f"({holdout['runs_with_alarm']} of {holdout['held_out']} held-out configurations would fail); other "
+               f"machines folded in: {', '.join(sorted(machines)) or 'none'}; this machine's figures: {own}")
+    return Calibration(runs, (), path, baseline, own, tuple(left_out), summary)

@@ -21,6 +21,7 @@ accuracy, IoU), ``map`` (the global model's accuracy, completeness and fused-lab
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import importlib.util
@@ -34,8 +35,10 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from eval.errors import EvalError
+from eval.errors import InputError
 from slamcommon.alignment import AlignmentMethod
+from slamcommon.config import config_keys, has_key
+from slamcommon.errors import ProjectError
 
 MethodKind = Literal["agent", "external"]
 METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
@@ -64,8 +67,9 @@ FOLDER/method.toml                   optional: sensor = "mono" | "rgbd" | "stere
 _FILE_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
 
-class MethodError(EvalError):
-    """A method definition that cannot be used (bad table, unknown name, an agent that cannot be imported)."""
+class MethodError(InputError):
+    """A method definition or choice that cannot be used (a bad table, an unknown name, a setting its configuration
+    does not take)."""
 
 
 @dataclass(frozen=True)
@@ -383,6 +387,18 @@ def parse_external(text: str) -> Method:
     return external_method(name.strip(), folder.strip())
 
 
+def method_table(method_file: str | Path | None = None, externals: Sequence[str] = (),
+                 override: bool = False) -> dict[str, Method]:
+    """The methods a benchmark may name: the built-in table (:data:`METHODS_FILE`), plus the methods of
+    ``method_file`` and the ``NAME=FOLDER`` ``externals`` (:func:`parse_external`); a name of the built-in table
+    redefined is an error unless ``override`` (:func:`merge_methods`)."""
+    table = load_methods()
+    if method_file is not None:
+        table = merge_methods(table, load_methods(method_file), str(method_file), override)
+    added = {m.name: m for m in (parse_external(text) for text in externals)}
+    return merge_methods(table, added, "--external", override)
+
+
 # ------------------------------------------------------------------------------------------------ availability
 def check_available(method: Method, build: bool = True) -> str | None:
     """None when the method can run here, else a one-line reason.
@@ -390,7 +406,9 @@ def check_available(method: Method, build: bool = True) -> str | None:
     Agents: the entry point's module imports and has the attribute; with ``build``, the agent is also built with
     its keyword arguments, reset for a 320x240 camera and stepped once on a synthetic image (:func:`_smoke_test`:
     this loads a network's weights, so a missing weights file is found before any run starts); its ``inputs`` are
-    readable files. External: the folder exists.
+    readable files. Only what this machine lacks makes a reason (an ImportError or OSError: a module, a library, a
+    file): an agent that is there and raises anything else is no method that "cannot run here" but a broken one,
+    and its runs fail, each with its error, in the report's failure table. External: the folder exists.
     """
     if method.kind == "external":
         folder = Path(method.folder or "")
@@ -411,8 +429,10 @@ def check_available(method: Method, build: bool = True) -> str | None:
         return None
     try:
         _smoke_test(factory(**method.agent_kwargs(0)))
-    except Exception as exc:  # noqa: BLE001 - the reason is reported, the method skipped
+    except (ImportError, OSError) as exc:  # a module, library or file this machine lacks: it cannot run here
         return f"cannot run {method.entry_point} with {method.agent_kwargs(0)}: {type(exc).__name__}: {exc}"
+    except Exception:  # noqa: BLE001 - an agent that runs here and fails: its runs fail, each with its error
+        return None
     return None
 
 
@@ -489,6 +509,60 @@ def takes_config(method: Method) -> bool:
         return "config" in inspect.signature(factory).parameters
     except (ImportError, AttributeError, TypeError, ValueError):
         return False
+
+
+def agent_configuration(method: Method) -> Any:
+    """The configuration the method's agent runs with: its ``config`` attribute (a frozen dataclass,
+    :mod:`slamcommon.config`), read from the agent built with the method's keyword arguments (seed 0) through
+    :func:`sim_envs.agent.load_agent` (a network is loaded only when first used); None for an external method or an
+    agent that has none. Raises what building raises: a :class:`~slamcommon.errors.ProjectError` for keyword
+    arguments the agent refuses, an ImportError where it cannot run here."""
+    if method.kind != "agent" or not method.entry_point:
+        return None
+    from sim_envs.agent import load_agent
+
+    config = getattr(load_agent(method.entry_point, **method.agent_kwargs(0)), "config", None)
+    return config if dataclasses.is_dataclass(config) and not isinstance(config, type) else None
+
+
+def apply_settings(methods: Sequence[Method], settings: Sequence[tuple[str, Any]]
+                   ) -> tuple[dict[str, Method], dict[str, tuple[str, ...]]]:
+    """``settings`` (``--set``: ``(dotted key, value)``) put into each of ``methods`` whose configuration
+    (:func:`agent_configuration`) has the key, checked before any run: returns the methods (name -> method, with the
+    settings that apply merged into its ``config`` keyword, so its runs' fingerprints carry them) and, per key, the
+    names of the methods it went to. :class:`MethodError` for a key no chosen method's configuration has, or a value
+    a method's configuration refuses (a type, a range), naming the key, the method and what is valid. A method that
+    cannot be built here (an import failure) is left as it is: the suite's check skips it with its reason."""
+    configs: dict[str, Any] = {}
+    for method in methods:
+        try:
+            config = agent_configuration(method)
+        except ProjectError as exc:
+            raise MethodError(f"method {method.name!r} refuses its own keyword arguments: {exc}") from None
+        except Exception:  # noqa: BLE001 - cannot be built here: reported by the suite's check, with the reason
+            continue
+        if config is not None:
+            configs[method.name] = config
+    applied: dict[str, tuple[str, ...]] = {}
+    for key, _ in settings:
+        applied[key] = tuple(name for name, config in configs.items() if has_key(config, key))
+        if not applied[key]:
+            keys = {name: config_keys(config) for name, config in configs.items()}
+            raise MethodError(f"--set {key}: no chosen method's configuration has this key; "
+                              + ("; ".join(f"{n}'s keys: {', '.join(k[:6])}{', ...' if len(k) > 6 else ''}"
+                                           for n, k in keys.items()) or
+                                 f"none of the chosen methods ({', '.join(m.name for m in methods)}) has a "
+                                 "configuration") + " (cnnslam config METHOD prints them all)")  # fmt: skip
+    out: dict[str, Method] = {}
+    for method in methods:
+        mine = [(key, value) for key, value in settings if method.name in applied[key]]
+        out[method.name] = with_settings(method, mine) if mine else method
+        if mine:
+            try:
+                agent_configuration(out[method.name])
+            except ProjectError as exc:
+                raise MethodError(f"--set for {method.name}: {exc}") from None
+    return out, applied
 
 
 def with_settings(method: Method, settings: Sequence[tuple[str, Any]]) -> Method:

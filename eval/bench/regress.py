@@ -56,6 +56,7 @@ import math
 import statistics
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
+from enum import StrEnum
 from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any, Literal
@@ -371,7 +372,7 @@ def save_baseline(baseline: Baseline, path: str | Path) -> Path:
 
 def update_baseline(
     path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None,
-    description: str | None = None, only_new: bool = False,
+    description: str | None = None, only_new: bool = False, replace_all: bool = False,
 ) -> Baseline:
     """Replace the baseline's metrics by the run's, keeping everything else it holds (tolerances, policy,
     calibrated tolerances and their record), or ``tolerances`` / ``description`` where given; write and return it.
@@ -381,9 +382,18 @@ def update_baseline(
     ``only_new``: add the run's figures the baseline does not hold yet (a newly gated metric) and keep every figure
     it holds as it is (their calibration was measured around them, on the machines of its record); the default
     tolerance rules whose patterns the baseline lacks are appended to its rules, so the new figures get theirs.
+
+    An update that would drop gated figures (the baseline holds figures the run lacks: another selection of
+    sequences or methods) is refused with :class:`GateError`, unless ``replace_all`` (``--replace``): a gate whose
+    figures silently shrink to another run's no longer gates what it did.
     """
     path = Path(path)
     old = load_baseline(path) if path.exists() else Baseline({})
+    dropped = sorted(set(old.metrics) - set(run_metrics))
+    if dropped and not (only_new or replace_all):
+        raise GateError(f"not updating {path}: the run lacks {len(dropped)} of its {len(old.metrics)} gated figures "
+                        f"(e.g. {dropped[0]}), which the update would drop; --replace to replace them by the run's "
+                        f"{len(run_metrics)}, --only-new to add the run's new figures only")  # fmt: skip
     if only_new:
         added = {k: v for k, v in run_metrics.items() if k not in old.metrics}
         patterns = {t.pattern for t in old.tolerances}
@@ -400,6 +410,57 @@ def update_baseline(
         new = replace(new, description=description)
     save_baseline(new, path)
     return new
+
+
+# ---------------------------------------------------------------------------------------------- the gate, as a call
+class GateAction(StrEnum):
+    """What a benchmark does with its suite's baseline: ``COMPARE`` (the gate: a gated suite, or a baseline named),
+    ``UPDATE`` (write the run's gated figures, refusing to drop any the baseline holds), ``REPLACE`` (write them,
+    dropping what the run lacks), ``CALIBRATE`` (measure the tolerances, :mod:`eval.bench.calibrate`), ``OFF``."""
+
+    COMPARE = "compare"
+    UPDATE = "update"
+    REPLACE = "replace"
+    CALIBRATE = "calibrate"
+    OFF = "off"
+
+
+@dataclass(frozen=True)
+class GateOutcome:
+    """What the gate did: ``action``, the ``baseline`` file, the comparison's ``report`` (COMPARE), ``passed``
+    (False: the command's exit status 1) and one line saying what happened."""
+
+    action: GateAction
+    baseline: Path
+    passed: bool
+    message: str
+    report: GateReport | None = None
+
+
+def apply_gate(records: Sequence[RunRecord], action: GateAction, baseline: str | Path, *, gated: bool,
+               description: str, incomplete: str = "") -> GateOutcome | None:
+    """Compare a suite's run records with its ``baseline`` or write them into it (``action``). COMPARE runs when the
+    suite is ``gated`` or the baseline was named (then ``gated`` is True too); None when nothing was to be done.
+    ``incomplete``: why the runs cannot make a baseline (failed runs, skipped methods; empty when they can).
+    ``description``: the baseline's, when written."""
+    path = Path(baseline)
+    metrics = gate_metrics(records)
+    if action in (GateAction.UPDATE, GateAction.REPLACE):
+        if incomplete:
+            return GateOutcome(action, path, False, f"not updating {path}: {incomplete}")
+        try:
+            new = update_baseline(path, metrics, description=description, replace_all=action is GateAction.REPLACE)
+        except GateError as exc:
+            return GateOutcome(action, path, False, str(exc))
+        return GateOutcome(action, path, True, f"updated {path}: {len(metrics)} gated figures ({len(new.calibrated)} "
+                           "with calibrated tolerances; recalibrate with --calibrate after a change of the methods' "
+                           "spread)")  # fmt: skip
+    if action is not GateAction.COMPARE or not gated:
+        return None
+    if not path.exists():
+        return GateOutcome(action, path, True, f"no baseline at {path}; create it with --update-baseline")
+    report = compare(load_baseline(path), metrics)
+    return GateOutcome(action, path, report.passed, format_report(report, only_changes=True), report)
 
 
 # -------------------------------------------------------------------------------------------------- calibration

@@ -21,7 +21,7 @@ from eval.bench.executors import Executor, SerialExecutor
 from eval.bench.methods import Method, check_methods
 from eval.bench.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
 from eval.bench.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
-from eval.bench.suites import Suite
+from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
 from eval.metrics.results import RunRecord, json_ready, load_run
 
@@ -138,8 +138,9 @@ def run_suite(
     unknown = [m for m in suite.methods if m not in methods]
     if unknown:
         raise RunnerError(f"suite {suite.name!r}: unknown method(s) {unknown}; valid methods: {', '.join(methods)}")
-    if suite.kind != "runs":
-        raise RunnerError(f"suite {suite.name!r} runs no agents (kind {suite.kind!r})")
+    if suite.kind is not SuiteKind.RUNS:
+        raise RunnerError(f"suite {suite.name!r} is made of parts or runs no agents (kind {suite.kind.value!r}): "
+                          "eval.bench.benchmark.run_bench runs every kind")
     out_root = Path(out_root)
     executor = executor or SerialExecutor()
     revision = revision if revision is not None else git_revision()

@@ -390,6 +390,18 @@ def folder_ref(
     )
 
 
+def parse_image_size(text: str | tuple[int, int] | None) -> FolderSize | None:
+    """An image size as options give it: ``"WxH"`` (``"320x240"``), ``"native"``, a ``(W, H)`` pair, or None (the
+    default); :class:`SuiteError` naming the text otherwise."""
+    if text is None or text == "native" or isinstance(text, tuple):
+        return _folder_size(text) if isinstance(text, tuple) else text
+    try:
+        width, height = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise SuiteError(f"--image-size must be WIDTHxHEIGHT (e.g. 320x240) or native, got {text!r}") from None
+    return _folder_size((width, height))
+
+
 def _folder_size(size: Any) -> FolderSize:
     if size == "native":
         return "native"

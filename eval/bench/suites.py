@@ -38,6 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from enum import StrEnum
 from pathlib import Path
 from typing import Any, Literal
 
@@ -60,8 +61,20 @@ from sim_envs.errors import SimEnvError
 from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variants
 from sim_envs.trajectories import ROTATION_AXES
 
+
 # --------------------------------------------------------------------------------------------------- the suites
-SuiteKind = Literal["runs", "perf", "transfer", "lengths", "preprocessing"]
+class SuiteKind(StrEnum):
+    """What a suite is made of: ``RUNS``, its own runs (one report of :data:`REPORT_LAYOUTS`); ``PERF``, throughput
+    probes and no agent runs; ``TRANSFER``, ``LENGTHS``, ``PREPROCESSING``, several parts each run as a plain suite
+    (:func:`transfer_parts`, :func:`length_parts`, :func:`preprocessing_parts`) with one report over all of them
+    (the table of parts and writers: :data:`eval.bench.benchmark.KINDS`)."""
+
+    RUNS = "runs"
+    PERF = "perf"
+    TRANSFER = "transfer"
+    LENGTHS = "lengths"
+    PREPROCESSING = "preprocessing"
+
 
 # camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
 SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
@@ -117,13 +130,13 @@ BASELINE_DIR: Path = Path("results") / "baselines"  # relative to the working di
 class Suite:
     """A suite: ``sequences`` x ``methods`` (names of the method table) x ``seeds`` (the runs of each cell, see
     ``eval/methods.toml`` for what a seed changes per method), each run on the first ``frames`` frames (None: whole
-    sequences); ``alignment`` of the ATE (``slamcommon.alignment``; a method's own ``align`` wins); ``kind`` "perf" for
-    the throughput suite, which runs no agents; ``skipped``: ``(name, reason)`` of sequences it lists but cannot
-    run here (a dataset folder that is missing).
+    sequences); ``alignment`` of the ATE (``slamcommon.alignment``; a method's own ``align`` wins); ``kind``: what
+    the suite is made of (:class:`SuiteKind`); ``skipped``: ``(name, reason)`` of sequences it lists but cannot run
+    here (a dataset folder that is missing).
 
     The suite also names what is made of its runs: ``report``, the layout of its report (:data:`REPORT_LAYOUTS`,
-    written by :func:`eval.reports.suite_reports.write_report`); ``gated``: ``cnnslam bench`` compares its runs with its
-    ``baseline`` file (default ``results/baselines/<name>.json``) unless told not to; ``real_folders``: its
+    written by :func:`eval.reports.suite_reports.write_report`); ``gated``: ``cnnslam bench`` compares its runs with
+    its ``baseline`` file (default ``results/baselines/<name>.json``) unless told not to; ``real_folders``: its
     sequences are the folders of the local dataset list, read when the suite is asked for (:func:`get_suite`).
     Nothing else in the code switches on a suite's name."""
 
@@ -134,7 +147,7 @@ class Suite:
     frames: int | None = None
     seeds: tuple[int, ...] = tuple(range(DEFAULT_RUNS))
     alignment: str = "se3"
-    kind: SuiteKind = "runs"
+    kind: SuiteKind = SuiteKind.RUNS
     skipped: tuple[tuple[str, str], ...] = ()
     report: str = "generic"
     gated: bool = False
@@ -212,6 +225,27 @@ class Suite:
             seeds=tuple(int(s) for s in seeds) if seeds else self.seeds,
             skipped=skipped,
         )
+
+    def selection_note(self) -> str:
+        """How this suite's cells differ from the suite as defined (:func:`get_suite`), in words: the sequences and
+        methods it leaves out or adds (any frames, seeds or alignment are the same cells); empty when it holds
+        exactly the defined suite's sequences and methods, or when its name defines no suite."""
+        try:
+            defined = get_suite(self.name)
+        except SuiteError:
+            return ""
+        notes = []
+        for what, own, theirs in (("sequences", [s.name for s in self.sequences], [s.name for s in defined.sequences]),
+                                  ("methods", list(self.methods), list(defined.methods))):  # fmt: skip
+            if set(own) == set(theirs):
+                continue
+            kept = [n for n in own if n in theirs]
+            added = [n for n in own if n not in theirs]
+            if kept:
+                notes.append(f"{len(kept)} of its {len(theirs)} {what} ({', '.join(kept)})")
+            if added:
+                notes.append(f"{what} not among its {len(theirs)}: {', '.join(added)}")
+        return "; ".join(notes)
 
     @property
     def is_default(self) -> bool:
@@ -300,7 +334,8 @@ def _suites() -> dict[str, Suite]:
             report="depth_quality",
         ),
         "perf": Suite(
-            "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time", kind="perf"
+            "perf", "throughput: render fps, CNN ms/frame, tracking and whole-system fps, metrics time",
+            kind=SuiteKind.PERF,
         ),
         "real": Suite(
             "real",
@@ -320,7 +355,7 @@ def _suites() -> dict[str, Suite]:
             (),
             TRANSFER_METHODS,
             frames=BENCH_FRAMES,
-            kind="transfer",
+            kind=SuiteKind.TRANSFER,
             real_folders=True,
         ),
         "lengths": Suite(
@@ -331,7 +366,7 @@ def _suites() -> dict[str, Suite]:
             table1,
             TRANSFER_METHODS,
             frames=None,
-            kind="lengths",
+            kind=SuiteKind.LENGTHS,
         ),
         "preprocessing": Suite(
             "preprocessing",
@@ -342,7 +377,7 @@ def _suites() -> dict[str, Suite]:
             (),
             TRANSFER_METHODS,
             frames=BENCH_FRAMES,
-            kind="preprocessing",
+            kind=SuiteKind.PREPROCESSING,
             real_folders=True,
         ),
         "quick": Suite(
@@ -419,7 +454,7 @@ def preprocessing_parts(suite: Suite) -> list[tuple[str, Suite, tuple[tuple[str,
     preprocessing suite's folders as the loader delivers them by default (choice ``default``), then, per choice of
     :data:`PREPROCESSING_CHOICES`, on the folders it applies to, named ``<folder>~<choice>``; ``domains``: each
     sequence's folder (the name the default gives it). Frames, methods and seeds are the preprocessing suite's."""
-    if suite.kind != "preprocessing":
+    if suite.kind is not SuiteKind.PREPROCESSING:
         raise SuiteError(f"suite {suite.name!r} is not a preprocessing suite")
     base = replace(SUITES["real"], methods=suite.methods, frames=suite.frames, seeds=suite.seeds, skipped=suite.skipped)
     folders = [r for r in suite.sequences if r.folder is not None]
@@ -457,7 +492,7 @@ def length_parts(suite: Suite, lengths: Sequence[int | None] = SWEEP_LENGTHS) ->
     """The suites the ``lengths`` suite is made of: for each of ``lengths`` (frames; None: whole sequences), the
     ``table1`` suite on the lengths suite's sequences, methods and seeds, on the first ``length`` frames (its runs
     are ``make bench``'s and ``cnnslam bench table1``'s own)."""
-    if suite.kind != "lengths":
+    if suite.kind is not SuiteKind.LENGTHS:
         raise SuiteError(f"suite {suite.name!r} is not a length sweep")
     bad = [n for n in lengths if n is not None and int(n) < 2]
     if bad or not lengths:
@@ -495,7 +530,7 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     trajectory files (real hand-held motion) replayed in the same rooms (:meth:`SequenceRef.with_motion`), each a
     simulated domain ``sim:<preset>~<file stem>`` of its own beside the preset's, so that the motion's share of the
     gap to the real rankings can be told from the images'."""
-    if suite.kind != "transfer":
+    if suite.kind is not SuiteKind.TRANSFER:
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
     labels = [motion_label(m) for m in motions]
     if len(set(labels)) != len(labels):

@@ -168,6 +168,17 @@ class RunRecord:
         )
 
 
+def coverage(metrics: Mapping[str, float]) -> tuple[int, int] | None:
+    """How much of its sequence a run's trajectory covers, from its metrics: ``(poses scored, frames)`` (the ATE's
+    pose pairs, ``ate_pairs``, and the sequence's frames the run was given, ``frames``) when the run scored fewer poses
+    than its frames (an external system's trajectory with frames missing); None for a whole run or one without
+    trajectory metrics. A partial run's figures are over the poses it has, not its sequence: tables say so."""
+    pairs, frames = metrics.get("ate_pairs"), metrics.get("frames")
+    if pairs is None or frames is None or not (math.isfinite(pairs) and math.isfinite(frames)) or pairs >= frames:
+        return None
+    return int(pairs), int(frames)
+
+
 # ------------------------------------------------------------------------------------------------- one episode
 def evaluate_episode(
     result: Any,

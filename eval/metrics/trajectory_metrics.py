@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from eval.errors import EvalError
+from eval.errors import BrokenRunError, EvalError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, Association, AssociationRule, associate, associated_pair
 from eval.metrics.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
 from slamcommon.alignment import (
@@ -56,6 +56,8 @@ from slamcommon.alignment import (
     orientation_alignment,
     umeyama_alignment,
 )
+
+MIN_POSE_PAIRS = 2  # a trajectory to align and score: one pose always aligns onto its ground truth (ATE 0)
 
 
 class RpeUnit(StrEnum):
@@ -345,12 +347,17 @@ def evaluate_trajectory(
 ) -> TrajectoryMetrics:
     """Associate, align and measure an estimated trajectory against ground truth (see the module docstring).
 
-    ``tracked``: optional (len(est),) bool, what the agent reported per frame.
+    ``tracked``: optional (len(est),) bool, what the agent reported per frame. Fewer than :data:`MIN_POSE_PAIRS`
+    associated poses is no trajectory to align or compare (one pose always aligns onto its ground truth: ATE 0):
+    :class:`~eval.errors.BrokenRunError`, never a figure.
     """
     unit = parse_rpe_unit(rpe_unit)
     if tracked is not None and np.asarray(tracked).reshape(-1).size != len(est):
         raise EvalError(f"tracked has {np.asarray(tracked).size} entries for an estimate of {len(est)} poses")
     assoc = associate(gt, est, association, max_difference, offset)
+    if len(assoc) < MIN_POSE_PAIRS:
+        raise BrokenRunError(f"only {len(assoc)} pose(s) of the estimate ({len(est)} given) match the ground truth's "
+                             f"{len(gt)}: a trajectory needs at least {MIN_POSE_PAIRS} to be aligned and scored")
     gt_m, est_m = associated_pair(gt, est, assoc)
     T_gt, T_est = gt_m.T_world_cam, est_m.T_world_cam
     fit = align(T_gt, T_est, alignment)

@@ -39,6 +39,8 @@ from eval.reports.plots import save_accuracy_scatter, save_depth_error_row_figur
 from eval.reports.tables import (
     AVG_LABEL,
     TABLE1_BLOCKS,
+    Spread,
+    cell_text,
     spread_of,
     statistics_frame,
     table1,
@@ -126,12 +128,16 @@ def write_long_csv(run: SuiteRun, results_dir: str | Path, frame: pd.DataFrame |
 
 # ------------------------------------------------------------------------------------------------ Markdown parts
 def header_markdown(run: SuiteRun, title: str, command: str) -> str:
-    """Title, what the suite is, and how it was made."""
+    """Title, what the report holds (the suite, or the selection from it: :meth:`Suite.selection_note`), and how it
+    was made."""
     suite = run.suite
     revisions = sorted({str(r.metadata.get("git_revision")) for r in run.records}) or ["-"]
     frames = "whole sequences" if suite.frames is None else f"the first {suite.frames} frames of each sequence"
+    note = suite.selection_note()
+    holds = (f"**A selection from suite `{suite.name}`**: {note}. The suite as defined: {suite.description}"
+             if note else f"{suite.description[:1].upper()}{suite.description[1:]}")  # fmt: skip
     return (
-        f"# {title}\n\n{suite.description[:1].upper()}{suite.description[1:]}.\n\n"
+        f"# {title}\n\n{holds}.\n\n"
         f"Made by `{command}`: {frames}, {len(suite.seeds)} run(s) per cell (seeds "
         f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`; a method that "
         "takes no seed is exact given its inputs and runs once), ATE after "
@@ -282,13 +288,10 @@ def with_relative_errors(frame: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([frame, *extra], ignore_index=True) if extra else frame
 
 
-Spread = tuple[pd.DataFrame, pd.DataFrame]
-
-
 def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]],
                  frame: pd.DataFrame | None = None) -> tuple[pd.DataFrame, Spread]:
     """The suite's table of ``blocks`` (cell medians) and its spread (the min and max tables: the range of each
-    cell's runs), from ``frame`` (default: the run's long frame, built once for both)."""
+    cell's runs; the partial cells), from ``frame`` (default: the run's long frame, built once for both)."""
     frame = long_frame(run) if frame is None else frame
     if frame.empty:
         frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
@@ -310,22 +313,22 @@ def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3
 def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int,
                       spread: Spread | None = None) -> str:
     """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number; with
-    ``spread`` (min and max tables), ours is ``median [min, max]``."""
+    ``spread`` (:func:`eval.reports.tables.spread_of`), ours is ``median [min, max]``, with a partial run's coverage.
+    The paper's Avg. is quoted only beside an Avg. over all nine of its sequences: an average over fewer is another
+    figure."""
     paper = paper_table1_frame()
     paper = paper[paper["metric"] == metric]
     paper_value = {(row.sequence, row.method): row.value for row in paper.itertuples()}
-    paper_avg = PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH
+    covered = {paper_name(label, "") for label in ours.index if label != AVG_LABEL}
+    paper_avg = (PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH) \
+        if covered >= set(PAPER_SEQUENCES) else {}
     block = ours[metric_block] if metric_block in ours.columns.get_level_values(0) else pd.DataFrame(index=ours.index)
     header = ["sequence", *block.columns]
     lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(block.columns)]
     for label, row in block.iterrows():
         cells = []
         for method, value in row.items():
-            text = "-" if pd.isna(value) else f"{value:.{digits}f}"
-            if spread is not None and not pd.isna(value):
-                lo, hi = (t.at[label, (metric_block, method)] for t in spread)
-                if not (pd.isna(lo) or pd.isna(hi) or lo == hi):
-                    text += f" [{lo:.{digits}f}, {hi:.{digits}f}]"
+            text = cell_text(value, label, (metric_block, method), spread, digits)
             if label == AVG_LABEL:
                 quoted = paper_avg.get(method, math.nan)
             else:
@@ -378,7 +381,7 @@ def _map_section(run: SuiteRun) -> list[str]:
     table = table.dropna(axis=1, how="all")
     if table.empty or table.shape[1] == 0:
         return []
-    spread = tuple(t[table.columns] for t in spread)
+    spread = Spread(spread.lo[table.columns], spread.hi[table.columns], spread.partial)
     return [
         "## Global model (Sec. 3.5, Fig. 1c)\n",
         "The key-frames fused live into the agent's surfel model, moved onto the ground truth with the run's ATE "

@@ -10,17 +10,23 @@ mean of the cells where seeds do not line up), shown only for a column with a va
 over a different subset of sequences would not compare). Missing cells are NaN in the numeric table and ``-`` when
 written, like REMODE's ATE in the paper. Written as CSV (numeric medians, two header rows), Markdown and LaTeX
 (``median [min, max]`` per cell where its runs differ), and the statistics in long form (:func:`statistics_frame`).
+
+A run that covers less than its sequence (an external trajectory with frames missing:
+:func:`eval.metrics.results.coverage`) shows it in its cell, ``0.012 (10/60 frames)`` (the cell's least covered
+run), and its column gets no Avg.: an average over part of a sequence is no average over the sequences.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
 from eval.errors import EvalError
+from eval.metrics.results import coverage
 
 TABLE1_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Abs. Trajectory Error [m]", "ate_rmse"),
@@ -41,6 +47,40 @@ def cell_statistics(frame: pd.DataFrame) -> pd.DataFrame:
     stats["q1"] = values.quantile(0.25)
     stats["q3"] = values.quantile(0.75)
     return stats[["runs", *STATISTICS]]
+
+
+Cells = dict[tuple[str, str], tuple[int, int]]
+
+
+class Spread(NamedTuple):
+    """What a table's cells are written with besides their medians: the ``lo`` and ``hi`` tables (each cell's
+    min and max over its runs) and ``partial``, (sequence, method) -> (poses scored, frames) of the cells with a run
+    covering less than its sequence (:func:`partial_cells`)."""
+
+    lo: pd.DataFrame
+    hi: pd.DataFrame
+    partial: Cells
+
+
+def partial_cells(frame: pd.DataFrame) -> Cells:
+    """(sequence, method) -> ``(poses scored, frames)`` of the cell's least covered run, for every cell with a run
+    that covers less than its sequence (:func:`eval.metrics.results.coverage` of the run's ``ate_pairs`` and
+    ``frames`` rows; runs told apart by the ``run`` column). Empty without a ``run`` column."""
+    if frame.empty or "run" not in frame.columns:
+        return {}
+    rows = frame[frame["metric"].isin(["ate_pairs", "frames"])]
+    out: Cells = {}
+    for (sequence, method, _), run in rows.groupby(["sequence", "method", "run"], sort=False):
+        covered = coverage(dict(zip(run["metric"], pd.to_numeric(run["value"], errors="coerce"), strict=True)))
+        old = out.get((sequence, method))
+        if covered is not None and (old is None or covered[0] / covered[1] < old[0] / old[1]):
+            out[(sequence, method)] = covered
+    return out
+
+
+def coverage_note(covered: tuple[int, int] | None) -> str:
+    """`` (10/60 frames)`` for a partial cell, empty for a whole one."""
+    return "" if covered is None else f" ({covered[0]}/{covered[1]} frames)"
 
 
 def _avg_over_seeds(frame: pd.DataFrame, sequences: Sequence[str], method: str, metric: str) -> np.ndarray:
@@ -66,7 +106,8 @@ def table1(
     """Numeric Table 1: index = sequences + ``Avg.``; columns = MultiIndex (block title, method); NaN = missing.
 
     Each cell is the statistic ``stat`` (one of :data:`STATISTICS`) of the cell's runs (:func:`cell_statistics`);
-    the Avg. row is that statistic of the per-seed averages over the sequences (see the module docstring).
+    the Avg. row is that statistic of the per-seed averages over the sequences (see the module docstring), NaN for
+    a method with a missing cell or a run covering less than its sequence (:func:`partial_cells`).
     ``methods`` / ``sequences`` fix the order (default: order of first
     appearance). ``drop_empty`` leaves out a method's column in a block where it has no value at all (the paper
     leaves REMODE out of the ATE block).
@@ -79,6 +120,7 @@ def table1(
     if stat not in STATISTICS:
         raise EvalError(f"unknown statistic {stat!r}; valid: {', '.join(STATISTICS)}")
     cells = cell_statistics(frame)[stat] if len(frame) else pd.Series(dtype=float)
+    partial = partial_cells(frame)
     columns = []
     data = []
     for title, metric in blocks:
@@ -88,7 +130,7 @@ def table1(
                 continue
             columns.append((title, method))
             avg = np.nan
-            if not np.any(np.isnan(values)):
+            if not np.any(np.isnan(values)) and not any((seq, method) in partial for seq in sequences):
                 per_seed = _avg_over_seeds(frame, sequences, method, metric)
                 if not per_seed.size:  # no seeds with every sequence: the mean of the cells
                     avg = float(np.mean(values))
@@ -104,29 +146,42 @@ def table1(
     return table
 
 
-def format_table(table: pd.DataFrame, digits: int = 3, spread: tuple[pd.DataFrame, pd.DataFrame] | None = None,
-                 latex: bool = False) -> pd.DataFrame:
-    """The table as strings with ``digits`` decimals and ``-`` for missing cells; with ``spread`` (the ``min`` and
-    ``max`` tables of :func:`table1`), ``median [min, max]`` where the runs differ (LaTeX: the range in small type);
-    a bare number is a cell whose runs all agree (or a single run)."""
-    text = table.map(lambda v: MISSING if pd.isna(v) else f"{v:.{digits}f}")
+def cell_text(value: float, row: object, method: object, spread: Spread | None, digits: int,
+              latex: bool = False) -> str:
+    """One cell as written: ``-`` when missing, else the median with ``digits`` decimals, its runs' range
+    ``[min, max]`` where they differ (LaTeX: in small type) and its coverage where a run is partial (``spread``: the
+    cell's :class:`Spread`; the range looked up by (row, column) of the table the value comes from)."""
+    if pd.isna(value):
+        return MISSING
+    text = f"{value:.{digits}f}"
     if spread is None:
         return text
-    lo, hi = spread
-    out = text.copy()
+    lo, hi = (t.at[row, method] for t in (spread.lo, spread.hi))
+    if not (pd.isna(lo) or pd.isna(hi) or lo == hi):
+        rng = f"[{lo:.{digits}f}, {hi:.{digits}f}]"
+        text += " " + (f"{{\\scriptsize {rng}}}" if latex else rng)
+    name = method[-1] if isinstance(method, tuple) else method
+    return text + coverage_note(spread.partial.get((str(row), str(name))))
+
+
+def format_table(table: pd.DataFrame, digits: int = 3, spread: Spread | None = None,
+                 latex: bool = False) -> pd.DataFrame:
+    """The table as strings with ``digits`` decimals and ``-`` for missing cells; with ``spread``
+    (:func:`spread_of`), ``median [min, max]`` where the runs differ (LaTeX: the range in small type) and a partial
+    run's coverage, ``(10/60 frames)``; a bare number is a cell whose runs all agree (or a single run)."""
+    out = table.map(lambda v: MISSING if pd.isna(v) else f"{v:.{digits}f}")
+    if spread is None:
+        return out
     for col in table.columns:
         for row in table.index:
-            a, b = lo.at[row, col], hi.at[row, col]
-            if pd.isna(table.at[row, col]) or pd.isna(a) or pd.isna(b) or a == b:
-                continue
-            rng = f"[{a:.{digits}f}, {b:.{digits}f}]"
-            out.at[row, col] = f"{text.at[row, col]} " + (f"{{\\scriptsize {rng}}}" if latex else rng)
+            out.at[row, col] = cell_text(table.at[row, col], row, col, spread, digits, latex)
     return out
 
 
-def spread_of(frame: pd.DataFrame, **kwargs) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The ``min`` and ``max`` tables matching ``table1(frame, **kwargs)``, for :func:`format_table`'s ``spread``."""
-    return table1(frame, stat="min", **kwargs), table1(frame, stat="max", **kwargs)
+def spread_of(frame: pd.DataFrame, **kwargs) -> Spread:
+    """The ``min`` and ``max`` tables matching ``table1(frame, **kwargs)`` and the frame's partial cells, for
+    :func:`format_table`'s ``spread``."""
+    return Spread(table1(frame, stat="min", **kwargs), table1(frame, stat="max", **kwargs), partial_cells(frame))
 
 
 def statistics_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
@@ -141,8 +196,7 @@ def table_to_csv(table: pd.DataFrame) -> str:
     return table.to_csv(float_format="%.6g")
 
 
-def table_to_markdown(table: pd.DataFrame, digits: int = 3,
-                      spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> str:
+def table_to_markdown(table: pd.DataFrame, digits: int = 3, spread: Spread | None = None) -> str:
     """A GitHub Markdown table; column headers ``block: method``; missing cells ``-``; ``spread``: see
     :func:`format_table`."""
     text = format_table(table, digits, spread)
@@ -156,7 +210,7 @@ def table_to_markdown(table: pd.DataFrame, digits: int = 3,
 
 
 def table_to_latex(table: pd.DataFrame, digits: int = 3, caption: str | None = None,
-                   spread: tuple[pd.DataFrame, pd.DataFrame] | None = None) -> str:
+                   spread: Spread | None = None) -> str:
     """LaTeX (booktabs) with a multicolumn header per block; missing cells ``-``; ``spread``: see
     :func:`format_table`."""
     if spread is not None:  # cells carry LaTeX markup, so the labels are escaped here instead of by pandas

@@ -110,6 +110,8 @@ def test_a_user_method_file(tmp_path):
 
 
 def test_availability_reports_why_a_method_cannot_run(tmp_path, monkeypatch):
+    """Only what this machine lacks (a module, a file) makes a method one that "cannot run here"; an agent that is
+    there and raises is a broken one: it stays in, and its runs fail, each with its error (the failure table)."""
     (tmp_path / "step_fails_agent.py").write_text(
         textwrap.dedent(
             """
@@ -117,9 +119,13 @@ def test_availability_reports_why_a_method_cannot_run(tmp_path, monkeypatch):
                 def reset(self, intrinsics, image_size):
                     pass
                 def step(self, observation):
-                    raise RuntimeError("no weights here")
+                    raise RuntimeError("a bug in step")
                 def finish(self):
                     return {}
+
+            class NoWeights(StepFails):
+                def step(self, observation):
+                    raise FileNotFoundError("no weights here")
             """
         )
     )
@@ -129,14 +135,15 @@ def test_availability_reports_why_a_method_cannot_run(tmp_path, monkeypatch):
     no_attr = Method("no_attr", entry_point="sim_envs.agents:NoSuchAgent")
     bad_kwargs = Method("bad", entry_point="sim_envs.agents:OracleAgent", kwargs={"keyframe_every": 0})
     fails = Method("fails", entry_point="step_fails_agent:StepFails")
+    no_weights = Method("no_weights", entry_point="step_fails_agent:NoWeights")
     assert check_available(ok) is None
     assert "cannot import 'no_such_package.agent'" in check_available(missing)
     assert "has no attribute 'NoSuchAgent'" in check_available(no_attr)
-    assert "keyframe_every must be >= 1" in check_available(bad_kwargs)
-    assert "no weights here" in check_available(fails)
-    assert check_available(fails, build=False) is None  # import only
-    checked = check_methods([ok, missing, fails])
-    assert [m.name for m in checked.available] == ["ok"] and set(checked.skipped) == {"missing", "fails"}
+    assert "FileNotFoundError: no weights here" in check_available(no_weights)
+    assert check_available(bad_kwargs) is None and check_available(fails) is None  # broken, not absent
+    assert check_available(no_weights, build=False) is None  # import only
+    checked = check_methods([ok, missing, fails, no_weights])
+    assert [m.name for m in checked.available] == ["ok", "fails"] and set(checked.skipped) == {"missing", "no_weights"}
 
 
 def test_external_methods(tmp_path):

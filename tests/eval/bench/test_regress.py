@@ -129,7 +129,13 @@ def test_command_line_exit_codes(tmp_path, capsys):
     assert main(["regress", str(base), str(run)]) == 1  # a missing metric fails
     assert main(["regress", str(tmp_path / "nope.json"), str(run)]) == 2
     assert "cannot read" in capsys.readouterr().err
-    assert main(["regress", str(base), str(run), "--update"]) == 0
+    # the run lacks a gated figure: an update would drop it from the gate, so it is refused in one line ...
+    assert main(["regress", str(base), str(run), "--update"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "the run lacks 1 of its 2 gated figures (e.g. s/A/ate_rmse)" in err
+    assert "--replace" in err and load_baseline(base).metrics == {"s/A/ate_rmse": 0.1, "s/A/fps": 30.0}
+    # ... unless meant
+    assert main(["regress", str(base), str(run), "--update", "--replace"]) == 0
     assert load_baseline(base).metrics == {"s/A/fps": 31.0}
     assert main(["regress", str(base), str(run)]) == 0
 

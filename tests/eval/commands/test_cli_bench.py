@@ -106,13 +106,22 @@ def test_unknown_names_are_one_line_errors(tmp_path, capsys):
     assert "--runs or --seeds" in capsys.readouterr().err
 
 
-def test_a_skipped_method_or_folder_fails_the_command_unless_allowed(tmp_path, capsys):
-    args = ["table1", "--sequences", "office0", "--methods", "oracle", "--external", f"Mine={tmp_path / 'typo'}",
-            *SMALL]  # fmt: skip
+def test_a_skipped_method_fails_the_command_unless_allowed(tmp_path, capsys):
+    """A method that cannot run here (its module is not installed) is skipped with the reason: exit 1 unless
+    --allow-skips. A missing --external folder is no skip but a bad argument: exit 2 before any run."""
+    methods = tmp_path / "methods.toml"
+    methods.write_text('[methods.Absent]\nentry_point = "no_such_package.agent:Agent"\n')
+    args = ["table1", "--sequences", "office0", "--methods", "oracle", "Absent", "--method-file", str(methods), *SMALL]
     assert bench(tmp_path, *args) == 1
     captured = capsys.readouterr()
-    assert "skipped Mine: the output folder" in captured.out and "--allow-skips" in captured.err
+    assert "skipped Absent: cannot import 'no_such_package.agent'" in captured.out and "--allow-skips" in captured.err
     assert bench(tmp_path, *args, "--allow-skips") == 0
+    capsys.readouterr()
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", "--external",
+                 f"Mine={tmp_path / 'typo'}", *SMALL) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert f"--external Mine={tmp_path / 'typo'}: no such folder" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "runs" / "table1" / "office0@kinect" / "oracle" / "seed0-frames6" / "x").exists()
 
 
 def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
@@ -164,7 +173,7 @@ def test_calibrate_writes_the_baseline_and_the_report_with_the_runs_options(tmp_
     stored = json.loads(baseline.read_text())
     assert stored["policy"] == "two-sided" and stored["calibration"]["reference"] == "reference"
     assert (tmp_path / "results" / "quick.md").is_file()
-    assert "(the reference configuration's runs)" in capsys.readouterr().out
+    assert "report from the reference configuration's runs" in capsys.readouterr().out
 
 
 def test_set_overrides_a_configuration_in_bench_and_config(tmp_path, capsys):
@@ -175,7 +184,7 @@ def test_set_overrides_a_configuration_in_bench_and_config(tmp_path, capsys):
     refinement = text.split("[refinement]\n", 1)[1]
     assert refinement.startswith("enabled = false") and "min_gradient = 7" in text.split("[tracking]", 1)[1]
     assert main(["config", "CNN-SLAM", "--set", "refinement.bogus=1"]) == 2
-    assert "unknown config field 'refinement.bogus'" in capsys.readouterr().err
+    assert "unknown config key 'refinement.bogus'" in capsys.readouterr().err
     args = ["table1", "--sequences", "office0", "--methods", "LSD-BS", *SMALL]
     assert bench(tmp_path, *args) == 0
     assert bench(tmp_path, *args, "--set", "refinement.enabled=false") == 0
@@ -185,4 +194,5 @@ def test_set_overrides_a_configuration_in_bench_and_config(tmp_path, capsys):
                          "metrics.json").read_text())
     assert '"refinement.enabled": false' in record["metadata"]["agent_kwargs"]
     assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", "--set", "a.b=1", *SMALL) == 2
-    assert "none of the chosen methods (oracle) takes a configuration" in capsys.readouterr().err
+    assert "--set a.b: no chosen method's configuration has this key; oracle's keys: keyframe_every" in \
+        capsys.readouterr().err

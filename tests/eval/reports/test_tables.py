@@ -89,12 +89,13 @@ def test_cells_are_medians_with_their_range_and_the_average_is_per_seed():
     frame = pd.DataFrame([{"sequence": s, "method": "X", "metric": "ate_rmse", "value": v, "seed": k}
                           for s, k, v in rows])  # fmt: skip
     t = table1(frame)
-    lo, hi = spread_of(frame)
+    lo, hi, partial = spread_of(frame)
+    assert partial == {}  # no run column: no coverage to read
     col = ("Abs. Trajectory Error [m]", "X")
     assert t.at["a", col] == 2.0 and (lo.at["a", col], hi.at["a", col]) == (1.0, 9.0)  # median [min, max]
     # per-seed averages over a and b: 2.0, 2.5, 6.0 -> Avg. median 2.5 in [2.0, 6.0]
     assert t.at["Avg.", col] == 2.5 and (lo.at["Avg.", col], hi.at["Avg.", col]) == (2.0, 6.0)
-    md = table_to_markdown(t, spread=(lo, hi))
+    md = table_to_markdown(t, spread=spread_of(frame))
     assert "| a | 2.000 [1.000, 9.000] |" in md and "| b | 3.000 |" in md  # runs that agree: a bare number
 
 
