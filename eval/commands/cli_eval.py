@@ -95,6 +95,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.plot:  # a figure that cannot be written is refused before anything is computed
+        from eval.reports.plots import check_figure_path
+
+        try:
+            check_figure_path(args.plot)
+        except EvalError as exc:
+            print(f"cnnslam eval: error: --plot: {exc}", file=sys.stderr)
+            return 2
     try:
         gt, est = _load(args.groundtruth, args), _load(args.estimate, args)
         metrics = evaluate_trajectory(

@@ -2,13 +2,17 @@
 
 The folder layout (rgb/, depth/ 16-bit x5000, labels/, instances/, rgb.txt, depth.txt, groundtruth.txt and the
 ``cnnslam.json`` side file with the intrinsics) is described in :mod:`sim_envs.datasets`. The sequence registry
-(:mod:`sim_envs.sequences`) and the renderers are imported only when the command runs.
+(:mod:`sim_envs.sequences`) and the renderers are imported only when the command runs. The folder is written under a
+temporary name and renamed at the end (:func:`sim_envs.datasets.export_tum_rgbd`): Ctrl-C leaves nothing in the way
+of the next export. Exit status: 0 written, 1 the export failed, 2 a bad argument (an unknown sequence, a file where
+the folder goes, a camera or lighting that does not exist), 130 on Ctrl-C.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
@@ -51,16 +55,27 @@ def open_sequence(name: str, renderer: str, camera_effects: str = DEFAULT_CAMERA
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
+    folder = Path(args.folder)
+    if folder.exists() and not folder.is_dir():  # refused before anything renders
+        print(f"cnnslam export: error: {folder} is a file; an export writes a folder: name a folder that does not "
+              "exist yet", file=sys.stderr)  # fmt: skip
+        return 2
+    try:  # the sequence, its camera and lighting: bad arguments are found before anything renders
         source = open_sequence(args.sequence, args.renderer, args.camera_effects, args.lighting)
-        try:
-            folder = export_tum_rgbd(
-                source, args.folder, overwrite=args.overwrite, progress=not args.no_progress, max_frames=args.frames
-            )
-        finally:
-            source.close()
+    except SimEnvError as exc:
+        print(f"cnnslam export: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        written = export_tum_rgbd(source, folder, overwrite=args.overwrite, progress=not args.no_progress,
+                                  max_frames=args.frames)  # fmt: skip
     except SimEnvError as exc:
         print(f"cnnslam export: error: {exc}", file=sys.stderr)
         return 1
-    print(f"exported {args.sequence} to {folder}")
+    except KeyboardInterrupt:
+        print(f"cnnslam export: interrupted; no partial export was left at {folder} (a new folder appears only "
+              "when complete)", file=sys.stderr)  # fmt: skip
+        return 130
+    finally:
+        source.close()
+    print(f"exported {args.sequence} to {written}")
     return 0

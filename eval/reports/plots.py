@@ -24,6 +24,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from eval.errors import EvalError
 from slamcommon.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
 
 GT_STYLE = {"color": "0.25", "linestyle": "--", "linewidth": 1.2, "label": "ground truth"}
@@ -351,6 +352,17 @@ def save_transfer_figure(ranks: pd.DataFrame, path: str | Path, domains: Sequenc
     axes[0].legend(list(handles.values()), list(handles), fontsize=6, loc="lower left")
     fig.tight_layout()
     return _save(fig, path, dpi)
+
+
+def check_figure_path(path: str | Path) -> Path:
+    """``path`` when matplotlib can write a figure of its suffix, else :class:`~eval.errors.EvalError` naming the
+    suffixes it can (so that a command refuses a bad file name before it computes the figure)."""
+    path = Path(path)
+    formats = Figure().canvas.get_supported_filetypes()
+    if path.suffix.lstrip(".").lower() not in formats:
+        raise EvalError(f"cannot save a figure as {str(path)!r}: valid suffixes: "
+                        f"{', '.join('.' + f for f in sorted(formats))}")  # fmt: skip
+    return path
 
 
 def _save(fig: Figure, path: str | Path, dpi: int) -> Path:

@@ -356,7 +356,9 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         "(ICL-NUIM office/living room, TUM fr3 sequences), not the same images: compare shapes (which method is "
         "best, by how much), not values. `oracle` is the ground truth fed through the same pipeline (a sanity "
         "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a failed run). "
-        "The Avg. row is shown only where a method has every sequence.\n",
+        "The Avg. row is shown only where a method has every sequence, each run covering its whole sequence (a run "
+        "that scored part of it says so in its cell, `(10/60 frames)`); the paper's Avg. is quoted only beside ours "
+        "over its nine sequences.\n",
         f"## {ate_title}\n",
         ours_beside_paper(table, ate_title, ate_metric, 3, spread),
         f"## {depth_title}\n",

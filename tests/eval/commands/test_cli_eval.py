@@ -160,3 +160,24 @@ sys.exit(rc)
     assert result.returncode == 0, result.stderr
     assert "LOADED [] 1" in result.stderr.splitlines()[-1]
     assert "lines 10862 and 10863; kept the last pose" in result.stderr
+
+
+def test_an_estimate_with_one_pose_is_an_error_not_a_zero(tmp_path, capsys):
+    """One pose aligns onto its ground truth exactly (ATE 0): that is no result. Exit 1, one line."""
+    gt, one = tmp_path / "gt.txt", tmp_path / "one.txt"
+    gt.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 0 0 0 0 0 1\n")
+    one.write_text("1 1 0 0 0 0 0 1\n")
+    assert main(["eval", str(gt), str(one)]) == 1
+    err = capsys.readouterr().err
+    assert "only 1 pose(s) of the estimate (1 given) match the ground truth's 3" in err
+    assert len(err.strip().splitlines()) == 1
+    assert main(["eval", str(gt), str(gt)]) == 0  # three poses: a trajectory
+
+
+def test_a_plot_file_matplotlib_cannot_write_is_refused_first(tmp_path, capsys):
+    gt = tmp_path / "gt.txt"
+    gt.write_text("0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 0 0 0 0 0 1\n")
+    assert main(["eval", str(gt), str(gt), "--plot", str(tmp_path / "x.xyz")]) == 2
+    captured = capsys.readouterr()
+    assert "cannot save a figure as" in captured.err and ".png" in captured.err and captured.out == ""
+    assert len(captured.err.strip().splitlines()) == 1 and not (tmp_path / "x.xyz").exists()

@@ -49,22 +49,22 @@ def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
 
 def test_export_command_unknown_sequence(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences")
-    assert main(["export", "no-such-sequence", str(tmp_path / "x"), "--no-progress"]) == 1
+    assert main(["export", "no-such-sequence", str(tmp_path / "x"), "--no-progress"]) == 2
     assert "no-such-sequence" in capsys.readouterr().err
 
 
 def test_export_command_unknown_camera_effects(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences")
-    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 1
+    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 2
     assert "clean, hard, kinect" in capsys.readouterr().err
 
 
 def test_export_command_lighting(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences")
-    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--lighting", "dim"]) == 1
+    assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--lighting", "dim"]) == 2
     assert "lighting must be one of flat, lit" in capsys.readouterr().err
     assert main(["export", "office0", str(tmp_path / "y"), "--no-progress", "--lighting", "lit", "--renderer",
-                 "pyrender"]) == 1  # fmt: skip
+                 "pyrender"]) == 2  # fmt: skip
     assert "mujoco renderer only" in capsys.readouterr().err
     assert cli_export.open_sequence("office0", "mujoco", "kinect", "lit").spec.lighting == "lit"
 
@@ -93,3 +93,27 @@ def test_the_readmes_through_files_recipe_works_as_written(tmp_path, monkeypatch
     assert code == 0, out
     table = (tmp_path / "res" / "table1.md").read_text()
     assert "0 failed" in out and "| office0@kinect (ICL/office0) | 0.000 |" in table
+
+
+def test_a_file_in_the_folders_place_is_one_line(tmp_path, capsys):
+    (tmp_path / "EXISTING_FILE").write_text("x")
+    assert main(["export", "office0", str(tmp_path / "EXISTING_FILE"), "--frames", "2", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "is a file; an export writes a folder" in err and len(err.strip().splitlines()) == 1
+
+
+def test_an_interrupted_export_leaves_nothing_in_the_way(tmp_path):
+    """Ctrl-C during an export: the temporary folder goes, no partial folder blocks the rerun, which then works."""
+    from sim_envs.datasets import export_tum_rgbd
+
+    class Interrupted(TinySource):
+        def frame(self, i):
+            if i == 2:
+                raise KeyboardInterrupt
+            return super().frame(i)
+
+    with pytest.raises(KeyboardInterrupt):
+        export_tum_rgbd(Interrupted(), tmp_path / "out", progress=False)
+    assert list(tmp_path.iterdir()) == []
+    assert export_tum_rgbd(TinySource(), tmp_path / "out", progress=False) == tmp_path / "out"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"] and len(RgbdFolder(tmp_path / "out")) == 4

@@ -220,3 +220,15 @@ def test_reports_name_the_camera_and_map_camera_sequences_to_the_paper():
     assert camera_sentence(get_suite("perf")) == ""  # no simulated sequence
     assert "Rooms lit" not in camera_sentence(get_suite("table1"))
     assert "1 of 2 simulated sequences" in camera_sentence(get_suite("table1").select(["office0", "office1+lit"]))
+
+
+def test_the_papers_average_is_quoted_only_beside_an_average_over_its_nine_sequences():
+    from eval.reports.suite_reports import PAPER_NAMES, ours_beside_paper
+    from eval.reports.tables import AVG_LABEL
+
+    title = "Abs. Trajectory Error [m]"
+    nine = pd.DataFrame({(title, "CNN-SLAM"): [0.1] * 9 + [0.1]},
+                        index=pd.Index([*PAPER_NAMES, AVG_LABEL], name="sequence"))  # fmt: skip
+    assert "| Avg. | 0.100 (0.246) |" in ours_beside_paper(nine, title, "ate_rmse", 3)
+    two = nine.loc[["office0", "living1", AVG_LABEL]]
+    assert "| Avg. | 0.100 |" in ours_beside_paper(two, title, "ate_rmse", 3)

@@ -111,3 +111,21 @@ def test_a_suite_whose_runs_all_failed_gives_empty_tables_not_an_error():
     as_objects = pd.DataFrame({c: pd.Series(dtype=object) for c in ("sequence", "method", "metric", "value")})
     assert cell_statistics(as_objects).empty
     assert table1(frame).empty or table1(frame).isna().all().all()
+
+
+def test_a_run_covering_part_of_its_sequence_shows_it_and_gets_no_average():
+    """Coverage = a run's ATE pose pairs over its frames (eval.metrics.results.coverage): the cell says
+    ``(10/60 frames)`` (its least covered run), and the method's Avg. is missing, not an average of part."""
+    from eval.reports.tables import partial_cells, spread_of
+
+    rows = []
+    for run, (seq, pairs, ate) in enumerate((("a", 60, 0.5), ("b", 10, 0.1), ("b", 30, 0.2))):
+        rows += [{"run": run, "sequence": seq, "method": "X", "metric": m, "value": v, "seed": run}
+                 for m, v in (("ate_rmse", ate), ("ate_pairs", pairs), ("frames", 60.0))]
+    frame = pd.DataFrame(rows)
+    assert partial_cells(frame) == {("b", "X"): (10, 60)}
+    t = table1(frame)
+    col = ("Abs. Trajectory Error [m]", "X")
+    assert t.at["b", col] == pytest.approx(0.15) and np.isnan(t.at["Avg.", col])
+    md = table_to_markdown(t, spread=spread_of(frame))
+    assert "| b | 0.150 [0.100, 0.200] (10/60 frames) |" in md and "| a | 0.500 |" in md and "| Avg. | - |" in md
