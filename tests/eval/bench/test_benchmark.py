@@ -4,7 +4,6 @@ result is never reported as a whole, successful one (the rows of issue 40's tabl
 from __future__ import annotations
 
 import json
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -108,20 +107,13 @@ def test_a_selection_never_writes_into_the_committed_results(tmp_path, monkeypat
 
 
 def test_an_agent_that_raises_in_step_is_a_failed_run_in_the_failure_table(tmp_path, monkeypatch):
-    (tmp_path / "raising_agent.py").write_text(textwrap.dedent("""
-        class Raises:
-            def reset(self, intrinsics, image_size):
-                pass
-            def step(self, observation):
-                raise RuntimeError("a bug in step")
-            def finish(self):
-                return {}
-        """))
-    monkeypatch.syspath_prepend(str(tmp_path))
     from eval.bench.methods import method_table
+    from tests.eval.bench.test_methods import STEP_FAILS_AGENTS
 
+    (tmp_path / "raising_agent.py").write_text(STEP_FAILS_AGENTS)
+    monkeypatch.syspath_prepend(str(tmp_path))
     methods = tmp_path / "methods.toml"
-    methods.write_text('[methods.Raises]\nentry_point = "raising_agent:Raises"\n')
+    methods.write_text('[methods.Raises]\nentry_point = "raising_agent:StepFails"\n')
     outcome = run_bench("table1", ["Raises", "oracle"], options(tmp_path), method_table(methods))
     assert outcome.exit_status == 1 and outcome.skipped == ()
     assert [(r.method, r.status) for r in outcome.failed] == [("Raises", "failed")]

@@ -109,26 +109,28 @@ def test_a_user_method_file(tmp_path):
     assert METHODS_FILE.name == "methods.toml"
 
 
+# agents that are there and fail in step (a bug: a broken method) or lack a file (one that cannot run here)
+STEP_FAILS_AGENTS = textwrap.dedent(
+    """
+    class StepFails:
+        def reset(self, intrinsics, image_size):
+            pass
+        def step(self, observation):
+            raise RuntimeError("a bug in step")
+        def finish(self):
+            return {}
+
+    class NoWeights(StepFails):
+        def step(self, observation):
+            raise FileNotFoundError("no weights here")
+    """
+)
+
+
 def test_availability_reports_why_a_method_cannot_run(tmp_path, monkeypatch):
     """Only what this machine lacks (a module, a file) makes a method one that "cannot run here"; an agent that is
     there and raises is a broken one: it stays in, and its runs fail, each with its error (the failure table)."""
-    (tmp_path / "step_fails_agent.py").write_text(
-        textwrap.dedent(
-            """
-            class StepFails:
-                def reset(self, intrinsics, image_size):
-                    pass
-                def step(self, observation):
-                    raise RuntimeError("a bug in step")
-                def finish(self):
-                    return {}
-
-            class NoWeights(StepFails):
-                def step(self, observation):
-                    raise FileNotFoundError("no weights here")
-            """
-        )
-    )
+    (tmp_path / "step_fails_agent.py").write_text(STEP_FAILS_AGENTS)
     monkeypatch.syspath_prepend(str(tmp_path))
     ok = Method("ok", entry_point="sim_envs.agents:OracleAgent")
     missing = Method("missing", entry_point="no_such_package.agent:Agent")
