@@ -1,8 +1,7 @@
-"""A suite run: the suite's runs planned (:func:`plan_runs`), executed on an executor (:mod:`eval.bench.executors`) with
-progress, stored (:mod:`eval.bench.run_store`), reused when finished earlier with the same fingerprint, and collected
-as a
-:class:`SuiteRun` (the records of the finished runs, how each run ended) for the reports. One run is
-:mod:`eval.bench.run`."""
+"""A suite run: the suite's runs planned (:func:`plan_runs`), executed on an executor (:mod:`eval.bench.executors`)
+with progress, stored (:mod:`eval.bench.run_store`), reused when finished earlier with the same fingerprint, and
+collected as a :class:`SuiteRun` (the records of the finished runs, how each run ended) for the reports. One run is
+:mod:`eval.bench.run`; every kind of suite runs through :func:`eval.bench.run_bench`."""
 
 from __future__ import annotations
 

@@ -77,8 +77,7 @@ def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: st
         "the sequences (Table 1's Avg. row); rank 1 is best; only methods scored at every length are ranked. "
         "Kendall's tau-b and Spearman's rho compare each length's ranking with the whole sequences' "
         "(`eval/reports/lengths.py`): +1 the same order; 'same' means identical ranks. A sequence shorter than a "
-        "length "
-        "runs whole at that length.\n",
+        "length runs whole at that length.\n",
         "## Verdict\n",
         verdict + "\n",
         "## Agreement with the whole sequences\n",

@@ -388,9 +388,8 @@ def _map_section(run: SuiteRun) -> list[str]:
         "## Global model (Sec. 3.5, Fig. 1c)\n",
         "The key-frames fused live into the agent's surfel model, moved onto the ground truth with the run's ATE "
         "alignment, against the scene's surfaces (2 cm samples; `eval/metrics/map_metrics.py`). Accuracy: median "
-        "distance "
-        "of the model's points to the surfaces; completeness: share of the surfaces a key-frame saw that have a "
-        "model point within 5 cm; label accuracy: share of the labelled model points whose fused label is the "
+        "distance of the model's points to the surfaces; completeness: share of the surfaces a key-frame saw that "
+        "have a model point within 5 cm; label accuracy: share of the labelled model points whose fused label is the "
         "surface's. Methods that build no model are left out.\n",
         table_to_markdown(table, spread=spread),
     ]
