@@ -425,9 +425,11 @@ def command_line(suite: str, options: BenchOptions, methods: Sequence[str] = ())
 def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
               options: BenchOptions = BenchOptions(), table: Mapping[str, Method] | None = None) -> BenchOutcome:
     """Run a benchmark suite and write its report (module docstring). ``suite``: a name of :data:`SUITES` or a
-    :class:`Suite`; ``methods``: names of ``table`` (default ``eval/methods.toml``) or ``Method`` objects (None: the
-    suite's); ``options``: :class:`BenchOptions`. Raises :class:`~eval.errors.InputError` before any run for bad
-    input; KeyboardInterrupt after storing the runs finished so far."""
+    :class:`Suite`; ``methods``: names of ``table`` (default ``eval/methods.toml``;
+    :func:`eval.bench.methods.method_table` adds a method file and ``--external`` folders, whose methods always run)
+    or ``Method`` objects (None: the suite's); ``options``: :class:`BenchOptions`. Raises
+    :class:`~eval.errors.InputError` before any run for bad input; KeyboardInterrupt after storing the runs finished
+    so far."""
     plan = prepare(suite, methods, options, table)
     if plan.suite.kind is SuiteKind.PERF:
         return _perf(plan, options)
