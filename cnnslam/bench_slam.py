@@ -16,7 +16,7 @@ compiled and the network is warmed up on a short run first. Four runs over the s
 Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``): fps times
 the seconds of a frozen reference workload (:func:`machine_unit_seconds`) timed in the same process just before
 and just after that run, so that figures from machines of other speeds and under other loads compare; the speed
-gate (``eval.perf.speed_regressions``) compares them with ``results/baselines/perf.json``.
+gate (``eval.bench.perf.speed_regressions``) compares them with ``results/baselines/perf.json``.
 
 Figures print as a table and come back from :func:`benchmark` as a dict. Speed is measured, never asserted.
 """
@@ -41,7 +41,7 @@ from cnnslam.system import CnnSlam
 # ------------------------------------------------------------------------------------------- the machine-speed unit
 # A fixed workload timed in the same process as the figures, so that fps from machines of other speeds, or under
 # other loads, can be compared: a figure times the unit's seconds is frames per unit (the speed gate's currency,
-# eval.perf.speed_regressions). The workload is frozen: it calls nothing of the project (a change to tracking must
+# eval.bench.perf.speed_regressions). The workload is frozen: it calls nothing of the project (a change to tracking must
 # not move the unit), and editing it invalidates results/baselines/perf.json (bump UNIT_VERSION, remake the baseline).
 # Its mix is tracking's: a rigid warp, bilinear samples of an interleaved float32 image, divisions, a square root and
 # the 21 products of a 6x6 normal equation per point, in a numba loop.

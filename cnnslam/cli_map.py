@@ -40,6 +40,8 @@ from typing import Any
 import numpy as np
 
 from cnnslam.errors import CnnSlamError
+from slamcommon.alignment import parse_method
+from slamcommon.errors import ProjectError
 
 DEFAULT_AGENT = "cnnslam.agent:CnnSlamAgent"
 
@@ -90,10 +92,14 @@ def run(args: argparse.Namespace) -> int:
     from cnnslam.model_render import render_map_views, save_map_figure
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
-    from sim_envs.errors import SimEnvError
     from slamcommon.strict_json import json_ready
 
     out = Path(args.out or os.path.join("runs", "map", args.sequence))
+    try:  # a bad choice is refused before the episode runs
+        parse_method(args.alignment)
+    except ProjectError as exc:
+        print(f"cnnslam map: error: --alignment: {exc}", file=sys.stderr)
+        return 2
     try:
         options = json.loads(args.agent_options)
         if not isinstance(options, dict):
@@ -160,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
         tmp = out / "metrics.json.part"
         tmp.write_text(json.dumps(json_ready(record), indent=2) + "\n")
         os.replace(tmp, out / "metrics.json")
-    except (CnnSlamError, SimEnvError, json.JSONDecodeError) as exc:
+    except (ProjectError, json.JSONDecodeError) as exc:
         print(f"cnnslam map: error: {exc}", file=sys.stderr)
         return 1
     summary = [f"{result.sequence}: {len(result.keyframes)} key-frames -> {len(cloud)} surfels ({ply})",

@@ -22,12 +22,12 @@ Usage::
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field, fields, replace
-from typing import Any, Literal, get_args
+from dataclasses import dataclass, field, fields
+from typing import Literal, get_args
 
 from cnnslam.errors import CnnSlamError
+from slamcommon.config import Configurable
 
 DepthSource = Literal["cnn", "constant", "random", "ground_truth_first"]
 RefinementDensity = Literal["dense", "semi_dense"]
@@ -517,8 +517,9 @@ class SystemConfig:
 
 
 @dataclass(frozen=True)
-class CnnSlamConfig:
-    """Every parameter of the system, one section per stage. Frozen; derive variants with :meth:`with_overrides`."""
+class CnnSlamConfig(Configurable):
+    """Every parameter of the system, one section per stage. Frozen; derive variants with :meth:`with_overrides`
+    (:func:`slamcommon.config.with_overrides`: dotted keys, values checked against the fields' types)."""
 
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     keyframes: KeyframeConfig = field(default_factory=KeyframeConfig)
@@ -536,32 +537,6 @@ class CnnSlamConfig:
                 f"pose_graph.alignment_finest_level ({self.pose_graph.alignment_finest_level}) must be below "
                 f"tracking.pyramid_levels ({self.tracking.pyramid_levels})"
             )
-
-    def with_overrides(self, overrides: dict[str, Any] | None = None, **kwargs: Any) -> CnnSlamConfig:
-        """A copy with ``{"section.field": value}`` entries (or ``section__field=value`` keywords) replaced.
-
-        Raises :class:`CnnSlamError` naming an unknown section or field and listing the valid ones.
-        """
-        items = dict(overrides or {})
-        items.update({k.replace("__", "."): v for k, v in kwargs.items()})
-        sections: dict[str, dict[str, Any]] = {}
-        names = [f.name for f in fields(self)]
-        for key, value in items.items():
-            section, sep, name = key.partition(".")
-            if not sep or section not in names:
-                raise CnnSlamError(f"unknown config key {key!r}; keys look like 'section.field' with section in "
-                                   f"{', '.join(names)}")
-            valid = [f.name for f in fields(getattr(self, section))]
-            if name not in valid:
-                raise CnnSlamError(f"unknown config field {key!r}; fields of {section}: {', '.join(valid)}")
-            if isinstance(value, list):
-                value = tuple(value)
-            sections.setdefault(section, {})[name] = value
-        return replace(self, **{s: replace(getattr(self, s), **v) for s, v in sections.items()})
-
-    def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Nested plain dict (JSON-serialisable) of every field, for result records."""
-        return dataclasses.asdict(self)
 
 
 def ablation_config(name: AblationName, base: CnnSlamConfig | None = None) -> CnnSlamConfig:

@@ -1,5 +1,7 @@
 """Exceptions of the SLAM package. One base class; subclasses where callers need to tell cases apart."""
 
+from slamcommon.errors import ProjectError
 
-class CnnSlamError(ValueError):
+
+class CnnSlamError(ProjectError):
     """Base class for every error raised by ``cnnslam`` (bad configuration, bad input images, missing weights)."""

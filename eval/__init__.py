@@ -1,20 +1,27 @@
-"""The judge: trajectory and depth metrics, tables, plots, benchmark suites and the regression gate.
+"""The judge: it scores what an agent hands back against the world's ground truth. Never imports ``cnnslam``:
+agents are named by ``"module:Class"`` strings, environments by Gymnasium id.
 
-Never imports ``cnnslam``: agents are named by ``"module:Class"`` strings, environments by Gymnasium id.
+Its parts, one subpackage each (as ``cnnslam/`` has one module per stage of the paper):
 
-- :mod:`eval.trajectory` (poses, SE(3) helpers), :mod:`eval.association` (TUM greedy / evo nearest),
-  :mod:`slamcommon.alignment` (SE(3), Sim(3), origin, none; rotation-only fallback), :mod:`eval.metrics` (ATE, RPE,
-  rotation and scale error, tracked share, length);
-- :mod:`slamcommon.depth_metrics` (the paper's percentage of correct depth, density, AbsRel, RMSE, delta < 1.25),
-  :mod:`slamcommon.semantic_metrics` (pixel accuracy, IoU), :mod:`slamcommon.reconstruction_metrics` and
-  :mod:`eval.map_metrics` (the agent's global model against the scene); the metric primitives and the alignment
-  live in :mod:`slamcommon`, the leaf that the agent's development tools share with the judge;
-- :mod:`eval.results` (score an episode, run records, long-form frames), :mod:`eval.tables` (Table 1),
-  :mod:`eval.paper_table1` (the paper's numbers), :mod:`eval.plots`, :mod:`eval.regress` (the gate);
-- command lines: ``cnnslam eval`` (:mod:`eval.cli_eval`), ``cnnslam regress``, ``cnnslam export``;
-  ``python -m eval.bench_metrics`` times the metrics on 100k poses.
+- :mod:`eval.metrics`: scoring one trajectory or episode: poses and TUM files (:mod:`eval.metrics.trajectory`,
+  :mod:`eval.metrics.tum_reader`), timestamp association (:mod:`eval.metrics.association`), ATE / RPE / rotation and
+  scale error (:mod:`eval.metrics.trajectory_metrics`), the agent's global model (:mod:`eval.metrics.map_metrics`),
+  a scored episode as a run record (:mod:`eval.metrics.results`), a second reference for real folders
+  (:mod:`eval.metrics.sfm_reference`); the metric primitives and the alignment live in :mod:`slamcommon`;
+- :mod:`eval.bench`: suites and runs: the method table (:mod:`eval.bench.methods`, data in ``eval/methods.toml``),
+  sequences (:mod:`eval.bench.sequence_ref`), suites (:mod:`eval.bench.suites`), one run
+  (:mod:`eval.bench.run`, :mod:`eval.bench.run_store`), a suite's runs (:mod:`eval.bench.runner`) on an executor
+  (:mod:`eval.bench.executors`), the regression gate and its calibration (:mod:`eval.bench.regress`,
+  :mod:`eval.bench.calibrate`), throughput (:mod:`eval.bench.perf`);
+- :mod:`eval.reports`: what is made of runs: tables (:mod:`eval.reports.tables`, the paper's numbers in
+  :mod:`eval.reports.paper_table1`), plots (:mod:`eval.reports.plots`, the one module that draws), each suite's report
+  (:mod:`eval.reports.suite_reports`), and the analyses of the suites made of several parts (transfer, lengths,
+  preprocessing) with their reports;
+- :mod:`eval.commands`: the command lines (``cnnslam bench``, ``eval``, ``regress``, ``config``, ``export``,
+  ``generate``, ``reference``), the only users of argparse and print.
 
 File formats (TUM, KITTI) and dataset folders live in ``sim_envs.formats`` / ``sim_envs.datasets``: the world reads
-and writes them and must not import the judge. :mod:`eval.tum_reader` reads TUM trajectories for the judge with the
-same results and errors, faster and without importing the world (``cnnslam eval`` loads numpy and the judge only).
+and writes them and must not import the judge. :mod:`eval.metrics.tum_reader` reads TUM trajectories for the judge
+with the same results and errors, faster and without importing the world (``cnnslam eval`` loads numpy and the judge
+only).
 """

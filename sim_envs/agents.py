@@ -1,18 +1,42 @@
 """Two trivial agents for tests and as reference points: a ground-truth oracle and a constant-pose agent.
 
 Both follow the agent contract of :mod:`sim_envs.agent`. The oracle declares ``uses_ground_truth = True`` and so
-receives the env's ``info`` (``step(observation, info)``); results of such agents are marked by the driver.
+receives the env's ``info`` (``step(observation, info)``); results of such agents are marked by the driver. Each has
+a configuration (:class:`OracleConfig`, :class:`ConstantPoseConfig`; ``config={...}`` overrides, as every method's),
+which ``cnnslam config`` prints.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from sim_envs.agent import AgentOutput, KeyframeDepth
 from sim_envs.errors import SimEnvError
+from slamcommon.config import Configurable, configure
+
+
+@dataclass(frozen=True)
+class OracleConfig(Configurable):
+    """The oracle's one setting."""
+
+    # ours: a key-frame (its ground-truth depth and pose) every k frames, frames 0, k, 2k, ...
+    keyframe_every: int = 10
+
+    def __post_init__(self) -> None:
+        if self.keyframe_every < 1:
+            raise SimEnvError(f"keyframe_every must be >= 1, got {self.keyframe_every}")
+
+
+@dataclass(frozen=True)
+class ConstantPoseConfig(Configurable):
+    """The constant-pose agent's one setting."""
+
+    # ours: what it claims each frame (True: tracked, so its ATE is read as a tracked method's)
+    tracked: bool = True
 
 
 class OracleAgent:
@@ -26,10 +50,9 @@ class OracleAgent:
     uses_ground_truth = True
     name = "oracle"
 
-    def __init__(self, keyframe_every: int = 10) -> None:
-        if int(keyframe_every) < 1:
-            raise SimEnvError(f"keyframe_every must be >= 1, got {keyframe_every}")
-        self.keyframe_every = int(keyframe_every)
+    def __init__(self, keyframe_every: int = 10, config: OracleConfig | Mapping[str, Any] | None = None) -> None:
+        self.config = configure(OracleConfig(keyframe_every=int(keyframe_every)), config)
+        self.keyframe_every = self.config.keyframe_every
         self._keyframes: list[KeyframeDepth] = []
         self._n = 0
 
@@ -66,8 +89,9 @@ class ConstantPoseAgent:
     uses_ground_truth = False
     name = "constant_pose"
 
-    def __init__(self, tracked: bool = True) -> None:
-        self.tracked = bool(tracked)
+    def __init__(self, tracked: bool = True, config: ConstantPoseConfig | Mapping[str, Any] | None = None) -> None:
+        self.config = configure(ConstantPoseConfig(tracked=bool(tracked)), config)
+        self.tracked = self.config.tracked
         self._n = 0
 
     def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:

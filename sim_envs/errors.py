@@ -1,7 +1,9 @@
 """Exceptions of the simulated world. One base class; subclasses where callers need to tell cases apart."""
 
+from slamcommon.errors import ProjectError
 
-class SimEnvError(ValueError):
+
+class SimEnvError(ProjectError):
     """Base class for every error raised by ``sim_envs`` (bad arguments, bad files, missing libraries)."""
 
 

@@ -24,6 +24,8 @@ tests, inputs for other tools), the way that dataset ships it.
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from pathlib import Path
 from typing import Any, Literal
 
@@ -80,11 +82,35 @@ def export_tum_rgbd(
 ) -> Path:
     """Write ``source`` (its first ``max_frames`` frames) as a TUM RGB-D folder with the ``cnnslam.json`` side file.
 
-    Refuses a non-empty ``folder`` unless ``overwrite``. Shows a tqdm progress bar unless ``progress`` is False.
-    Returns the folder.
+    Refuses a path that is a file, and a non-empty ``folder`` unless ``overwrite`` (then it writes into it). A new
+    folder is written as a hidden temporary folder beside it and renamed into place at the end, so an export that
+    is stopped (Ctrl-C, an error) leaves no partial folder in the way of the next one. Shows a tqdm progress bar
+    unless ``progress`` is False. Returns the folder.
     """
     folder = Path(folder)
-    n = _frames_to_write(source, folder, overwrite, max_frames, "export")
+    if folder.exists() and not folder.is_dir():
+        raise SimEnvError(f"{folder} is a file; an export writes a folder: name a folder that does not exist yet")
+    _frames_to_write(source, folder, overwrite, max_frames, "export")
+    if folder.is_dir() and any(folder.iterdir()):  # --overwrite into what is there: in place
+        return _export_tum_rgbd(source, folder, progress, max_frames, depth_scale)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    partial = folder.parent / f".{folder.name}.partial-{os.getpid()}"
+    shutil.rmtree(partial, ignore_errors=True)
+    try:
+        _export_tum_rgbd(source, partial, progress, max_frames, depth_scale)
+        if folder.is_dir():  # an empty folder given: the export takes its place
+            folder.rmdir()
+        os.rename(partial, folder)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    return folder
+
+
+def _export_tum_rgbd(source: FrameSource, folder: Path, progress: bool, max_frames: int | None,
+                     depth_scale: float) -> Path:
+    """:func:`export_tum_rgbd`'s writing, into ``folder`` as it is."""
+    n = _frames_to_write(source, folder, True, max_frames, "export")
     stamps = np.asarray(source.timestamps, dtype=np.float64)[:n]
     names = [_stamp_name(t) for t in stamps]
     if len(set(names)) != n:

@@ -19,7 +19,7 @@ Degenerate positions, and where we differ from evo:
   :func:`degeneracy`): the rotation about the line of motion is then decided by noise, which barely moves the ATE
   but makes any rotation error measured after it arbitrary. The :class:`Alignment` then has ``degenerate=True`` and
   a ``warning``; rotation verdicts should read the orientation-only and the RPE rotation figures
-  (:mod:`eval.metrics`: ``rot_deg_orient_*``, ``rpe_rot_deg_*``), never ``rot_deg_*``.
+  (:mod:`eval.metrics.trajectory_metrics`: ``rot_deg_orient_*``, ``rpe_rot_deg_*``), never ``rot_deg_*``.
 - Where Umeyama is *not defined* (all positions coincide, as in a pure-rotation simulation, or lie exactly on a
   line) evo raises; we fall back to ``rotation_only`` (orientations aligned by their chordal mean, centroids put
   together, scale 1; for sim3 a straight line still fixes the scale along it), with ``degenerate=True``,

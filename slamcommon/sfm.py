@@ -1,6 +1,6 @@
 """COLMAP's incremental structure from motion (through pycolmap), shared by the judge and the agents.
 
-Two users: the SfM reference of real folders (:mod:`eval.sfm_reference`, ``cnnslam reference``: self-calibrated
+Two users: the SfM reference of real folders (:mod:`eval.metrics.sfm_reference`, ``cnnslam reference``: self-calibrated
 camera, a second reference beside a folder's ground truth) and COLMAP as a benchmark method
 (:mod:`thirdparty.colmap_sfm`: the offline baseline of a monocular SLAM benchmark, with the camera given). Both run
 the same pipeline, :func:`reconstruct`, and read poses with :func:`model_poses`. pycolmap is optional (the ``sfm``
@@ -35,11 +35,17 @@ class SfmError(MetricError):
     """Structure from motion could not run or registered nothing (pycolmap missing, too few images, ...)."""
 
 
+class SfmUnavailableError(SfmError):
+    """COLMAP itself cannot run here (pycolmap missing or failing to import): a caller that turns a reconstruction
+    that registered nothing into a result must not do so for this."""
+
+
 def _pycolmap() -> Any:
     try:
         import pycolmap
     except ImportError as exc:  # an optional dependency (the sfm extra)
-        raise SfmError("structure from motion needs pycolmap: pip install 'cnnslam[sfm]' (or pycolmap>=3.12)") from exc
+        raise SfmUnavailableError("structure from motion needs pycolmap: pip install 'cnnslam[sfm]' (or "
+                                  "pycolmap>=3.12)") from exc
     return pycolmap
 
 

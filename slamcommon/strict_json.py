@@ -1,6 +1,6 @@
 """Strict JSON for records on either side (the judge's run records, ``cnnslam map``'s metrics): NaN/inf become
 null, numpy values Python ones (numpy only, so that ``cnnslam eval --json`` does not import pandas and OpenCV through
-:mod:`eval.results`, which re-exports it)."""
+:mod:`eval.metrics.results`, which re-exports it)."""
 
 from __future__ import annotations
 

@@ -29,6 +29,8 @@ import importlib.util
 import shutil
 import tempfile
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +38,9 @@ import cv2
 import numpy as np
 
 from sim_envs.agent import AgentOutput, FinalTrajectory
-from slamcommon.sfm import COLMAP_PIXEL_OFFSET, DEFAULT_OVERLAP, SfmError, model_poses, reconstruct
+from slamcommon.config import Configurable, configure
+from slamcommon.errors import ConfigError
+from slamcommon.sfm import COLMAP_PIXEL_OFFSET, DEFAULT_OVERLAP, SfmError, SfmUnavailableError, model_poses, reconstruct
 
 if importlib.util.find_spec("pycolmap") is None:
     raise ImportError("COLMAP needs the pycolmap package, not installed here: pip install -e '.[sfm]'")
@@ -59,19 +63,32 @@ def fill_unregistered(n_frames: int, registered: np.ndarray, poses: np.ndarray) 
     return np.asarray(poses, dtype=np.float64)[nearest], tracked
 
 
+@dataclass(frozen=True)
+class ColmapConfig(Configurable):
+    """COLMAP's settings as this method runs it (module docstring)."""
+
+    # ours: sequential matching, each image against its next `overlap` images (COLMAP's default 10)
+    overlap: int = DEFAULT_OVERLAP
+    # ours: COLMAP's CPU threads (the 2-core machines the suites are sized for)
+    threads: int = 2
+
+    def __post_init__(self) -> None:
+        if self.overlap < 1 or self.threads < 1:
+            raise ConfigError(f"COLMAP: overlap and threads must be >= 1, got {self.overlap}, {self.threads}")
+
+
 class ColmapAgent:
     """COLMAP's incremental SfM over the whole episode, run at ``finish`` (module docstring)."""
 
     name = "COLMAP"
 
     def __init__(self, seed: int = 0, overlap: int = DEFAULT_OVERLAP, threads: int = 2,
-                 workdir: str | Path | None = None) -> None:
+                 workdir: str | Path | None = None, config: ColmapConfig | Mapping[str, Any] | None = None) -> None:
         """``seed``: COLMAP's random seed; ``overlap``: sequential matching neighbours; ``threads``: COLMAP's CPU
-        threads; ``workdir``: where the images and COLMAP's database go (default a temporary folder, removed at
-        ``finish``; a given folder is kept)."""
-        if overlap < 1 or threads < 1:
-            raise ValueError(f"COLMAP: overlap and threads must be >= 1, got {overlap}, {threads}")
-        self.seed, self.overlap, self.threads = int(seed), int(overlap), int(threads)
+        threads (both :class:`ColmapConfig`, ``config`` overrides them); ``workdir``: where the images and COLMAP's
+        database go (default a temporary folder, removed at ``finish``; a given folder is kept)."""
+        self.config = configure(ColmapConfig(overlap=int(overlap), threads=int(threads)), config)
+        self.seed, self.overlap, self.threads = int(seed), self.config.overlap, self.config.threads
         self._workdir = None if workdir is None else Path(workdir)
         self._work: Path | None = None
         self._intrinsics = np.zeros(4)
@@ -111,6 +128,8 @@ class ColmapAgent:
             rows = model_poses(model)
             extras.update(points=int(model.num_points3D()),
                           reprojection_px=float(model.compute_mean_reprojection_error()))  # fmt: skip
+        except SfmUnavailableError:
+            raise  # COLMAP itself cannot run here: a failed run, not a method that registered nothing
         except SfmError as exc:
             rows = []
             extras["error"] = str(exc)

@@ -30,11 +30,15 @@ import select
 import subprocess
 import sys
 import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from slamcommon.config import Configurable, configure
+from slamcommon.errors import ConfigError
 from thirdparty.orb_vocabulary import DEFAULT_VOCABULARY
 
 if importlib.util.find_spec("pyorbslam3") is None:
@@ -95,6 +99,32 @@ def _rigid(values: list[float]) -> np.ndarray:
     return T
 
 
+@dataclass(frozen=True)
+class OrbSlam3Config(Configurable):
+    """ORB-SLAM3's settings as this method runs it (module docstring; ORB-SLAM3's own names in its settings file)."""
+
+    # ours: a DBoW2 text vocabulary; empty = ours, built from simulated training frames (thirdparty/vocabulary/)
+    vocabulary: str = ""
+    # ORB-SLAM3's TUM monocular examples: ORBextractor.nFeatures, scaleFactor, nLevels, iniThFAST, minThFAST
+    n_features: int = 1000
+    scale_factor: float = 1.2
+    n_levels: int = 8
+    ini_th_fast: int = 20
+    min_th_fast: int = 7
+    # the camera rate ORB-SLAM3 is told (Camera.fps; the sequences' 30 Hz)
+    fps: float = 30.0
+    # ours: how long to wait for one answer of the ORB-SLAM3 program (seconds)
+    timeout_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        for name in ("n_features", "n_levels", "ini_th_fast", "min_th_fast"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"ORB-SLAM3: {name} must be >= 1, got {getattr(self, name)}")
+        if not (self.scale_factor > 1 and self.fps > 0 and self.timeout_s > 0):
+            raise ConfigError(f"ORB-SLAM3: scale_factor must be > 1, fps and timeout_s > 0, got {self.scale_factor}, "
+                              f"{self.fps}, {self.timeout_s}")
+
+
 class OrbSlam3Agent:
     """ORB-SLAM3 monocular, out of process (see the module docstring for the configuration and the answers).
 
@@ -108,15 +138,18 @@ class OrbSlam3Agent:
 
     def __init__(self, vocabulary: str | None = None, n_features: int = 1000, scale_factor: float = 1.2,
                  n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7, fps: float = 30.0, seed: int = 0,
-                 timeout_s: float = 120.0) -> None:
-        self.vocabulary = Path(vocabulary) if vocabulary else DEFAULT_VOCABULARY
+                 timeout_s: float = 120.0, config: OrbSlam3Config | Mapping[str, Any] | None = None) -> None:
+        defaults = OrbSlam3Config(vocabulary or "", int(n_features), float(scale_factor), int(n_levels),
+                                  int(ini_th_fast), int(min_th_fast), float(fps), float(timeout_s))
+        self.config = configure(defaults, config)  # the keywords, with `config` overrides on top
+        self.vocabulary = Path(self.config.vocabulary) if self.config.vocabulary else DEFAULT_VOCABULARY
         if not self.vocabulary.is_file():
             raise FileNotFoundError(f"ORB vocabulary {self.vocabulary} not found "
                                     "(build one with python -m thirdparty.orb_vocabulary)")
-        self.options = {"n_features": int(n_features), "scale_factor": float(scale_factor), "n_levels": int(n_levels),
-                        "ini_th_fast": int(ini_th_fast), "min_th_fast": int(min_th_fast), "fps": float(fps)}
+        self.options = {name: getattr(self.config, name) for name in
+                        ("n_features", "scale_factor", "n_levels", "ini_th_fast", "min_th_fast", "fps")}
         self.seed = int(seed)
-        self.timeout_s = float(timeout_s)
+        self.timeout_s = self.config.timeout_s
         self._proc: subprocess.Popen[bytes] | None = None
         self._dir: tempfile.TemporaryDirectory[str] | None = None
         self._log: Any = None

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -62,10 +62,11 @@ from cnnslam.global_model import GlobalModel, GlobalModelConfig
 from cnnslam.icp import IcpConfig, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
 from cnnslam.predictors import make_predictor
 from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
+from slamcommon.config import Configurable, configure
 
 
 @dataclass(frozen=True)
-class LainaConfig:
+class LainaConfig(Configurable):
     """The Laina baseline's settings; nested sections ``icp``, ``model`` and ``tracking`` keep their own sources."""
 
     # Paper [16]: the CNN on every frame. Ours: k > 1 runs it every k-th frame (module docstring).
@@ -124,31 +125,6 @@ class LainaConfig:
         if self.prune_min_confidence < 0 or self.prune_min_age < 0 or self.render_min_confidence < 0:
             raise CnnSlamError("laina.prune_min_confidence, prune_min_age and render_min_confidence must be >= 0")
 
-    def with_overrides(self, overrides: dict[str, Any]) -> LainaConfig:
-        """A copy with ``{"field": value}`` or ``{"section.field": value}`` (sections icp, model, tracking) replaced."""
-        top: dict[str, Any] = {}
-        nested: dict[str, dict[str, Any]] = {}
-        names = [f.name for f in fields(self)]
-        for key, value in overrides.items():
-            section, sep, name = key.partition(".")
-            if isinstance(value, list):
-                value = tuple(value)
-            if not sep:
-                if key not in names or key in ("icp", "model", "tracking"):
-                    raise CnnSlamError(f"unknown Laina setting {key!r}; valid: {', '.join(names)} (sections as "
-                                       "'icp.<field>', 'model.<field>', 'tracking.<field>')")
-                top[key] = value
-                continue
-            if section not in ("icp", "model", "tracking"):
-                raise CnnSlamError(f"unknown Laina section {section!r} in {key!r}; valid: icp, model, tracking")
-            valid = [f.name for f in fields(getattr(self, section))]
-            if name not in valid:
-                raise CnnSlamError(f"unknown field {key!r}; fields of {section}: {', '.join(valid)}")
-            nested.setdefault(section, {})[name] = value
-        for section, values in nested.items():
-            top[section] = replace(getattr(self, section), **values)
-        return replace(self, **top)
-
 
 @dataclass
 class _PhotometricReference:
@@ -166,7 +142,7 @@ class LainaAgent:
 
     def __init__(self, config: LainaConfig | dict[str, Any] | None = None, predictor: str | Any | None = None,
                  predictor_options: dict[str, Any] | None = None) -> None:
-        self.config = config if isinstance(config, LainaConfig) else LainaConfig().with_overrides(dict(config or {}))
+        self.config = configure(LainaConfig(), config)
         self._predictor_spec = self.default_predictor if predictor is None else predictor
         if (isinstance(self._predictor_spec, str) and self._predictor_spec == "degraded_ground_truth"
                 and not self.uses_ground_truth):

@@ -66,6 +66,7 @@ from cnnslam.baselines.orb_mapping import (
 )
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import intrinsics_matrix, orthonormalize, se3_inverse
+from slamcommon.config import configure
 
 TrackingState = Literal["not_initialized", "ok", "lost"]
 LOCAL_MAP_MAX_KEYFRAMES: int = 80  # ORB UpdateLocalKeyFrames: at most 80 local key-frames
@@ -514,12 +515,7 @@ class OrbSlamAgent:
     name = "orb_slam"
 
     def __init__(self, config: OrbConfig | dict[str, Any] | None = None, seed: int = 0) -> None:
-        if isinstance(config, OrbConfig):
-            self.config = config
-        elif config is None or isinstance(config, dict):
-            self.config = OrbConfig().with_overrides(config)
-        else:
-            raise CnnSlamError(f"config must be an OrbConfig or a dict of its fields, got {type(config).__name__}")
+        self.config = configure(OrbConfig(), config)
         self.seed = int(seed)
         self.system: OrbSlam | None = None
         self._timestamps: list[float] = []

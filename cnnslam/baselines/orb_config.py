@@ -10,17 +10,17 @@ about detector noise, about a pixel at any resolution) are kept.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from dataclasses import dataclass
 
 from cnnslam.errors import CnnSlamError
+from slamcommon.config import Configurable
 
 CHI2_1DOF: float = 3.841  # ORB: chi-square 95 % with 1 degree of freedom (epipolar distance)
 CHI2_2DOF: float = 5.991  # ORB: chi-square 95 % with 2 degrees of freedom (reprojection error)
 
 
 @dataclass(frozen=True)
-class OrbConfig:
+class OrbConfig(Configurable):
     """Every parameter of the ORB-SLAM baseline. Frozen; derive variants with :meth:`with_overrides`."""
 
     # ---- features (ORBextractor)
@@ -153,19 +153,6 @@ class OrbConfig:
         if self.keyframe_max_frames < self.keyframe_min_frames:
             raise CnnSlamError(f"orb.keyframe_max_frames ({self.keyframe_max_frames}) must be >= "
                                f"keyframe_min_frames ({self.keyframe_min_frames})")
-
-    def with_overrides(self, overrides: dict[str, Any] | None = None) -> OrbConfig:
-        """A copy with ``{"field": value}`` entries replaced (:class:`CnnSlamError` naming an unknown field)."""
-        items = dict(overrides or {})
-        valid = [f.name for f in fields(self)]
-        unknown = sorted(k for k in items if k not in valid)
-        if unknown:
-            raise CnnSlamError(f"unknown ORB config field(s) {', '.join(unknown)}; valid: {', '.join(valid)}")
-        return replace(self, **items)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict (JSON-serialisable) of every field."""
-        return asdict(self)
 
     def level_scales(self) -> list[float]:
         """Scale factor of each pyramid level, ``scale_factor ** level``."""

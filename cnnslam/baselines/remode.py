@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -52,6 +52,7 @@ from numba import njit
 
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import se3_inverse
+from slamcommon.config import Configurable, configure
 
 # seed states (REMODE's ConvergenceStates)
 UPDATE, CONVERGED, DIVERGED, BORDER = 0, 1, 2, 3
@@ -60,7 +61,7 @@ SKIPPED, UPDATED, NO_MATCH, NOT_VISIBLE, FLAT = 0, 1, 2, 3, 4
 
 
 @dataclass(frozen=True)
-class RemodeConfig:
+class RemodeConfig(Configurable):
     """Every parameter of the REMODE baseline. Source: "REMODE" (Pizzoli et al. 2014 and rpg_open_remode), "VH"
     (Vogiatzis & Hernandez 2011), "SVO" (Forster et al. 2014, whose depth filter REMODE shares), or "ours"."""
 
@@ -120,19 +121,6 @@ class RemodeConfig:
                 raise CnnSlamError(f"remode.{name} must be >= 1, got {getattr(self, name)!r}")
         if self.tv_iterations < 0:
             raise CnnSlamError(f"remode.tv_iterations must be >= 0, got {self.tv_iterations!r}")
-
-    def with_overrides(self, overrides: dict[str, Any] | None = None) -> RemodeConfig:
-        """A copy with ``{"field": value}`` entries replaced (:class:`CnnSlamError` naming an unknown field)."""
-        items = dict(overrides or {})
-        valid = [f.name for f in fields(self)]
-        unknown = sorted(k for k in items if k not in valid)
-        if unknown:
-            raise CnnSlamError(f"unknown REMODE config field(s) {', '.join(unknown)}; valid: {', '.join(valid)}")
-        return replace(self, **items)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict (JSON-serialisable) of every field."""
-        return asdict(self)
 
 
 # ------------------------------------------------------------------------------------------------ the equations
@@ -592,12 +580,7 @@ class RemodeAgent:
                  threads: bool = False, seed: int | None = None) -> None:
         from cnnslam.agent import build_config
 
-        if isinstance(config, RemodeConfig):
-            self.config = config
-        elif config is None or isinstance(config, dict):
-            self.config = RemodeConfig().with_overrides(config)
-        else:
-            raise CnnSlamError(f"config must be a RemodeConfig or a dict of its fields, got {type(config).__name__}")
+        self.config = configure(RemodeConfig(), config)
         lsd_overrides = dict(lsd_config or {})
         if seed is not None:
             lsd_overrides["system.seed"] = int(seed)

@@ -11,13 +11,14 @@ import pytest
 
 from cnnslam.baselines.orb import OrbSlam, OrbSlamAgent
 from cnnslam.errors import CnnSlamError
-from eval.metrics import evaluate_trajectory
-from eval.trajectory import PoseTrajectory
+from eval.metrics.trajectory import PoseTrajectory
+from eval.metrics.trajectory_metrics import evaluate_trajectory
 from sim_envs.agent import load_agent
 from sim_envs.driver import run_episode
 from sim_envs.env import SlamEnv
 from sim_envs.sequences import get_sequence, rotation_stress_spec
 from sim_envs.simsource import FrameListSource, SimulatedSequence
+from slamcommon.errors import ConfigError
 
 HANDHELD_FRAMES = 90  # 3 s of the office0 analogue (ICL intrinsics, hand-held at 0.25 m/s)
 
@@ -103,7 +104,7 @@ def test_agent_contract() -> None:
         agent.step({"rgb": np.zeros((240, 320, 3), np.uint8), "timestamp": np.zeros(1)})
     with pytest.raises(CnnSlamError, match="finish"):
         OrbSlamAgent().finish()
-    with pytest.raises(CnnSlamError, match="OrbConfig"):
+    with pytest.raises(ConfigError, match="OrbConfig"):
         OrbSlamAgent(config=[1, 2])  # type: ignore[arg-type]
     agent.reset(np.array([240.6, 240.0, 159.5, 119.5]), (240, 320))
     with pytest.raises(CnnSlamError, match="size"):

@@ -23,6 +23,7 @@ from cnnslam.baselines.orb_init import check_rt, initialize_two_view
 from cnnslam.baselines.orb_map import SparseMap
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import intrinsics_matrix, relative_pose, rotation_angle_deg, se3_exp, se3_inverse
+from slamcommon.errors import ConfigError
 
 INTR = np.array([240.6, 240.0, 159.5, 119.5])  # the ICL preset at 320x240
 SIZE = (240, 320)
@@ -296,7 +297,7 @@ def test_two_view_initialisation_fails_without_translation(rendered_pair) -> Non
 
 
 def test_orb_config_validation() -> None:
-    with pytest.raises(CnnSlamError, match="unknown ORB config field"):
+    with pytest.raises(ConfigError, match="unknown config key 'n_feature'; valid keys: n_features"):
         OrbConfig().with_overrides({"n_feature": 10})
     with pytest.raises(CnnSlamError, match="keyframe_ref_ratio"):
         OrbConfig(keyframe_ref_ratio=1.5)

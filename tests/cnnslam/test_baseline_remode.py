@@ -28,6 +28,7 @@ from sim_envs.frames import SemanticClass
 from sim_envs.sequences import get_sequence
 from sim_envs.simsource import SimulatedSequence
 from slamcommon.depth_metrics import depth_metrics
+from slamcommon.errors import ConfigError
 
 # ------------------------------------------------------------------------------------------------ equations
 
@@ -94,7 +95,7 @@ def test_depth_range_of() -> None:
 def test_config_validation() -> None:
     with pytest.raises(CnnSlamError, match="odd"):
         RemodeConfig(patch_size=4)
-    with pytest.raises(CnnSlamError, match="unknown REMODE config"):
+    with pytest.raises(ConfigError, match="unknown config key 'patch'; valid keys: patch_size"):
         RemodeConfig().with_overrides({"patch": 5})
     with pytest.raises(CnnSlamError, match="depth_range"):
         DepthFilter(np.zeros((20, 20), np.float32), np.eye(4), np.array([20.0, 20.0, 10.0, 10.0]), (2.0, 1.0))
@@ -172,6 +173,6 @@ def test_remode_agent_contract() -> None:
     assert agent.uses_ground_truth and agent.lsd_config.depth.source == "ground_truth_first"
     with pytest.raises(CnnSlamError, match="reset"):
         agent.step({"rgb": np.zeros((240, 320, 3), np.uint8), "timestamp": np.zeros(1)}, {})
-    with pytest.raises(CnnSlamError, match="RemodeConfig"):
+    with pytest.raises(ConfigError, match="RemodeConfig"):
         RemodeAgent(config=3)  # type: ignore[arg-type]
     assert RemodeAgent(seed=5).lsd_config.system.seed == 5

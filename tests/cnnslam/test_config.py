@@ -15,6 +15,7 @@ from cnnslam.config import (
     baseline_config,
 )
 from cnnslam.errors import CnnSlamError
+from slamcommon.errors import ProjectError
 
 
 def test_defaults_follow_lsd_slam_constants() -> None:
@@ -40,16 +41,18 @@ def test_overrides_by_dotted_key_and_keyword() -> None:
 @pytest.mark.parametrize(
     "overrides, message",
     [
-        ({"nosuch.field": 1}, "unknown config key"),
-        ({"depth.nosuch": 1}, "fields of depth"),
-        ({"depth.source": "oracle"}, "depth.source must be one of"),
+        ({"nosuch.field": 1}, "unknown config key 'nosuch.field'; valid keys: tracking.*, keyframes.*"),
+        ({"depth.nosuch": 1}, "valid keys of depth .*: source, focal_adjustment"),
+        ({"depth.source": "oracle"}, "'depth.source' must be one of 'cnn', 'constant'"),
+        ({"tracking.pyramid_levels": "abc"}, "'tracking.pyramid_levels' must be an integer, got 'abc'"),
+        ({"refinement.enabled": "maybe"}, "'refinement.enabled' must be a bool"),
         ({"tracking.max_iterations": (5, 5)}, "one positive count per pyramid level"),
         ({"refinement.min_epl_length": 40.0}, "must not exceed max_epl_length"),
         ({"tracking.huber_threshold": -1.0}, "must be > 0"),
     ],
 )
 def test_bad_values_are_named(overrides: dict, message: str) -> None:
-    with pytest.raises(CnnSlamError, match=message):
+    with pytest.raises(ProjectError, match=message):  # a type or key (ConfigError) or a range (CnnSlamError)
         CnnSlamConfig().with_overrides(overrides)
 
 

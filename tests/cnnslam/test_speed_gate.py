@@ -1,5 +1,5 @@
 """The speed gate in CI: tracking and the whole system, in frames per machine unit, against
-results/baselines/perf.json (eval.perf.speed_regressions, allowed 1.5x slower).
+results/baselines/perf.json (eval.bench.perf.speed_regressions, allowed 1.5x slower).
 
 The figures are measured here, in this process, exactly as ``cnnslam bench perf``'s slam probe measures them; the
 unit (a frozen reference workload timed in the same process) carries the machine's speed and load, so the baseline
@@ -14,7 +14,7 @@ import pytest
 
 import cnnslam.system
 from cnnslam.bench_slam import benchmark
-from eval.perf import SPEED_GATED, load_speed_baseline, speed_regressions
+from eval.bench.perf import SPEED_GATED, load_speed_baseline, speed_regressions
 
 pytestmark = pytest.mark.slow  # agent runs timed against a baseline: the full lane (make test), not make check
 

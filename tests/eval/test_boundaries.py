@@ -31,5 +31,5 @@ def test_eval_never_imports_cnnslam():
 
 
 def test_argparse_only_in_command_lines():
-    users = [p.name for p in EVAL_ROOT.glob("*.py") if "argparse" in imported_modules(p)]
+    users = [p.name for p in EVAL_ROOT.rglob("*.py") if "argparse" in imported_modules(p)]
     assert all(name.startswith("cli_") for name in users) and users

@@ -1,6 +1,6 @@
 """The CI regression gate: the quick suite with the real agents (3 runs per cell), its gated figures (medians over
 the runs) compared with the committed baseline results/baselines/quick.json, whose tolerances were measured over a
-perturbation matrix (eval/calibrate.py). After an intended change of results: ``cnnslam bench quick
+perturbation matrix (eval/bench/calibrate.py). After an intended change of results: ``cnnslam bench quick
 --update-baseline`` (or ``--calibrate`` when the spread may have changed) and commit the baseline like code.
 
 Proved here, as the baseline's calibration promises:
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import pytest
 
-from eval.calibrate import MATRIX, Perturbation, run_configuration
-from eval.methods import load_methods
-from eval.regress import compare, format_report, gate_metrics, load_baseline
-from eval.suites import get_suite
+from eval.bench.calibrate import MATRIX, Perturbation, run_configuration
+from eval.bench.methods import load_methods
+from eval.bench.regress import compare, format_report, gate_metrics, load_baseline
+from eval.bench.suites import get_suite
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,10 +10,9 @@ import numpy as np
 import pytest
 
 from cnnslam.cli import main
-from eval.errors import SuiteError
-from eval.methods import load_methods
-from eval.runner import run_suite
-from eval.sequence_ref import (
+from eval.bench.methods import load_methods
+from eval.bench.runner import run_suite
+from eval.bench.sequence_ref import (
     DATASETS_ENV,
     DEFAULT_DATASETS_FILE,
     REPLAY_ENV_ID,
@@ -22,7 +21,8 @@ from eval.sequence_ref import (
     load_dataset_list,
     resolve_sequence,
 )
-from eval.suites import get_suite
+from eval.bench.suites import get_suite
+from eval.errors import SuiteError
 from sim_envs.camera import preset
 from sim_envs.datasets import write_folder
 from sim_envs.frames import Frame

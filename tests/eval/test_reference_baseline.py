@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from eval.metrics import evaluate_trajectory
-from eval.regress import compare, format_report, load_baseline
-from eval.trajectory import PoseTrajectory
+from eval.bench.regress import compare, format_report, load_baseline
+from eval.metrics.trajectory import PoseTrajectory
+from eval.metrics.trajectory_metrics import evaluate_trajectory
 
 TUM = Path("/work/shared/data/tum")
 BASELINE = Path(__file__).resolve().parents[2] / "results" / "baselines" / "tum_reference.json"

@@ -25,15 +25,15 @@ def test_unregistered_frames_take_the_nearest_registered_pose_untracked():
 
 
 def test_method_is_available_and_a_one_frame_episode_fails_softly():
-    from eval.methods import check_available, get_method
+    from eval.bench.methods import check_available, get_method
 
     assert check_available(get_method("COLMAP")) is None  # builds it, one step, finish (COLMAP needs 3 images)
 
 
 @pytest.mark.slow  # about 15 s: the full lane only
 def test_recovers_office0_up_to_scale_from_the_final_trajectory():
-    from eval.results import evaluate_episode
-    from eval.sequence_ref import resolve_sequence
+    from eval.bench.sequence_ref import resolve_sequence
+    from eval.metrics.results import evaluate_episode
     from sim_envs.driver import run_episode
     from thirdparty.colmap_sfm import ColmapAgent
 

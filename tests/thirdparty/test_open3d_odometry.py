@@ -10,7 +10,7 @@ pytest.importorskip("open3d", reason="open3d is not installed (pip install -e '.
 
 
 def test_method_is_available():
-    from eval.methods import check_available, get_method
+    from eval.bench.methods import check_available, get_method
 
     method = get_method("Open3D-odometry")
     assert method.sensor == "rgbd" and method.metrics == ("trajectory",)
@@ -18,8 +18,8 @@ def test_method_is_available():
 
 
 def test_tracks_office0_from_the_sensor_depth():
-    from eval.results import evaluate_episode
-    from eval.sequence_ref import resolve_sequence
+    from eval.bench.sequence_ref import resolve_sequence
+    from eval.metrics.results import evaluate_episode
     from sim_envs.driver import run_episode
     from thirdparty.open3d_odometry import Open3dOdometryAgent
 

@@ -1,0 +1,563 @@
+"""The benchmark as a library call: ``run_bench(suite, methods, options) -> BenchOutcome``.
+
+``cnnslam bench`` is a thin shell around it (arguments -> :class:`BenchOptions` -> :func:`run_bench` -> a summary),
+as evo's ``main_ape.ape(...)`` returns a result its command line prints::
+
+    from eval.bench import BenchOptions, run_bench
+
+    outcome = run_bench("table1", ["CNN-SLAM", "LSD"], BenchOptions(sequences=("office0",), frames=300))
+    print(outcome.exit_status, [(r.key, r.status, r.coverage) for r in outcome.runs], outcome.reports)
+
+What it does, in this order:
+
+1. **Checks everything it can before the first run** (:func:`prepare`): the suite and the options that belong to
+   it, the methods (names of the method table, ``Method`` objects as given, an external folder that is not there),
+   ``settings`` (keys that no chosen method's configuration has, values of the wrong type or range:
+   :func:`eval.bench.methods.apply_settings`), seeds, sequence names, every folder sequence's camera (a camera file
+   that does not parse or has ``fx = -5``), the results folder (a selection other than the suite's never writes into
+   the committed ``results/``), the executor. Anything wrong raises :class:`~eval.errors.InputError` with one line
+   naming the value and what is valid; nothing has run.
+2. **Runs every part of the suite** (:data:`KINDS`): a plain suite is one part; ``transfer``, ``lengths`` and
+   ``preprocessing`` are several parts, each run as a plain suite (so their runs are those suites' own), with one
+   report over all of them; ``perf`` runs throughput probes instead. A run that breaks (an agent that raises, no
+   poses or one pose to score, a method that cannot import what it needs at run time) is a failed run, stored as
+   such and never reused as finished.
+3. **Writes the report** and, for a plain suite, **the gate** (:func:`eval.bench.regress.apply_gate`:
+   compare, update, replace) or the calibration (:func:`eval.bench.calibrate.calibrate_suite`).
+4. **Returns** a frozen :class:`BenchOutcome`: every run with its status and coverage, the report's files, the
+   gate's outcome, what was skipped and why, and the exit status a command gives it (0: every requested run
+   finished, nothing skipped unless allowed, the gate passed; 1 otherwise). Ctrl-C propagates
+   (KeyboardInterrupt) with the finished runs stored.
+
+No printing: progress goes to the ``eval.bench.benchmark`` logger (INFO) and tqdm's bars (``progress``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal
+
+from eval.bench.executors import EXECUTORS, Executor, make_executor
+from eval.bench.methods import Method, apply_settings, load_methods, parse_setting
+from eval.bench.regress import GateAction, GateOutcome, apply_gate
+from eval.bench.runner import RunOutcome, SuiteRun, git_revision, run_suite
+from eval.bench.sequence_ref import dataset_list_file, parse_image_size
+from eval.bench.suites import (
+    SUITES,
+    SWEEP_LENGTHS,
+    Suite,
+    SuiteKind,
+    get_suite,
+    length_parts,
+    preprocessing_parts,
+    sim_domain,
+    transfer_parts,
+)
+from eval.errors import InputError, SuiteError
+from eval.metrics.results import coverage
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from slamcommon.errors import ProjectError
+
+log = logging.getLogger(__name__)
+
+DEFAULT_JOBS = 2  # runs in parallel: one per core of the 2-core machines the suites are sized for
+COMMITTED_RESULTS = Path("results")  # the committed tables (relative to the working directory, as --results is)
+Frames = int | Literal["all"] | None
+
+
+# --------------------------------------------------------------------------------------------------- the options
+@dataclass(frozen=True)
+class ExecutorOptions:
+    """Where runs execute (:mod:`eval.bench.executors`): ``kind`` local (a process pool), serial (this process) or
+    ray; ``jobs`` at a time; ``address`` of a Ray cluster; ``reuse_workers`` (local: several runs per worker);
+    ``timeout_s``: a run's time limit (None: none)."""
+
+    kind: str = "local"
+    jobs: int = DEFAULT_JOBS
+    address: str | None = None
+    reuse_workers: bool = False
+    timeout_s: float | None = None
+
+    @property
+    def is_default(self) -> bool:
+        """The local pool at its default size: what ``--calibrate``'s matrix runs itself."""
+        return self == ExecutorOptions(timeout_s=self.timeout_s)
+
+
+@dataclass(frozen=True)
+class BenchOptions:
+    """How :func:`run_bench` runs a suite. Selection (None: the suite's): ``sequences`` (names of the suite's, any
+    sequence name, dataset-list name or RGB-D folder path), ``frames`` (a number or ``"all"``), ``seeds`` or
+    ``runs`` (seeds 0..N-1), ``lengths`` (lengths / transfer: numbers of frames, None = whole), ``motions``
+    (transfer: TUM files replayed as simulated domains), ``camera`` (a simulated camera preset, a folder's
+    calibration preset or camera file; transfer: comma-separated simulated domains), ``image_size`` (``WxH`` or
+    ``native``) and ``undistort`` for folder sequences, ``align`` (the headline ATE's alignment), ``settings``
+    (``(dotted key, value)`` into the chosen methods' configurations, or ``KEY=VALUE`` texts). Runs: ``executor``,
+    ``renderer``, ``frame_cache``, ``check`` (build and step each method once before the suite), ``rerun``,
+    ``report_only``, ``plots``, ``progress``, ``out`` (run folders). Results: ``results`` (None: ``results/`` for
+    the suite as defined, else ``<out>/reports/<suite>-<digest>/``), ``command`` (the line the reports quote).
+    Gate: ``gate`` (:class:`~eval.bench.regress.GateAction`), ``baseline`` (None: the suite's). ``allow_skips``: a
+    skipped method, external folder or listed sequence does not make the exit status 1."""
+
+    sequences: tuple[str, ...] | None = None
+    frames: Frames = None
+    seeds: tuple[int, ...] | None = None
+    runs: int | None = None
+    lengths: tuple[int | None, ...] | None = None
+    motions: tuple[Path, ...] = ()
+    camera: str | None = None
+    image_size: str | tuple[int, int] | None = None
+    undistort: str | None = None
+    align: str | None = None
+    settings: tuple[tuple[str, Any] | str, ...] = ()
+    executor: ExecutorOptions = field(default_factory=ExecutorOptions)
+    renderer: str = "mujoco"
+    frame_cache: bool = True
+    check: bool = True
+    rerun: bool = False
+    report_only: bool = False
+    plots: bool = True
+    progress: bool = True
+    out: Path = Path("runs")
+    results: Path | None = None
+    command: str | None = None
+    gate: GateAction = GateAction.COMPARE
+    baseline: Path | None = None
+    allow_skips: bool = False
+
+
+# --------------------------------------------------------------------------------------------------- the outcome
+@dataclass(frozen=True)
+class RunRow:
+    """One run as the outcome lists it: its ``key`` (its folder under ``out``), the ``part`` it belongs to,
+    sequence, method, seed, ``status`` (done, cached, failed, not_run), ``error`` (failed), and ``coverage``:
+    ``(poses scored, frames)`` when its trajectory covers less than its sequence (None: whole, or not scored)."""
+
+    key: str
+    part: str
+    sequence: str
+    method: str
+    seed: int
+    status: str
+    error: str | None = None
+    coverage: tuple[int, int] | None = None
+
+
+@dataclass(frozen=True)
+class Skip:
+    """Something requested that did not run: ``what`` (method, sequence), its ``name`` and the ``reason``."""
+
+    what: Literal["method", "sequence"]
+    name: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class BenchOutcome:
+    """What :func:`run_bench` did (module docstring): the suite, the command the reports quote, every part's
+    :class:`~eval.bench.runner.SuiteRun` (label -> run), every run, the report's files and folder, the gate's
+    outcome (None: no gate), what was skipped, which methods each setting went to, and the exit status (0 or 1)."""
+
+    suite: str
+    command: str
+    parts: tuple[tuple[str, SuiteRun], ...]
+    runs: tuple[RunRow, ...]
+    reports: tuple[Path, ...]
+    results_dir: Path | None
+    gate: GateOutcome | None
+    skipped: tuple[Skip, ...]
+    settings: tuple[tuple[str, tuple[str, ...]], ...]
+    exit_status: int
+    notes: tuple[str, ...] = ()
+
+    @property
+    def failed(self) -> tuple[RunRow, ...]:
+        """The runs that failed (crashed, timed out, broke)."""
+        return tuple(r for r in self.runs if r.status == "failed")
+
+    def counts(self) -> dict[str, int]:
+        """How many runs ended how (status -> count)."""
+        out: dict[str, int] = {}
+        for r in self.runs:
+            out[r.status] = out.get(r.status, 0) + 1
+        return out
+
+
+# ---------------------------------------------------------------------------------------- the parts of a suite
+@dataclass(frozen=True)
+class Part:
+    """One suite a suite is made of: ``label`` (how the report and the log name it), the ``suite`` run as a plain
+    suite, and ``detail``, what its report writer needs besides its runs (a transfer part, a length, a
+    preprocessing choice's domains)."""
+
+    label: str
+    suite: Suite
+    detail: Any = None
+
+
+@dataclass(frozen=True)
+class KindSpec:
+    """How a kind of suite is run and reported: ``parts`` (the suite and the options -> its parts), ``report`` (the
+    parts with their runs, the folder, the command -> the files written) and ``as_defined`` (whether the options
+    leave the kind's own variants as defined: otherwise the report is a variant's, never the committed one)."""
+
+    parts: Callable[[Suite, BenchOptions], list[Part]]
+    report: Callable[[list[tuple[Part, SuiteRun]], Path, str], list[Path]]
+    as_defined: Callable[[BenchOptions], bool] = lambda options: True
+
+
+def _lengths(options: BenchOptions) -> tuple[int | None, ...] | None:
+    return None if options.lengths is None else tuple(options.lengths)
+
+
+def _presets(options: BenchOptions) -> tuple[str, ...] | None:
+    """The transfer suite's simulated domains when ``camera`` names only such (``clean,kinect+lit``), else None."""
+    if options.camera is None:
+        return None
+    names = options.camera.split(",")
+    try:
+        for name in names:
+            sim_domain(name)
+    except SuiteError:
+        return None
+    return tuple(names)
+
+
+def _plain_parts(suite: Suite, options: BenchOptions) -> list[Part]:
+    return [Part(suite.name, suite)] if suite.sequences else []
+
+
+def _plain_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+    from eval.reports.suite_reports import write_report
+
+    return write_report(parts[0][1], folder, command)
+
+
+def _transfer_parts(suite: Suite, options: BenchOptions) -> list[Part]:
+    planned = transfer_parts(suite, _presets(options) or (DEFAULT_CAMERA_EFFECTS,), _lengths(options),
+                             motions=options.motions)  # fmt: skip
+    return [Part(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite, p) for p in planned if p.suite.sequences]
+
+
+def _transfer_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+    from eval.reports.transfer_report import report_transfer
+
+    return report_transfer([(part.detail, run) for part, run in parts], folder, command)
+
+
+def _length_parts(suite: Suite, options: BenchOptions) -> list[Part]:
+    lengths = _lengths(options) or SWEEP_LENGTHS
+    return [Part(f"{'whole' if n is None else n} frames", s, n) for n, s in length_parts(suite, lengths)]
+
+
+def _length_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+    from eval.reports.lengths_report import report_lengths
+
+    return report_lengths([(part.detail, run) for part, run in parts], folder, command)
+
+
+def _preprocessing_parts(suite: Suite, options: BenchOptions) -> list[Part]:
+    return [Part(choice, s, domains) for choice, s, domains in preprocessing_parts(suite) if s.sequences]
+
+
+def _preprocessing_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+    from eval.reports.sensitivity_report import report_preprocessing
+
+    return report_preprocessing([(part.label, run, part.detail) for part, run in parts], folder, command)
+
+
+# the one table of what each kind of suite is made of and how it is reported (PERF runs probes, no parts)
+KINDS: dict[SuiteKind, KindSpec] = {
+    SuiteKind.RUNS: KindSpec(_plain_parts, _plain_report),
+    SuiteKind.TRANSFER: KindSpec(_transfer_parts, _transfer_report,
+                                 lambda o: o.lengths is None and _presets(o) is None and not o.motions),
+    SuiteKind.LENGTHS: KindSpec(_length_parts, _length_report,
+                                lambda o: o.lengths is None or set(o.lengths) == set(SWEEP_LENGTHS)),
+    SuiteKind.PREPROCESSING: KindSpec(_preprocessing_parts, _preprocessing_report),
+}
+
+
+# ----------------------------------------------------------------------------------------------- the checks
+@dataclass(frozen=True)
+class BenchPlan:
+    """A checked benchmark (:func:`prepare`): the selected suite, its parts, the methods by name (settings
+    applied), where each setting went, the executor, the results folder, the command line, and what was skipped."""
+
+    suite: Suite
+    parts: tuple[Part, ...]
+    methods: dict[str, Method]
+    settings: tuple[tuple[str, tuple[str, ...]], ...]
+    executor: Executor | None
+    results_dir: Path
+    command: str
+    skipped: tuple[Skip, ...]
+
+
+def prepare(suite: Suite | str, methods: Sequence[str | Method] | None = None,
+            options: BenchOptions = BenchOptions(), table: Mapping[str, Method] | None = None) -> BenchPlan:
+    """Check everything :func:`run_bench` can check before its first run (module docstring, step 1) and plan it;
+    :class:`~eval.errors.InputError` with one line naming the bad value and what is valid. ``table``: the method
+    table names are looked up in (default ``eval/methods.toml``); ``Method`` objects are used as given."""
+    try:
+        return _prepare(suite, methods, options, table)
+    except InputError:
+        raise
+    except ProjectError as exc:  # a bad value found while planning (a camera file, an executor, ...): bad input
+        raise InputError(str(exc)) from exc
+
+
+def _prepare(suite: Suite | str, methods: Sequence[str | Method] | None, options: BenchOptions,
+             table: Mapping[str, Method] | None) -> BenchPlan:
+    suite = get_suite(suite) if isinstance(suite, str) else suite
+    _check_options(suite, options)
+    chosen = _chosen_methods(suite, methods, table)
+    settings = tuple(parse_setting(s) if isinstance(s, str) else tuple(s) for s in options.settings)
+    resolved, applied = apply_settings(list(chosen.values()), settings) if settings else (chosen, {})
+    camera = None if _presets(options) is not None and suite.kind is SuiteKind.TRANSFER else options.camera
+    selected = suite.select(options.sequences, list(resolved), options.frames, options.seeds, options.runs,
+                            camera=camera, size=parse_image_size(options.image_size), undistort=options.undistort)
+    if options.align is not None:
+        selected = replace(selected, alignment=options.align)
+    for ref in selected.sequences:  # a folder's camera (file, preset, side file) and index read now, not in a run
+        if ref.folder is not None:
+            ref.make_source().close()
+    parts = () if suite.kind is SuiteKind.PERF else tuple(KINDS[suite.kind].parts(selected, options))
+    command = options.command or command_line(selected.name, options)
+    builtin = load_methods()
+    as_defined = (selected.is_default and not settings and all(builtin.get(n) == m for n, m in resolved.items())
+                  and (suite.kind is SuiteKind.PERF or KINDS[suite.kind].as_defined(options)))  # fmt: skip
+    results_dir = _results_dir(selected, options, command, as_defined)
+    skipped = tuple(Skip("sequence", name, reason) for name, reason in selected.skipped)
+    return BenchPlan(selected, parts, dict(resolved), tuple(applied.items()), _executor(selected, resolved, options),
+                     results_dir, command, skipped)  # fmt: skip
+
+
+def _check_options(suite: Suite, options: BenchOptions) -> None:
+    """The options that belong to some suites only, and the numbers that must be in range."""
+    kind = suite.kind
+    if options.motions and kind is not SuiteKind.TRANSFER:
+        raise SuiteError("--motion applies to the transfer suite (a recorded motion as a simulated domain)")
+    if options.lengths is not None and kind not in (SuiteKind.LENGTHS, SuiteKind.TRANSFER):
+        raise SuiteError("--lengths applies to the lengths and transfer suites; other suites take --frames")
+    if options.lengths is not None and options.frames is not None:
+        raise SuiteError("give --lengths or --frames, not both")
+    bad = [s for s in options.seeds or () if not (isinstance(s, int) and s >= 0)]
+    if bad:
+        raise SuiteError(f"--seeds takes whole numbers >= 0 (a run's seed), got {', '.join(map(str, bad))}")
+    timeout = options.executor.timeout_s
+    if timeout is not None and not timeout > 0:
+        raise SuiteError(f"--timeout must be a number of seconds > 0, got {timeout}")
+    if options.executor.kind not in EXECUTORS:
+        raise SuiteError(f"unknown executor {options.executor.kind!r}; valid executors: {', '.join(EXECUTORS)}")
+    if options.gate is GateAction.CALIBRATE and not options.executor.is_default:
+        raise SuiteError("--calibrate runs its matrix's own local pools (2 runs at a time, then 1 with 2 threads; "
+                         "eval/bench/calibrate.py): --executor, --jobs and --reuse-workers do not apply")
+
+
+def _chosen_methods(suite: Suite, methods: Sequence[str | Method] | None,
+                    table: Mapping[str, Method] | None) -> dict[str, Method]:
+    """The methods to run by name: ``methods`` (names looked up in ``table``, Method objects as given) or the
+    suite's; an unknown name or an external folder that is not there is an :class:`InputError`."""
+    table = load_methods() if table is None else table
+    wanted = list(suite.methods) if methods is None else list(methods)
+    names = [m for m in wanted if isinstance(m, str)]
+    unknown = [n for n in names if n not in table]
+    if unknown:
+        raise SuiteError(f"unknown method(s) {', '.join(unknown)}; valid methods: {', '.join(table)}")
+    chosen = {m.name if isinstance(m, Method) else m: m if isinstance(m, Method) else table[m] for m in wanted}
+    chosen.update({m.name: m for m in table.values() if m.kind == "external" and m.name not in chosen})
+    missing = [m for m in chosen.values() if m.kind == "external" and not Path(m.folder or "").is_dir()]
+    if missing:
+        raise SuiteError("; ".join(f"--external {m.name}={m.folder}: no such folder" for m in missing)
+                         + "; an external method's folder holds its output (cnnslam bench --help shows the layout)")
+    return chosen
+
+
+def _results_dir(suite: Suite, options: BenchOptions, command: str, as_defined: bool) -> Path:
+    """Where the report goes: ``options.results``; else ``results/`` for the suite as defined; else a folder named
+    after the selection under ``<out>/reports/``. A selection of other sequences or methods than the suite's never
+    writes into the committed ``results/`` (it would overwrite the whole table with part of it)."""
+    if options.results is None:
+        if as_defined:
+            return COMMITTED_RESULTS
+        return Path(options.out) / "reports" / f"{suite.name}-{hashlib.sha256(command.encode()).hexdigest()[:8]}"
+    committed = COMMITTED_RESULTS.resolve()
+    target = Path(options.results).resolve()
+    note = suite.selection_note()
+    if note and (target == committed or committed in target.parents):
+        raise SuiteError(f"--results {options.results}: the committed results hold suite {suite.name} as defined, "
+                         f"and this selection is {note}: leave --results out (it writes under {options.out}/reports/) "
+                         "or name a folder outside results/")  # fmt: skip
+    return Path(options.results)
+
+
+def _executor(suite: Suite, methods: Mapping[str, Method], options: BenchOptions) -> Executor | None:
+    """The executor of the runs (None for ``perf`` and ``--calibrate``, which run their own)."""
+    if suite.kind is SuiteKind.PERF or options.gate is GateAction.CALIBRATE:
+        return None
+    ex = options.executor
+    # the fork server imports the agents' modules once; each run still gets a fresh worker forked from it
+    preload = [m.entry_point.partition(":")[0] for m in methods.values() if m.entry_point]
+    return make_executor(ex.kind, ex.jobs, ex.address, fresh_workers=not ex.reuse_workers, preload=preload,
+                         **({"timeout_s": ex.timeout_s} if ex.timeout_s is not None else {}))  # fmt: skip
+
+
+def command_line(suite: str, options: BenchOptions, methods: Sequence[str] = ()) -> str:
+    """A ``cnnslam bench`` line for the options that shape the results (what a report quotes when its caller gives
+    none)."""
+    words = ["cnnslam", "bench", suite]
+    for flag, value in (("--frames", options.frames), ("--runs", options.runs), ("--align", options.align),
+                        ("--camera", options.camera), ("--undistort", options.undistort),
+                        ("--image-size", options.image_size)):  # fmt: skip
+        if value is not None:
+            words += [flag, str(value)]
+    for flag, values in (("--sequences", options.sequences), ("--methods", methods), ("--seeds", options.seeds)):
+        if values:
+            words += [flag, *map(str, values)]
+    return " ".join(words)
+
+
+# --------------------------------------------------------------------------------------------------- the call
+def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
+              options: BenchOptions = BenchOptions(), table: Mapping[str, Method] | None = None) -> BenchOutcome:
+    """Run a benchmark suite and write its report (module docstring). ``suite``: a name of :data:`SUITES` or a
+    :class:`Suite`; ``methods``: names of ``table`` (default ``eval/methods.toml``;
+    :func:`eval.bench.methods.method_table` adds a method file and ``--external`` folders, whose methods always run)
+    or ``Method`` objects (None: the suite's); ``options``: :class:`BenchOptions`. Raises
+    :class:`~eval.errors.InputError` before any run for bad input; KeyboardInterrupt after storing the runs finished
+    so far."""
+    plan = prepare(suite, methods, options, table)
+    if plan.suite.kind is SuiteKind.PERF:
+        return _perf(plan, options)
+    if options.gate is GateAction.CALIBRATE:
+        return _calibrate(plan, options)
+    done: list[tuple[Part, SuiteRun]] = []
+    for part in plan.parts:
+        if len(plan.parts) > 1:
+            frames = "whole sequences" if part.suite.frames is None else f"{part.suite.frames} frames"
+            log.info("%s: %s: suite %s, %d sequence(s), %s", plan.suite.name, part.label, part.suite.name,
+                     len(part.suite.sequences), frames)  # fmt: skip
+        done.append((part, _run_part(part.suite, plan, options)))
+    notes = []
+    reports: list[Path] = []
+    if done:
+        reports = KINDS[plan.suite.kind].report(done, plan.results_dir, plan.command)
+    else:
+        notes.append(f"suite {plan.suite.name} has no sequence to run here ({len(plan.suite.skipped)} skipped; the "
+                     f"dataset list is {dataset_list_file()})")  # fmt: skip
+    gate = None
+    if plan.suite.kind is SuiteKind.RUNS and done:
+        run = done[0][1]
+        incomplete = (f"{len(run.failed)} run(s) failed, {len(run.skipped_methods)} method(s) skipped"
+                      if run.failed or run.skipped_methods else "")  # fmt: skip
+        gate = apply_gate(run.records, options.gate, options.baseline or plan.suite.baseline_path,
+                          gated=plan.suite.gated or options.baseline is not None,
+                          description=baseline_description(plan.suite), incomplete=incomplete)  # fmt: skip
+    return _outcome(plan, options, done, reports, gate, notes)
+
+
+def _run_part(suite: Suite, plan: BenchPlan, options: BenchOptions) -> SuiteRun:
+    return run_suite(suite, plan.methods, options.out, executor=plan.executor, renderer=options.renderer,
+                     plots=options.plots, progress=options.progress, check=options.check, rerun=options.rerun,
+                     report_only=options.report_only, frame_cache=options.frame_cache)  # fmt: skip
+
+
+def _outcome(plan: BenchPlan, options: BenchOptions, done: list[tuple[Part, SuiteRun]], reports: list[Path],
+             gate: GateOutcome | None, notes: list[str]) -> BenchOutcome:
+    """The outcome of the parts' runs, and its exit status (module docstring)."""
+    rows = tuple(row for part, run in done for row in run_rows(part.label, run))
+    skipped = list(plan.skipped)
+    for _, run in done:
+        skipped += [Skip("method", n, r) for n, r in run.skipped_methods.items() if Skip("method", n, r) not in skipped]
+    failed = any(r.status == "failed" for r in rows)
+    # no sequence here at all (a real-folder suite without its folders): a plain suite may allow that; a suite that
+    # compares against the real folders has nothing to compare
+    empty = not plan.suite.sequences and not (options.allow_skips and plan.suite.skipped
+                                              and plan.suite.kind is SuiteKind.RUNS)  # fmt: skip
+    status = 1 if failed or (skipped and not options.allow_skips) or empty or (gate and not gate.passed) else 0
+    return BenchOutcome(plan.suite.name, plan.command, tuple((p.label, r) for p, r in done), rows, tuple(reports),
+                        plan.results_dir if reports else None, gate, tuple(skipped), plan.settings, status,
+                        tuple(notes))  # fmt: skip
+
+
+def run_rows(label: str, run: SuiteRun) -> list[RunRow]:
+    """Every planned run of a part as a :class:`RunRow` (coverage read from its record)."""
+    records = {r.run: r for r in run.records}
+    rows = []
+    for spec in run.specs:
+        outcome: RunOutcome = run.outcomes[spec.key]
+        record = records.get(spec.key)
+        rows.append(RunRow(spec.key, label, spec.sequence.name, spec.method.name, spec.seed, outcome.status,
+                           outcome.error, coverage(record.metrics) if record is not None else None))  # fmt: skip
+    return rows
+
+
+def baseline_description(suite: Suite) -> str:
+    """The description a baseline written from ``suite`` carries."""
+    frames = "all" if suite.frames is None else suite.frames
+    return (f"cnnslam bench {suite.name}: {frames} frames, {len(suite.seeds)} runs per cell, sequences "
+            f"{', '.join(s.name for s in suite.sequences)}; methods {', '.join(suite.methods)}")  # fmt: skip
+
+
+def _perf(plan: BenchPlan, options: BenchOptions) -> BenchOutcome:
+    """The ``perf`` suite: throughput probes (:func:`eval.bench.perf.run_perf`), their report and speed gate."""
+    from eval.bench.perf import SPEED_BASELINE, run_perf
+
+    results = options.results or COMMITTED_RESULTS
+    frames = None if options.frames == "all" else options.frames
+    report = run_perf(results, frames=frames, progress=options.progress,
+                      update_speed_baseline=options.gate in (GateAction.UPDATE, GateAction.REPLACE))  # fmt: skip
+    verdict = report.speed_gate or {}
+    message = (f"speed gate not judged: {verdict['error']}" if verdict.get("error") else
+               "speed gate: " + ("; ".join(verdict.get("failures") or []) or "passed"))  # fmt: skip
+    gate = GateOutcome(options.gate, Path(str(verdict.get("baseline", SPEED_BASELINE))), bool(report.ok), message)
+    return BenchOutcome(plan.suite.name, plan.command, (), (), (results / "perf.md", results / "perf.json"), results,
+                        gate, (), (), 0 if report.ok else 1)  # fmt: skip
+
+
+def _calibrate(plan: BenchPlan, options: BenchOptions) -> BenchOutcome:
+    """``GateAction.CALIBRATE``: the suite under the perturbation matrix, its baseline, and its report from the
+    reference configuration's runs (:func:`eval.bench.calibrate.calibrate_suite`)."""
+    from eval.bench.calibrate import MATRIX, calibrate_suite
+
+    done = calibrate_suite(plan.suite, plan.methods, options.out, options.baseline or plan.suite.baseline_path,
+                           baseline_description(plan.suite), renderer=options.renderer,
+                           timeout_s=options.executor.timeout_s, progress=options.progress,
+                           revision=git_revision() or "")  # fmt: skip
+    parts = [(Part(name, run.suite), run) for name, run in done.runs.items()]
+    reports: list[Path] = []
+    if done.baseline is not None:
+        reference = [(p, r) for p, r in parts if p.label == MATRIX[0].name]
+        reports = KINDS[SuiteKind.RUNS].report(reference, plan.results_dir, plan.command)
+    gate = GateOutcome(GateAction.CALIBRATE, done.baseline_path, done.baseline is not None,
+                       "; ".join([done.summary, *(f"left out of the calibration: {w}" for w in done.left_out)]))
+    notes = [f"report from the {MATRIX[0].name} configuration's runs", *done.failed]
+    return _outcome(plan, options, parts, reports, gate, notes)
+
+
+def describe_suites(table: Mapping[str, Method]) -> str:
+    """The suites (their sequences, frames and methods; a real-folder suite read from the dataset list now) and the
+    method table, as text (``cnnslam bench --list``)."""
+    lines = ["suites:"]
+    for suite in SUITES.values():
+        lines.append(f"  {suite.name:<9} {suite.description}")
+        if suite.kind is not SuiteKind.RUNS:
+            continue
+        if suite.real_folders:
+            try:
+                suite = get_suite(suite.name)
+            except SuiteError as exc:
+                lines.append(f"            {exc}")
+        frames = "all" if suite.frames is None else suite.frames
+        lines.append(f"            frames {frames}; sequences: {', '.join(s.name for s in suite.sequences)}")
+        if suite.skipped:
+            lines.append(f"            missing here: {', '.join(name for name, _ in suite.skipped)}")
+        lines.append(f"            methods: {', '.join(suite.methods)}")
+    lines.append("methods:")
+    for m in table.values():
+        lines.append(f"  {m.name:<17} {m.entry_point or m.folder}  {dict(m.agent_kwargs())}  [{', '.join(m.metrics)}]")
+    return "\n".join(lines)

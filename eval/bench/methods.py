@@ -1,0 +1,591 @@
+"""The method table: what each benchmark method is (an agent entry point with keyword arguments, or a folder of a
+third-party system's output), which metric groups apply to it, and a check that it can run here.
+
+The table itself is data, :file:`eval/methods.toml` (the judge names agents by ``"module:Class"`` strings and never
+imports the agents' package; see that file for the fields). A user adds a method by adding a table there or by
+passing another file of the same shape (:func:`load_methods`).
+
+Two kinds of method:
+
+- ``agent``: an agent of :mod:`sim_envs.agent` run in the environment of each sequence by :mod:`eval.bench.run`;
+- ``external``: a third-party SLAM system that ran on an exported sequence (``cnnslam export``, ``cnnslam generate
+  rotation --export``) and wrote, per sequence, a TUM trajectory and optionally depth maps into a folder
+  (:func:`external_method`; layout in :data:`EXTERNAL_LAYOUT`). Its output is scored exactly like an agent's.
+
+Metric groups (:data:`METRIC_GROUPS`): ``trajectory`` (ATE, rotation error, RPE, scale, path lengths, tracked share),
+``depth`` (percentage of correct depth, density, AbsRel, RMSE, delta < 1.25, key-frame count), ``semantic`` (pixel
+accuracy, IoU), ``map`` (the global model's accuracy, completeness and fused-label accuracy,
+:mod:`eval.metrics.map_metrics`; for agents that hand back a model). ``frames`` is always kept. A method without the
+``trajectory`` group (REMODE, which runs on LSD-BS poses) gets no ATE column, as in the paper's Table 1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+import numpy as np
+
+from eval.errors import InputError
+from slamcommon.alignment import AlignmentMethod
+from slamcommon.config import config_keys, has_key
+from slamcommon.errors import ProjectError
+
+MethodKind = Literal["agent", "external"]
+METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
+METHODS_FILE: Path = Path(__file__).resolve().parents[1] / "methods.toml"  # eval/methods.toml, data beside code
+
+# metric name prefixes (eval.metrics.results' flat names) of each group
+METRIC_GROUPS: dict[str, tuple[str, ...]] = {
+    "trajectory": ("ate_", "rot_deg_", "rpe_", "scale", "length_", "tracked_share"),
+    "depth": ("depth_",),
+    "semantic": ("semantic_",),
+    "map": ("map_",),
+}
+ALWAYS_KEPT: tuple[str, ...] = ("frames",)
+# wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
+TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps", "map_scoring_s")
+
+EXTERNAL_LAYOUT = """\
+FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps
+FOLDER/<sequence>.txt                (alternative to the above)
+FOLDER/<sequence>/depth/<t>.png      optional key-frame depth, 16-bit PNG, 5000 = 1 m (TUM), t = the timestamp
+FOLDER/<sequence>/depth/<t>.npy      optional key-frame depth, (H, W) float32 metres, 0 = no estimate
+FOLDER/<sequence>/run.toml           optional: wall_s = the system's own run time on the sequence (seconds)
+FOLDER/method.toml                   optional: sensor = "mono" | "rgbd" | "stereo"; uses_ground_truth = ["depth",
+                                     "scale", "poses"] (what it was fed); align = "se3" | "sim3" (its ATE)"""
+
+_FILE_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+class MethodError(InputError):
+    """A method definition or choice that cannot be used (a bad table, an unknown name, a setting its configuration
+    does not take)."""
+
+
+@dataclass(frozen=True)
+class Method:
+    """One benchmark method.
+
+    name: shown in results; kind: "agent" or "external"; entry_point: ``"module:Class"`` (agents); kwargs: the
+    agent's keyword arguments as sorted ``(name, value)`` pairs (a mapping is accepted); seed: where a run's seed
+    goes (see :meth:`agent_kwargs`): one target or a tuple of targets (a list is accepted), None when the agent takes
+    none; metrics: metric groups reported; paper: the
+    method's column in the paper's Table 1, if any; description: one line; folder: the output folder (external);
+    inputs: files the agent reads whose contents determine its results (network weights, vocabularies): their
+    SHA-256 enters a run's fingerprint (:meth:`input_hashes`), so a finished run is not reused after they change.
+    An input is ``"package:path/inside/it"`` (found without importing the package) or a file path. align: the
+    trajectory alignment of the method's headline ATE (``se3``, ``sim3``, ...; None: the suite's); sensor: ``mono``,
+    ``rgbd`` or ``stereo``; uses_ground_truth: what ground truth an external system declares it used (``depth``,
+    ``scale``, ``poses``).
+    """
+
+    name: str
+    kind: MethodKind = "agent"
+    entry_point: str | None = None
+    kwargs: tuple[tuple[str, Any], ...] = ()
+    seed: str | tuple[str, ...] | None = None
+    metrics: tuple[str, ...] = ("trajectory", "depth")
+    paper: str | None = None
+    description: str = ""
+    folder: str | None = None
+    inputs: tuple[str, ...] = ()
+    align: str | None = None
+    sensor: str = "mono"
+    uses_ground_truth: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        kwargs = self.kwargs
+        items = kwargs.items() if isinstance(kwargs, Mapping) else kwargs
+        object.__setattr__(self, "kwargs", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
+        object.__setattr__(self, "metrics", tuple(self.metrics))
+        object.__setattr__(self, "inputs", tuple(str(i) for i in self.inputs))
+        if isinstance(self.seed, list | tuple):
+            object.__setattr__(self, "seed", tuple(str(t) for t in self.seed) or None)
+        object.__setattr__(self, "uses_ground_truth", tuple(str(g) for g in self.uses_ground_truth))
+        if self.sensor not in SENSORS:
+            raise MethodError(f"method {self.name!r}: sensor must be one of {SENSORS}, got {self.sensor!r}")
+        bad_gt = [g for g in self.uses_ground_truth if g not in GROUND_TRUTH_KINDS]
+        if bad_gt:
+            raise MethodError(f"method {self.name!r}: uses_ground_truth {bad_gt} not among {GROUND_TRUTH_KINDS}")
+        if self.align is not None and self.align not in ALIGNMENTS:
+            raise MethodError(f"method {self.name!r}: align must be one of {ALIGNMENTS}, got {self.align!r}")
+        if not self.name or _FILE_SAFE.sub("", self.name) == "":
+            raise MethodError(f"a method needs a name with at least one letter or digit, got {self.name!r}")
+        if self.kind not in METHOD_KINDS:
+            raise MethodError(f"method {self.name!r}: kind must be one of {METHOD_KINDS}, got {self.kind!r}")
+        bad = [g for g in self.metrics if g not in METRIC_GROUPS]
+        if bad or not self.metrics:
+            raise MethodError(
+                f"method {self.name!r}: unknown metric group(s) {bad or '(none given)'}; "
+                f"valid: {', '.join(METRIC_GROUPS)}"
+            )
+        if self.kind == "agent":
+            module, sep, attr = (self.entry_point or "").partition(":")
+            if not (module and sep and attr):
+                raise MethodError(
+                    f"method {self.name!r}: entry_point must look like 'package.module:Class', got {self.entry_point!r}"
+                )
+        elif not self.folder:
+            raise MethodError(f"external method {self.name!r} needs the folder holding its output")
+        for target in self.seed_targets:
+            if not re.fullmatch(r"[A-Za-z_]\w*(\.[^.\s]+(\.[^.\s]+)*)?", target):
+                raise MethodError(f"method {self.name!r}: a seed target is 'keyword' or 'keyword.key', got {target!r}")
+
+    @property
+    def seed_targets(self) -> tuple[str, ...]:
+        """Where a run's seed goes, as a tuple (empty: the agent takes none)."""
+        if self.seed is None:
+            return ()
+        return (self.seed,) if isinstance(self.seed, str) else tuple(self.seed)
+
+    @property
+    def slug(self) -> str:
+        """The name made safe for a folder name."""
+        return _FILE_SAFE.sub("_", self.name).strip("_")
+
+    def agent_kwargs(self, seed: int | None = None) -> dict[str, Any]:
+        """The agent's keyword arguments, with ``seed`` put where each of :attr:`seed_targets` says
+        (``"config.system.seed"``: ``kwargs["config"]["system.seed"] = seed``, merged into a config dict already
+        given)."""
+        kwargs = {k: _thaw(v) for k, v in self.kwargs}
+        if seed is None:
+            return kwargs
+        for target in self.seed_targets:
+            keyword, _, key = target.partition(".")
+            if not key:
+                kwargs[keyword] = int(seed)
+                continue
+            inner = kwargs.get(keyword) or {}
+            if not isinstance(inner, dict):
+                raise MethodError(f"method {self.name!r}: seed goes into {keyword!r}, which is {inner!r}, not a dict")
+            kwargs[keyword] = {**inner, key: int(seed)}
+        return kwargs
+
+    def input_hashes(self) -> dict[str, str]:
+        """``{input: sha256 hex}`` of :attr:`inputs` (see :func:`resolve_input`)."""
+        return {name: _file_sha256(resolve_input(name, self.name)) for name in self.inputs}
+
+    def source_hashes(self) -> dict[str, str]:
+        """``{top-level module: sha256 hex}`` of the agent's own source: the ``.py`` files of the package its entry
+        point lives in (or the module's file when it is a single file), and likewise of every ``"module:Class"``
+        string among its keyword arguments (a wrapping agent names the agent it wraps). Editing an agent's code
+        thus redoes its runs. External methods: none (their output files are read afresh every run)."""
+        if self.kind != "agent":
+            return {}
+        modules = [self.entry_point or "", *(v for _, v in self.kwargs if isinstance(v, str) and _ENTRY.match(v))]
+        tops = dict.fromkeys(m.partition(":")[0].split(".")[0] for m in modules)
+        return {top: digest for top in tops if (digest := source_sha256(top)) is not None}
+
+    def keeps(self, metric: str) -> bool:
+        """Whether the metric (a flat name of :mod:`eval.metrics.results`) belongs to one of the method's groups."""
+        if metric in ALWAYS_KEPT:
+            return True
+        return any(metric.startswith(p) for g in self.metrics for p in METRIC_GROUPS[g])
+
+    def select_metrics(self, metrics: Mapping[str, float]) -> dict[str, float]:
+        """The metrics that apply to this method (its groups), timing figures left out."""
+        return {k: v for k, v in metrics.items() if k not in TIMING_METRICS and self.keeps(k)}
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready description (for run metadata and listings)."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "entry_point": self.entry_point,
+            "kwargs": {k: _thaw(v) for k, v in self.kwargs},
+            "seed": self.seed,
+            "metrics": list(self.metrics),
+            "paper": self.paper,
+            "folder": self.folder,
+            "inputs": list(self.inputs),
+            "align": self.align,
+            "sensor": self.sensor,
+            "uses_ground_truth": list(self.uses_ground_truth),
+        }
+
+
+def resolve_input(name: str, method: str = "?") -> Path:
+    """The file of a method input: ``"package:relative/path"`` inside a top-level package's folder (located with
+    :func:`importlib.util.find_spec`, which does not import it), else ``name`` as a path. Raises
+    :class:`MethodError` when it is not a readable file."""
+    package, sep, rel = name.partition(":")
+    path = Path(name)
+    if sep and package.isidentifier() and rel:
+        spec = importlib.util.find_spec(package)
+        roots = list(spec.submodule_search_locations or []) if spec else []
+        if not roots:
+            raise MethodError(f"method {method!r}: input {name!r} names package {package!r}, which is not installed")
+        path = Path(roots[0]) / rel
+    if not path.is_file():
+        raise MethodError(
+            f"method {method!r}: input {name!r} is not a file ({path}); inputs are 'package:path' or a file path"
+        )
+    return path
+
+
+_HASHES: dict[tuple[str, int, int], str] = {}
+_ENTRY = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
+
+
+def source_sha256(module: str) -> str | None:
+    """SHA-256 over the ``.py`` files of top-level ``module`` (a package: every file below its folder, by relative
+    path and content, in sorted order; a single-file module: its file), found with :func:`importlib.util.find_spec`
+    without importing it; None when it cannot be found."""
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        return None
+    if spec is None:
+        return None
+    roots = list(spec.submodule_search_locations or [])
+    digest = hashlib.sha256()
+    if roots:
+        root = Path(roots[0])
+        for path in sorted(root.rglob("*.py")):
+            digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+            digest.update(_file_sha256(path).encode())
+    elif spec.origin and Path(spec.origin).is_file():
+        digest.update(_file_sha256(Path(spec.origin)).encode())
+    else:
+        return None
+    return digest.hexdigest()
+
+
+def _file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes, remembered per (path, size, mtime) so a suite hashes its weights once."""
+    st = path.stat()
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _HASHES:
+        _HASHES[key] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return _HASHES[key]
+
+
+def _freeze(value: Any) -> Any:
+    """Dicts become sorted pair tuples and lists tuples, so a method stays hashable."""
+    if isinstance(value, Mapping):
+        return ("__dict__", tuple(sorted((str(k), _freeze(v)) for k, v in value.items())))
+    if isinstance(value, list | tuple):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+def _thaw(value: Any) -> Any:
+    if isinstance(value, tuple) and len(value) == 2 and value[0] == "__dict__":
+        return {k: _thaw(v) for k, v in value[1]}
+    if isinstance(value, tuple):
+        return [_thaw(v) for v in value]
+    return value
+
+
+# ------------------------------------------------------------------------------------------------------ the table
+_FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
+           "sensor", "uses_ground_truth"}
+SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
+GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
+ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)
+EXTERNAL_SIDE_FILE = "method.toml"  # FOLDER/method.toml: what an external system declares about itself
+RUN_SIDE_FILE = "run.toml"  # FOLDER/<sequence>/run.toml: wall_s = its own run time on that sequence
+
+
+def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[str, Method]:
+    """Methods of a parsed table (``{"methods": {name: {...}}}``), in file order."""
+    table = data.get("methods")
+    if not isinstance(table, Mapping) or not table:
+        raise MethodError(f"{source}: expected a non-empty [methods.<name>] table")
+    methods: dict[str, Method] = {}
+    for name, entry in table.items():
+        if not isinstance(entry, Mapping):
+            raise MethodError(f"{source}: methods.{name} must be a table")
+        unknown = sorted(set(entry) - _FIELDS)
+        if unknown:
+            raise MethodError(f"{source}: methods.{name} has unknown field(s) {unknown}; valid: {sorted(_FIELDS)}")
+        try:
+            methods[name] = Method(name=name, **dict(entry))
+        except TypeError as exc:
+            raise MethodError(f"{source}: methods.{name}: {exc}") from exc
+    return methods
+
+
+def load_methods(path: str | Path | None = None) -> dict[str, Method]:
+    """The method table of ``path`` (default :data:`METHODS_FILE`), name -> :class:`Method`, in file order."""
+    path = Path(path) if path is not None else METHODS_FILE
+    try:
+        data = tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise MethodError(f"{path}: cannot read the method table: {exc.strerror or exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise MethodError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_methods(data, str(path))
+
+
+def merge_methods(base: Mapping[str, Method], extra: Mapping[str, Method], source: str = "<methods>",
+                  override: bool = False) -> dict[str, Method]:
+    """``base`` plus ``extra``; a name of ``extra`` already in ``base`` is an error unless ``override`` (a user's
+    method silently replacing a built-in one would sit beside the paper's numbers under the built-in's name)."""
+    clash = [name for name in extra if name in base]
+    if clash and not override:
+        raise MethodError(
+            f"{source} redefines the method(s) {', '.join(clash)} of the built-in table; give them other names, or "
+            "pass --override to replace the built-in definitions"
+        )
+    return {**base, **extra}
+
+
+def get_method(name: str, table: Mapping[str, Method] | None = None) -> Method:
+    """A method by name; :class:`MethodError` listing the valid names otherwise."""
+    table = load_methods() if table is None else table
+    try:
+        return table[name]
+    except KeyError:
+        raise MethodError(f"unknown method {name!r}; valid methods: {', '.join(table)}") from None
+
+
+def external_method(name: str, folder: str | Path, metrics: Sequence[str] = ("trajectory", "depth")) -> Method:
+    """A third-party system's output in ``folder`` (layout: :data:`EXTERNAL_LAYOUT`) as a method named ``name``.
+
+    ``folder/method.toml`` (optional) declares what the system is: ``sensor`` (mono / rgbd / stereo),
+    ``uses_ground_truth`` (a list of depth / scale / poses), ``align`` (the ATE alignment its headline figure takes,
+    e.g. ``sim3`` for a monocular system without metric scale), ``description``."""
+    side: dict[str, Any] = {}
+    path = Path(folder) / EXTERNAL_SIDE_FILE
+    if path.is_file():
+        try:
+            side = tomllib.loads(path.read_text())
+        except tomllib.TOMLDecodeError as exc:
+            raise MethodError(f"{path}: not valid TOML: {exc}") from exc
+        unknown = sorted(set(side) - {"sensor", "uses_ground_truth", "align", "description"})
+        if unknown:
+            raise MethodError(f"{path}: unknown field(s) {unknown}; valid: align, description, sensor, "
+                              "uses_ground_truth")
+    return Method(
+        name=name,
+        kind="external",
+        folder=str(Path(folder).resolve()),
+        metrics=tuple(metrics),
+        description=str(side.get("description", f"external system, output read from {folder}")),
+        align=side.get("align"),
+        sensor=side.get("sensor", "mono"),
+        uses_ground_truth=tuple(side.get("uses_ground_truth", ())),
+    )
+
+
+def parse_external(text: str) -> Method:
+    """``NAME=FOLDER`` (the ``--external`` option) as an external method."""
+    name, sep, folder = text.partition("=")
+    if not sep or not name.strip() or not folder.strip():
+        raise MethodError(f"--external takes NAME=FOLDER, got {text!r}")
+    return external_method(name.strip(), folder.strip())
+
+
+def method_table(method_file: str | Path | None = None, externals: Sequence[str] = (),
+                 override: bool = False) -> dict[str, Method]:
+    """The methods a benchmark may name: the built-in table (:data:`METHODS_FILE`), plus the methods of
+    ``method_file`` and the ``NAME=FOLDER`` ``externals`` (:func:`parse_external`); a name of the built-in table
+    redefined is an error unless ``override`` (:func:`merge_methods`)."""
+    table = load_methods()
+    if method_file is not None:
+        table = merge_methods(table, load_methods(method_file), str(method_file), override)
+    added = {m.name: m for m in (parse_external(text) for text in externals)}
+    return merge_methods(table, added, "--external", override)
+
+
+# ------------------------------------------------------------------------------------------------ availability
+def check_available(method: Method, build: bool = True) -> str | None:
+    """None when the method can run here, else a one-line reason.
+
+    Agents: the entry point's module imports and has the attribute; with ``build``, the agent is also built with
+    its keyword arguments, reset for a 320x240 camera and stepped once on a synthetic image (:func:`_smoke_test`:
+    this loads a network's weights, so a missing weights file is found before any run starts); its ``inputs`` are
+    readable files. Only what this machine lacks makes a reason (an ImportError or OSError: a module, a library, a
+    file): an agent that is there and raises anything else is no method that "cannot run here" but a broken one,
+    and its runs fail, each with its error, in the report's failure table. External: the folder exists.
+    """
+    if method.kind == "external":
+        folder = Path(method.folder or "")
+        return None if folder.is_dir() else f"the output folder {folder} does not exist"
+    module_name, _, attr = (method.entry_point or "").partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # noqa: BLE001 - any import failure makes the method unavailable, with its reason
+        return f"cannot import {module_name!r}: {type(exc).__name__}: {exc}"
+    factory = getattr(module, attr, None)
+    if factory is None:
+        return f"module {module_name!r} has no attribute {attr!r}"
+    try:
+        method.input_hashes()  # a missing input file is a reason to skip, not a crash while planning the runs
+    except MethodError as exc:
+        return str(exc)
+    if not build:
+        return None
+    try:
+        _smoke_test(factory(**method.agent_kwargs(0)))
+    except (ImportError, OSError) as exc:  # a module, library or file this machine lacks: it cannot run here
+        return f"cannot run {method.entry_point} with {method.agent_kwargs(0)}: {type(exc).__name__}: {exc}"
+    except Exception:  # noqa: BLE001 - an agent that runs here and fails: its runs fail, each with its error
+        return None
+    return None
+
+
+def _smoke_test(agent: Any) -> None:
+    """Reset ``agent`` for a 320x240 camera, step it once on a fixed random image (with a plausible ``info`` for an
+    agent that declares ``uses_ground_truth``), then let it finish. Raises whatever the agent raises."""
+    h, w = 240, 320
+    intrinsics = np.array([0.75 * w, 0.75 * w, (w - 1) / 2, (h - 1) / 2])
+    rng = np.random.default_rng(0)
+    observation = {
+        "rgb": rng.integers(0, 256, (h, w, 3), dtype=np.uint8),
+        "timestamp": np.zeros(1),
+        "intrinsics": intrinsics.copy(),
+    }
+    agent.reset(intrinsics.copy(), (h, w))
+    if getattr(agent, "uses_ground_truth", False):
+        info = {
+            "frame_index": 0,
+            "timestamp": 0.0,
+            "gt_T_world_cam": np.eye(4),
+            "gt_depth": np.full((h, w), 2.0, dtype=np.float32),
+            "gt_labels": np.zeros((h, w), dtype=np.uint8),
+        }
+        agent.step(observation, info)
+    else:
+        agent.step(observation)
+    agent.finish()
+
+
+@dataclass(frozen=True)
+class MethodCheck:
+    """Which of a suite's methods can run (``available``) and why the others cannot (``skipped``: name -> reason)."""
+
+    available: tuple[Method, ...]
+    skipped: dict[str, str] = field(default_factory=dict)
+
+
+def check_methods(methods: Sequence[Method], build: bool = True) -> MethodCheck:
+    """Split ``methods`` into those that can run and those skipped (with the reason)."""
+    ok: list[Method] = []
+    skipped: dict[str, str] = {}
+    for method in methods:
+        reason = check_available(method, build)
+        if reason is None:
+            ok.append(method)
+        else:
+            skipped[method.name] = reason
+    return MethodCheck(tuple(ok), skipped)
+
+
+# ------------------------------------------------------------------------------------------------------- settings
+def parse_setting(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` (``--set``; CNN-SLAM's keys are ``SECTION.FIELD``, ORB's plain field names) as ``(key,
+    value)``: the value read as a TOML value (``true``, ``0.5``, ``"name"``, ``[1, 2]``), else kept as the bare
+    string. One clear error for text without ``=`` or a key; the agent itself names an unknown key."""
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key or not all(part.strip() for part in key.split(".")):
+        raise MethodError(f"--set takes KEY=VALUE (e.g. refinement.enabled=false), got {text!r}")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key, value
+
+
+def takes_config(method: Method) -> bool:
+    """Whether the method's agent takes a ``config`` keyword (a dotted-key override dict, as CNN-SLAM's agents)."""
+    if method.kind != "agent" or not method.entry_point:
+        return False
+    module_name, _, attr = method.entry_point.partition(":")
+    try:
+        factory = getattr(importlib.import_module(module_name), attr)
+        return "config" in inspect.signature(factory).parameters
+    except (ImportError, AttributeError, TypeError, ValueError):
+        return False
+
+
+def agent_configuration(method: Method) -> Any:
+    """The configuration the method's agent runs with: its ``config`` attribute (a frozen dataclass,
+    :mod:`slamcommon.config`), read from the agent built with the method's keyword arguments (seed 0) through
+    :func:`sim_envs.agent.load_agent` (a network is loaded only when first used); None for an external method or an
+    agent that has none. Raises what building raises: a :class:`~slamcommon.errors.ProjectError` for keyword
+    arguments the agent refuses, an ImportError where it cannot run here."""
+    if method.kind != "agent" or not method.entry_point:
+        return None
+    from sim_envs.agent import load_agent
+
+    config = getattr(load_agent(method.entry_point, **method.agent_kwargs(0)), "config", None)
+    return config if dataclasses.is_dataclass(config) and not isinstance(config, type) else None
+
+
+def apply_settings(methods: Sequence[Method], settings: Sequence[tuple[str, Any]]
+                   ) -> tuple[dict[str, Method], dict[str, tuple[str, ...]]]:
+    """``settings`` (``--set``: ``(dotted key, value)``) put into each of ``methods`` whose configuration
+    (:func:`agent_configuration`) has the key, checked before any run: returns the methods (name -> method, with the
+    settings that apply merged into its ``config`` keyword, so its runs' fingerprints carry them) and, per key, the
+    names of the methods it went to. :class:`MethodError` for a key no chosen method's configuration has, or a value
+    a method's configuration refuses (a type, a range), naming the key, the method and what is valid. A method that
+    cannot be built here (an import failure) is left as it is: the suite's check skips it with its reason."""
+    configs: dict[str, Any] = {}
+    for method in methods:
+        try:
+            config = agent_configuration(method)
+        except ProjectError as exc:
+            raise MethodError(f"method {method.name!r} refuses its own keyword arguments: {exc}") from None
+        except Exception:  # noqa: BLE001 - cannot be built here: reported by the suite's check, with the reason
+            continue
+        if config is not None:
+            configs[method.name] = config
+    applied: dict[str, tuple[str, ...]] = {}
+    for key, _ in settings:
+        applied[key] = tuple(name for name, config in configs.items() if has_key(config, key))
+        if not applied[key]:
+            keys = {name: config_keys(config) for name, config in configs.items()}
+            raise MethodError(f"--set {key}: no chosen method's configuration has this key; "
+                              + ("; ".join(f"{n}'s keys: {', '.join(k[:6])}{', ...' if len(k) > 6 else ''}"
+                                           for n, k in keys.items()) or
+                                 f"none of the chosen methods ({', '.join(m.name for m in methods)}) has a "
+                                 "configuration") + " (cnnslam config METHOD prints them all)")  # fmt: skip
+    out: dict[str, Method] = {}
+    for method in methods:
+        mine = [(key, value) for key, value in settings if method.name in applied[key]]
+        out[method.name] = with_settings(method, mine) if mine else method
+        if mine:
+            try:
+                agent_configuration(out[method.name])
+            except ProjectError as exc:
+                raise MethodError(f"--set for {method.name}: {exc}") from None
+    return out, applied
+
+
+def with_settings(method: Method, settings: Sequence[tuple[str, Any]]) -> Method:
+    """``method`` with ``settings`` (``(dotted key, value)``, later ones win) merged into its agent's ``config``
+    keyword: a new method whose keyword arguments, and so whose run fingerprints, carry them. :class:`MethodError`
+    when the agent takes no configuration."""
+    if not settings:
+        return method
+    if not takes_config(method):
+        raise MethodError(f"method {method.name!r} ({method.entry_point or method.kind}) takes no configuration to "
+                          "--set")
+    return _merged_into(method, "config", dict(settings))
+
+
+def with_predictor_options(method: Method, options: Mapping[str, Any]) -> Method:
+    """``method`` with ``options`` merged into its agent's ``predictor_options`` keyword (the network's explicit
+    run parameters: ``jitter_seed_fallback``, ``onednn``, ...): a new method whose keyword arguments, and so whose run
+    fingerprints, carry them."""
+    return _merged_into(method, "predictor_options", dict(options)) if options else method
+
+
+def _merged_into(method: Method, keyword: str, values: dict[str, Any]) -> Method:
+    """A new method whose dict keyword argument ``keyword`` has ``values`` merged in (``values`` win)."""
+    kwargs = {k: _thaw(v) for k, v in method.kwargs}
+    kwargs[keyword] = {**(kwargs.get(keyword) or {}), **values}
+    return replace(method, kwargs=kwargs)

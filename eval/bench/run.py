@@ -1,0 +1,407 @@
+"""One benchmark run = (suite, sequence, method, seed, frames) -> a folder of artifacts (a suite's many runs:
+:mod:`eval.bench.runner`; where the folders go: :mod:`eval.bench.run_store`).
+
+A run (:func:`execute_run`, in a worker process) makes the sequence's environment, runs the method's agent over the
+first ``frames`` frames with :func:`sim_envs.driver.run_episode` (or reads an external system's output), scores it
+with :func:`eval.metrics.results.evaluate_episode`, and returns its artifacts as bytes; the parent process writes them
+(:func:`eval.bench.run_store.store_result`), so the executor may be a process pool or a Ray cluster without a shared
+file system.
+
+Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN_FILES`):
+
+- ``metrics.json``: the run record (:mod:`eval.metrics.results`) with the method's metric groups only, and ``metadata``
+  (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
+  fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
+- ``timing.json``: wall time of the run, per-frame step times, frames per second, and ``environment``, the machine
+  and package versions it ran on (:mod:`eval.bench.environment`; never compared by the gate);
+- ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
+- ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
+- ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
+  the ground truth's size where it differed, as scored), ``uncertainty`` (K, H, W) when every key-frame has one;
+- ``trajectory.png`` (top view, axes over time, ATE over time) and ``depth.png`` (up to 3 key-frames' error maps),
+  unless plots are off.
+
+A failed run's folder holds only ``failed.json`` (error, traceback, wall time). The run's fingerprint
+(:meth:`RunSpec.fingerprint`: method, sequence definition, seed, frames, alignment, renderer, the SHA-256 of the
+method's ``inputs`` files such as network weights, and the agent's source) decides whether a finished run is reused
+(:mod:`eval.bench.runner`); writes are atomic (:mod:`eval.bench.run_store`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tempfile
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from eval.bench.environment import machine_description
+from eval.bench.methods import RUN_SIDE_FILE, TIMING_METRICS, Method
+from eval.bench.sequence_ref import SequenceRef
+from eval.errors import RunnerError
+from eval.metrics.association import associate
+from eval.metrics.map_metrics import map_metrics
+from eval.metrics.results import evaluate_episode, json_ready
+from eval.metrics.trajectory import PoseTrajectory, rotation_share
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+
+RUN_FILES: tuple[str, ...] = (
+    "metrics.json",
+    "timing.json",
+    "agent_extras.json",
+    "trajectory.tum",
+    "groundtruth.tum",
+    "keyframes.npz",
+    "trajectory.png",
+    "depth.png",
+)
+DONE_FILE = "metrics.json"
+FAILED_FILE = "failed.json"
+FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames rendered once, read by its other runs
+RunStatus = Literal["done", "cached", "failed", "not_run"]
+DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
+DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything one run needs; picklable (sent to workers). ``frames``: the first N frames (None: all)."""
+
+    suite: str
+    sequence: SequenceRef
+    method: Method
+    seed: int = 0
+    frames: int | None = None
+    alignment: str = "se3"
+    renderer: str = "mujoco"
+    plots: bool = True
+    git_revision: str | None = None
+    frame_cache: str | None = None  # where simulated frames are kept once rendered (same bytes; not fingerprinted)
+
+    @property
+    def relpath(self) -> Path:
+        """The run's folder relative to the output root."""
+        frames = "all" if self.frames is None else str(self.frames)
+        return Path(self.suite) / self.sequence.name / self.method.slug / f"seed{self.seed}-frames{frames}"
+
+    @property
+    def key(self) -> str:
+        """A readable unique name of the run (its relative folder)."""
+        return self.relpath.as_posix()
+
+    def fingerprint(self) -> str:
+        """Hash of what determines the run's result (method, sequence definition, seed, frames, alignment,
+        renderer, the contents of the method's input files such as network weights, and the agent's own source
+        files, :meth:`eval.bench.methods.Method.source_hashes`); not the git revision, so a commit that leaves an
+        agent's package alone does not invalidate its finished runs, but new weights or an edited agent do."""
+        data = {
+            "sequence": self.sequence.describe(),
+            "method": self.method.describe(),
+            "inputs": self.method.input_hashes(),
+            "source": self.method.source_hashes(),
+            "seed": self.seed,
+            "frames": self.frames,
+            "alignment": self.alignment,
+            "renderer": self.renderer,
+        }
+        text = json.dumps(json_ready(data), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a worker hands back: ``status`` "done" with ``files`` (name -> bytes), or "failed" with ``error``."""
+
+    spec: RunSpec
+    status: RunStatus
+    files: dict[str, bytes] = field(default_factory=dict)
+    error: str | None = None
+    traceback: str | None = None
+    wall_s: float = 0.0
+
+
+# ------------------------------------------------------------------------------------------------- one run
+@dataclass(frozen=True)
+class ExternalEpisode:
+    """An external system's output in the shape :func:`eval.metrics.results.evaluate_episode` reads (the fields of
+    ``sim_envs.driver.EpisodeResult`` it uses); poses already associated with the ground truth, pair k = k."""
+
+    sequence: str
+    agent: str
+    timestamps: np.ndarray
+    T_world_cam_est: np.ndarray
+    T_world_cam_gt: np.ndarray
+    tracked: np.ndarray
+    keyframes: list[Any]
+    keyframe_gt: list[Any]
+    step_seconds: np.ndarray
+    uses_ground_truth: bool = False
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
+    """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
+    start = time.perf_counter()
+    try:
+        files = _run_and_package(spec, progress, start)
+    except Exception as exc:  # noqa: BLE001 - a failing run is recorded with its error; the others go on
+        return RunResult(
+            spec,
+            "failed",
+            error=f"{type(exc).__name__}: {exc}",
+            traceback=traceback.format_exc(),
+            wall_s=time.perf_counter() - start,
+        )
+    return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
+
+
+def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
+    method, ref = spec.method, spec.sequence
+    scene = None
+    if method.kind == "external":
+        episode, n_frames, source_info = _external_episode(spec)
+    else:
+        episode, source_info, scene = _agent_episode(spec, progress)
+        n_frames = int(episode.timestamps.shape[0])
+    metadata = {
+        "suite": spec.suite,
+        "seed": spec.seed,
+        "frames_requested": spec.frames,
+        "entry_point": method.entry_point or f"external:{method.folder}",
+        "agent_kwargs": json.dumps(method.agent_kwargs(spec.seed), sort_keys=True),
+        "env_id": ref.env_id,
+        "renderer": spec.renderer,
+        "axis": ref.axis,
+        "axis_value": ref.axis_value,
+        "rotation_share": rotation_share(np.asarray(episode.T_world_cam_gt)),
+        "git_revision": spec.git_revision,
+        "fingerprint": spec.fingerprint(),
+        "sequence_definition": ref.describe(),
+        "method_definition": method.describe(),
+    }
+    if source_info is not None:
+        metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
+    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
+    record = record.replace(sequence=ref.name)
+    metrics = dict(record.metrics)
+    has_depth = source_info is None or source_info.get("has_depth", True)
+    if not has_depth:  # an RGB-only folder: nothing to score key-frame depth against
+        metrics = {k: v for k, v in metrics.items() if not k.startswith("depth_")}
+        record = record.with_warning(f"{ref.name} has no ground-truth depth (RGB-only folder): depth metric skipped")
+    model = getattr(episode, "model", None)
+    if model is not None and scene is not None and len(model):  # the global model against the scene's surfaces
+        t_map = time.perf_counter()
+        metrics.update(map_metrics(model, episode.T_world_cam_gt, episode.T_world_cam_est, episode.keyframe_gt,
+                                   episode.intrinsics.as_array(), scene, str(spec.alignment)))
+        metrics["map_scoring_s"] = time.perf_counter() - t_map
+    if method.kind == "external":
+        metrics["frames"] = float(n_frames)
+        metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
+        # the poses were matched by timestamp before scoring (TUM rule): record that, not the index pairing after it
+        record = record.replace(association=episode.extras["association"],
+                                uses_ground_truth=bool(method.uses_ground_truth),
+                                ground_truth_used=tuple(method.uses_ground_truth))  # as its method.toml declares
+    timing = {k: metrics[k] for k in TIMING_METRICS if k in metrics}
+    record = record.replace(sensor=method.sensor, metrics=method.select_metrics(metrics))
+    timing["finish_seconds"] = episode.extras.get("finish_seconds")
+    if episode.extras.get("own_wall_s") is not None:
+        timing["method_wall_s"] = episode.extras["own_wall_s"]  # the system's own run time (its run.toml)
+
+    with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
+        folder = Path(tmp)
+        write_json(folder / "metrics.json", record.to_json())
+        write_json(folder / "agent_extras.json", episode.extras)
+        _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
+        _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")
+        depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
+        if spec.plots:
+            _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
+        timing["wall_s"] = time.perf_counter() - start
+        timing["environment"] = machine_description()  # which CPU and versions made these bytes
+        write_json(folder / "timing.json", timing)
+        return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None, Any]:
+    """The agent's episode, the frame source's own description (:func:`_source_info`) and its scene (simulated
+    sequences; None for folders)."""
+    from sim_envs.agent import load_agent
+    from sim_envs.driver import run_episode
+
+    agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
+    env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
+    try:
+        source = env.unwrapped.source
+        return run_episode(env, agent, progress=progress), _source_info(source), getattr(source, "scene", None)
+    finally:
+        env.close()
+
+
+def _source_info(source: Any) -> dict[str, Any] | None:
+    """What a frame source says about itself (``describe()``: a real folder's layout, sizes, camera, depth scale,
+    conversions), for the run record; None for sources that say nothing (the simulated ones)."""
+    describe = getattr(source, "describe", None)
+    return describe() if callable(describe) else None
+
+
+def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, Any] | None]:
+    """The external system's trajectory (and depth maps) for the sequence, associated with the ground truth of the
+    first ``frames`` frames (TUM greedy association, 0.02 s); returns the episode, the number of frames and the
+    source's description."""
+    from sim_envs.agent import KeyframeDepth
+    from sim_envs.driver import match_timestamp
+
+    ref, method = spec.sequence, spec.method
+    folder = Path(method.folder or "")
+    names = [ref.name]
+    if ref.base is not None and dict(ref.overrides) == {"camera_effects": DEFAULT_CAMERA_EFFECTS}:
+        names.append(ref.base)  # `cnnslam export office0 data/office0` exports office0 through the default camera
+    candidates = [p for name in names for p in (folder / name / "trajectory.txt", folder / f"{name}.txt")]
+    path = next((p for p in candidates if p.is_file()), None)
+    if path is None:
+        raise RunnerError(
+            f"external method {method.name!r}: no trajectory for {ref.name!r}; looked for "
+            f"{', '.join(str(p) for p in candidates)}"
+        )
+    sequence_dir = path.parent if path.name == "trajectory.txt" else folder / ref.name  # its depth/, run.toml
+    source = ref.make_source(spec.renderer, spec.frame_cache)
+    source_info = _source_info(source)
+    try:
+        n = len(source) if spec.frames is None else min(len(source), int(spec.frames))
+        gt = PoseTrajectory(np.asarray(source.timestamps)[:n], np.asarray(source.poses)[:n])
+        dropped: list[str] = []  # repeated timestamps: the last pose kept, as the TUM tools and evo do
+        est = PoseTrajectory.from_tum_file(path, duplicate_timestamps="last", on_duplicates=dropped.append)
+        assoc = associate(gt, est, "tum")
+        T_est = est.T_world_cam[assoc.est_indices]
+        stamps = gt.timestamps[assoc.gt_indices]
+        keyframes, keyframe_gt = [], []
+        depth_dir = sequence_dir / "depth"
+        files = sorted(depth_dir.glob("*.png")) + sorted(depth_dir.glob("*.npy")) if depth_dir.is_dir() else []
+        for file in files:
+            t = float(file.stem)
+            i = match_timestamp(gt.timestamps, t)
+            if i is None:
+                continue
+            k = int(np.argmin(np.abs(stamps - t))) if stamps.size else -1
+            pose = T_est[k] if k >= 0 else np.eye(4)
+            keyframes.append(KeyframeDepth(float(gt.timestamps[i]), _read_depth(file), pose))
+            keyframe_gt.append(source.frame(i))
+    finally:
+        source.close()
+    episode = ExternalEpisode(
+        sequence=ref.name,
+        agent=f"external:{folder}",
+        timestamps=stamps,
+        T_world_cam_est=T_est,
+        T_world_cam_gt=gt.T_world_cam[assoc.gt_indices],
+        tracked=np.ones(len(assoc), dtype=bool),
+        keyframes=keyframes,
+        keyframe_gt=keyframe_gt,
+        step_seconds=np.zeros(0),
+        extras={"trajectory_file": str(path), "depth_files": len(files), "association": assoc.describe(),
+                "duplicate_timestamps": dropped,
+                "own_wall_s": _declared_wall_s(sequence_dir / RUN_SIDE_FILE)},
+    )
+    return episode, n, source_info
+
+
+def _declared_wall_s(path: Path) -> float | None:
+    """``wall_s`` of an external system's ``<sequence>/run.toml`` (its own run time), None without the file."""
+    import tomllib
+
+    if not path.is_file():
+        return None
+    try:
+        value = tomllib.loads(path.read_text()).get("wall_s")
+    except tomllib.TOMLDecodeError as exc:
+        raise RunnerError(f"{path}: not valid TOML: {exc}") from exc
+    if not isinstance(value, int | float) or isinstance(value, bool) or not value >= 0:
+        raise RunnerError(f"{path}: wall_s must be a number of seconds >= 0, got {value!r}")
+    return float(value)
+
+
+def _read_depth(path: Path) -> np.ndarray:
+    """An external depth map: 16-bit PNG (5000 = 1 m) or ``.npy`` float metres; (H, W) float32, 0 = none."""
+    import cv2
+
+    if path.suffix == ".npy":
+        depth = np.load(path).astype(np.float32)
+    else:
+        raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if raw is None:
+            raise RunnerError(f"cannot read the depth map {path}")
+        depth = raw.astype(np.float32) / DEPTH_PNG_SCALE
+    if depth.ndim != 2:
+        raise RunnerError(f"{path}: a depth map must be (H, W), got {depth.shape}")
+    return np.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def write_json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(json_ready(data), indent=2, allow_nan=False, default=str) + "\n")
+
+
+def _write_tum(path: Path, timestamps: np.ndarray, T: np.ndarray, header: str) -> None:
+    from sim_envs.formats import write_tum_trajectory
+
+    write_tum_trajectory(path, np.asarray(timestamps), np.asarray(T), header=header)
+
+
+def _write_keyframes(path: Path, episode: Any) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Key-frame arrays as scored (see the module docstring); returns the (estimate, ground truth) depth lists.
+    Ground-truth depth is not stored: the sequence renders it again (``SequenceRef.make_source().frame(i)``)."""
+    import cv2
+
+    depth_est, depth_gt, stamps, poses, unc = [], [], [], [], []
+    for kf, frame in zip(episode.keyframes, episode.keyframe_gt, strict=False):
+        gt = np.asarray(frame.depth, dtype=np.float32)
+        est = np.asarray(kf.depth, dtype=np.float32)
+        if est.shape != gt.shape:
+            est = cv2.resize(est, gt.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        depth_est.append(est)
+        depth_gt.append(gt)
+        stamps.append(float(kf.timestamp))
+        poses.append(np.asarray(kf.T_world_cam, dtype=np.float64))
+        u = getattr(kf, "uncertainty", None)
+        unc.append(None if u is None or np.shape(u) != est.shape else np.asarray(u, dtype=np.float32))
+    arrays: dict[str, np.ndarray] = {
+        "timestamps": np.asarray(stamps, dtype=np.float64),
+        "T_world_cam": np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4),
+    }
+    if depth_est:
+        arrays["depth"] = np.stack(depth_est)
+        if all(u is not None for u in unc):
+            arrays["uncertainty"] = np.stack(unc)  # type: ignore[arg-type]
+    np.savez_compressed(path, **arrays)
+    return depth_est, depth_gt
+
+
+def _write_plots(folder: Path, spec: RunSpec, episode: Any, depth_est: list, depth_gt: list) -> None:
+    from eval.metrics.trajectory_metrics import evaluate_trajectory
+    from eval.reports.plots import save_depth_error_figure, save_trajectory_figure
+
+    title = f"{spec.method.name} on {spec.sequence.name} (seed {spec.seed})"
+    if "trajectory" in spec.method.metrics and len(episode.timestamps) >= 2:
+        stamps = np.asarray(episode.timestamps)
+        m = evaluate_trajectory(
+            PoseTrajectory(stamps, episode.T_world_cam_gt),
+            PoseTrajectory(stamps, episode.T_world_cam_est),
+            alignment=spec.alignment,
+            association="index",
+        )
+        save_trajectory_figure(
+            folder / "trajectory.png", m.gt.timestamps, m.gt.positions, m.est_aligned.positions, m.ate_errors, title
+        )
+    if depth_est:
+        picks = sorted({0, len(depth_est) // 2, len(depth_est) - 1})[:DEPTH_PLOT_KEYFRAMES]
+        stamps = [float(t) for t in (kf.timestamp for kf in episode.keyframes)]
+        save_depth_error_figure(
+            folder / "depth.png",
+            [depth_est[k] for k in picks],
+            [depth_gt[k] for k in picks],
+            [f"{title}\nkey-frame t={stamps[k]:.2f} s" for k in picks],
+        )

@@ -1,0 +1,192 @@
+"""A suite run: the suite's runs planned (:func:`plan_runs`), executed on an executor (:mod:`eval.bench.executors`)
+with progress, stored (:mod:`eval.bench.run_store`), reused when finished earlier with the same fingerprint, and
+collected as a :class:`SuiteRun` (the records of the finished runs, how each run ended) for the reports. One run is
+:mod:`eval.bench.run`; every kind of suite runs through :func:`eval.bench.run_bench`."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from eval.bench.executors import Executor, SerialExecutor
+from eval.bench.methods import Method, check_methods
+from eval.bench.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
+from eval.bench.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.bench.suites import Suite, SuiteKind
+from eval.errors import RunnerError
+from eval.metrics.results import RunRecord, json_ready, load_run
+
+
+# -------------------------------------------------------------------------------------------------- a suite run
+@dataclass(frozen=True)
+class RunOutcome:
+    """How one run of a suite ended: "done" (ran now), "cached" (finished earlier), "failed" (with its error), or
+    "not_run" (``--report-only`` and no finished run there: neither a result nor a failure)."""
+
+    key: str
+    status: RunStatus
+    folder: Path
+    error: str | None = None
+    wall_s: float | None = None
+
+
+@dataclass(frozen=True)
+class SuiteRun:
+    """A suite's runs: the plan, how each ended, the methods skipped (name -> reason) and the run records of the
+    finished runs (in plan order), each with its run key; ``timings``: key -> timing.json content."""
+
+    suite: Suite
+    out_root: Path
+    specs: tuple[RunSpec, ...]
+    outcomes: dict[str, RunOutcome]
+    skipped_methods: dict[str, str]
+    records: list[RunRecord]
+    timings: dict[str, dict[str, Any]]
+    methods: tuple[Method, ...] = ()
+
+    @property
+    def failed(self) -> list[RunOutcome]:
+        return [o for o in self.outcomes.values() if o.status == "failed"]
+
+    def counts(self) -> dict[str, int]:
+        out: dict[str, int] = {}
+        for o in self.outcomes.values():
+            out[o.status] = out.get(o.status, 0) + 1
+        return out
+
+
+def git_revision(root: str | Path | None = None) -> str | None:
+    """``git describe --always --dirty`` of the repository holding ``root`` (default: this package), or None."""
+    root = Path(root) if root is not None else Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None
+
+
+def plan_runs(
+    suite: Suite,
+    methods: Sequence[Method],
+    *,
+    renderer: str = "mujoco",
+    plots: bool = True,
+    revision: str | None = None,
+) -> list[RunSpec]:
+    """Every run of the suite: sequences x methods x seeds, in that nesting order; a method's own ``align`` wins
+    over the suite's alignment.
+
+    A method that takes no seed (no ``seed`` in its table: exact given its inputs, such as the oracle, constant-pose
+    or a scored external folder) runs once per cell, with the suite's first seed: its other runs would be
+    byte-for-byte copies (``tests/eval/bench/test_runner.py`` checks that they are), and its cell is that one run.
+    """
+    return [
+        RunSpec(suite.name, ref, method, seed, suite.frames, method.align or suite.alignment, renderer, plots,
+                revision)
+        for ref in suite.sequences
+        for method in methods
+        for seed in (suite.seeds if method.seed_targets else suite.seeds[:1])
+    ]
+
+
+def run_suite(
+    suite: Suite,
+    methods: Mapping[str, Method],
+    out_root: str | Path,
+    *,
+    executor: Executor | None = None,
+    renderer: str = "mujoco",
+    plots: bool = True,
+    progress: bool = True,
+    check: bool = True,
+    revision: str | None = None,
+    on_result: Callable[[RunOutcome], None] | None = None,
+    rerun: bool = False,
+    report_only: bool = False,
+    frame_cache: bool = True,
+) -> SuiteRun:
+    """Run every unfinished run of ``suite`` (its methods looked up in ``methods``) and gather the records.
+
+    Methods that cannot run here (:func:`eval.bench.methods.check_methods`; ``check=False`` only checks the import)
+    are skipped and reported, not failed. Finished runs (same fingerprint) are not run again. ``executor``:
+    default :class:`~eval.bench.executors.SerialExecutor`. ``revision``: recorded in every run (default: the git
+    revision).
+    ``rerun``: run every run again, finished or not. ``report_only``: run nothing; take every run folder that holds
+    a ``metrics.json``, whatever code made it (each record names its git revision), and report the others failed
+    "not_run" (neither failed nor in the tables; the reports list them): for rewriting tables after a change of the
+    report code, without rerunning. Ctrl-C
+    (KeyboardInterrupt) stops the executor and propagates;
+    the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence and read
+    back by the suite's other runs, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes).
+    """
+    unknown = [m for m in suite.methods if m not in methods]
+    if unknown:
+        raise RunnerError(f"suite {suite.name!r}: unknown method(s) {unknown}; valid methods: {', '.join(methods)}")
+    if suite.kind is not SuiteKind.RUNS:
+        raise RunnerError(f"suite {suite.name!r} is made of parts or runs no agents (kind {suite.kind.value!r}): "
+                          "eval.bench.benchmark.run_bench runs every kind")
+    out_root = Path(out_root)
+    executor = executor or SerialExecutor()
+    revision = revision if revision is not None else git_revision()
+    checked = check_methods([methods[m] for m in suite.methods], build=check)
+    specs = plan_runs(suite, checked.available, renderer=renderer, plots=plots, revision=revision)
+    remove_stale_temporaries([run_folder(out_root, s).parent for s in specs])
+    outcomes: dict[str, RunOutcome] = {}
+    todo = []
+    for spec in specs:
+        folder = run_folder(out_root, spec)
+        if report_only:
+            done = (folder / DONE_FILE).is_file()
+            outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "not_run", folder,
+                                            None if done else "not run (--report-only runs nothing)")  # fmt: skip
+        elif not rerun and is_finished(out_root, spec):
+            outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
+        else:
+            todo.append(replace(spec, frame_cache=str(out_root / FRAME_CACHE_DIR)) if frame_cache else spec)
+    serial = isinstance(executor, SerialExecutor)
+    fn = partial(execute_run, progress=progress and serial)
+    with tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar:
+        for spec, result in executor.map(fn, todo):
+            if isinstance(result, BaseException):
+                result = RunResult(spec, "failed", error=f"{type(result).__name__}: {result}")
+            folder = store_result(out_root, result)
+            outcome = RunOutcome(spec.key, result.status, folder, result.error, result.wall_s)
+            outcomes[spec.key] = outcome
+            if on_result is not None:
+                on_result(outcome)
+            bar.update(1)
+            failed = sum(o.status == "failed" for o in outcomes.values())
+            if failed:
+                bar.set_postfix(failed=failed)
+    records, timings = [], {}
+    for spec in specs:
+        outcome = outcomes[spec.key]
+        if outcome.status in ("failed", "not_run"):
+            continue
+        records.append(load_run(outcome.folder / DONE_FILE).replace(run=spec.key))
+        timing_path = outcome.folder / "timing.json"
+        timings[spec.key] = json.loads(timing_path.read_text()) if timing_path.is_file() else {}
+    ordered = {s.key: outcomes[s.key] for s in specs}
+    return SuiteRun(suite, out_root, tuple(specs), ordered, checked.skipped, records, timings, checked.available)
+
+
+def suite_records_json(records: Sequence[RunRecord]) -> str:
+    """The run records as one JSON list, in run order, each with its run key (the run file of ``cnnslam regress``)."""
+    buffer = io.StringIO()
+    json.dump(json_ready([r.to_json(include_run=True) for r in records]), buffer, indent=1, allow_nan=False)
+    return buffer.getvalue() + "\n"

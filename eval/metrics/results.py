@@ -1,0 +1,354 @@
+"""One run's evaluation as a typed record, and many runs gathered in a pandas frame in long form.
+
+A run record (:class:`RunRecord`: what :func:`evaluate_episode` returns, :func:`save_run` writes and
+:func:`load_run` reads; frozen, changed with :meth:`RunRecord.replace`, as evo's ``core.result.Result`` is one
+object, not a dict edited in place) is written as the JSON object::
+
+    {"schema": "cnnslam-run/1", "sequence": str, "method": str, "agent": str, "uses_ground_truth": bool,
+     "alignment": {...}, "association": {...}, "rpe": {"delta": float, "unit": str}, "warnings": [str, ...],
+     "metrics": {name: float, ...},           # flat scalar metrics (names below)
+     "keyframes": [{"timestamp": s, "percent_correct": ..., ...}, ...],
+     "metadata": {name: scalar, ...},         # run settings (seed, config...), free-form scalars
+     "ground_truth_used": [str, ...],         # only external methods: what their method.toml declares
+     "sensor": str}                           # only suite runs: the method's sensor (mono, rgbd...)
+
+``alignment`` (:meth:`eval.metrics.trajectory_metrics.TrajectoryMetrics.describe_alignment`): ``requested``, ``used``
+(what was done:
+``se3``, ``sim3``, ``origin``, ``none`` or ``rotation_only``), ``title`` (the same in words), ``scale``,
+``degenerate``, ``fallback``, ``warning``, the fits behind ``ate_se3_rmse`` / ``ate_sim3_rmse`` under ``se3`` and
+``sim3``, and the orientation-only alignment's definition under ``orientation``. ``alignment``, ``association``,
+``rpe``, ``warnings`` and the trajectory part of ``metrics`` have the same names and meaning in
+``cnnslam eval --json`` (:mod:`eval.commands.cli_eval`).
+
+Metric names (all values numbers; definitions in :mod:`eval.metrics.trajectory_metrics`):
+``ate_{rmse,mean,median,std,min,max,pairs}`` (m, after the run's alignment, default SE(3)), ``ate_se3_rmse`` (m,
+metric ATE, SE(3) Umeyama = evo_ape -a),
+``ate_sim3_rmse`` (m, scale-aligned ATE, Sim(3) Umeyama = evo_ape -as), ``ate_alignment_degenerate`` and
+``ate_alignment_fallback`` (0/1: positions determine the fit badly / not at all), ``rot_deg_*`` (deg, after the
+run's alignment), ``rot_deg_orient_{rmse,mean,median,std,min,max}`` (deg, after orientation-only alignment: read
+this, and ``rpe_rot_deg_*``, for rotation verdicts), ``rpe_trans_*`` (m), ``rpe_rot_deg_*`` (deg, alignment-free),
+``scale``, ``scale_error``, ``length_gt_m``, ``length_est_m``, ``tracked_share`` (0..1),
+``depth_percent_correct`` (pooled over key-frames; the Table-1 figure), ``depth_percent_correct_mean`` (mean over
+key-frames), ``depth_density``, ``depth_abs_rel``, ``depth_rmse``, ``depth_delta_1_25``, ``depth_keyframes``,
+``semantic_pixel_accuracy``, ``semantic_mean_iou``, ``semantic_iou_<class>``, ``step_ms_{mean,median,max}``,
+``fps``, ``frames``.
+
+Long form (:func:`runs_frame`): one row per (run, metric) with columns ``sequence, method, metric, value`` plus
+``run`` (the run's index or file), ``agent``, ``uses_ground_truth``, ``alignment``, ``alignment_used``,
+``association`` and one column per metadata key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from eval.errors import EvalError
+from eval.metrics.association import AssociationRule
+from eval.metrics.trajectory import PoseTrajectory
+from eval.metrics.trajectory_metrics import RpeUnit, evaluate_trajectory
+from sim_envs.frames import NUM_CLASSES
+from slamcommon.alignment import AlignmentMethod
+from slamcommon.depth_metrics import (
+    CORRECT_THRESHOLD,
+    DepthMetrics,
+    aggregate_depth_metrics,
+    depth_metrics,
+)
+from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
+from slamcommon.strict_json import json_ready
+
+RUN_SCHEMA = "cnnslam-run/1"
+LONG_COLUMNS = ["sequence", "method", "metric", "value"]
+
+
+class ResultsError(EvalError):
+    """A run record or results file that cannot be read."""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One scored run (the module docstring gives the JSON form and the metric names).
+
+    ``metrics``: flat scalar metrics, NaN where a figure has no value; ``alignment`` / ``association`` / ``rpe``:
+    how the trajectory was scored (:mod:`eval.metrics.trajectory_metrics`); ``keyframes``: per key-frame depth rows;
+    ``metadata``: the run's settings; ``ground_truth_used`` and ``sensor``: written only when set. ``run``: the run's
+    key in its suite (:attr:`eval.bench.run.RunSpec.key`), set when a suite reads the record back; never written to
+    ``metrics.json``. Frozen: derive a changed record with :meth:`replace`.
+    """
+
+    sequence: str
+    method: str
+    agent: str
+    metrics: Mapping[str, float]
+    uses_ground_truth: bool = False
+    alignment: Mapping[str, Any] = field(default_factory=dict)
+    association: Mapping[str, Any] = field(default_factory=dict)
+    rpe: Mapping[str, Any] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+    keyframes: tuple[Mapping[str, Any], ...] = ()
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+    ground_truth_used: tuple[str, ...] | None = None
+    sensor: str | None = None
+    run: str | None = None
+    schema: str = RUN_SCHEMA
+
+    def replace(self, **changes: Any) -> RunRecord:
+        """A copy with ``changes`` (field name -> new value)."""
+        return dataclasses.replace(self, **changes)
+
+    def with_warning(self, warning: str) -> RunRecord:
+        """A copy with ``warning`` appended to :attr:`warnings`."""
+        return self.replace(warnings=(*self.warnings, warning))
+
+    def to_json(self, include_run: bool = False) -> dict[str, Any]:
+        """The JSON object of ``metrics.json`` (key order fixed: the same run gives the same bytes); with
+        ``include_run`` the suite's run key last (a suite's run file, :func:`eval.bench.runner.suite_records_json`)."""
+        out: dict[str, Any] = {
+            "schema": self.schema,
+            "sequence": self.sequence,
+            "method": self.method,
+            "agent": self.agent,
+            "uses_ground_truth": self.uses_ground_truth,
+            "alignment": dict(self.alignment),
+            "association": dict(self.association),
+            "rpe": dict(self.rpe),
+            "warnings": list(self.warnings),
+            "metrics": dict(self.metrics),
+            "keyframes": [dict(k) for k in self.keyframes],
+            "metadata": dict(self.metadata),
+        }
+        if self.ground_truth_used is not None:
+            out["ground_truth_used"] = list(self.ground_truth_used)
+        if self.sensor is not None:
+            out["sensor"] = self.sensor
+        if include_run and self.run is not None:
+            out["run"] = self.run
+        return out
+
+    @classmethod
+    def from_json(cls, data: Any, source: str = "<data>") -> RunRecord:
+        """A record from its JSON object (``metrics.json``, or an element of a suite's run file); null metrics
+        become NaN. Raises :class:`ResultsError` naming ``source`` and what is missing."""
+        if not isinstance(data, Mapping) or not isinstance(data.get("metrics"), Mapping):
+            raise ResultsError(f"{source}: a run record is a JSON object with a 'metrics' object")
+        if "sequence" not in data or not (data.get("method") or data.get("agent")):
+            raise ResultsError(f"{source}: a run record needs 'sequence' and 'method' (or 'agent')")
+        method = str(data.get("method") or data.get("agent"))
+        used = data.get("ground_truth_used")
+        try:
+            metrics = {str(k): math.nan if v is None else float(v) for k, v in data["metrics"].items()}
+        except (TypeError, ValueError) as exc:
+            raise ResultsError(f"{source}: every metric of a run record is a number or null ({exc})") from exc
+        return cls(
+            sequence=str(data["sequence"]),
+            method=method,
+            agent=str(data.get("agent") or method),
+            metrics=metrics,
+            uses_ground_truth=bool(data.get("uses_ground_truth", False)),
+            alignment=dict(data.get("alignment") or {}),
+            association=dict(data.get("association") or {}),
+            rpe=dict(data.get("rpe") or {}),
+            warnings=tuple(str(w) for w in data.get("warnings") or ()),
+            keyframes=tuple(dict(k) for k in data.get("keyframes") or ()),
+            metadata=dict(data.get("metadata") or {}),
+            ground_truth_used=None if used is None else tuple(str(u) for u in used),
+            sensor=None if data.get("sensor") is None else str(data["sensor"]),
+            run=None if data.get("run") is None else str(data["run"]),
+            schema=str(data.get("schema", RUN_SCHEMA)),
+        )
+
+
+def coverage(metrics: Mapping[str, float]) -> tuple[int, int] | None:
+    """How much of its sequence a run's trajectory covers, from its metrics: ``(poses scored, frames)`` (the ATE's
+    pose pairs, ``ate_pairs``, and the sequence's frames the run was given, ``frames``) when the run scored fewer poses
+    than its frames (an external system's trajectory with frames missing); None for a whole run or one without
+    trajectory metrics. A partial run's figures are over the poses it has, not its sequence: tables say so."""
+    pairs, frames = metrics.get("ate_pairs"), metrics.get("frames")
+    if pairs is None or frames is None or not (math.isfinite(pairs) and math.isfinite(frames)) or pairs >= frames:
+        return None
+    return int(pairs), int(frames)
+
+
+# ------------------------------------------------------------------------------------------------- one episode
+def evaluate_episode(
+    result: Any,
+    *,
+    alignment: str | AlignmentMethod = AlignmentMethod.SE3,
+    rpe_delta: float = 1.0,
+    rpe_unit: str | RpeUnit = RpeUnit.SECONDS,
+    depth_threshold: float = CORRECT_THRESHOLD,
+    method: str | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> RunRecord:
+    """Score a driver's episode result (duck-typed on the fields of ``sim_envs.driver.EpisodeResult``).
+
+    Uses ``sequence``, ``agent``, ``timestamps`` (N,), ``T_world_cam_est`` (N, 4, 4), ``T_world_cam_gt``
+    (N, 4, 4), ``tracked`` (N,), ``keyframes`` (list of ``KeyframeDepth``), ``keyframe_gt`` (list of ``Frame``, the
+    ground truth at each key-frame), ``step_seconds`` (N,), ``uses_ground_truth`` and ``extras``. Estimated and
+    ground-truth poses are paired by index (rule ``"index"``). A key-frame is matched to the ground-truth frame with
+    its timestamp; one that cannot be scored is skipped with a warning, never losing the rest.
+    ``method``: the name shown in tables (default: the agent string).
+    """
+    timestamps = np.asarray(result.timestamps, dtype=np.float64)
+    gt = PoseTrajectory(timestamps, result.T_world_cam_gt)
+    est = PoseTrajectory(timestamps, result.T_world_cam_est)
+    traj = evaluate_trajectory(
+        gt,
+        est,
+        alignment=alignment,
+        association=AssociationRule.INDEX,
+        rpe_delta=rpe_delta,
+        rpe_unit=rpe_unit,
+        tracked=np.asarray(result.tracked, dtype=bool),
+    )
+    warnings = list(traj.warnings)
+    metrics: dict[str, float] = traj.flat_metrics()
+    metrics["frames"] = float(len(timestamps))
+    metrics.update(_timing_metrics(np.asarray(getattr(result, "step_seconds", []), dtype=np.float64)))
+    per_kf, kf_rows, conf = _score_keyframes(result.keyframes, result.keyframe_gt, depth_threshold, warnings)
+    pooled = aggregate_depth_metrics(per_kf, "pooled")
+    mean = aggregate_depth_metrics(per_kf, "mean")
+    metrics.update(
+        {
+            "depth_percent_correct": pooled.percent_correct,
+            "depth_percent_correct_mean": mean.percent_correct,
+            "depth_density": pooled.density,
+            "depth_abs_rel": pooled.abs_rel,
+            "depth_rmse": pooled.rmse,
+            "depth_delta_1_25": pooled.delta_1_25,
+            "depth_keyframes": float(len(per_kf)),
+        }
+    )
+    if conf is not None:
+        sem = metrics_from_confusion(conf)
+        metrics.update({f"semantic_{k}": float(v) for k, v in sem.to_dict().items() if k != "n_pixels"})
+    agent = str(result.agent)
+    return RunRecord(
+        sequence=str(result.sequence),
+        method=method or agent,
+        agent=agent,
+        metrics=metrics,
+        uses_ground_truth=bool(getattr(result, "uses_ground_truth", False)),
+        alignment=traj.describe_alignment(),
+        association=traj.association.describe(),
+        rpe=traj.describe_rpe(),
+        warnings=tuple(warnings),
+        keyframes=tuple(kf_rows),
+        metadata=dict(metadata or {}),
+    )
+
+
+def _timing_metrics(step_seconds: np.ndarray) -> dict[str, float]:
+    s = step_seconds[np.isfinite(step_seconds)]
+    if s.size == 0:
+        return {}
+    return {
+        "step_ms_mean": 1000.0 * float(s.mean()),
+        "step_ms_median": 1000.0 * float(np.median(s)),
+        "step_ms_max": 1000.0 * float(s.max()),
+        "fps": float(1.0 / s.mean()) if s.mean() > 0 else math.nan,
+    }
+
+
+def _score_keyframes(keyframes, keyframe_gt, threshold: float, warnings: list[str]):
+    """Per key-frame depth metrics, JSON rows, and the summed semantic confusion (None if no labels to score)."""
+    from sim_envs.driver import match_timestamp
+
+    gt_frames = list(keyframe_gt)
+    gt_stamps = np.array([float(f.timestamp) for f in gt_frames])
+    per_kf: list[DepthMetrics] = []
+    rows: list[dict[str, Any]] = []
+    conf = None
+    for k, kf in enumerate(keyframes):
+        t = float(kf.timestamp)
+        near = match_timestamp(gt_stamps, t)  # the world's tolerance, as the episode paired them
+        if near is None:
+            warnings.append(f"key-frame {k} at t={t:.6f} s has no ground-truth frame; skipped")
+            continue
+        frame = gt_frames[near]
+        depth_est = np.asarray(kf.depth, dtype=np.float32)
+        depth_gt = np.asarray(frame.depth, dtype=np.float32)
+        if depth_est.shape != depth_gt.shape:
+            if depth_est.ndim != 2:
+                warnings.append(f"key-frame {k}: depth of shape {depth_est.shape} is not (H, W); skipped")
+                continue
+            warnings.append(
+                f"key-frame {k}: depth {depth_est.shape} resized (nearest) to the ground truth's {depth_gt.shape}"
+            )
+            depth_est = cv2.resize(depth_est, depth_gt.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        m = depth_metrics(depth_est, depth_gt, threshold)
+        per_kf.append(m)
+        rows.append({"timestamp": t, **m.to_dict()})
+        labels = getattr(kf, "labels", None)
+        if labels is not None and frame.labels is not None:
+            pred = np.asarray(labels)
+            pred = pred if pred.ndim == 2 else np.argmax(pred, axis=2)
+            if pred.shape != frame.labels.shape:
+                pred = cv2.resize(pred.astype(np.uint8), frame.labels.shape[::-1], interpolation=cv2.INTER_NEAREST)
+            c = confusion_matrix(pred, frame.labels, NUM_CLASSES)
+            conf = c if conf is None else conf + c
+    return per_kf, rows, conf
+
+
+# ------------------------------------------------------------------------------------------------------ files
+def save_run(record: RunRecord, path: str | Path) -> Path:
+    """Write a run record as strict JSON (NaN -> null)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(json_ready(record.to_json()), indent=2, allow_nan=False) + "\n")
+    return path
+
+
+def load_run(path: str | Path) -> RunRecord:
+    """Read a run record; null metrics come back as NaN."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ResultsError(f"{path}: not a readable JSON run record: {exc}") from exc
+    return RunRecord.from_json(data, str(path))
+
+
+# ------------------------------------------------------------------------------------------------------- tables
+def runs_frame(records: Iterable[RunRecord], run_ids: Iterable[str] | None = None) -> pd.DataFrame:
+    """Many run records in long form: one row per (run, metric); see the module docstring for the columns.
+    ``run_ids``: the ``run`` column (default: each record's :attr:`RunRecord.run`, else its position)."""
+    rows = []
+    ids = list(run_ids) if run_ids is not None else None
+    for n, rec in enumerate(records):
+        base = {
+            "sequence": rec.sequence,
+            "method": rec.method,
+            "run": ids[n] if ids is not None else (rec.run if rec.run is not None else str(n)),
+            "agent": rec.agent,
+            "uses_ground_truth": rec.uses_ground_truth,
+            "alignment": rec.alignment.get("requested"),
+            "alignment_used": rec.alignment.get("used"),
+            "association": rec.association.get("rule"),
+        }
+        meta = {k: v for k, v in rec.metadata.items() if isinstance(v, str | int | float | bool)}
+        for metric, value in rec.metrics.items():
+            rows.append({**base, **meta, "metric": metric, "value": math.nan if value is None else float(value)})
+    if not rows:  # no run scored (all failed): the same columns, a numeric value column
+        return pd.DataFrame({c: pd.Series(dtype=float if c == "value" else object) for c in [*LONG_COLUMNS, "run"]})
+    frame = pd.DataFrame(rows)
+    first = [*LONG_COLUMNS, "run"]
+    return frame[first + [c for c in frame.columns if c not in first]]
+
+
+def load_runs(paths: Iterable[str | Path]) -> pd.DataFrame:
+    """Read run-record JSON files (files, or folders searched for ``*.json``) into one long frame."""
+    files: list[Path] = []
+    for p in map(Path, paths):
+        files += sorted(p.rglob("*.json")) if p.is_dir() else [p]
+    return runs_frame([load_run(f) for f in files], run_ids=[str(f) for f in files])

@@ -1,0 +1,746 @@
+"""What each suite leaves under ``results/``: tables (Markdown, CSV, LaTeX), plots, and the long-form CSV of all its
+runs (``<suite>_long.csv``: sequence, method, metric, value, plus run metadata: seed, frames, agent entry point and
+keyword arguments, git revision, wall time).
+
+- ``table1``: ``table1.{md,csv,tex}`` shaped like the paper's Table 1 (ATE block, percentage-of-correct-depth block,
+  Avg. row); the Markdown quotes the paper's number beside each of ours, ``ours (paper)``;
+- ``rotation``: ``rotation.{md,csv,tex}``: tracked share, rotation error, correct depth per sequence and method;
+- ``ablation``: ``ablation.{md,csv,tex}`` and ``ablation.png`` (one key-frame's depth error per variant, Fig. 3);
+- ``sweep``: ``sweep.png`` (ATE and correct depth against each difficulty axis) and ``sweep.{md,csv}``;
+- ``depth_quality``: ``depth_quality.{md,csv,tex}`` (ATE / path length, scale error, correct depth, rotation error),
+  the issue's targets per sequence for CNN-SLAM, and ``depth_quality.png`` (ATE / length against correct depth);
+- ``quick``: ``quick.md`` and ``quick_runs.json`` (the run records the gate compares, ``cnnslam regress``).
+
+Every cell is the median of the cell's runs (seeds) with their range, ``median [min, max]``
+(:mod:`eval.reports.tables`); every suite also writes ``<suite>_stats.csv`` (per sequence, method and metric: runs,
+median, quartiles, min, max) and ``<suite>_runs.png`` (every run as a dot, per method and sequence). Every Markdown
+file starts with how it was made (command, frames, seeds, revision) and ends with the state of the runs: the failure
+rate per method (runs that crashed or timed out, and runs that lost track: tracked share below
+:data:`LOST_BELOW_TRACKED_SHARE`), methods skipped (and why), runs that failed (and their errors).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from eval.bench.environment import machine_label
+from eval.bench.runner import SuiteRun, suite_records_json
+from eval.bench.suites import SWEEP_AXES
+from eval.metrics.results import RunRecord, runs_frame
+from eval.reports.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
+from eval.reports.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
+from eval.reports.tables import (
+    AVG_LABEL,
+    TABLE1_BLOCKS,
+    Spread,
+    cell_text,
+    spread_of,
+    statistics_frame,
+    table1,
+    table_to_csv,
+    table_to_latex,
+    table_to_markdown,
+)
+from sim_envs.driver import match_timestamp
+
+ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
+    ("Tracked share", "tracked_share"),
+    ("Rotation error, orientation-aligned [deg]", "rot_deg_orient_rmse"),
+    ("RPE rotation, 1 s [deg]", "rpe_rot_deg_rmse"),
+    ("Perc. Correct Depth [%]", "depth_percent_correct"),
+)
+SIM3_BLOCK: tuple[tuple[str, str], ...] = (("ATE after Sim(3) alignment [m]", "ate_sim3_rmse"),)
+# The global model (Sec. 3.5) of the agents that hand one back (eval.metrics.map_metrics)
+MAP_BLOCKS: tuple[tuple[str, str], ...] = (
+    ("Map accuracy, median [m]", "map_accuracy_median"),
+    ("Map completeness within 5 cm", "map_completeness_within"),
+    ("Map label accuracy", "map_label_accuracy"),
+)
+QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, *SIM3_BLOCK, ("Tracked share", "tracked_share"),
+                                             *MAP_BLOCKS)
+DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
+    ("ATE / length [%]", "ate_percent_length"),
+    ("Scale error [%]", "scale_error_percent"),
+    ("Perc. Correct Depth [%]", "depth_percent_correct"),
+    ("Rotation error [deg]", "rot_deg_rmse"),
+)
+# The SLAM issue's targets on the office and living sequences: absolute-scale ATE (SE(3) alignment) at most 2 % of
+# the path length, scale error at most 5 %, key-frame correct depth above the raw CNN's.
+# A run that reports fewer than 90 % of its frames tracked counts as lost in the failure rate (ours: "lost" in the
+# sense of ORB-SLAM's evaluations, where a sequence on which tracking is lost for a good part of it is a failure).
+LOST_BELOW_TRACKED_SHARE = 0.9
+RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = (
+    ("ate_rmse", "ATE RMSE, SE(3) [m]"),
+    ("depth_percent_correct", "correct depth [%]"),
+)
+TARGET_ATE_PERCENT_LENGTH = 2.0
+TARGET_SCALE_ERROR_PERCENT = 5.0
+PAPER_NAMES: dict[str, str] = dict(
+    zip(("office0", "office1", "office2", "living0", "living1", "living2", "tum_long_office",
+         "tum_nostructure_near", "tum_structure_far"), PAPER_SEQUENCES, strict=True)
+)  # fmt: skip
+
+
+def paper_name(label: object, default: str) -> str:
+    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through and however its room is
+    lit (``office0@kinect`` and ``office0+lit@kinect`` are ICL/office0); ``default`` for a sequence of ours only."""
+    return PAPER_NAMES.get(str(label).split("@")[0].split("+")[0], default)
+
+
+def camera_sentence(suite: Any) -> str:
+    """Which simulated camera(s) the suite's simulated sequences are seen through (:mod:`sim_envs.camera_effects`),
+    as a sentence for a report's header; empty when it has none."""
+    cameras = sorted({str(dict(r.overrides).get("camera_effects", "clean")) for r in suite.sequences
+                      if r.folder is None})  # fmt: skip
+    if not cameras:
+        return ""
+    lit = sorted({r.name for r in suite.sequences if r.folder is None and dict(r.overrides).get("lighting", "flat")
+                  != "flat"})  # fmt: skip
+    rooms = (f"Rooms lit with lamps, shadows and highlights (`sim_envs/lighting.py`, the `+lit` names): {len(lit)} of "
+             f"{sum(r.folder is None for r in suite.sequences)} simulated sequences. ") if lit else ""  # fmt: skip
+    return (f"Simulated camera: **{', '.join(cameras)}** (`sim_envs/camera_effects.py`; `--camera clean|kinect|hard` "
+            "switches; a sequence's `@PRESET` suffix names its camera). " + rooms)  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------------- long form
+def long_frame(run: SuiteRun) -> pd.DataFrame:
+    """All finished runs in long form (:func:`eval.metrics.results.runs_frame`) with ``wall_s`` from each run's
+    timing."""
+    records = [r.replace(metadata={**r.metadata, "wall_s": run.timings.get(r.run, {}).get("wall_s", math.nan)})
+               for r in run.records]  # fmt: skip
+    return runs_frame(records)
+
+
+def write_long_csv(run: SuiteRun, results_dir: str | Path, frame: pd.DataFrame | None = None) -> Path:
+    """``<suite>_long.csv`` in ``results_dir`` (``frame``: the run's :func:`long_frame`, when already built)."""
+    path = Path(results_dir) / f"{run.suite.name}_long.csv"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    (long_frame(run) if frame is None else frame).to_csv(path, index=False, float_format="%.6g")
+    return path
+
+
+# ------------------------------------------------------------------------------------------------ Markdown parts
+def header_markdown(run: SuiteRun, title: str, command: str) -> str:
+    """Title, what the report holds (the suite, or the selection from it: :meth:`Suite.selection_note`), and how it
+    was made."""
+    suite = run.suite
+    revisions = sorted({str(r.metadata.get("git_revision")) for r in run.records}) or ["-"]
+    frames = "whole sequences" if suite.frames is None else f"the first {suite.frames} frames of each sequence"
+    note = suite.selection_note()
+    holds = (f"**A selection from suite `{suite.name}`**: {note}. The suite as defined: {suite.description}"
+             if note else f"{suite.description[:1].upper()}{suite.description[1:]}")  # fmt: skip
+    return (
+        f"# {title}\n\n{holds}.\n\n"
+        f"Made by `{command}`: {frames}, {len(suite.seeds)} run(s) per cell (seeds "
+        f"{', '.join(map(str, suite.seeds))}; what a seed changes per method: `eval/methods.toml`; a method that "
+        "takes no seed is exact given its inputs and runs once), ATE after "
+        f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
+        f"{camera_sentence(suite)}Each cell: the **median** of its runs and their range **[min, max]** where the "
+        "runs differ. Per-run "
+        "artifacts (trajectories, "
+        f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every run's figures in long form "
+        f"in `{suite.name}_long.csv`, the statistics per cell in `{suite.name}_stats.csv`, every run as a dot in "
+        f"`{suite.name}_runs.png`.\n"
+    )
+
+
+def machines_sentence(run: SuiteRun) -> str:
+    """Which machines (CPU, ISA, torch, numpy; ``timing.json``'s ``environment``) the finished runs ran on."""
+    envs = [timing.get("environment") for timing in run.timings.values()]
+    counts = Counter(machine_label(env) for env in envs if env)
+    unknown = sum(1 for env in envs if not env)
+    if not counts:
+        return "Machine: not recorded (runs from before `timing.json` recorded it)." if unknown else ""
+    parts = [f"{label}: {n} run(s)" for label, n in sorted(counts.items())]
+    if unknown:
+        parts.append(f"not recorded: {unknown} run(s)")
+    return "Machines: " + "; ".join(parts) + "."
+
+
+def status_markdown(run: SuiteRun) -> str:
+    """Runs done / failed, methods skipped with their reasons, failed runs with their errors."""
+    counts = run.counts()
+    lines = [
+        "## Runs\n",
+        f"{len(run.specs)} runs: {counts.get('done', 0)} run now, {counts.get('cached', 0)} reused from earlier, "
+        f"{counts.get('failed', 0)} failed"
+        + (f", {counts['not_run']} not run (--report-only: no finished run in the output folder)"
+           if counts.get("not_run") else "") + f". {machines_sentence(run)}",
+    ]
+    failures = failure_frame(run)
+    if failures.empty:
+        lines.append("")
+    else:
+        per_method = failures.groupby("method", sort=False)[["runs", "crashed", "lost"]].sum()
+        lines += [
+            f"\nFailure rate per method (crashed or timed out, or lost: tracked share below "
+            f"{LOST_BELOW_TRACKED_SHARE:.0%}; lost runs still count in the medians):\n",
+            "| method | runs | crashed | lost | failure rate |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for method, row in per_method.iterrows():
+            rate = (row["crashed"] + row["lost"]) / row["runs"] if row["runs"] else 0.0
+            lines.append(f"| {method} | {row['runs']} | {row['crashed']} | {row['lost']} | {rate:.0%} |")
+    if run.skipped_methods:
+        lines.append("\nMethods skipped (they cannot run here):\n")
+        lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.skipped_methods.items()]
+    if run.suite.skipped:
+        lines.append("\nSequences skipped (listed, but not here):\n")
+        lines += [f"- **{name}**: {_one_line(reason)}" for name, reason in run.suite.skipped]
+    if run.failed:
+        lines.append("\nFailed runs (rerun the same command to retry them):\n")
+        lines += [f"- `{o.key}`: {_one_line(o.error or '')}" for o in run.failed]
+    not_run = [o for o in run.outcomes.values() if o.status == "not_run"]
+    if not_run:
+        per_method: dict[str, int] = {}
+        for spec in run.specs:
+            if run.outcomes.get(spec.key) is not None and run.outcomes[spec.key].status == "not_run":
+                per_method[spec.method.name] = per_method.get(spec.method.name, 0) + 1
+        lines.append("\nNot run (the tables were written from the finished runs only; each cell says how many it "
+                     "has): " + ", ".join(f"{m} {n}" for m, n in per_method.items()) + ".\n")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def methods_markdown(run: SuiteRun) -> str:
+    """The methods that are not plain monocular ones: another sensor, or ground truth received (declared by an
+    agent's ``uses_ground_truth`` or an external folder's ``method.toml``), so no reader takes them for peers."""
+    fed = {}
+    for rec in run.records:
+        if rec.uses_ground_truth:
+            fed.setdefault(rec.method, set()).update(rec.ground_truth_used or ["declared by the agent"])
+    lines = []
+    for m in run.methods:
+        notes = [f"sensor {m.sensor}"] if m.sensor != "mono" else []
+        if m.name in fed:
+            notes.append("receives ground truth (" + ", ".join(sorted(fed[m.name])) + ")")
+        if notes:
+            lines.append(f"- **{m.name}**: " + "; ".join(notes))
+    return ("\nNot plain monocular methods:\n\n" + "\n".join(lines) + "\n") if lines else ""
+
+
+def alignment_markdown(run: SuiteRun, frame: pd.DataFrame) -> str:
+    """Which alignment each cell's ATE actually used, where it is not the suite's plain Umeyama fit: methods with
+    their own ``align``, and cells whose fit fell back to rotation-only or was poorly conditioned (flags of
+    :mod:`eval.metrics.trajectory_metrics`), with how many of their runs."""
+    lines = [f"- **{m.name}**: ATE after {m.align.upper()} alignment (the method's own)" for m in run.methods
+             if m.align and m.align != run.suite.alignment]  # fmt: skip
+    flags = frame[frame["metric"].isin(["ate_alignment_fallback", "ate_alignment_degenerate"])] if len(frame) else frame
+    if len(flags):
+        counts = flags.groupby(["sequence", "method", "metric"], sort=False)["value"].agg(["sum", "count"])
+        for (seq, method, metric), row in counts.iterrows():
+            if row["sum"] > 0:
+                what = ("rotation-only fallback (evo cannot fit: positions one point)" if metric.endswith("fallback")
+                        else "poorly conditioned fit (positions nearly collinear or tiny), kept and flagged")
+                lines.append(f"- {seq} / {method}: {what} in {int(row['sum'])} of {int(row['count'])} runs")
+    if not lines:
+        return ""
+    return ("\nAlignment, where a cell's ATE is not a well-conditioned Umeyama fit of the suite's kind (evo's "
+            "`evo_ape -a` figure):\n\n" + "\n".join(lines) + "\n")
+
+
+def failure_frame(run: SuiteRun) -> pd.DataFrame:
+    """Per (sequence, method) planned: ``runs``, ``crashed`` (failed or timed out: no record), ``lost`` (finished,
+    trajectory metrics, tracked share below :data:`LOST_BELOW_TRACKED_SHARE`), ``failure_rate``."""
+    tracked = {rec.run: rec.metrics.get("tracked_share") for rec in run.records}
+    rows: dict[tuple[str, str], dict[str, int]] = {}
+    for spec in run.specs:
+        outcome = run.outcomes.get(spec.key)
+        if outcome is not None and outcome.status == "not_run":
+            continue  # neither a result nor a failure
+        row = rows.setdefault((spec.sequence.name, spec.method.name), {"runs": 0, "crashed": 0, "lost": 0})
+        row["runs"] += 1
+        if outcome is None or outcome.status == "failed":
+            row["crashed"] += 1
+        elif (share := tracked.get(spec.key)) is not None and share < LOST_BELOW_TRACKED_SHARE:
+            row["lost"] += 1
+    frame = pd.DataFrame([{"sequence": k[0], "method": k[1], **v} for k, v in rows.items()],
+                         columns=["sequence", "method", "runs", "crashed", "lost"])  # fmt: skip
+    frame["failure_rate"] = (frame["crashed"] + frame["lost"]) / frame["runs"].where(frame["runs"] > 0)
+    return frame
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def with_relative_errors(frame: pd.DataFrame) -> pd.DataFrame:
+    """The long frame plus two rows per run: ``ate_percent_length`` = 100 ATE RMSE / ground-truth path length (the
+    drift figure of odometry papers; none for a zero-length path) and ``scale_error_percent`` = 100 scale error."""
+    if frame.empty:
+        return frame
+    wide = frame.pivot_table(index=["run", "sequence", "method"], columns="metric", values="value", aggfunc="first")
+    extra = []
+    if {"ate_rmse", "length_gt_m"} <= set(wide.columns):
+        length = wide["length_gt_m"].where(wide["length_gt_m"] > 0)
+        extra.append((100.0 * wide["ate_rmse"] / length).rename("value").reset_index()
+                     .assign(metric="ate_percent_length"))  # fmt: skip
+    if "scale_error" in wide.columns:
+        extra.append((100.0 * wide["scale_error"]).rename("value").reset_index().assign(metric="scale_error_percent"))
+    extra = [rows.dropna(subset=["value"]) for rows in extra]
+    return pd.concat([frame, *extra], ignore_index=True) if extra else frame
+
+
+def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]],
+                 frame: pd.DataFrame | None = None) -> tuple[pd.DataFrame, Spread]:
+    """The suite's table of ``blocks`` (cell medians) and its spread (the min and max tables: the range of each
+    cell's runs; the partial cells), from ``frame`` (default: the run's long frame, built once for both)."""
+    frame = long_frame(run) if frame is None else frame
+    if frame.empty:
+        frame = pd.DataFrame(columns=["sequence", "method", "metric", "value"])
+    shape = {"methods": list(run.suite.methods), "sequences": [s.name for s in run.suite.sequences],
+             "blocks": blocks}  # fmt: skip
+    return table1(frame, **shape), spread_of(frame, **shape)
+
+
+def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3,
+                  spread: Spread | None = None) -> list[Path]:
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
+    csv.write_text(table_to_csv(table))
+    tex.write_text(table_to_latex(table, digits, caption, spread=spread))
+    return [csv, tex]
+
+
+# ----------------------------------------------------------------------------------------------------- table1
+def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits: int,
+                      spread: Spread | None = None) -> str:
+    """One block of our Table 1 as Markdown, each cell ``ours (paper)`` where the paper has the number; with
+    ``spread`` (:func:`eval.reports.tables.spread_of`), ours is ``median [min, max]``, with a partial run's coverage.
+    The paper's Avg. is quoted only beside an Avg. over all nine of its sequences: an average over fewer is another
+    figure."""
+    paper = paper_table1_frame()
+    paper = paper[paper["metric"] == metric]
+    paper_value = {(row.sequence, row.method): row.value for row in paper.itertuples()}
+    covered = {paper_name(label, "") for label in ours.index if label != AVG_LABEL}
+    paper_avg = (PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH) \
+        if covered >= set(PAPER_SEQUENCES) else {}
+    block = ours[metric_block] if metric_block in ours.columns.get_level_values(0) else pd.DataFrame(index=ours.index)
+    header = ["sequence", *block.columns]
+    lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(block.columns)]
+    for label, row in block.iterrows():
+        cells = []
+        for method, value in row.items():
+            text = cell_text(value, label, (metric_block, method), spread, digits)
+            if label == AVG_LABEL:
+                quoted = paper_avg.get(method, math.nan)
+            else:
+                quoted = paper_value.get((paper_name(label, ""), method), math.nan)
+            if not math.isnan(quoted):
+                text += f" ({quoted:.{digits}f})"
+            cells.append(text)
+        name = str(label) if label == AVG_LABEL else f"{label} ({paper_name(label, 'ours only')})"
+        lines.append("| " + " | ".join([name, *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``table1.{md,csv,tex}`` and ``table1_long.csv``."""
+    results_dir = Path(results_dir)
+    table, spread = _suite_table(run, TABLE1_BLOCKS)
+    sim3, sim3_spread = _suite_table(run, SIM3_BLOCK)
+    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)", spread=spread)
+    ate_title, ate_metric = TABLE1_BLOCKS[0]
+    depth_title, depth_metric = TABLE1_BLOCKS[1]
+    text = [
+        header_markdown(run, "Table 1 analogue: absolute trajectory error and percentage of correct depth", command),
+        "Each cell: **ours, median [min, max] of the runs (the paper's Table 1)**. Our sequences are simulated "
+        "analogues of the paper's "
+        "(ICL-NUIM office/living room, TUM fr3 sequences), not the same images: compare shapes (which method is "
+        "best, by how much), not values. `oracle` is the ground truth fed through the same pipeline (a sanity "
+        "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a failed run). "
+        "The Avg. row is shown only where a method has every sequence, each run covering its whole sequence (a run "
+        "that scored part of it says so in its cell, `(10/60 frames)`); the paper's Avg. is quoted only beside ours "
+        "over its nine sequences.\n",
+        f"## {ate_title}\n",
+        ours_beside_paper(table, ate_title, ate_metric, 3, spread),
+        f"## {depth_title}\n",
+        "A pixel is correct when its depth is within 10 % of the ground truth; the share is over all pixels of the "
+        "key-frames with valid ground truth (a sparse method is penalised for the pixels it has no depth for).\n",
+        ours_beside_paper(table, depth_title, depth_metric, 3, spread),
+        "## Scale-aligned ATE, Sim(3) [m]\n",
+        "The paper's ATE (above) aligns with SE(3): no scale correction, so a monocular method pays for a wrong "
+        "scale. Monocular SLAM papers report ATE after Sim(3) alignment (`evo_ape -as`); both are here.\n",
+        table_to_markdown(sim3, spread=sim3_spread),
+        *_map_section(run),
+        "## Ours alone (as in table1.csv / table1.tex)\n",
+        table_to_markdown(table, spread=spread),
+    ]
+    return _write_report(run, results_dir, "table1", text, paths)
+
+
+def _map_section(run: SuiteRun) -> list[str]:
+    """The global model's figures (Sec. 3.5, :mod:`eval.metrics.map_metrics`) for the methods that hand back a model;
+    empty when none does."""
+    table, spread = _suite_table(run, MAP_BLOCKS)
+    table = table.dropna(axis=1, how="all")
+    if table.empty or table.shape[1] == 0:
+        return []
+    spread = Spread(spread.lo[table.columns], spread.hi[table.columns], spread.partial)
+    return [
+        "## Global model (Sec. 3.5, Fig. 1c)\n",
+        "The key-frames fused live into the agent's surfel model, moved onto the ground truth with the run's ATE "
+        "alignment, against the scene's surfaces (2 cm samples; `eval/metrics/map_metrics.py`). Accuracy: median "
+        "distance of the model's points to the surfaces; completeness: share of the surfaces a key-frame saw that "
+        "have a model point within 5 cm; label accuracy: share of the labelled model points whose fused label is the "
+        "surface's. Methods that build no model are left out.\n",
+        table_to_markdown(table, spread=spread),
+    ]
+
+
+# --------------------------------------------------------------------------------------------------- rotation
+def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``rotation.{md,csv,tex}`` and ``rotation_long.csv``."""
+    results_dir = Path(results_dir)
+    table, spread = _suite_table(run, ROTATION_BLOCKS)
+    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences", spread=spread)
+    text = [
+        header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
+        "Sequences `rot_<axes>_<deg/s>`: the camera turns about a fixed optical centre (like TUM fr1/rpy), so a "
+        "monocular method gets no parallax to triangulate from. Tracked share: frames the method reported as "
+        "tracked. Rotation error: RMSE of the angle between estimated and true orientation (degrees) after the "
+        "orientation-only alignment (the rotation that best aligns the orientations; positions play no part, so a "
+        "near-static position cloud cannot decide it). RPE rotation: RMSE of the relative rotation error over 1 s, "
+        "no alignment at all. Correct depth as in Table 1.\n",
+        table_to_markdown(table, spread=spread),
+    ]
+    return _write_report(run, results_dir, "rotation", text, paths)
+
+
+# --------------------------------------------------------------------------------------------------- ablation
+def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``ablation.{md,csv,tex}``, ``ablation.png`` (when there are key-frames) and ``ablation_long.csv``."""
+    results_dir = Path(results_dir)
+    table, spread = _suite_table(run, TABLE1_BLOCKS)
+    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)", spread=spread)
+    figure = save_ablation_figure(run, results_dir / "ablation.png")
+    text = [
+        header_markdown(run, "Ablation (the paper's Fig. 3): raw CNN depth, focal-length adjustment, refinement",
+                        command),  # fmt: skip
+        "`raw-CNN`: the network's depth as predicted; `focal-adjusted`: with the focal-length adjustment of eq. 5 "
+        "(the test camera's focal length differs from the training camera's); `adjusted+refined`: the full system, "
+        "the adjusted depth refined by small-baseline stereo (eq. 10-11).\n",
+        table_to_markdown(table, spread=spread),
+        f"![one key-frame's depth error per variant]({figure.name})\n" if figure else "",
+    ]
+    return _write_report(run, results_dir, "ablation", text, [*paths, *([figure] if figure else [])])
+
+
+def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], artifacts: list[Path]) -> list[Path]:
+    """Write ``<name>.md`` (``text``, the runs figure and the runs' status), ``<suite>_long.csv``,
+    ``<suite>_stats.csv`` and ``<suite>_runs.png``; return every file the report made: the Markdown, ``artifacts``
+    (tables, figures), the long and statistics CSVs, the runs figure."""
+    results_dir.mkdir(parents=True, exist_ok=True)
+    base = long_frame(run)
+    frame = with_relative_errors(base)
+    stats = results_dir / f"{run.suite.name}_stats.csv"
+    statistics_frame(frame).to_csv(stats, index=False, float_format="%.6g")
+    methods = [m for m in run.suite.methods if (frame["method"] == m).any()] if not frame.empty else []
+    figure = None if frame.empty else save_runs_figure(
+        frame, results_dir / f"{run.suite.name}_runs.png", methods, [s.name for s in run.suite.sequences],
+        RUNS_FIGURE_METRICS, title=f"{run.suite.name}: every run (dots) and each cell's median (bars)")
+    shown = [f"![every run of the suite]({figure.name})\n"] if figure is not None else []
+    md = results_dir / f"{name}.md"
+    md.write_text("\n".join([*text, *shown, methods_markdown(run), alignment_markdown(run, frame),
+                             status_markdown(run)]))  # fmt: skip
+    return [md, *artifacts, write_long_csv(run, results_dir, base), stats, *([figure] if figure is not None else [])]
+
+
+def _keyframes_of(run: SuiteRun, record: RunRecord) -> dict[str, np.ndarray] | None:
+    path = run.out_root / str(record.run) / "keyframes.npz"
+    if not path.is_file():
+        return None
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    return arrays if "depth" in arrays and arrays["depth"].shape[0] else None
+
+
+def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
+    """For the first sequence where every variant has key-frames: the key-frame of each variant nearest to the
+    middle of the run, its depth error map (blue correct, red wrong, grey missing) against the ground truth."""
+    by_sequence: dict[str, dict[str, RunRecord]] = {}
+    for record in run.records:
+        by_sequence.setdefault(record.sequence, {})[record.method] = record
+    methods = list(run.suite.methods)
+    for ref in run.suite.sequences:
+        found = by_sequence.get(ref.name, {})
+        keyframes = {m: _keyframes_of(run, found[m]) for m in methods if m in found}
+        if len(keyframes) != len(methods) or any(v is None for v in keyframes.values()):
+            continue
+        estimates, truths, titles = [], [], []
+        source = ref.make_source()
+        try:
+            for method in methods:
+                kf = keyframes[method]
+                stamps = kf["timestamps"]
+                frames = int(found[method].metrics.get("frames", len(source)))
+                middle = float(source.timestamps[min(frames // 2, len(source) - 1)])
+                k = int(np.argmin(np.abs(stamps - middle)))  # the key-frame shown: the one nearest the middle
+                i = match_timestamp(source.timestamps, float(stamps[k]))
+                if i is None:
+                    return None
+                estimates.append(kf["depth"][k])
+                truths.append(source.frame(i).depth)
+                titles.append(f"{method}, t={stamps[k]:.2f} s")
+        finally:
+            source.close()
+        return save_depth_error_row_figure(
+            path, estimates, truths, titles, title=f"{ref.name}: depth error of one key-frame per variant"
+        )
+    return None
+
+
+# ------------------------------------------------------------------------------------------------------ sweep
+def sweep_points(run: SuiteRun) -> pd.DataFrame:
+    """One row per finished sweep run: axis, x (the axis value; for the rotation axis the measured rotation
+    share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share``."""
+    rows = []
+    for record in run.records:
+        meta = record.metadata
+        axis = meta.get("axis")
+        if axis is None:
+            continue
+        x = meta.get("rotation_share") if axis == "rotation" else meta.get("axis_value")
+        metrics = record.metrics
+        rows.append(
+            {
+                "axis": axis,
+                "x": math.nan if x is None else float(x),
+                "setting": meta.get("axis_value"),
+                "sequence": record.sequence,
+                "method": record.method,
+                "ate_rmse": metrics.get("ate_rmse", math.nan),
+                "depth_percent_correct": metrics.get("depth_percent_correct", math.nan),
+                "tracked_share": metrics.get("tracked_share", math.nan),
+            }
+        )
+    columns = ["axis", "x", "setting", "sequence", "method", "ate_rmse", "depth_percent_correct", "tracked_share"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``sweep.png``, ``sweep.md``, ``sweep.csv`` (one row per point) and ``sweep_long.csv``."""
+    results_dir = Path(results_dir)
+    points = sweep_points(run)
+    csv = results_dir / "sweep.csv"
+    csv.parent.mkdir(parents=True, exist_ok=True)
+    points.to_csv(csv, index=False, float_format="%.6g")
+    figure = save_sweep_figure(points, results_dir / "sweep.png", list(run.suite.methods), SWEEP_AXES)
+    text = [
+        header_markdown(run, "Difficulty sweep: one axis at a time", command),
+        "Axes: texture density of the room (share of textured surfaces); share of rotation in the motion (the "
+        "hand-held trajectory with an extra pan at 0-60 deg/s; x = measured share of image motion due to "
+        "rotation, for a scene 2 m away); focal length of the test camera over the training camera's (NYU) at the "
+        "same resolution (1 = no mismatch; the base sequence's ICL camera is 0.93); these three through the "
+        "default camera (kinect). Camera axes: one effect of the camera alone, on the clean camera, at strengths "
+        "where 1 is the kinect preset's value (`sim_envs.camera_effects.SINGLE_EFFECTS`): noise (x ICL-NUIM's), "
+        "motion blur (exposure x half a frame interval, global shutter), auto-exposure (exposure jitter x 1 %), "
+        "rolling shutter (readout in frame intervals; kinect 0.05, hard 0.5) and lens distortion (x TUM fr1's, "
+        "undistorted and cropped to what the lens saw before the agent sees it).\n",
+        f"![ATE and correct depth against each axis]({figure.name})\n",
+    ]
+    for axis, title in SWEEP_AXES.items():
+        sub = points[points["axis"] == axis]
+        if sub.empty:
+            continue
+        wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"],
+                               aggfunc="median")
+        text.append(f"### {title}\n\n" + _pivot_markdown(wide))
+    return _write_report(run, results_dir, "sweep", text, [csv, figure])
+
+
+def _pivot_markdown(wide: pd.DataFrame) -> str:
+    header = ["setting", "x", *(f"{metric}: {method}" for metric, method in wide.columns)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
+    for (setting, x), row in wide.iterrows():
+        cells = ["-" if pd.isna(v) else f"{v:.3f}" for v in row.to_numpy()]
+        lines.append("| " + " | ".join([f"{setting:g}", f"{x:.3f}", *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------- depth quality
+def target_checks(table: pd.DataFrame, method: str = "CNN-SLAM", reference: str = "raw-CNN") -> pd.DataFrame:
+    """Per sequence of a :data:`DEPTH_QUALITY_BLOCKS` table, whether ``method`` meets each target: ``ate`` (ATE /
+    length <= :data:`TARGET_ATE_PERCENT_LENGTH`), ``scale`` (scale error <= :data:`TARGET_SCALE_ERROR_PERCENT`),
+    ``depth`` (correct depth above ``reference``'s); NaN-valued figures fail. Index: the sequences (no Avg.)."""
+    rows = table.drop(index=AVG_LABEL, errors="ignore")
+
+    def column(block: int, who: str) -> pd.Series:
+        key = (DEPTH_QUALITY_BLOCKS[block][0], who)
+        return rows[key] if key in rows.columns else pd.Series(np.nan, index=rows.index)
+
+    return pd.DataFrame({
+        "ate": column(0, method) <= TARGET_ATE_PERCENT_LENGTH,
+        "scale": column(1, method) <= TARGET_SCALE_ERROR_PERCENT,
+        "depth": column(2, method) > column(2, reference),
+    })  # fmt: skip
+
+
+def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``depth_quality.{md,csv,tex}``, ``depth_quality.png`` and ``depth_quality_long.csv``."""
+    results_dir = Path(results_dir)
+    frame = with_relative_errors(long_frame(run))
+    table, spread = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
+    paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth",
+                          spread=spread)
+    points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
+              .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
+    figure = save_accuracy_scatter(points, results_dir / "depth_quality.png", list(run.suite.methods),
+                                   TARGET_ATE_PERCENT_LENGTH)  # fmt: skip
+    checks = target_checks(table)
+    lines = [f"| sequence | ATE / length <= {TARGET_ATE_PERCENT_LENGTH:g} % | scale error <= "
+             f"{TARGET_SCALE_ERROR_PERCENT:g} % | correct depth above raw-CNN's |",
+             "|---|:---:|:---:|:---:|"]
+    for seq, row in checks.iterrows():
+        lines.append(f"| {seq} | " + " | ".join("yes" if ok else "no" for ok in row) + " |")
+    met = {name: int(checks[name].sum()) for name in checks.columns}
+    text = [
+        header_markdown(run, "CNN-SLAM and the accuracy of key-frame depth (full-length sequences)", command),
+        "Whole sequences, single-threaded. ATE: RMSE after SE(3) alignment, no scale correction, "
+        "over the ground-truth path length. Scale error: |1/s - 1| for the Sim(3) alignment's scale s. Correct depth "
+        "as in Table 1. `CNN-SLAM` and `raw-CNN` run the shipped network; `dev-depth-N` run CNN-SLAM on ground-truth "
+        "depth degraded like a CNN's (holes filled, small objects closed, 4 px edge blur, 2 % per-frame scale "
+        "jitter, 1 % pixel noise) with N % low-frequency multiplicative error, in the network's place: they receive "
+        "ground truth and are references for how accurate key-frame depth must be, not competitors.\n",
+        table_to_markdown(table, spread=spread),
+        f"## Targets, CNN-SLAM\n\nMet on {met['ate']} / {met['scale']} / {met['depth']} of {len(checks)} sequences "
+        "(ATE / scale / depth).\n",
+        "\n".join(lines) + "\n",
+        f"![ATE / length against correct depth]({figure.name})\n",
+    ]
+    return _write_report(run, results_dir, "depth_quality", text, [*paths, figure])
+
+
+# ------------------------------------------------------------------------------------------------------ quick
+def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``quick.md``, ``quick_runs.json`` (the gate's run file) and ``quick_long.csv``."""
+    results_dir = Path(results_dir)
+    results_dir.mkdir(parents=True, exist_ok=True)
+    runs_json = results_dir / "quick_runs.json"
+    runs_json.write_text(suite_records_json(run.records))
+    table, spread = _suite_table(run, QUICK_BLOCKS)
+    text = [
+        header_markdown(run, "Quick suite (the CI regression baseline)", command),
+        "Compared metric by metric with `results/baselines/quick.json` by `cnnslam bench quick` and by "
+        "`tests/eval/test_quick_regression.py`; after an intended change: `cnnslam bench quick --update-baseline`.\n",
+        table_to_markdown(table, spread=spread),
+    ]
+    return _write_report(run, results_dir, "quick", text, [runs_json])
+
+
+def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``; for sequences
+    with a second reference in the dataset list, a section scoring every run against it too."""
+    results_dir = Path(results_dir)
+    table, spread = _suite_table(run, QUICK_BLOCKS)
+    paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}", spread=spread)
+    text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table, spread=spread)]
+    second = second_reference_markdown(run)
+    return _write_report(run, results_dir, run.suite.name, [*text, *([second] if second else [])], paths)
+
+
+SECOND_REFERENCE_METRICS: tuple[tuple[str, str, float], ...] = (  # (metric, heading, factor)
+    ("ate_se3_rmse", "SE(3) ATE [m]", 1.0),
+    ("ate_sim3_rmse", "Sim(3) ATE [m]", 1.0),
+    ("scale_error", "scale error [%]", 100.0),
+    ("rot_deg_orient_rmse", "rotation, orientation-aligned [deg]", 1.0),
+)
+GROUND_TRUTH_ROW = "(the folder's ground truth)"
+
+
+def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None = None) -> str:
+    """Every finished run of a sequence that has a second reference (``references``: sequence name -> TUM file;
+    default: the dataset list's ``reference`` entries) scored against it as against ground truth (SE(3) alignment,
+    TUM association), beside the folder's own ground truth scored against it: how far the two references disagree
+    is the floor below which no error can be read. Cells: median [min, max] over runs. Empty when no sequence of
+    the suite has one."""
+    from eval.bench.sequence_ref import load_dataset_list
+    from eval.errors import EvalError, SuiteError
+    from eval.metrics.trajectory import PoseTrajectory
+    from eval.metrics.trajectory_metrics import evaluate_trajectory
+    from sim_envs.formats import read_tum_trajectory
+
+    if references is None:
+        try:
+            references = {n: e.reference for n, e in load_dataset_list().items() if e.reference is not None}
+        except SuiteError:
+            return ""
+    names = [s.name for s in run.suite.sequences if s.name in references]
+    if not names:
+        return ""
+
+    def trajectory(path: Path) -> PoseTrajectory:
+        stamps, T = read_tum_trajectory(path)
+        return PoseTrajectory(stamps, T)
+
+    lines = ["## Against a second reference", "",
+             "Each run scored against the sequence's second reference (its dataset-list `reference`, e.g. the "
+             "structure-from-motion trajectory of `cnnslam reference`) as against ground truth; the first row scores "
+             "the folder's own ground truth against it: the two references' disagreement, below which no error can "
+             "be read. Median [min, max] over runs.", ""]  # fmt: skip
+    heads = [h for _, h, _ in SECOND_REFERENCE_METRICS]
+    for name in names:
+        path = Path(references[name])
+        shown = path.resolve().relative_to(Path.cwd()) if path.resolve().is_relative_to(Path.cwd()) else path
+        lines += [f"**{name}** against `{shown}`:", ""]
+        try:
+            reference = trajectory(path)
+        except (OSError, EvalError, ValueError) as exc:
+            lines += [f"(not scored: {exc})", ""]
+            continue
+        rows: dict[str, list[dict[str, float]]] = {}
+        problems = []
+        for record in run.records:
+            if record.sequence != name:
+                continue
+            folder = run.outcomes[str(record.run)].folder
+            own_trajectory = "ate_rmse" in record.metrics  # REMODE: LSD-BS's poses, not its own
+            try:
+                if GROUND_TRUTH_ROW not in rows:
+                    rows[GROUND_TRUTH_ROW] = [evaluate_trajectory(reference, trajectory(folder / "groundtruth.tum"))
+                                              .flat_metrics()]  # fmt: skip
+                if not own_trajectory:
+                    continue
+                flat = evaluate_trajectory(reference, trajectory(folder / "trajectory.tum")).flat_metrics()
+            except (OSError, EvalError, ValueError) as exc:
+                problems.append(f"{record.method} ({record.run}): {exc}")
+                continue
+            rows.setdefault(record.method, []).append(flat)
+        lines += ["| method | runs | " + " | ".join(heads) + " |", "|---|---:|" + "---:|" * len(heads)]
+        for method, flats in rows.items():
+            cells = []
+            for metric, _, factor in SECOND_REFERENCE_METRICS:
+                v = np.array([f.get(metric, math.nan) for f in flats], dtype=float) * factor
+                v = v[np.isfinite(v)]
+                if v.size == 0:
+                    cells.append("-")
+                    continue
+                lo, hi = v.min(), v.max()
+                cells.append(f"{np.median(v):.3f}" + ("" if lo == hi else f" [{lo:.3f}, {hi:.3f}]"))
+            runs = "-" if method == GROUND_TRUTH_ROW else str(len(flats))
+            lines.append(f"| {method} | {runs} | " + " | ".join(cells) + " |")
+        lines += [*(f"- not scored: {p}" for p in problems), ""]
+    return "\n".join(lines)
+
+
+REPORTS = {  # a suite's report layout (eval.bench.suites.REPORT_LAYOUTS) -> its writer
+    "generic": report_generic,
+    "table1": report_table1,
+    "rotation": report_rotation,
+    "ablation": report_ablation,
+    "sweep": report_sweep,
+    "quick": report_quick,
+    "depth_quality": report_depth_quality,
+}
+
+
+def write_report(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+    """The suite's outputs in ``results_dir`` (see the module docstring); returns the files written."""
+    return REPORTS[run.suite.report](run, results_dir, command)

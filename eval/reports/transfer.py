@@ -1,0 +1,343 @@
+"""Sim-to-real transfer of a benchmark's verdicts: do the simulated sequences rank the methods as real ones do?
+
+The question every user of a synthetic benchmark should ask (``cnnslam bench transfer``). Runs are grouped into
+**domains**: the simulated Table-1 analogues under one camera preset (``sim:clean``, ``sim:kinect``, ...), and each
+real RGB-D folder (``real:<name>``). Per domain, metric and method:
+
+- **score** (:func:`domain_scores`): the median over a cell's runs (its seeds), then the mean over the domain's
+  sequences (the Avg. row of Table 1); a method missing a sequence of the domain gets no score there;
+- **rank** (:func:`rank_methods`): 1 = best, in the metric's direction (:data:`TRANSFER_METRICS`), ties share the
+  mean rank (``scipy.stats.rankdata``), over the methods that have a score in every domain compared;
+- **agreement** (:func:`rank_correlations`): Spearman's rho and Kendall's tau-b (``scipy.stats``) between each
+  simulated domain's ranks and each real domain's, with the number of methods n and the two-sided p-values (with
+  n = 5 methods, scipy's p is below 0.05 only for rho >= 0.9: read the figures as agreement, not significance);
+- **which camera predicts real data best** (:func:`best_predictor`): the simulated domain with the highest mean
+  Spearman rho over the metrics and real domains;
+- **what a perfect simulator would score** (:func:`holdout_agreement`): the agreement of the simulator with
+  itself, k of its sequences held out against the others. A real recording is one more sample of the methods'
+  sequence-to-sequence spread, so a rho against k real recordings can be no more reliable than this; it is the
+  ceiling a sim-to-real coefficient is read against, and says how many real recordings a target needs.
+
+Methods fed ground truth (the oracle) are left out of the rankings: they win by construction. The numeric core
+does no I/O; :mod:`eval.reports.suite_reports` writes ``transfer.{md,csv,png}``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from eval.errors import EvalError
+
+SIM_PREFIX, REAL_PREFIX = "sim:", "real:"
+
+
+@dataclass(frozen=True)
+class TransferMetric:
+    """A metric whose ranking is compared: its long-frame name, a label, and whether higher is better."""
+
+    name: str
+    label: str
+    higher_is_better: bool
+
+
+TRANSFER_METRICS: tuple[TransferMetric, ...] = (
+    TransferMetric("ate_se3_rmse", "ATE, SE(3) [m]", False),
+    TransferMetric("ate_sim3_rmse", "ATE, Sim(3) [m]", False),
+    TransferMetric("rot_deg_orient_rmse", "rotation error, orientation-aligned [deg]", False),
+    TransferMetric("depth_percent_correct", "correct depth [%]", True),
+)
+
+
+FRAME_COLUMNS = ("domain", "sequence", "method", "metric", "value")  # a transfer frame: one row per run and metric
+
+
+def _check_frame(frame: pd.DataFrame) -> None:
+    """One clear error when ``frame`` lacks a column of :data:`FRAME_COLUMNS`."""
+    if missing := set(FRAME_COLUMNS) - set(frame.columns):
+        raise EvalError(f"a transfer frame needs columns {sorted(FRAME_COLUMNS)}; missing {sorted(missing)}")
+
+
+def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS) -> pd.DataFrame:
+    """Scores per (domain, metric, method) from a long frame of runs.
+
+    frame: columns ``domain``, ``sequence``, ``method``, ``metric``, ``value`` (one row per run and metric, as
+    :func:`eval.metrics.results.runs_frame` gives, plus the domain). Returns columns domain, metric, method, score,
+    sequences (how many the score averages), runs: the median over each cell's runs, then the mean over the
+    domain's sequences; a method lacking a finite value on one of the domain's sequences gets no row.
+    """
+    _check_frame(frame)
+    names = [m.name for m in metrics]
+    sub = frame[frame["metric"].isin(names)]
+    cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"]
+             .agg(median="median", runs="count").reset_index())  # fmt: skip
+    cells = cells[np.isfinite(cells["median"])]
+    n_seq = sub.groupby("domain")["sequence"].nunique()
+    out = cells.groupby(["domain", "metric", "method"]).agg(
+        score=("median", "mean"), sequences=("sequence", "nunique"), runs=("runs", "sum")
+    ).reset_index()
+    out = out[out["sequences"] == out["domain"].map(n_seq)]
+    return out.sort_values(["metric", "domain", "method"], ignore_index=True)
+
+
+def rank_methods(scores: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
+                 domains: Sequence[str] | None = None) -> pd.DataFrame:
+    """``scores`` (:func:`domain_scores`) with a ``rank`` column: 1 = best in each (domain, metric), ties sharing
+    their mean rank, over the methods scored in every one of ``domains`` (default: all domains) for that metric,
+    so that every domain ranks the same set. Rows of other methods are dropped."""
+    direction = {m.name: m.higher_is_better for m in metrics}
+    domains = list(domains) if domains is not None else sorted(scores["domain"].unique())
+    parts = []
+    for metric, group in scores[scores["domain"].isin(domains)].groupby("metric"):
+        per_method = group.groupby("method")["domain"].nunique()
+        common = set(per_method[per_method == len(domains)].index)
+        group = group[group["method"].isin(common)].copy()
+        sign = -1.0 if direction.get(str(metric), False) else 1.0
+        group["rank"] = group.groupby("domain")["score"].transform(lambda s, k=sign: stats.rankdata(k * s.to_numpy()))
+        parts.append(group)
+    if not parts:
+        return scores.iloc[0:0].assign(rank=pd.Series(dtype=float))
+    return pd.concat(parts, ignore_index=True).sort_values(["metric", "domain", "rank"], ignore_index=True)
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float, float]:
+    """Spearman rho and p, Kendall tau-b and p of two rankings (NaN where undefined, e.g. a constant ranking)."""
+    if len(a) < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
+        return math.nan, math.nan, math.nan, math.nan
+    rho, p_rho = stats.spearmanr(a, b)
+    tau, p_tau = stats.kendalltau(a, b)
+    return float(rho), float(p_rho), float(tau), float(p_tau)
+
+
+def rank_correlations(ranks: pd.DataFrame) -> pd.DataFrame:
+    """Spearman and Kendall agreement between every simulated domain (``sim:...``) and every real one (``real:...``)
+    per metric, over the methods both rank. Columns: sim, real, metric, n (methods), spearman, spearman_p, kendall,
+    kendall_p, methods (comma-separated)."""
+    rows = []
+    sims = sorted(d for d in ranks["domain"].unique() if d.startswith(SIM_PREFIX))
+    reals = sorted(d for d in ranks["domain"].unique() if d.startswith(REAL_PREFIX))
+    for metric, group in ranks.groupby("metric", sort=True):
+        wide = group.pivot_table(index="method", columns="domain", values="rank")
+        for sim in sims:
+            for real in reals:
+                if sim not in wide or real not in wide:
+                    continue
+                both = wide[[sim, real]].dropna()
+                rho, p_rho, tau, p_tau = _correlation(both[sim].to_numpy(), both[real].to_numpy())
+                rows.append({"sim": sim, "real": real, "metric": metric, "n": len(both), "spearman": rho,
+                             "spearman_p": p_rho, "kendall": tau, "kendall_p": p_tau,
+                             "methods": ", ".join(both.index)})  # fmt: skip
+    return pd.DataFrame(rows, columns=["sim", "real", "metric", "n", "spearman", "spearman_p", "kendall",
+                                       "kendall_p", "methods"])  # fmt: skip
+
+
+def ranking_agreement(ranks: pd.DataFrame, by: str, reference: str,
+                      order: Callable[[Sequence[str]], list[str]] = sorted) -> pd.DataFrame:
+    """How each condition's ranking agrees with the ``reference`` condition's, per metric: ``ranks`` has columns
+    metric, method, rank and ``by`` (the condition: a length, a preprocessing choice, ...). Per (metric, condition,
+    in ``order``): n (methods ranked in both), Kendall's tau-b and Spearman's rho against the reference's ranks (NaN
+    where undefined: fewer than 3 methods, or all tied), and ``same``: identical ranks. Columns: metric, ``by``, n,
+    kendall, spearman, same."""
+    rows = []
+    for metric, group in ranks.groupby("metric", sort=False):
+        wide = group.pivot_table(index="method", columns=by, values="rank")
+        if reference not in wide:
+            continue
+        for condition in order(list(wide.columns)):
+            both = wide[list(dict.fromkeys([condition, reference]))].dropna()
+            a, b = both[condition].to_numpy(), both[reference].to_numpy()
+            _rho, _p, _tau, _q = _correlation(a, b)
+            rows.append({"metric": metric, by: condition, "n": len(both), "kendall": _tau, "spearman": _rho,
+                         "same": bool(len(both) > 0 and np.array_equal(a, b))})  # fmt: skip
+    return pd.DataFrame(rows, columns=["metric", by, "n", "kendall", "spearman", "same"])
+
+
+def best_predictor(correlations: pd.DataFrame) -> tuple[str, float] | None:
+    """The simulated domain whose rankings agree best with the real ones: ``(domain, mean Spearman rho over
+    metrics and real domains)``, or None when no correlation is defined."""
+    finite = correlations[np.isfinite(correlations["spearman"].astype(float))]
+    if finite.empty:
+        return None
+    mean = finite.groupby("sim")["spearman"].mean().sort_values(ascending=False, kind="stable")
+    return str(mean.index[0]), float(mean.iloc[0])
+
+
+TRANSFER_TARGET = 0.8  # the Spearman rho the transfer target asks of every metric (issue [transfer])
+HOLDOUT_MAX_SPLITS = 5000  # above this many k-of-n splits, holdout_agreement draws this many at random
+ALL_METRICS = "all"  # holdout_agreement's row for every metric at once
+
+
+def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4),
+                      metrics: Sequence[TransferMetric] = TRANSFER_METRICS, target: float = TRANSFER_TARGET,
+                      observed: pd.DataFrame | None = None, max_splits: int = HOLDOUT_MAX_SPLITS,
+                      seed: int = 0) -> pd.DataFrame:
+    """The agreement a perfect simulator would show with k real recordings: the simulator against itself.
+
+    If the real world were the simulator, a real recording would be one more simulated sequence: its ranking of the
+    methods would differ from the simulator's average ranking only by the methods' sequence-to-sequence spread. So,
+    per simulated domain of ``frame`` (as :func:`domain_scores` takes it), metric and k in ``held_out``: every way
+    (at most ``max_splits``, drawn at random with ``seed`` beyond that) of holding out k of the domain's sequences;
+    each method's score on the held-out ones and on the rest (mean of the cells' medians over runs, as
+    :func:`domain_scores`); Spearman's rho between the two rankings, over the methods with a finite score on every
+    sequence. Its distribution is the ceiling for a sim-to-real rho against k independent real recordings: a
+    coefficient inside it shows no sim-to-real gap beyond the sampling of sequences, and a ``target`` whose median
+    split misses it cannot be met reliably with k real recordings, however good the simulator.
+
+    Columns: sim, metric, held_out (k), n (methods), splits, rho_median, rho_q25, rho_q75, share_target (share of
+    splits with rho >= ``target``); where several metrics are ranked, a row with metric :data:`ALL_METRICS` gives
+    the share of splits (the same splits for every metric) where every metric reaches ``target`` at once (a split
+    undefined for a metric counts as missing it). With ``observed`` (:func:`rank_correlations`' columns sim,
+    metric, spearman, one row per (sim, metric), e.g. for one real domain) also ``observed`` and
+    ``observed_percentile``: the share of splits below the observed rho, ties counting half (50: as typical as a
+    held-out simulated sequence). A k that leaves no sequence on either side is skipped; splits where a side ranks
+    all methods equal are left out of a metric's figures.
+    """
+    _check_frame(frame)
+    if any(int(k) < 1 for k in held_out) or max_splits < 1:
+        raise EvalError(f"holdout_agreement: held_out must be >= 1 and max_splits >= 1, got {list(held_out)}, "
+                        f"{max_splits}")  # fmt: skip
+    sims = frame[frame["domain"].astype(str).str.startswith(SIM_PREFIX)]
+    cells = (sims[sims["metric"].isin([m.name for m in metrics])]
+             .groupby(["domain", "metric", "method", "sequence"])["value"].median())  # fmt: skip
+    seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
+        if observed is not None else {}  # fmt: skip
+    rows = []
+    for sim in sorted(sims["domain"].unique()):
+        sequences = sorted(sims.loc[sims["domain"] == sim, "sequence"].unique())
+        tables = {}
+        for metric in metrics:
+            try:
+                table = cells.loc[(sim, metric.name)].unstack("sequence").reindex(columns=sequences)
+            except KeyError:
+                continue
+            table = table[np.isfinite(table.to_numpy()).all(axis=1)]
+            if len(table) >= 3:
+                tables[metric] = table
+        for k in (int(k) for k in held_out):
+            if k >= len(sequences) or not tables:
+                continue
+            held = _split_masks(len(sequences), k, max_splits, np.random.default_rng([seed, k]))
+            reached = np.ones(len(held), dtype=bool)
+            for metric, table in tables.items():
+                values = (-1.0 if metric.higher_is_better else 1.0) * table.to_numpy(dtype=float)  # lower is better
+                all_rho = _holdout_rhos(values, held)
+                reached &= np.nan_to_num(all_rho, nan=-np.inf) >= target - 1e-12
+                rho = all_rho[np.isfinite(all_rho)]
+                row = {"sim": sim, "metric": metric.name, "held_out": k, "n": len(table), "splits": len(rho),
+                       "rho_median": math.nan, "rho_q25": math.nan, "rho_q75": math.nan,
+                       "share_target": math.nan}  # fmt: skip
+                if len(rho):
+                    row["rho_median"], row["rho_q25"], row["rho_q75"] = (float(x) for x in
+                                                                         np.percentile(rho, [50, 25, 75]))
+                    row["share_target"] = float(np.mean(rho >= target - 1e-12))
+                if observed is not None:
+                    obs = seen.get((sim, metric.name), math.nan)
+                    row["observed"] = obs
+                    row["observed_percentile"] = (100.0 * (np.mean(rho < obs - 1e-12)
+                                                           + 0.5 * np.mean(np.abs(rho - obs) <= 1e-12))
+                                                  if len(rho) and np.isfinite(obs) else math.nan)  # fmt: skip
+                rows.append(row)
+            if len(tables) > 1:  # the same splits for every metric: the share where all of them reach the target
+                rows.append({"sim": sim, "metric": ALL_METRICS, "held_out": k, "n": min(len(t) for t in
+                             tables.values()), "splits": len(held), "rho_median": math.nan, "rho_q25": math.nan,
+                             "rho_q75": math.nan, "share_target": float(reached.mean())})  # fmt: skip
+    columns = ["sim", "metric", "held_out", "n", "splits", "rho_median", "rho_q25", "rho_q75", "share_target"]
+    return pd.DataFrame(rows, columns=columns + (["observed", "observed_percentile"] if observed is not None else []))
+
+
+def _split_masks(n: int, k: int, max_splits: int, rng: np.random.Generator) -> np.ndarray:
+    """(splits, n) bool masks of k held-out sequences among n: every k-subset in lexicographic order, or
+    ``max_splits`` drawn at random (with ``rng``) when there are more."""
+    if math.comb(n, k) <= max_splits:
+        held = np.zeros((math.comb(n, k), n), dtype=bool)
+        for i, subset in enumerate(itertools.combinations(range(n), k)):
+            held[i, list(subset)] = True
+        return held
+    return np.argsort(rng.random((max_splits, n)), axis=1) < k
+
+
+def _holdout_rhos(values: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """Spearman's rho, per split (a row of ``held``, :func:`_split_masks`), between the methods' mean over the
+    held-out columns (sequences) of ``values`` (methods, sequences; lower is better) and their mean over the other
+    columns (NaN where a side ranks all methods equal)."""
+    k = held.sum(axis=1, keepdims=True)
+    mean_held = held @ values.T / k  # (splits, methods)
+    mean_rest = ~held @ values.T / (held.shape[1] - k)
+    return _rowwise_pearson(stats.rankdata(mean_held, axis=1), stats.rankdata(mean_rest, axis=1))
+
+
+BOOTSTRAP_DRAWS = 2000  # resamples of a bootstrap interval (percentile method; its 2.5 % tails rest on 50 draws)
+
+
+def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
+                           draws: int = BOOTSTRAP_DRAWS, level: float = 0.95, seed: int = 0) -> pd.DataFrame:
+    """Percentile bootstrap interval of Spearman's rho between each simulated and each real domain, per metric.
+
+    frame: as :func:`domain_scores` takes it. Each draw resamples, with replacement and independently, the
+    sequences of the simulated domain and the samples of the real one (its sequences, or the windows a real
+    sequence was cut into), recomputes both domains' scores (mean of the drawn cells' medians, a cell drawn twice
+    counting twice), ranks the methods both domains score, and takes rho. A domain with one sample is not
+    resampled (its interval is the simulated side's alone). Columns: sim, real, metric, n (methods), sim_samples,
+    real_samples, rho_low, rho_high (NaN when fewer than 3 methods, or no draw defines rho), defined (share of draws
+    where rho is defined: not all ranks tied). ``seed`` fixes the draws: the same frame gives the same interval.
+    """
+    _check_frame(frame)
+    if not 0 < level < 1 or draws < 1:
+        raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
+    cells = (frame[frame["metric"].isin([m.name for m in metrics])]
+             .groupby(["metric", "domain", "method", "sequence"])["value"].median().unstack("sequence"))  # fmt: skip
+    rows = []
+    tail = 100.0 * (1.0 - level) / 2.0
+    for metric in metrics:
+        if metric.name not in cells.index.get_level_values("metric"):
+            continue
+        by_domain = {d: t.droplevel("domain").dropna(axis=1, how="all")
+                     for d, t in cells.loc[metric.name].groupby(level="domain")}  # fmt: skip
+        sims = sorted(d for d in by_domain if d.startswith(SIM_PREFIX))
+        reals = sorted(d for d in by_domain if d.startswith(REAL_PREFIX))
+        for sim in sims:
+            for real in reals:
+                a, b = by_domain[sim], by_domain[real]
+                methods = sorted(set(a.index[a.notna().all(axis=1)]) & set(b.index[b.notna().all(axis=1)]))
+                row = {"sim": sim, "real": real, "metric": metric.name, "n": len(methods),
+                       "sim_samples": a.shape[1], "real_samples": b.shape[1], "rho_low": math.nan,
+                       "rho_high": math.nan, "defined": 0.0}  # fmt: skip
+                if len(methods) >= 3:
+                    rng = np.random.default_rng([seed, len(rows)])
+                    sign = -1.0 if metric.higher_is_better else 1.0
+                    ra = stats.rankdata(sign * _resampled_scores(a.loc[methods].to_numpy(), draws, rng), axis=1)
+                    rb = stats.rankdata(sign * _resampled_scores(b.loc[methods].to_numpy(), draws, rng), axis=1)
+                    rho = _rowwise_pearson(ra, rb)
+                    ok = np.isfinite(rho)
+                    row["defined"] = float(ok.mean())
+                    if ok.any():
+                        row["rho_low"], row["rho_high"] = (float(x) for x in np.percentile(rho[ok], [tail, 100 - tail]))
+                rows.append(row)
+    return pd.DataFrame(rows, columns=["sim", "real", "metric", "n", "sim_samples", "real_samples", "rho_low",
+                                       "rho_high", "defined"])  # fmt: skip
+
+
+def _resampled_scores(values: np.ndarray, draws: int, rng: np.random.Generator) -> np.ndarray:
+    """(draws, methods) means over a resample (with replacement) of the columns (samples) of ``values``
+    (methods, samples); one sample: the same scores in every draw."""
+    k = values.shape[1]
+    if k == 1:
+        return np.repeat(values.T, draws, axis=0)
+    counts = rng.multinomial(k, np.full(k, 1.0 / k), size=draws)  # (draws, k): how often each sample is drawn
+    return counts @ values.T / k
+
+
+def _rowwise_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pearson correlation of each row of ``a`` with the same row of ``b`` (of ranks: Spearman's rho); NaN where a
+    row is constant."""
+    a = a - a.mean(axis=1, keepdims=True)
+    b = b - b.mean(axis=1, keepdims=True)
+    den = np.sqrt((a * a).sum(axis=1) * (b * b).sum(axis=1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, (a * b).sum(axis=1) / np.where(den > 0, den, 1.0), np.nan)

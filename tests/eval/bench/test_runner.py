@@ -1,0 +1,260 @@
+"""One run -> a folder of artifacts (deterministic metrics, atomic writes, failures recorded), suite runs (resume,
+skip, failure isolation), and external systems' outputs scored like agents."""
+
+import json
+import os
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from eval.bench.methods import Method, external_method, load_methods
+from eval.bench.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, execute_run
+from eval.bench.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.bench.runner import plan_runs, run_suite
+from eval.bench.sequence_ref import SequenceRef
+from eval.bench.suites import get_suite
+from sim_envs.datasets import export_tum_rgbd
+from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
+
+METHODS = load_methods()
+ORACLE, CONSTANT = METHODS["oracle"], METHODS["constant-pose"]
+OFFICE0 = SequenceRef("office0", base="office0")
+FRAMES = 8
+
+
+def spec_of(method, frames=FRAMES, **kwargs):
+    return RunSpec("test", kwargs.pop("sequence", OFFICE0), method, frames=frames, plots=False,
+                   git_revision="abc123", **kwargs)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def oracle_run():
+    return execute_run(spec_of(ORACLE))
+
+
+def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
+    assert oracle_run.status == "done", oracle_run.error
+    assert set(oracle_run.files) == {
+        "metrics.json", "timing.json", "agent_extras.json", "trajectory.tum", "groundtruth.tum", "keyframes.npz"
+    }  # fmt: skip
+    folder = store_result(tmp_path, oracle_run)
+    assert folder == tmp_path / "test" / "office0" / "oracle" / f"seed0-frames{FRAMES}"
+    record = json.loads((folder / "metrics.json").read_text())
+    m = record["metrics"]
+    assert record["sequence"] == "office0" and record["method"] == "oracle"
+    assert m["ate_rmse"] == pytest.approx(0.0, abs=1e-9)
+    assert m["depth_percent_correct"] == 100.0 and m["frames"] == FRAMES
+    assert m["depth_keyframes"] == 1.0  # key-frames every 10 frames: frame 0 only
+    assert "fps" not in m and "step_ms_mean" not in m  # wall-clock figures live in timing.json
+    meta = record["metadata"]
+    assert meta["entry_point"] == "sim_envs.agents:OracleAgent" and meta["env_id"] == "sim_envs/office0-v0"
+    assert meta["git_revision"] == "abc123" and meta["seed"] == 0 and meta["frames_requested"] == FRAMES
+    assert meta["fingerprint"] == spec_of(ORACLE).fingerprint() and 0.0 <= meta["rotation_share"] <= 1.0
+    timing = json.loads((folder / "timing.json").read_text())
+    assert timing["wall_s"] > 0 and timing["fps"] > 0
+    assert timing["environment"]["packages"]["numpy"] == np.__version__ and timing["environment"]["python"]
+    stamps, est = read_tum_trajectory(folder / "trajectory.tum")
+    _, gt = read_tum_trajectory(folder / "groundtruth.tum")
+    assert stamps.shape == (FRAMES,) and np.allclose(est, gt, atol=1e-8)
+    with np.load(folder / "keyframes.npz") as kf:
+        assert kf["depth"].shape == (1, 240, 320) and kf["T_world_cam"].shape == (1, 4, 4)
+        assert kf["timestamps"][0] == 0.0 and kf["depth"].dtype == np.float32
+    assert is_finished(tmp_path, spec_of(ORACLE))
+    assert not is_finished(tmp_path, spec_of(replace(ORACLE, kwargs={"keyframe_every": 5})))  # other fingerprint
+
+
+def test_fingerprint_follows_input_files(tmp_path):
+    weights = tmp_path / "weights.pt"
+    weights.write_bytes(b"one")
+    method = replace(ORACLE, inputs=(str(weights),))
+    before = spec_of(method).fingerprint()
+    assert spec_of(method).fingerprint() == before  # same bytes, same fingerprint
+    weights.write_bytes(b"two")
+    assert spec_of(method).fingerprint() != before  # new weights: finished runs are not reused
+
+
+def test_same_run_same_bytes(oracle_run):
+    again = execute_run(spec_of(ORACLE))
+    assert again.files["metrics.json"] == oracle_run.files["metrics.json"]
+    assert again.files["trajectory.tum"] == oracle_run.files["trajectory.tum"]
+
+
+def test_metric_groups_and_a_run_with_no_depth():
+    constant = execute_run(spec_of(CONSTANT))
+    m = json.loads(constant.files["metrics.json"])["metrics"]
+    assert m["ate_rmse"] > 0 and m["depth_keyframes"] == 0.0 and m["depth_percent_correct"] is None
+    depth_only = execute_run(spec_of(replace(ORACLE, name="depth-only", metrics=("depth",))))
+    m = json.loads(depth_only.files["metrics.json"])["metrics"]
+    assert "ate_rmse" not in m and "tracked_share" not in m and m["depth_percent_correct"] == 100.0
+
+
+def test_a_failing_run_is_recorded_not_raised(tmp_path):
+    bad = replace(ORACLE, name="bad", kwargs={"keyframe_every": 0})
+    result = execute_run(spec_of(bad))
+    assert result.status == "failed" and "keyframe_every must be >= 1" in result.error
+    assert "Traceback" in result.traceback and not result.files
+    folder = store_result(tmp_path, result)
+    assert [p.name for p in folder.iterdir()] == [FAILED_FILE]
+    failure = json.loads((folder / FAILED_FILE).read_text())
+    assert failure["status"] == "failed" and "keyframe_every" in failure["error"]
+    assert not is_finished(tmp_path, spec_of(bad))
+
+
+def test_writes_are_atomic_and_stale_temporaries_are_cleaned(tmp_path, oracle_run, monkeypatch):
+    spec = oracle_run.spec
+    failed = RunResult(spec, "failed", error="boom")
+    store_result(tmp_path, failed)
+    real_rename = os.rename
+
+    def interrupted(src, dst):  # the process dies just before the final rename
+        if ".tmp-" in str(src):
+            raise KeyboardInterrupt
+        real_rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        store_result(tmp_path, oracle_run)
+    monkeypatch.setattr(os, "rename", real_rename)
+    folder = run_folder(tmp_path, spec)
+    assert [p.name for p in folder.iterdir()] == [FAILED_FILE]  # the old result is intact, nothing half-written
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".")]
+    store_result(tmp_path, oracle_run)  # a done run replaces the failed one
+    assert (folder / DONE_FILE).is_file() and not (folder / FAILED_FILE).exists()
+    dead = folder.parent / f".{folder.name}.tmp-999999999-deadbeef"
+    alive = folder.parent / f".{folder.name}.tmp-{os.getpid()}-cafecafe"
+    dead.mkdir()
+    alive.mkdir()
+    moved_aside = folder.parent / f".{folder.name}.old-999999999-deadbeef"  # killed between the two renames
+    os.rename(folder, moved_aside)
+    assert remove_stale_temporaries([folder.parent]) == 2
+    assert not dead.exists() and alive.exists() and (folder / DONE_FILE).is_file() and not moved_aside.exists()
+
+
+def test_a_suite_run_resumes_skips_and_isolates_failures(tmp_path):
+    table = dict(METHODS)
+    table["bad"] = replace(ORACLE, name="bad", kwargs={"keyframe_every": 0})
+    table["missing"] = Method("missing", entry_point="no_such_module:Agent")
+    suite = get_suite("quick").select(["office0@clean"], ["oracle", "constant-pose", "bad", "missing"], frames=6,
+                                      runs=1)
+    seen = []
+    first = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r1",
+                      on_result=seen.append)  # fmt: skip
+    assert first.counts() == {"done": 2, "failed": 1}
+    assert list(first.skipped_methods) == ["missing"] and "no_such_module" in first.skipped_methods["missing"]
+    assert [r.method for r in first.records] == ["oracle", "constant-pose"]
+    assert len(seen) == 3 and "keyframe_every" in first.failed[0].error
+    second = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False, revision="r2")
+    assert second.counts() == {"cached": 2, "failed": 1}  # finished runs are kept, the failed one is retried
+    assert second.records[0].metadata["git_revision"] == "r1"
+    table["constant-pose"] = replace(CONSTANT, kwargs={"tracked": False})  # a changed method runs again
+    third = run_suite(suite, table, tmp_path, plots=False, progress=False, check=False)
+    assert third.outcomes["quick/office0/constant-pose/seed0-frames6"].status == "done"
+    assert third.records[1].metrics["tracked_share"] == 0.0
+
+
+def test_plots_are_written(tmp_path):
+    result = execute_run(replace(spec_of(ORACLE, frames=11), plots=True))
+    assert result.status == "done", result.error
+    assert result.files["trajectory.png"][:4] == b"\x89PNG" and result.files["depth.png"][:4] == b"\x89PNG"
+
+
+def test_an_external_systems_output_is_scored_like_an_agent(tmp_path):
+    ref = SequenceRef("rot_yaw_30", base="rot_yaw_30")
+    source = ref.make_source()
+    try:
+        export = export_tum_rgbd(source, tmp_path / "export", progress=False, max_frames=10)
+    finally:
+        source.close()
+    out = tmp_path / "myslam" / "rot_yaw_30"
+    (out / "depth").mkdir(parents=True)
+    stamps, T = read_tum_trajectory(export / "groundtruth.txt")
+    moved = np.eye(4)
+    moved[:3, 3] = [1.0, -2.0, 0.5]  # another world frame: the alignment takes it out
+    write_tum_trajectory(out / "trajectory.txt", stamps[::2], moved @ T[::2])  # every other frame only
+    depth_png = sorted((export / "depth").glob("*.png"))[4]
+    shutil.copy(depth_png, out / "depth" / depth_png.name)
+    (tmp_path / "myslam" / "method.toml").write_text('sensor = "rgbd"\nuses_ground_truth = ["depth"]\n')
+    (out / "run.toml").write_text("wall_s = 12.5\n")
+    method = external_method("MySLAM", tmp_path / "myslam")
+    result = execute_run(spec_of(method, frames=10, sequence=ref))
+    assert result.status == "done", result.error
+    record = json.loads(result.files["metrics.json"])
+    assert record["association"]["rule"] == "tum"  # matched by timestamp, and recorded so
+    assert record["sensor"] == "rgbd" and record["uses_ground_truth"] and record["ground_truth_used"] == ["depth"]
+    assert json.loads(result.files["timing.json"])["method_wall_s"] == 12.5  # its own run time, beside ours
+    m = record["metrics"]
+    assert m["frames"] == 10 and m["ate_pairs"] == 5 and m["tracked_share"] == 0.5
+    assert m["ate_rmse"] < 1e-6 and m["depth_keyframes"] == 1 and m["depth_percent_correct"] > 99.9
+    missing = execute_run(spec_of(method, frames=10))  # no output for office0
+    assert missing.status == "failed" and "no trajectory for 'office0'" in missing.error
+
+
+@pytest.mark.slow  # > 5 s: the full lane only
+def test_a_run_past_its_time_limit_is_recorded_as_failed(tmp_path, monkeypatch):
+    from eval.bench.executors import LocalExecutor
+
+    (tmp_path / "slowagent.py").write_text(
+        "import time\n"
+        "class Slow:\n"
+        "    def reset(self, intrinsics, image_size): pass\n"
+        "    def step(self, observation):\n"
+        "        time.sleep(60)\n"
+        "    def finish(self): pass\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    methods = {"slow": Method("slow", entry_point="slowagent:Slow"), "oracle": ORACLE}
+    suite = get_suite("quick").select(["office0@clean"], ["slow", "oracle"], frames=4, runs=1)
+    run = run_suite(suite, methods, tmp_path / "runs", executor=LocalExecutor(jobs=1, timeout_s=8), plots=False,
+                    progress=False, check=False)  # fmt: skip
+    assert run.counts() == {"done": 1, "failed": 1}
+    failed = run.failed[0]
+    assert failed.key.endswith("slow/seed0-frames4") and "exceeded its time limit of 8 s" in failed.error
+    stored = json.loads((tmp_path / "runs" / failed.key / FAILED_FILE).read_text())
+    assert "RunTimedOut" in stored["error"]
+
+
+def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
+    suite = get_suite("quick").select(["office0@clean"], ["oracle", "constant-pose"], frames=6, runs=1)
+    methods = load_methods()
+    run_suite(suite, {"oracle": methods["oracle"]} | {"constant-pose": methods["constant-pose"]}, tmp_path,
+              plots=False, progress=False, check=False)  # fmt: skip
+    changed = {"oracle": replace(methods["oracle"], kwargs={"keyframe_every": 3}), "constant-pose": CONSTANT}
+    shutil.rmtree(tmp_path / "quick" / "office0" / "constant-pose")
+    again = run_suite(suite, changed, tmp_path, plots=False, progress=False, check=False, report_only=True)
+    assert again.counts() == {"cached": 1, "not_run": 1}  # the oracle's old run taken as is; nothing was run
+    assert not again.failed and [r.method for r in again.records] == ["oracle"]
+    from eval.reports.suite_reports import failure_frame, status_markdown
+
+    assert "1 not run (--report-only" in status_markdown(again) and "Not run (" in status_markdown(again)
+    assert set(failure_frame(again)["method"]) == {"oracle"}  # a run not run is no failure
+
+
+METHODS_SEEN = ("oracle", "LSD-BS", "CNN-SLAM")
+
+
+def test_a_method_without_a_seed_runs_once_per_cell():
+    suite = replace(get_suite("quick"), seeds=(0, 1, 2))
+    specs = plan_runs(suite, [ORACLE, METHODS["LSD-BS"], METHODS["CNN-SLAM"]])
+    per_method = {name: sorted({s.seed for s in specs if s.method.name == name}) for name in METHODS_SEEN}
+    # the oracle is exact: its other runs would be copies; LSD-BS's seeds perturb its bootstrap in the last bits
+    assert per_method == {"oracle": [0], "LSD-BS": [0, 1, 2], "CNN-SLAM": [0, 1, 2]}
+    assert len(specs) == len(suite.sequences) * (1 + 3 + 3)
+
+
+def test_the_frame_cache_changes_no_byte_of_a_run(tmp_path):
+    """The same runs without the cache, with it cold (frames rendered and stored) and warm (frames read back):
+    every file but the wall times the same (LSD-BS reads the sensor depth too; the oracle scores depth and labels)."""
+    methods = load_methods()
+    ref = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
+    cache = str(tmp_path / ".frames")
+    for name in ("LSD-BS", "oracle"):
+        spec = RunSpec("quick", ref, methods[name], frames=15, plots=False, git_revision="r")
+        plain, cold, warm = (execute_run(replace(spec, frame_cache=c)) for c in (None, cache, cache))
+        for result in (plain, cold, warm):
+            assert result.status == "done", result.error
+        for name_ in set(plain.files) - {"timing.json", "agent_extras.json"}:
+            assert plain.files[name_] == cold.files[name_] == warm.files[name_], (name, name_)
+    assert len(list((tmp_path / ".frames").rglob("*.npz"))) == 15  # one folder, rendered once
