@@ -23,6 +23,13 @@ from cnnslam.keyframes import (
 )
 
 K = np.array([240.6, 240.0, 159.5, 119.5])
+PAPER = DepthConfig(prediction_scale_alignment=0.0)  # eq. 6-9 as the paper writes them (no scale alignment)
+
+
+def aligned(gain: float, reference: str = "map", pixels: str = "all", **kwargs) -> DepthConfig:
+    """Prediction scale alignment with ``gain`` towards ``reference``, measured on ``pixels``."""
+    return DepthConfig(prediction_scale_alignment=gain, prediction_scale_reference=reference,
+                       prediction_scale_pixels=pixels, **kwargs)
 
 
 def test_eq6_squared_difference() -> None:
@@ -66,6 +73,17 @@ def test_first_keyframe_prior() -> None:
         init_cnn_keyframe(np.zeros((6, 8), np.float32), K, cfg)
 
 
+def test_the_default_aligns_half_way_to_the_running_median_on_stereo_pixels() -> None:
+    cfg = DepthConfig()
+    assert (cfg.prediction_scale_alignment, cfg.prediction_scale_reference, cfg.prediction_scale_pixels) == (
+        0.5, "running_median", "stereo")
+    # no stereo yet (a neighbour without counts): nothing is measured, the CNN keeps its depth
+    d_cnn = np.full((240, 320), 2.97, np.float32)
+    init = init_cnn_keyframe(d_cnn, K, cfg, np.full(d_cnn.shape, 2.7, np.float32),
+                             np.full(d_cnn.shape, 0.01, np.float32), np.eye(4))
+    assert init.prediction_scale == 1.0
+
+
 def test_cnn_keyframe_fusion_with_a_neighbour() -> None:
     """A new key-frame 0.3 m in front of its neighbour looking at a wall: the neighbour's refined depth (exact) is
     fused with a CNN depth 10 % too far, per eq. 6-9 pixel by pixel."""
@@ -107,14 +125,14 @@ def test_scale_anchoring_rescales_the_carried_over_map_towards_the_cnn() -> None
     assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), valid, 0.0) == 1.0
     assert scale_anchor(d_cnn, np.full(d_cnn.shape, 2.7), np.zeros_like(valid), 1.0) == 1.0  # nothing seen by both
     centre = (slice(100, 140), slice(140, 180))
-    paper = init_cnn_keyframe(d_cnn, K, DepthConfig(), d_j, u_j, T_j_i)
+    paper = init_cnn_keyframe(d_cnn, K, PAPER, d_j, u_j, T_j_i)
     assert paper.anchor_scale == 1.0
-    full = init_cnn_keyframe(d_cnn, K, DepthConfig(scale_anchoring=1.0), d_j, u_j, T_j_i)
+    full = init_cnn_keyframe(d_cnn, K, aligned(0.0, scale_anchoring=1.0), d_j, u_j, T_j_i)
     assert full.anchor_scale == pytest.approx(1.1, rel=1e-4)
     # the map scaled by 1.1 agrees with the CNN: eq. 8 returns the common depth, eq. 9 a smaller variance
     np.testing.assert_allclose(full.depth[centre], 2.97, rtol=1e-4)
     assert np.all(full.variance[centre] < paper.variance[centre])
-    half = init_cnn_keyframe(d_cnn, K, DepthConfig(scale_anchoring=0.5), d_j, u_j, T_j_i)
+    half = init_cnn_keyframe(d_cnn, K, aligned(0.0, scale_anchoring=0.5), d_j, u_j, T_j_i)
     assert np.all((paper.depth[centre] < half.depth[centre]) & (half.depth[centre] < 2.97))
     with pytest.raises(CnnSlamError, match="scale_anchoring"):
         DepthConfig(scale_anchoring=1.5).validate()
@@ -127,15 +145,15 @@ def test_prediction_scale_alignment_rescales_the_cnn_towards_the_map() -> None:
     u_j = np.full((240, 320), 0.01, np.float32)
     d_cnn = np.full((240, 320), 2.97, np.float32)
     centre = (slice(100, 140), slice(140, 180))
-    paper = init_cnn_keyframe(d_cnn, K, DepthConfig(), d_j, u_j, T_j_i)
+    paper = init_cnn_keyframe(d_cnn, K, PAPER, d_j, u_j, T_j_i)
     assert paper.prediction_scale == 1.0
-    full = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=1.0), d_j, u_j, T_j_i)
+    full = init_cnn_keyframe(d_cnn, K, aligned(1.0), d_j, u_j, T_j_i)
     assert full.prediction_scale == pytest.approx(1 / 1.1, rel=1e-4) and full.anchor_scale == 1.0
     np.testing.assert_allclose(full.depth, 2.7, rtol=1e-4)  # the map's scale
-    half = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=0.5), d_j, u_j, T_j_i)
+    half = init_cnn_keyframe(d_cnn, K, aligned(0.5), d_j, u_j, T_j_i)
     assert half.prediction_scale == pytest.approx(1.1**-0.5, rel=1e-4)
     assert np.all((2.7 < half.depth[centre]) & (half.depth[centre] < 2.97))
-    first = init_cnn_keyframe(d_cnn, K, DepthConfig(prediction_scale_alignment=1.0))  # no neighbour: the CNN's
+    first = init_cnn_keyframe(d_cnn, K, aligned(1.0))  # no neighbour: the CNN's
     assert first.prediction_scale == 1.0 and np.all(first.depth == d_cnn)
     with pytest.raises(CnnSlamError, match="prediction_scale_alignment"):
         DepthConfig(prediction_scale_alignment=-0.1).validate()
@@ -149,7 +167,7 @@ def test_prediction_scale_alignment_towards_the_running_median_of_the_cnn() -> N
     d_j = np.full((240, 320), 3.0, np.float32)
     u_j = np.full((240, 320), 0.01, np.float32)
     d_cnn = np.full((240, 320), 2.97, np.float32)
-    cfg = DepthConfig(prediction_scale_alignment=1.0, prediction_scale_reference="running_median")
+    cfg = aligned(1.0, "running_median")
     r = np.log(1.1)
     follows = init_cnn_keyframe(d_cnn, K, cfg, d_j, u_j, T_j_i, 0.0, [r, r])
     assert follows.prediction_scale == pytest.approx(1.0) and follows.cnn_log_scale == pytest.approx(r, abs=1e-4)
@@ -179,8 +197,8 @@ def test_prediction_scale_measured_where_the_neighbour_took_stereo() -> None:
     mask = stereo_pixels(d_cnn, count, K, T_j_i, 3)
     assert mask[:, :150].all() and not mask[:, 150:].any()
     assert not stereo_pixels(d_cnn, None, K, T_j_i, 3).any()  # no stereo yet: none
-    every = DepthConfig(prediction_scale_alignment=1.0)
-    stereo = DepthConfig(prediction_scale_alignment=1.0, prediction_scale_pixels="stereo")
+    every = aligned(1.0)
+    stereo = aligned(1.0, pixels="stereo")
     a = init_cnn_keyframe(d_cnn, K, every, d_j, u_j, T_j_i, neighbour_stereo_count=count)
     b = init_cnn_keyframe(d_cnn, K, stereo, d_j, u_j, T_j_i, neighbour_stereo_count=count)
     assert 1 / 1.1 < a.prediction_scale <= 1.0  # the median over both halves
@@ -192,7 +210,7 @@ def test_prediction_scale_measured_where_the_neighbour_took_stereo() -> None:
 
 
 def test_eq6_floor_keeps_agreeing_pixels_refinable() -> None:
-    cfg = DepthConfig()
+    cfg = PAPER
     d = np.full((240, 320), 2.0, np.float32)
     init = init_cnn_keyframe(d, K, cfg, d, np.full(d.shape, 0.01, np.float32), np.eye(4))
     assert np.all(init.variance > 0)
@@ -244,7 +262,7 @@ def test_lsd_bs_seeded_bootstrap_differs_from_the_ground_truth_in_its_last_bits_
 
 
 def test_occlusion_test_keeps_the_cnn_where_the_neighbour_saw_another_surface() -> None:
-    cfg = DepthConfig()
+    cfg = PAPER
     d_cnn = np.full((240, 320), 3.0, np.float32)
     d_j = np.full((240, 320), 3.0, np.float32)
     d_j[:, :160] = 1.0  # an occluder in front of the neighbour, on the left half of its view
