@@ -529,7 +529,10 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     (:func:`window_refs`), each window a sample of the real sequence's domain ``real:<name>``. ``motions``: TUM
     trajectory files (real hand-held motion) replayed in the same rooms (:meth:`SequenceRef.with_motion`), each a
     simulated domain ``sim:<preset>~<file stem>`` of its own beside the preset's, so that the motion's share of the
-    gap to the real rankings can be told from the images'."""
+    gap to the real rankings can be told from the images'. Where a real folder gives w > 1 windows of a length, each
+    simulated sequence's first w windows of that length are run too (domain ``win:<preset>``): the like-for-like
+    null distribution of :func:`eval.reports.transfer.null_agreement` (one simulated recording, cut as the real one
+    is, against the simulated domain)."""
     if suite.kind is not SuiteKind.TRANSFER:
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
     labels = [motion_label(m) for m in motions]
@@ -540,22 +543,27 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     table1 = SUITES["table1"]
     parts = []
     for length in lengths:
-        for p in presets:
-            camera, lighting, detail = sim_domain(p)
-            refs = tuple(r.with_lighting(lighting).with_detail(detail).with_camera_effects(camera)
-                         for r in table1.sequences)
-            part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=refs, frames=length)
-            parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in refs)))
-            for motion in motions:
-                label = motion_label(motion)
-                moved = tuple(r.with_motion(motion, label, frames=length) for r in refs)
-                part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=moved, frames=length)
-                parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}~{label}") for r in moved)))
         refs, domains = [], []
         for ref in suite.sequences:
             windows = (ref,) if length is None else window_refs(ref, length)
             refs += windows
             domains += [(w.name, f"real:{ref.name}") for w in windows]
+        per_recording = max((sum(1 for _, d in domains if d == f"real:{r.name}") for r in suite.sequences), default=0)
+        for p in presets:
+            camera, lighting, detail = sim_domain(p)
+            sims = tuple(r.with_lighting(lighting).with_detail(detail).with_camera_effects(camera)
+                         for r in table1.sequences)
+            part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=sims, frames=length)
+            parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}") for r in sims)))
+            if length is not None and per_recording > 1:  # the null, like for like: as many windows per recording
+                wins = tuple(w for r in sims for w in window_refs(r, length)[:per_recording])
+                part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=wins, frames=length)
+                parts.append(TransferPart(length, part, tuple((w.name, f"win:{p}") for w in wins)))
+            for motion in motions:
+                label = motion_label(motion)
+                moved = tuple(r.with_motion(motion, label, frames=length) for r in sims)
+                part = replace(table1, methods=suite.methods, seeds=suite.seeds, sequences=moved, frames=length)
+                parts.append(TransferPart(length, part, tuple((r.name, f"sim:{p}~{label}") for r in moved)))
         real = replace(SUITES["real"], sequences=tuple(refs), skipped=suite.skipped, methods=suite.methods,
                        frames=length, seeds=suite.seeds)  # fmt: skip
         parts.append(TransferPart(length, real, tuple(domains)))

@@ -13,10 +13,14 @@ real RGB-D folder (``real:<name>``). Per domain, metric and method:
   n = 5 methods, scipy's p is below 0.05 only for rho >= 0.9: read the figures as agreement, not significance);
 - **which camera predicts real data best** (:func:`best_predictor`): the simulated domain with the highest mean
   Spearman rho over the metrics and real domains;
-- **what a perfect simulator would score** (:func:`holdout_agreement`): the agreement of the simulator with
-  itself, k of its sequences held out against the others. A real recording is one more sample of the methods'
-  sequence-to-sequence spread, so a rho against k real recordings can be no more reliable than this; it is the
-  ceiling a sim-to-real coefficient is read against, and says how many real recordings a target needs.
+- **the null distribution** (:func:`null_agreement`): what one more simulated recording scores against the
+  simulator, like for like with a real one: the ranking on one simulated sequence's windows (as many windows of that
+  length as the real recording gives; domain ``win:<preset>``) against the simulated domain's ranking over all its
+  sequences, for every simulated sequence in turn. A sim-to-real rho is read against it as a percentile: near 0, a gap
+  beyond the sampling of one recording; the observed rho may lie above it (a null distribution, not a ceiling);
+- **how many recordings a target needs** (:func:`holdout_agreement`): the simulator against itself, k of its
+  sequences held out against the others, for k = 1, 2, ...: the share of splits reaching a target, for every metric
+  at once too.
 
 Methods fed ground truth (the oracle) are left out of the rankings: they win by construction. The numeric core
 does no I/O; :mod:`eval.reports.suite_reports` writes ``transfer.{md,csv,png}``.
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -35,7 +40,13 @@ from scipy import stats
 
 from eval.errors import EvalError
 
-SIM_PREFIX, REAL_PREFIX = "sim:", "real:"
+SIM_PREFIX, REAL_PREFIX, WINDOW_PREFIX = "sim:", "real:", "win:"
+_WINDOW_SUFFIX = re.compile(r"\.from\d+$")
+
+
+def recording_of(sequence: str) -> str:
+    """The recording a window belongs to: ``office0.from200`` -> ``office0`` (a sequence is its own first window)."""
+    return _WINDOW_SUFFIX.sub("", str(sequence))
 
 
 @dataclass(frozen=True)
@@ -177,7 +188,7 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
                       metrics: Sequence[TransferMetric] = TRANSFER_METRICS, target: float = TRANSFER_TARGET,
                       observed: pd.DataFrame | None = None, max_splits: int = HOLDOUT_MAX_SPLITS,
                       seed: int = 0) -> pd.DataFrame:
-    """The agreement a perfect simulator would show with k real recordings: the simulator against itself.
+    """How many recordings a target needs: the simulator against itself, k of its sequences held out.
 
     If the real world were the simulator, a real recording would be one more simulated sequence: its ranking of the
     methods would differ from the simulator's average ranking only by the methods' sequence-to-sequence spread. So,
@@ -185,9 +196,10 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
     (at most ``max_splits``, drawn at random with ``seed`` beyond that) of holding out k of the domain's sequences;
     each method's score on the held-out ones and on the rest (mean of the cells' medians over runs, as
     :func:`domain_scores`); Spearman's rho between the two rankings, over the methods with a finite score on every
-    sequence. Its distribution is the ceiling for a sim-to-real rho against k independent real recordings: a
-    coefficient inside it shows no sim-to-real gap beyond the sampling of sequences, and a ``target`` whose median
-    split misses it cannot be met reliably with k real recordings, however good the simulator.
+    sequence. Its distribution is what k independent real recordings would score if the world were the simulator
+    (a null distribution): a ``target`` whose median split misses it cannot be met reliably with k real recordings,
+    however good the simulator. For the like-for-like null against a real recording cut into windows, see
+    :func:`null_agreement`.
 
     Columns: sim, metric, held_out (k), n (methods), splits, rho_median, rho_q25, rho_q75, share_target (share of
     splits with rho >= ``target``); where several metrics are ranked, a row with metric :data:`ALL_METRICS` gives
@@ -270,6 +282,82 @@ def _holdout_rhos(values: np.ndarray, held: np.ndarray) -> np.ndarray:
     mean_held = held @ values.T / k  # (splits, methods)
     mean_rest = ~held @ values.T / (held.shape[1] - k)
     return _rowwise_pearson(stats.rankdata(mean_held, axis=1), stats.rankdata(mean_rest, axis=1))
+
+
+def null_agreement(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
+                   target: float = TRANSFER_TARGET, observed: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The null distribution of a sim-to-real rho, like for like: one more simulated recording against the simulator.
+
+    A real domain of ``frame`` is one recording, whole or cut into w windows of a length, ranked on the mean over its
+    windows and compared with a simulated domain ranked over all its sequences. Here, per simulated domain
+    ``sim:<p>`` and metric, each of its sequences in turn plays the real recording: its ranking (the mean over its
+    windows of each cell's median over runs, the windows being the sequences of domain ``win:<p>`` that belong to it
+    (:func:`recording_of`), or the sequence itself where no ``win:<p>`` domain is in ``frame``, as for whole
+    sequences) against the domain's ranking over all its sequences (:func:`domain_scores`), Spearman's rho over the
+    methods with a finite score on both sides (at least 3). If the world were the simulator, a real recording's rho
+    would be one draw of this distribution.
+
+    Columns: sim, metric, recordings (simulated sequences that played the recording), windows (per recording, the
+    most), n (methods), rho_median, rho_q10, rho_q25, rho_q75, rho_min, rho_max, share_target (share of recordings
+    with rho >= ``target``); with ``observed`` (:func:`rank_correlations`' columns sim, metric, spearman, one row per
+    (sim, metric)) also ``observed`` and ``observed_percentile`` (share of the null below the observed rho, ties
+    counting half; 50: as typical as one more simulated recording; above 100 cannot be, but the observed rho may
+    exceed every draw).
+    """
+    _check_frame(frame)
+    names = [m.name for m in metrics]
+    sub = frame[frame["metric"].isin(names)]
+    cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"].median()
+             .rename("median").reset_index())  # fmt: skip
+    cells = cells[np.isfinite(cells["median"])]
+    seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
+        if observed is not None else {}  # fmt: skip
+    direction = {m.name: m.higher_is_better for m in metrics}
+    rows = []
+    sims = sorted(d for d in sub["domain"].astype(str).unique() if d.startswith(SIM_PREFIX))
+    for sim in sims:
+        window_domain = WINDOW_PREFIX + sim.removeprefix(SIM_PREFIX)
+        sequences = sorted(sub.loc[sub["domain"] == sim, "sequence"].unique())
+        held_domain = window_domain if (sub["domain"] == window_domain).any() else sim
+        for metric in names:
+            ref_cells = cells[(cells["domain"] == sim) & (cells["metric"] == metric)]
+            table = ref_cells.pivot_table(index="method", columns="sequence", values="median").reindex(
+                columns=sequences)  # fmt: skip
+            reference = table[np.isfinite(table.to_numpy()).all(axis=1)].mean(axis=1)
+            held = cells[(cells["domain"] == held_domain) & (cells["metric"] == metric)].assign(
+                recording=lambda c: c["sequence"].map(recording_of))  # fmt: skip
+            sign = -1.0 if direction[metric] else 1.0
+            rhos, windows, n = [], 0, 0
+            for recording in sequences:
+                own = held[held["recording"] == recording]
+                if own.empty:
+                    continue
+                per_window = own.pivot_table(index="method", columns="sequence", values="median")
+                score = per_window[np.isfinite(per_window.to_numpy()).all(axis=1)].mean(axis=1)
+                both = pd.concat([reference.rename("ref"), score.rename("held")], axis=1).dropna()
+                windows = max(windows, per_window.shape[1])
+                rho = _correlation(stats.rankdata(sign * both["held"].to_numpy()),
+                                   stats.rankdata(sign * both["ref"].to_numpy()))[0]
+                if np.isfinite(rho):
+                    rhos.append(rho)
+                    n = max(n, len(both))
+            r = np.asarray(rhos, dtype=float)
+            row = {"sim": sim, "metric": metric, "recordings": len(r), "windows": windows, "n": n}
+            quant = np.percentile(r, [50, 10, 25, 75]) if len(r) else [math.nan] * 4
+            row.update(rho_median=float(quant[0]), rho_q10=float(quant[1]), rho_q25=float(quant[2]),
+                       rho_q75=float(quant[3]), rho_min=float(r.min()) if len(r) else math.nan,
+                       rho_max=float(r.max()) if len(r) else math.nan,
+                       share_target=float(np.mean(r >= target - 1e-12)) if len(r) else math.nan)  # fmt: skip
+            if observed is not None:
+                obs = seen.get((sim, metric), math.nan)
+                row["observed"] = obs
+                row["observed_percentile"] = (100.0 * (np.mean(r < obs - 1e-12) + 0.5 * np.mean(np.abs(r - obs)
+                                                                                               <= 1e-12))
+                                              if len(r) and np.isfinite(obs) else math.nan)  # fmt: skip
+            rows.append(row)
+    columns = ["sim", "metric", "recordings", "windows", "n", "rho_median", "rho_q10", "rho_q25", "rho_q75",
+               "rho_min", "rho_max", "share_target"]
+    return pd.DataFrame(rows, columns=columns + (["observed", "observed_percentile"] if observed is not None else []))
 
 
 BOOTSTRAP_DRAWS = 2000  # resamples of a bootstrap interval (percentile method; its 2.5 % tails rest on 50 draws)

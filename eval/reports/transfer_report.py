@@ -8,10 +8,13 @@ against the real ones cut into windows of that length (:func:`eval.bench.suites.
   simulated domain with every real one; which camera preset predicts the real rankings best; how each part was
   made and the state of its runs;
 - ``transfer.csv``: domain, metric, method, score, rank, sequences, runs, length;
-- ``transfer_correlations.csv``: the correlation table, with where each coefficient falls among a perfect
-  simulator's (``ceiling_*``, ``ceiling_percentile``);
-- ``transfer_ceiling.csv``: what a perfect simulator would score against k real recordings
+- ``transfer_correlations.csv``: the correlation table, with where each coefficient falls in the like-for-like
+  null distribution (``null_*``, ``null_percentile``; :func:`eval.reports.transfer.null_agreement`);
+- ``transfer_null.csv``: that null distribution per length, simulated domain and metric;
+- ``transfer_recordings.csv``: how many real recordings a target needs
   (:func:`eval.reports.transfer.holdout_agreement`), per length, simulated domain, metric and k;
+- ``transfer_runs.csv``: every run behind the figures (length, domain, sequence, method, seed, metric, value), so
+  that anyone can recompute them from the committed file;
 - ``transfer.png``: per metric, each method's rank in every domain and length (a bump chart).
 """
 
@@ -33,10 +36,12 @@ from eval.reports.transfer import (
     REAL_PREFIX,
     TRANSFER_METRICS,
     TRANSFER_TARGET,
+    WINDOW_PREFIX,
     best_predictor,
     bootstrap_correlations,
     domain_scores,
     holdout_agreement,
+    null_agreement,
     rank_correlations,
     rank_methods,
 )
@@ -93,19 +98,20 @@ def correlations_markdown(corr: pd.DataFrame) -> str:
     on each side, Spearman's rho with p and its bootstrap interval, Kendall's tau with p."""
     labels = {m.name: m.label for m in TRANSFER_METRICS}
     lines = ["| length | simulated | real | metric | n | samples sim / real | Spearman rho (p) | 95 % interval | "
-             "Kendall tau (p) | perfect simulator, 1 recording | percentile |",
+             "Kendall tau (p) | null: one more simulated recording, median [10th pct, quartiles] | percentile |",
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
     for row in corr.itertuples():
         rho = "-" if not np.isfinite(row.spearman) else f"{row.spearman:+.2f} ({row.spearman_p:.2f})"
         tau = "-" if not np.isfinite(row.kendall) else f"{row.kendall:+.2f} ({row.kendall_p:.2f})"
         ci = "-" if not np.isfinite(row.rho_low) else f"[{row.rho_low:+.2f}, {row.rho_high:+.2f}]"
         samples = f"{row.sim_samples:.0f} / {row.real_samples:.0f}" if np.isfinite(row.sim_samples) else "-"
-        med = getattr(row, "ceiling_median", np.nan)
-        ceiling = "-" if not np.isfinite(med) else f"{med:+.2f} [{row.ceiling_q25:+.2f}, {row.ceiling_q75:+.2f}]"
-        pct = getattr(row, "ceiling_percentile", np.nan)
+        med = getattr(row, "null_median", np.nan)
+        null = "-" if not np.isfinite(med) else (f"{med:+.2f} [{row.null_q10:+.2f}; {row.null_q25:+.2f}, "
+                                                 f"{row.null_q75:+.2f}]")  # fmt: skip
+        pct = getattr(row, "null_percentile", np.nan)
         pct = "-" if not np.isfinite(pct) else f"{pct:.0f}"
         lines.append(f"| {row.length} | {row.sim} | {row.real} | {labels.get(row.metric, row.metric)} | {row.n} | "
-                     f"{samples} | {rho} | {ci} | {tau} | {ceiling} | {pct} |")  # fmt: skip
+                     f"{samples} | {rho} | {ci} | {tau} | {null} | {pct} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -121,77 +127,102 @@ def _part_line(part: TransferPart, run: SuiteRun) -> str:
             f"seed), runs under `{run.out_root}/{suite.name}/`, revision {', '.join(revisions)}; {seqs}")
 
 
-HELD_OUT = (1, 2, 3, 4)  # real recordings the perfect-simulator table considers
+HELD_OUT = (1, 2, 3, 4)  # real recordings the table of what a target needs considers
 
 
 def correlations_with_intervals(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Per length of ``frame`` (:func:`transfer_frame`): the ranks (:func:`eval.reports.transfer.rank_methods` over that
     length's domains) and the rank correlations with their bootstrap interval
-    (:func:`eval.reports.transfer.bootstrap_correlations`) and their place among a perfect simulator's against one real
-    recording (:func:`eval.reports.transfer.holdout_agreement`, k = 1: columns ceiling_median, ceiling_q25, ceiling_q75,
-    ceiling_percentile), each with a ``length`` column. A real domain is one recording (one folder), cut into
-    windows or not, so it is compared with one held-out simulated sequence."""
-    ranks, corr, _ = transfer_tables(frame)
+    (:func:`eval.reports.transfer.bootstrap_correlations`) and their place in the like-for-like null distribution
+    (:func:`eval.reports.transfer.null_agreement`: columns null_median, null_q10, null_q25, null_q75,
+    null_percentile), each with a ``length`` column. A real domain is one recording (one folder), cut into windows
+    or not, so it is compared with one simulated recording cut the same way."""
+    ranks, corr, _, _ = transfer_tables(frame)
     return ranks, corr
 
 
-def transfer_tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
-    """:func:`correlations_with_intervals`' ranks and correlations, and the perfect-simulator table per length
-    (:func:`eval.reports.transfer.holdout_agreement` for k in :data:`HELD_OUT`, with a ``length`` column)."""
-    all_ranks, all_corr, all_ceiling = [], [], []
+def transfer_tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """:func:`correlations_with_intervals`' ranks and correlations, the null distribution per length
+    (:func:`eval.reports.transfer.null_agreement`) and what a target needs per length
+    (:func:`eval.reports.transfer.holdout_agreement` for k in :data:`HELD_OUT`), each with a ``length`` column.
+    The windows of the null (domains ``win:...``) are not ranked as domains of their own."""
+    all_ranks, all_corr, all_null, all_needs = [], [], [], []
     for length, sub in frame.groupby("length", sort=False):
-        scores = domain_scores(sub)
+        plain = sub[~sub["domain"].astype(str).str.startswith(WINDOW_PREFIX)]
+        scores = domain_scores(plain)
         if scores.empty:
             continue
-        domains = list(dict.fromkeys(sub["domain"]))
+        domains = list(dict.fromkeys(plain["domain"]))
         ranks = rank_methods(scores, domains=domains)
         ranked = sub.merge(ranks[["metric", "method"]].drop_duplicates(), on=["metric", "method"])  # the same set
-        corr = rank_correlations(ranks).merge(bootstrap_correlations(ranked).drop(columns="n"),
+        plain_ranked = ranked[~ranked["domain"].astype(str).str.startswith(WINDOW_PREFIX)]
+        corr = rank_correlations(ranks).merge(bootstrap_correlations(plain_ranked).drop(columns="n"),
                                               on=["sim", "real", "metric"], how="left")  # fmt: skip
-        corr = corr.merge(_ceiling_columns(ranked, corr), on=["sim", "real", "metric"], how="left")
-        all_ceiling.append(holdout_agreement(ranked, HELD_OUT, target=TRANSFER_TARGET).assign(length=length))
+        corr = corr.merge(_null_columns(ranked, corr), on=["sim", "real", "metric"], how="left")
+        all_null.append(null_agreement(ranked, target=TRANSFER_TARGET).assign(length=length))
+        all_needs.append(holdout_agreement(plain_ranked, HELD_OUT, target=TRANSFER_TARGET).assign(length=length))
         all_ranks.append(ranks.assign(length=length))
         all_corr.append(corr.assign(length=length))
     ranks = pd.concat(all_ranks, ignore_index=True) if all_ranks else pd.DataFrame(
         columns=["domain", "metric", "method", "score", "sequences", "runs", "rank", "length"])  # fmt: skip
     corr = pd.concat(all_corr, ignore_index=True) if all_corr else pd.DataFrame(
         columns=["sim", "real", "metric", "n", "spearman", "spearman_p", "kendall", "kendall_p", "methods",
-                 "sim_samples", "real_samples", "rho_low", "rho_high", "defined", *_CEILING_COLUMNS,
+                 "sim_samples", "real_samples", "rho_low", "rho_high", "defined", *_NULL_COLUMNS,
                  "length"])  # fmt: skip
-    ceiling = pd.concat(all_ceiling, ignore_index=True) if all_ceiling else pd.DataFrame(
+    null = pd.concat(all_null, ignore_index=True) if all_null else pd.DataFrame(
+        columns=["sim", "metric", "recordings", "windows", "n", "rho_median", "rho_q10", "rho_q25", "rho_q75",
+                 "rho_min", "rho_max", "share_target", "length"])  # fmt: skip
+    needs = pd.concat(all_needs, ignore_index=True) if all_needs else pd.DataFrame(
         columns=["sim", "metric", "held_out", "n", "splits", "rho_median", "rho_q25", "rho_q75", "share_target",
                  "length"])  # fmt: skip
-    return ranks, corr, ceiling
+    return ranks, corr, null, needs
 
 
-_CEILING_COLUMNS = ["ceiling_median", "ceiling_q25", "ceiling_q75", "ceiling_percentile"]
+_NULL_COLUMNS = ["null_median", "null_q10", "null_q25", "null_q75", "null_percentile"]
 
 
-def _ceiling_columns(ranked: pd.DataFrame, corr: pd.DataFrame) -> pd.DataFrame:
-    """Per (sim, real, metric) of ``corr``: a perfect simulator's rho against one real recording (k = 1: median,
-    quartiles) and the percentile of the observed rho among its splits."""
+def _null_columns(ranked: pd.DataFrame, corr: pd.DataFrame) -> pd.DataFrame:
+    """Per (sim, real, metric) of ``corr``: the like-for-like null distribution (median, 10th percentile,
+    quartiles) and the percentile of the observed rho in it."""
     parts = []
     for real, observed in corr.groupby("real"):
-        table = holdout_agreement(ranked, (1,), target=TRANSFER_TARGET, observed=observed)
-        parts.append(table.assign(real=real).rename(columns={"rho_median": "ceiling_median", "rho_q25": "ceiling_q25",
-                                                             "rho_q75": "ceiling_q75",
-                                                             "observed_percentile": "ceiling_percentile"}))
+        table = null_agreement(ranked, target=TRANSFER_TARGET, observed=observed)
+        parts.append(table.assign(real=real).rename(columns={
+            "rho_median": "null_median", "rho_q10": "null_q10", "rho_q25": "null_q25", "rho_q75": "null_q75",
+            "observed_percentile": "null_percentile"}))  # fmt: skip
     if not parts:
-        return pd.DataFrame(columns=["sim", "real", "metric", *_CEILING_COLUMNS])
-    return pd.concat(parts, ignore_index=True)[["sim", "real", "metric", *_CEILING_COLUMNS]]
+        return pd.DataFrame(columns=["sim", "real", "metric", *_NULL_COLUMNS])
+    return pd.concat(parts, ignore_index=True)[["sim", "real", "metric", *_NULL_COLUMNS]]
 
 
-def ceiling_markdown(ceiling: pd.DataFrame, target: float = TRANSFER_TARGET) -> str:
-    """The perfect-simulator table: per (length, simulated domain, metric), the median [quartiles] of rho with k
-    held-out sequences for each k, the share of splits reaching ``target``, and the fewest recordings whose median
-    reaches it."""
-    if ceiling.empty:
+def null_markdown(null: pd.DataFrame) -> str:
+    """The null distribution table: per (length, simulated domain, metric), how many simulated recordings played the
+    real one and with how many windows, then rho's median [10th percentile; quartiles] (min .. max)."""
+    if null.empty:
+        return "No simulated domain has enough sequences for a null distribution.\n"
+    labels = {m.name: m.label for m in TRANSFER_METRICS}
+    lines = ["| length | simulated | metric | recordings x windows | n | rho: median [10th pct; quartiles] | range |",
+             "|---|---|---|---:|---:|---:|---:|"]
+    for row in null.itertuples():
+        if not np.isfinite(row.rho_median):
+            continue
+        lines.append(f"| {row.length} | {row.sim} | {labels.get(row.metric, row.metric)} | {row.recordings} x "
+                     f"{row.windows} | {row.n} | {row.rho_median:+.2f} [{row.rho_q10:+.2f}; {row.rho_q25:+.2f}, "
+                     f"{row.rho_q75:+.2f}] | {row.rho_min:+.2f} .. {row.rho_max:+.2f} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def recordings_markdown(needs: pd.DataFrame, target: float = TRANSFER_TARGET) -> str:
+    """What a target needs: per (length, simulated domain, metric), the median [quartiles] of rho with k held-out
+    sequences for each k, the share of splits reaching ``target``, and the fewest recordings whose median reaches
+    it."""
+    if needs.empty:
         return "No simulated domain has enough sequences to hold any out.\n"
     labels = {m.name: m.label for m in TRANSFER_METRICS}
-    ks = sorted(int(k) for k in ceiling["held_out"].unique())
+    ks = sorted(int(k) for k in needs["held_out"].unique())
     lines = ["| length | simulated | metric | n | " + " | ".join(f"k = {k}" for k in ks)
              + f" | recordings for a median >= {target:g} |", "|---|---|---|---:|" + "---:|" * (len(ks) + 1)]
-    for (length, sim, metric), sub in ceiling.groupby(["length", "sim", "metric"], sort=False):
+    for (length, sim, metric), sub in needs.groupby(["length", "sim", "metric"], sort=False):
         sub = sub.set_index("held_out")
         if metric == ALL_METRICS:  # only the share of splits where every metric reaches the target
             cells = [f"({100 * sub.loc[k, 'share_target']:.0f} %)" if k in sub.index else "-" for k in ks]
@@ -233,15 +264,22 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
     frame = transfer_frame(parts)
-    ranks, corr, ceiling = transfer_tables(frame if not frame.empty else pd.DataFrame(
+    ranks, corr, null, needs = transfer_tables(frame if not frame.empty else pd.DataFrame(
         columns=["domain", "sequence", "method", "metric", "value", "length"]))  # fmt: skip
     best = best_predictor(corr)
     csv = results_dir / "transfer.csv"
     ranks.to_csv(csv, index=False, float_format="%.6g")
     corr_csv = results_dir / "transfer_correlations.csv"
     corr.to_csv(corr_csv, index=False, float_format="%.6g")
-    ceiling_csv = results_dir / "transfer_ceiling.csv"
-    ceiling.to_csv(ceiling_csv, index=False, float_format="%.6g")
+    null_csv = results_dir / "transfer_null.csv"
+    null.to_csv(null_csv, index=False, float_format="%.6g")
+    needs_csv = results_dir / "transfer_recordings.csv"
+    needs.to_csv(needs_csv, index=False, float_format="%.6g")
+    runs_csv = results_dir / "transfer_runs.csv"
+    run_columns = [c for c in ("length", "domain", "sequence", "method", "seed", "metric", "value") if c in frame]
+    runs = frame[frame["metric"].isin([m.name for m in TRANSFER_METRICS])][run_columns] if not frame.empty \
+        else pd.DataFrame(columns=run_columns)  # fmt: skip
+    runs.to_csv(runs_csv, index=False, float_format="%.6g")
     columns = [f"{d} ({length})" for length, d in dict.fromkeys(zip(ranks["length"], ranks["domain"], strict=True))]
     wide = ranks.assign(domain=ranks["domain"] + " (" + ranks["length"] + ")")
     figure = save_transfer_figure(wide, results_dir / "transfer.png", columns, TRANSFER_METRICS) \
@@ -272,22 +310,29 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
         "\n## Verdict\n",
         verdict + "\n",
         "## Rank correlation, simulated against real\n",
-        "The last two columns read each coefficient against a perfect simulator's (next section): the median "
-        "[quartiles] of rho between one held-out simulated sequence and the others, and the percentile of the "
-        "observed rho among those splits (50: the real recording ranks the methods as typically as one more "
-        "simulated sequence would; near 0: a sim-to-real gap beyond the sampling of sequences).\n",
+        "The last two columns read each coefficient against the null distribution (next section): what one more "
+        "simulated recording, cut as the real one is, scores against the simulator, and the percentile of the "
+        "observed rho in it (50: the real recording ranks the methods as typically as one more simulated recording "
+        "would; near 0: a sim-to-real gap beyond the sampling of one recording; an observed rho may lie above the "
+        "whole null: it is a null distribution, not a ceiling).\n",
         correlations_markdown(corr),
-        "## What a perfect simulator would score\n",
+        "## The null distribution: one more simulated recording\n",
         "If the real world were the simulator, a real recording would be one more simulated sequence, and its "
-        "ranking would differ from the simulator's only by the methods' spread from sequence to sequence. Per "
-        "length, simulated domain and metric: Spearman's rho between the ranking on k held-out simulated "
-        "sequences and the ranking on the others, over every split (`eval.reports.transfer.holdout_agreement`), as "
-        f"median [quartiles] (share of splits reaching {TRANSFER_TARGET:g}); the last column is the fewest real "
-        f"recordings against which a perfect simulator's median rho reaches {TRANSFER_TARGET:g}. The row 'every "
-        f"metric at once' gives the share of splits in which all the metrics reach {TRANSFER_TARGET:g} together: "
-        "the chance that a perfect simulator meets a target set on all of them. Windows cut from "
-        "one recording are one recording here: they share its room, camera and operator.\n",
-        ceiling_markdown(ceiling),
+        "ranking would differ from the simulator's only by the methods' spread from sequence to sequence. Like for "
+        "like with the real side: each simulated sequence in turn is cut into as many windows of the length as the "
+        "real recording gives (domain `win:...`; whole sequences: the sequence itself) and its ranking (the mean "
+        "over its windows) is compared with the simulated domain's ranking over all its sequences "
+        "(`eval.reports.transfer.null_agreement`). Spearman's rho over the simulated recordings: median [10th "
+        "percentile; quartiles] and range. The per-run figures behind it are in `transfer_runs.csv`.\n",
+        null_markdown(null),
+        "## How many real recordings a target needs\n",
+        "The simulator against itself: the ranking on k held-out simulated sequences against the ranking on the "
+        "others, over every split (`eval.reports.transfer.holdout_agreement`), as median [quartiles] (share of "
+        f"splits reaching {TRANSFER_TARGET:g}); the last column is the fewest recordings whose median rho reaches "
+        f"{TRANSFER_TARGET:g}. The row 'every metric at once' gives the share of splits in which all the metrics "
+        f"reach {TRANSFER_TARGET:g} together. Windows cut from one recording are one recording here: they share "
+        "its room, camera and operator.\n",
+        recordings_markdown(needs),
         "## Scores and ranks per metric: score (rank)\n",
         *[f"\n### Length: {length}\n" + ranks_markdown(sub, list(dict.fromkeys(sub["domain"])))
           for length, sub in ranks.groupby("length", sort=False)],  # fmt: skip
@@ -297,4 +342,4 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
     ]
     md = results_dir / "transfer.md"
     md.write_text("\n".join(text))
-    return [md, csv, corr_csv, ceiling_csv, *([figure] if figure is not None else [])]
+    return [md, csv, corr_csv, null_csv, needs_csv, runs_csv, *([figure] if figure is not None else [])]

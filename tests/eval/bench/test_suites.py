@@ -160,16 +160,21 @@ def test_the_transfer_suite_compares_like_with_like(tmp_path):
     suite = get_suite("transfer").select(sequences=[str(folder)])
     assert suite.frames == BENCH_FRAMES
     parts = transfer_parts(replace(suite, frames=10), ("kinect", "kinect+lit"))
-    assert [(p.length, p.suite.name) for p in parts] == [(10, "table1"), (10, "table1"), (10, "real"),
-                                                          (None, "table1"), (None, "table1"), (None, "real")]
-    assert [r.name for r in parts[1].suite.sequences][:2] == ["office0+lit@kinect", "office1+lit@kinect"]
+    # per length: each simulated domain, its like-for-like null (as many windows per simulated sequence as the real
+    # recording gives: 2 here), then the real folder; whole sequences need no windows
+    assert [(p.length, p.suite.name) for p in parts] == [(10, "table1")] * 4 + [(10, "real"), (None, "table1"),
+                                                                                 (None, "table1"), (None, "real")]
+    assert [r.name for r in parts[2].suite.sequences][:2] == ["office0+lit@kinect", "office1+lit@kinect"]
     assert parts[0].suite.sequences[0].name == "office0@kinect"  # table1's own runs
-    assert parts[0].suite.frames == 10 and parts[3].suite.frames is None
-    assert {d for _, d in parts[0].domains} == {"sim:kinect"} and {d for _, d in parts[1].domains} == {"sim:kinect+lit"}
-    windows = parts[2].suite.sequences  # 25 frames: two windows of 10, the remainder left out
+    assert parts[0].suite.frames == 10 and parts[5].suite.frames is None
+    assert {d for _, d in parts[0].domains} == {"sim:kinect"} and {d for _, d in parts[2].domains} == {"sim:kinect+lit"}
+    null = parts[1].suite.sequences
+    assert [(w.name, w.start) for w in null[:2]] == [("office0@kinect", 0), ("office0@kinect.from10", 10)]
+    assert len(null) == 2 * len(parts[0].suite.sequences) and {d for _, d in parts[1].domains} == {"win:kinect"}
+    windows = parts[4].suite.sequences  # 25 frames: two windows of 10, the remainder left out
     assert [(w.name, w.start) for w in windows] == [("realish", 0), ("realish.from10", 10)]  # the first: the same runs
-    assert dict(parts[2].domains) == {"realish": "real:realish", "realish.from10": "real:realish"}
-    assert [r.name for r in parts[5].suite.sequences] == ["realish"] and parts[5].domain_of("realish") == "real:realish"
+    assert dict(parts[4].domains) == {"realish": "real:realish", "realish.from10": "real:realish"}
+    assert [r.name for r in parts[7].suite.sequences] == ["realish"] and parts[7].domain_of("realish") == "real:realish"
     assert folder_ref(folder) == windows[0]  # the first window is the whole sequence on its first frames
     assert [p.length for p in transfer_parts(replace(suite, frames=None))] == [None, None]
     rich = transfer_parts(replace(suite, frames=None), ("kinect+rich", "kinect+rich+lit"))
@@ -256,13 +261,15 @@ def test_a_recorded_motion_replays_in_the_same_room(tmp_path):
     rel = np.linalg.inv(source.poses[0]) @ source.poses[-1]
     assert Rotation.from_matrix(rel[:3, :3]).magnitude() == pytest.approx(np.radians(5.0 * 29 / 30), abs=1e-6)
     parts = transfer_parts(get_suite("transfer"), lengths=(20,), motions=[motion])
-    assert [sorted({d for _, d in p.domains}) for p in parts] == [["sim:kinect"], ["sim:kinect~desk_motion"],
+    # the real kitchen gives many 20-frame windows: the simulated null (win:kinect) comes before the motion's domain
+    assert [sorted({d for _, d in p.domains}) for p in parts] == [["sim:kinect"], ["win:kinect"],
+                                                                  ["sim:kinect~desk_motion"],
                                                                   sorted({d for _, d in parts[-1].domains})]
     with pytest.raises(SuiteError, match="is not a file"):
         ref.with_motion(tmp_path / "nope.txt")
     assert ref.with_motion(motion).spec().n_frames == 300  # 10 s recorded: 1500 frames cut to what it covers
     assert ref.with_motion(motion, frames=200).spec().n_frames == 200  # and to what a suite runs: a path to fit
-    assert parts[1].suite.sequences[0].spec().n_frames == 20
+    assert parts[2].suite.sequences[0].spec().n_frames == 20
     described = ref.describe()
     assert len(described["motion_sha256"]) == 64  # an edited recording reruns
     (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()

@@ -204,14 +204,17 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     md = (tmp_path / "transfer.md").read_text()
     assert "### Length: 10" in md and "### Length: whole" in md and "| 10 | sim:kinect | real:kitchen |" in md
     assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png",
-                                       "transfer_ceiling.csv"}  # fmt: skip
-    # both simulated sequences rank alike, so a perfect simulator scores +1 against one recording; the windows'
-    # +1 sits in the middle of that (percentile 50), the whole sequence's -1 below all of it (0)
-    assert corr.loc["10", ["ceiling_median", "ceiling_percentile"]].tolist() == pytest.approx([1.0, 50.0])
-    assert corr.loc["whole", ["ceiling_median", "ceiling_percentile"]].tolist() == pytest.approx([1.0, 0.0])
-    assert "## What a perfect simulator would score" in md
-    ceiling = pd.read_csv(tmp_path / "transfer_ceiling.csv", dtype={"length": str})
-    assert set(ceiling["held_out"]) == {1} and set(ceiling["length"]) == {"10", "whole"}  # 2 sequences: k = 1 only
+                                       "transfer_null.csv", "transfer_recordings.csv", "transfer_runs.csv"}  # fmt: skip
+    # both simulated sequences rank alike, so one more simulated recording scores +1 against the simulator; the
+    # windows' +1 sits in the middle of that null (percentile 50), the whole sequence's -1 below all of it (0)
+    assert corr.loc["10", ["null_median", "null_percentile"]].tolist() == pytest.approx([1.0, 50.0])
+    assert corr.loc["whole", ["null_median", "null_percentile"]].tolist() == pytest.approx([1.0, 0.0])
+    assert "## The null distribution: one more simulated recording" in md and "perfect simulator" not in md
+    needs = pd.read_csv(tmp_path / "transfer_recordings.csv", dtype={"length": str})
+    assert set(needs["held_out"]) == {1} and set(needs["length"]) == {"10", "whole"}  # 2 sequences: k = 1 only
+    runs = pd.read_csv(tmp_path / "transfer_runs.csv", dtype={"length": str})
+    assert len(runs) == 2 * (2 * 3 + 3 * 3) - 2 * 3  # every run's ATE: 6 + 9 at length 10, 6 + 3 whole
+    assert set(runs["domain"]) == {"sim:kinect", "real:kitchen"}
 
 
 def test_intervals_survive_a_real_domain_that_misses_a_method(tmp_path):
@@ -303,3 +306,45 @@ def test_the_joint_row_counts_the_splits_where_every_metric_reaches_the_target()
     assert table.loc["ate_se3_rmse", "share_target"] == pytest.approx(2 / 3)
     assert table.loc["depth_percent_correct", "share_target"] == pytest.approx(2 / 3)
     assert table.loc[ALL_METRICS, ["splits", "share_target"]].tolist() == pytest.approx([3, 1 / 3])
+
+
+def _null_frame(windows: dict[str, tuple[float, float, float]], sim: dict[str, tuple[float, float, float]],
+                ) -> pd.DataFrame:
+    """ATE (lower is better) of methods M1..M3: ``sim`` per simulated sequence (domain sim:k), ``windows`` per
+    window of a simulated recording (domain win:k; a sequence's first window is the sequence itself)."""
+    rows = []
+    for domain, table in (("sim:k", sim), ("win:k", windows)):
+        for seq, values in table.items():
+            for method, v in zip(("M1", "M2", "M3"), values, strict=True):
+                rows.append({"domain": domain, "sequence": seq, "method": method, "metric": "ate_se3_rmse",
+                             "value": v})
+    return pd.DataFrame(rows)
+
+
+def test_null_of_windows_has_the_hand_computed_rhos() -> None:
+    """Reference over a, b, c: (1, 2, 3). Recording a's windows rank alike (+1), b's the reverse (-1), c's with
+    one swap (+0.5)."""
+    from eval.reports.transfer import null_agreement, recording_of
+
+    assert recording_of("office0.from200") == "office0" and recording_of("office0") == "office0"
+    first = {"a": (1, 2, 3), "b": (1, 2, 3), "c": (1, 2, 3)}
+    windows = {**first, "a.from200": (1, 2, 3), "b.from200": (9, 5, 1), "c.from200": (1, 5, 2)}
+    metric = [TransferMetric("ate_se3_rmse", "ATE", False)]
+    observed = pd.DataFrame([{"sim": "sim:k", "metric": "ate_se3_rmse", "spearman": 0.75}])
+    null = null_agreement(_null_frame(windows, first), metric, target=0.8, observed=observed).iloc[0]
+    assert (null.recordings, null.windows, null.n) == (3, 2, 3)
+    assert (null.rho_min, null.rho_median, null.rho_max) == pytest.approx((-1.0, 0.5, 1.0))
+    assert null.rho_q10 == pytest.approx(-1.0 + 0.2 * 1.5)  # numpy's linear interpolation between -1 and 0.5
+    assert null.share_target == pytest.approx(1 / 3)
+    assert null.observed_percentile == pytest.approx(100 * 2 / 3)  # above -1 and 0.5, below 1
+
+
+def test_null_of_whole_sequences_holds_each_sequence_against_all() -> None:
+    """No window domain (whole sequences): each sequence against the mean over all three, (5/3, 7/3, 2) -> ranks
+    (1, 3, 2): a (1, 2, 3) gives +0.5, b (3, 2, 1) gives -0.5, c (1, 3, 2) gives +1."""
+    from eval.reports.transfer import null_agreement
+
+    frame = _null_frame({}, {"a": (1, 2, 3), "b": (3, 2, 1), "c": (1, 3, 2)})
+    null = null_agreement(frame, [TransferMetric("ate_se3_rmse", "ATE", False)]).iloc[0]
+    assert (null.recordings, null.windows) == (3, 1)
+    assert (null.rho_min, null.rho_median, null.rho_max) == pytest.approx((-0.5, 0.5, 1.0))
