@@ -72,3 +72,28 @@ def test_the_commands_section_names_every_command_and_developer_tool():
         assert group in section
     for module, _ in DEVELOPER_TOOLS:
         assert f"python -m {module}" in section
+
+
+def test_the_network_recipe_is_the_shipped_one():
+    """README: ``cnnslam train recipe`` retrains the shipped network; its commands parse as written and the counts
+    it states are the recipe's (a tiny run of the same recipe end to end: tests/cnnslam/test_depthnet_recipe.py)."""
+    import argparse
+    import shlex
+
+    from cnnslam.depthnet.cli_train import add_arguments
+    from cnnslam.depthnet.recipe import SHIPPED
+
+    code = block_with("bash", "cnnslam train recipe")
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    lines = [line.split("#")[0].strip() for line in code.splitlines() if line.strip()]
+    parsed = [parser.parse_args(shlex.split(line)[2:]) for line in lines]
+    assert [a.action for a in parsed] == ["recipe", "recipe"] and all(a.export for a in parsed)
+    assert parsed[1].device == "cuda" and parsed[0].device == "cpu"
+    g, f = SHIPPED.generation, SHIPPED.fit
+    def spaced(n: int) -> str:  # 28000 -> "28 000", as the README writes numbers
+        return f"{n:,}".replace(",", " ")
+
+    frames = g.n_scenes * g.views_per_scene
+    stated = f"{spaced(frames)} frames of {spaced(g.n_scenes)} rooms, then {spaced(f.steps)} steps of {f.batch_size}"
+    assert stated in code
