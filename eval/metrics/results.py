@@ -77,10 +77,9 @@ LONG_COLUMNS = ["sequence", "method", "metric", "value"]
 TIMING_FILE = "timing.json"  # a run folder's measured figures, beside its metrics.json
 # A run's resource figures (RunRecord.resources; the names of timing.json): wall_s (s, the whole run: frames rendered
 # or read, the agent, scoring, plots), fps_end_to_end (frames / wall_s), fps (the agent's step alone: 1 / mean step
-# time), peak_rss_mib (MiB, peak resident memory of the process that ran it), peak_rss_children_mib (MiB, the largest
-# peak among its child processes: a system run out of process), method_wall_s (s, an external system's own run time)
-RESOURCE_FIGURES: tuple[str, ...] = ("wall_s", "fps_end_to_end", "fps", "peak_rss_mib", "peak_rss_children_mib",
-                                     "method_wall_s")
+# time), peak_rss_mib (MiB, peak resident memory of the process that ran it; a system run in a process of its own,
+# ORB-SLAM3, is not in it), method_wall_s (s, an external system's own run time)
+RESOURCE_FIGURES: tuple[str, ...] = ("wall_s", "fps_end_to_end", "fps", "peak_rss_mib", "method_wall_s")
 
 
 class ResultsError(EvalError):

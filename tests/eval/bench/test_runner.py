@@ -56,7 +56,7 @@ def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
     timing = json.loads((folder / "timing.json").read_text())
     assert timing["wall_s"] > 0 and timing["fps"] > 0
     assert timing["frames"] == FRAMES and timing["fps_end_to_end"] == pytest.approx(FRAMES / timing["wall_s"])
-    assert timing["peak_rss_mib"] > 50 and timing["peak_rss_children_mib"] >= 0  # this process: numpy, torch...
+    assert timing["peak_rss_mib"] > 50  # this process: numpy, the renderer...
     from eval.metrics.results import load_run
 
     assert load_run(folder / "metrics.json").resources["peak_rss_mib"] == timing["peak_rss_mib"]
