@@ -13,7 +13,7 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
 - ``timing.json``: what the run used (:data:`eval.metrics.results.RESOURCE_FIGURES`: wall time, frames per second
-  end to end and of the agent's step, peak resident memory of the run's process and of its children), per-frame
+  end to end and of the agent's step, peak resident memory of the run's process), per-frame
   step times, and ``environment``, the machine and package versions it ran on (:mod:`eval.bench.environment`; never
   compared by the gate; :func:`eval.metrics.results.load_run` reads them into the record's ``resources``);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
@@ -245,13 +245,11 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
 def resource_figures(frames: int, wall_s: float) -> dict[str, float]:
     """What this process used for a run of ``frames`` frames that took ``wall_s`` seconds: ``frames``,
     ``fps_end_to_end`` and the peak resident memory so far (MiB) of this process, ``peak_rss_mib`` (a fresh worker
-    per run by default; the executor's worker or the calling process otherwise: its peak so far) and of its largest
-    child, ``peak_rss_children_mib`` (a system run out of process; 0 without one)."""
+    per run by default; with reused workers or the serial executor, that process's peak so far)."""
     return {
         "frames": float(frames),
         "fps_end_to_end": frames / wall_s if wall_s > 0 else math.nan,
-        "peak_rss_mib": peak_rss_mib("self"),
-        "peak_rss_children_mib": peak_rss_mib("children"),
+        "peak_rss_mib": peak_rss_mib(),
     }
 
 
@@ -425,11 +423,13 @@ def _write_keyframes(path: Path, episode: Any) -> tuple[list[np.ndarray], list[n
 def _write_plots(folder: Path, spec: RunSpec, episode: Any, scored: TrajectoryMetrics, depth_est: list,
                  depth_gt: list) -> None:
     from eval.reports.plots import save_depth_error_figure, save_trajectory_figure
+    from eval.reports.style import method_style
 
     title = run_title(spec)
     if "trajectory" in spec.method.metrics:
         save_trajectory_figure(folder / "trajectory.png", scored.gt.timestamps, scored.gt.positions,
-                               scored.est_aligned.positions, scored.ate_errors, title)  # fmt: skip
+                               scored.est_aligned.positions, scored.ate_errors, title,
+                               style=method_style(spec.method.name))  # fmt: skip
     if depth_est:
         picks = sorted({0, len(depth_est) // 2, len(depth_est) - 1})[:DEPTH_PLOT_KEYFRAMES]
         stamps = [float(t) for t in (kf.timestamp for kf in episode.keyframes)]
