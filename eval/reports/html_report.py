@@ -39,8 +39,8 @@ from eval.reports.run_data import RunTrack, missing_reasons
 from eval.reports.style import method_style
 from eval.reports.tables import AVG_LABEL, best_cells, cell_text, spread_of, table1
 
-DEPTH_THUMBNAIL_WIDTH = 420  # px: a run's depth.png shrunk for the page (JPEG, quality below)
-DEPTH_THUMBNAIL_QUALITY = 75
+DEPTH_THUMBNAIL_WIDTH = 320  # px: a run's depth.png shrunk for the page (JPEG, quality below: about 17 kB)
+DEPTH_THUMBNAIL_QUALITY = 70
 TRACEBACK_LINES = 25  # a failed run's traceback: its last lines
 
 

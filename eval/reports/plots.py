@@ -517,7 +517,7 @@ def _legend_with_missing(fig: Figure, ax: Axes, missing: Mapping[str, str]) -> N
 def save_sequence_figure(path: str | Path, title: str, gt_positions: np.ndarray, tracks: Mapping[str, np.ndarray],
                          times: np.ndarray, bands: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
                          runs: Mapping[str, int], missing: Mapping[str, str], labels: Mapping[str, str] | None = None,
-                         plane: str = "xy", dpi: int = 130) -> Path:
+                         plane: str = "xy", dpi: int = 110) -> Path:
     """One sequence, every method: the top view of the trajectories aligned to the ground truth
     (:func:`plot_methods_top`) beside the ATE over time with a band across seeds (:func:`plot_ate_bands`); methods
     without a trajectory listed in the legend as ``n/a`` with the reason (``missing``)."""
@@ -535,7 +535,7 @@ def save_sequence_figure(path: str | Path, title: str, gt_positions: np.ndarray,
 def save_relative_error_figure(path: str | Path, title: str, distances: Sequence[str],
                                translation: Mapping[str, Sequence[np.ndarray]],
                                rotation: Mapping[str, Sequence[np.ndarray]], missing: Mapping[str, str],
-                               dpi: int = 130) -> Path:
+                               dpi: int = 110) -> Path:
     """One sequence, every method: the relative translation error [m] and rotation error [deg] at each distance as
     boxplots (:func:`plot_relative_error_boxes`), as rpg_trajectory_evaluation draws them; methods without a
     trajectory listed in the legend as ``n/a`` with the reason."""
