@@ -481,7 +481,7 @@ def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], 
     md.write_text(markdown)
     title = next((line[2:].strip() for line in text[0].splitlines() if line.startswith("# ")), name) if text else name
     page = write_html_report(run, results_dir, name, title, run_command(text), markdown, blocks, frame, tracks,
-                             paper=paper, machines=_plain(machines_sentence(run)),
+                             paper=paper, machines=_plain(machines_sentence(run)).removeprefix("Machines: "),
                              camera=_plain(camera_sentence(run.suite)), figure_format=figure_format)  # fmt: skip
     figures = [f for f in (figure, resources.path if resources else None, *(f.path for f in sequences)) if f]
     return [md, page, *artifacts, write_long_csv(run, results_dir, base), stats, *figures]
