@@ -37,6 +37,7 @@ from cnnslam.config import CnnSlamConfig
 from cnnslam.depth_prediction import GroundTruthHint
 from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam
+from slamcommon.resources import peak_rss_mib  # the one reading of peak memory (also the judge's)
 
 # ------------------------------------------------------------------------------------------- the machine-speed unit
 # A fixed workload timed in the same process as the figures, so that fps from machines of other speeds, or under
@@ -258,15 +259,6 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         "tracking_frames_per_unit": n / max(sec["tracking"], 1e-9) * unit_1,
         "whole_system_frames_per_unit": n / wall_2 * unit_2,
     }
-
-
-def peak_rss_mib() -> float:
-    """This process's peak resident memory so far, MiB (``getrusage``; Linux reports KiB, macOS bytes)."""
-    import resource
-    import sys
-
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
 
 
 def numba_cache_counts() -> dict[str, int]:

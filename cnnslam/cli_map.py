@@ -84,7 +84,6 @@ def _open_env(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cnnslam.bench_slam import peak_rss_mib
     from cnnslam.config import CnnSlamConfig
     from cnnslam.global_model import GlobalModelConfig
     from cnnslam.map_replay import corrected_trajectory, fuse_keyframes, map_scores
@@ -92,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from cnnslam.model_render import render_map_views, save_map_figure
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
+    from slamcommon.resources import peak_rss_mib
     from slamcommon.strict_json import json_ready
 
     out = Path(args.out or os.path.join("runs", "map", args.sequence))

@@ -59,6 +59,7 @@ from eval.bench.suites import (
 )
 from eval.errors import InputError, SuiteError
 from eval.metrics.results import coverage
+from eval.reports.style import FIGURE_FORMATS
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import ProjectError
 
@@ -99,7 +100,8 @@ class BenchOptions:
     (``(dotted key, value)`` into the chosen methods' configurations, or ``KEY=VALUE`` texts). Runs: ``executor``,
     ``renderer``, ``frame_cache``, ``check`` (build and step each method once before the suite), ``rerun``,
     ``report_only``, ``plots``, ``progress``, ``out`` (run folders). Results: ``results`` (None: ``results/`` for
-    the suite as defined, else ``<out>/reports/<suite>-<digest>/``), ``command`` (the line the reports quote).
+    the suite as defined, else ``<out>/reports/<suite>-<digest>/``), ``command`` (the line the reports quote),
+    ``figure_format`` (the report's figures: png, pdf or svg; :data:`eval.reports.style.FIGURE_FORMATS`).
     Gate: ``gate`` (:class:`~eval.bench.regress.GateAction`), ``baseline`` (None: the suite's). ``allow_skips``: a
     skipped method, external folder or listed sequence does not make the exit status 1."""
 
@@ -125,6 +127,7 @@ class BenchOptions:
     out: Path = Path("runs")
     results: Path | None = None
     command: str | None = None
+    figure_format: str = "png"
     gate: GateAction = GateAction.COMPARE
     baseline: Path | None = None
     allow_skips: bool = False
@@ -203,10 +206,11 @@ class Part:
 class KindSpec:
     """How a kind of suite is run and reported: ``parts`` (the suite and the options -> its parts), ``report`` (the
     parts with their runs, the folder, the command -> the files written) and ``as_defined`` (whether the options
-    leave the kind's own variants as defined: otherwise the report is a variant's, never the committed one)."""
+    leave the kind's own variants as defined: otherwise the report is a variant's, never the committed one); the
+    report's last argument is the figure format."""
 
     parts: Callable[[Suite, BenchOptions], list[Part]]
-    report: Callable[[list[tuple[Part, SuiteRun]], Path, str], list[Path]]
+    report: Callable[[list[tuple[Part, SuiteRun]], Path, str, str], list[Path]]
     as_defined: Callable[[BenchOptions], bool] = lambda options: True
 
 
@@ -231,10 +235,10 @@ def _plain_parts(suite: Suite, options: BenchOptions) -> list[Part]:
     return [Part(suite.name, suite)] if suite.sequences else []
 
 
-def _plain_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+def _plain_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str, fmt: str) -> list[Path]:
     from eval.reports.suite_reports import write_report
 
-    return write_report(parts[0][1], folder, command)
+    return write_report(parts[0][1], folder, command, fmt)
 
 
 def _transfer_parts(suite: Suite, options: BenchOptions) -> list[Part]:
@@ -243,10 +247,10 @@ def _transfer_parts(suite: Suite, options: BenchOptions) -> list[Part]:
     return [Part(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite, p) for p in planned if p.suite.sequences]
 
 
-def _transfer_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+def _transfer_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str, fmt: str) -> list[Path]:
     from eval.reports.transfer_report import report_transfer
 
-    return report_transfer([(part.detail, run) for part, run in parts], folder, command)
+    return report_transfer([(part.detail, run) for part, run in parts], folder, command, fmt)
 
 
 def _length_parts(suite: Suite, options: BenchOptions) -> list[Part]:
@@ -254,20 +258,20 @@ def _length_parts(suite: Suite, options: BenchOptions) -> list[Part]:
     return [Part(f"{'whole' if n is None else n} frames", s, n) for n, s in length_parts(suite, lengths)]
 
 
-def _length_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+def _length_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str, fmt: str) -> list[Path]:
     from eval.reports.lengths_report import report_lengths
 
-    return report_lengths([(part.detail, run) for part, run in parts], folder, command)
+    return report_lengths([(part.detail, run) for part, run in parts], folder, command, fmt)
 
 
 def _preprocessing_parts(suite: Suite, options: BenchOptions) -> list[Part]:
     return [Part(choice, s, domains) for choice, s, domains in preprocessing_parts(suite) if s.sequences]
 
 
-def _preprocessing_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str) -> list[Path]:
+def _preprocessing_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str, fmt: str) -> list[Path]:
     from eval.reports.sensitivity_report import report_preprocessing
 
-    return report_preprocessing([(part.label, run, part.detail) for part, run in parts], folder, command)
+    return report_preprocessing([(part.label, run, part.detail) for part, run in parts], folder, command, fmt)
 
 
 # the one table of what each kind of suite is made of and how it is reported (PERF runs probes, no parts)
@@ -353,6 +357,8 @@ def _check_options(suite: Suite, options: BenchOptions) -> None:
         raise SuiteError(f"--timeout must be a number of seconds > 0, got {timeout}")
     if options.executor.kind not in EXECUTORS:
         raise SuiteError(f"unknown executor {options.executor.kind!r}; valid executors: {', '.join(EXECUTORS)}")
+    if options.figure_format not in FIGURE_FORMATS:
+        raise SuiteError(f"unknown figure format {options.figure_format!r}; valid formats: {', '.join(FIGURE_FORMATS)}")
     if options.gate is GateAction.CALIBRATE and not options.executor.is_default:
         raise SuiteError("--calibrate runs its matrix's own local pools (2 runs at a time, then 1 with 2 threads; "
                          "eval/bench/calibrate.py): --executor, --jobs and --reuse-workers do not apply")
@@ -445,7 +451,7 @@ def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
     notes = []
     reports: list[Path] = []
     if done:
-        reports = KINDS[plan.suite.kind].report(done, plan.results_dir, plan.command)
+        reports = KINDS[plan.suite.kind].report(done, plan.results_dir, plan.command, options.figure_format)
     else:
         notes.append(f"suite {plan.suite.name} has no sequence to run here ({len(plan.suite.skipped)} skipped; the "
                      f"dataset list is {dataset_list_file()})")  # fmt: skip
@@ -532,7 +538,7 @@ def _calibrate(plan: BenchPlan, options: BenchOptions) -> BenchOutcome:
     reports: list[Path] = []
     if done.baseline is not None:
         reference = [(p, r) for p, r in parts if p.label == MATRIX[0].name]
-        reports = KINDS[SuiteKind.RUNS].report(reference, plan.results_dir, plan.command)
+        reports = KINDS[SuiteKind.RUNS].report(reference, plan.results_dir, plan.command, options.figure_format)
     gate = GateOutcome(GateAction.CALIBRATE, done.baseline_path, done.baseline is not None,
                        "; ".join([done.summary, *(f"left out of the calibration: {w}" for w in done.left_out)]))
     notes = [f"report from the {MATRIX[0].name} configuration's runs", *done.failed]

@@ -52,6 +52,19 @@ METRIC_GROUPS: dict[str, tuple[str, ...]] = {
     "map": ("map_",),
 }
 ALWAYS_KEPT: tuple[str, ...] = ("frames",)
+# what a method without a group does not give, as the reports say it ("n/a: no trajectory of its own")
+GROUP_ABSENT: dict[str, str] = {
+    "trajectory": "no trajectory of its own",
+    "depth": "no key-frame depth",
+    "semantic": "no semantic labels",
+    "map": "no global model",
+}
+
+
+def metric_group(metric: str) -> str | None:
+    """The metric group (:data:`METRIC_GROUPS`) a flat metric name belongs to; None for one of no group
+    (``frames``, a resource figure)."""
+    return next((g for g, prefixes in METRIC_GROUPS.items() if any(metric.startswith(p) for p in prefixes)), None)
 # wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
 TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps", "map_scoring_s")
 

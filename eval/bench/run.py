@@ -12,10 +12,15 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 - ``metrics.json``: the run record (:mod:`eval.metrics.results`) with the method's metric groups only, and ``metadata``
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
-- ``timing.json``: wall time of the run, per-frame step times, frames per second, and ``environment``, the machine
-  and package versions it ran on (:mod:`eval.bench.environment`; never compared by the gate);
+- ``timing.json``: what the run used (:data:`eval.metrics.results.RESOURCE_FIGURES`: wall time, frames per second
+  end to end and of the agent's step, peak resident memory of the run's process), per-frame
+  step times, and ``environment``, the machine and package versions it ran on (:mod:`eval.bench.environment`; never
+  compared by the gate; :func:`eval.metrics.results.load_run` reads them into the record's ``resources``);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
+- ``trajectory_aligned_se3.tum`` and, for a monocular method, ``trajectory_aligned_sim3.tum``: the estimate aligned
+  onto the ground truth (``evo_ape -a`` / ``-as``; :mod:`eval.metrics.aligned`), ready for ``evo_traj`` and
+  ``evo_ape`` without an alignment flag;
 - ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
   the ground truth's size where it differed, as scored), ``uncertainty`` (K, H, W) when every key-frame has one;
 - ``trajectory.png`` (top view, axes over time, ATE over time) and ``depth.png`` (up to 3 key-frames' error maps),
@@ -31,6 +36,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import tempfile
 import time
 import traceback
@@ -44,11 +50,14 @@ from eval.bench.environment import machine_description
 from eval.bench.methods import RUN_SIDE_FILE, TIMING_METRICS, Method
 from eval.bench.sequence_ref import SequenceRef
 from eval.errors import RunnerError
+from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
 from eval.metrics.association import associate
 from eval.metrics.map_metrics import map_metrics
-from eval.metrics.results import evaluate_episode, json_ready
+from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
+from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from slamcommon.resources import peak_rss_mib
 
 RUN_FILES: tuple[str, ...] = (
     "metrics.json",
@@ -56,6 +65,7 @@ RUN_FILES: tuple[str, ...] = (
     "agent_extras.json",
     "trajectory.tum",
     "groundtruth.tum",
+    *ALIGNED_FILES.values(),
     "keyframes.npz",
     "trajectory.png",
     "depth.png",
@@ -218,13 +228,43 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         write_json(folder / "agent_extras.json", episode.extras)
         _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
         _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")
+        scored = run_trajectory_metrics(episode.timestamps, episode.T_world_cam_gt, episode.T_world_cam_est,
+                                        spec.alignment)  # fmt: skip
+        for name, text in aligned_files(scored, aligned_alignments(method.sensor), run_title(spec)).items():
+            (folder / name).write_text(text)
         depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
         if spec.plots:
-            _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
+            _write_plots(folder, spec, episode, scored, depth_est if has_depth else [], depth_gt)
         timing["wall_s"] = time.perf_counter() - start
+        timing.update(resource_figures(n_frames, timing["wall_s"]))
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
-        write_json(folder / "timing.json", timing)
+        write_json(folder / TIMING_FILE, timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def resource_figures(frames: int, wall_s: float) -> dict[str, float]:
+    """What this process used for a run of ``frames`` frames that took ``wall_s`` seconds: ``frames``,
+    ``fps_end_to_end`` and the peak resident memory so far (MiB) of this process, ``peak_rss_mib`` (a fresh worker
+    per run by default; with reused workers or the serial executor, that process's peak so far)."""
+    return {
+        "frames": float(frames),
+        "fps_end_to_end": frames / wall_s if wall_s > 0 else math.nan,
+        "peak_rss_mib": peak_rss_mib(),
+    }
+
+
+def run_title(spec: RunSpec) -> str:
+    """How a run's figures and files name it: method, sequence and seed."""
+    return f"{spec.method.name} on {spec.sequence.name} (seed {spec.seed})"
+
+
+def run_trajectory_metrics(timestamps: np.ndarray, T_gt: np.ndarray, T_est: np.ndarray,
+                           alignment: str) -> TrajectoryMetrics:
+    """A run's trajectory scored as its record scores it: poses paired by index (the driver's, or an external
+    trajectory already associated), aligned with the run's ``alignment``."""
+    stamps = np.asarray(timestamps)
+    return evaluate_trajectory(PoseTrajectory(stamps, T_gt), PoseTrajectory(stamps, T_est), alignment=alignment,
+                               association="index")  # fmt: skip
 
 
 def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None, Any]:
@@ -380,22 +420,16 @@ def _write_keyframes(path: Path, episode: Any) -> tuple[list[np.ndarray], list[n
     return depth_est, depth_gt
 
 
-def _write_plots(folder: Path, spec: RunSpec, episode: Any, depth_est: list, depth_gt: list) -> None:
-    from eval.metrics.trajectory_metrics import evaluate_trajectory
+def _write_plots(folder: Path, spec: RunSpec, episode: Any, scored: TrajectoryMetrics, depth_est: list,
+                 depth_gt: list) -> None:
     from eval.reports.plots import save_depth_error_figure, save_trajectory_figure
+    from eval.reports.style import method_style
 
-    title = f"{spec.method.name} on {spec.sequence.name} (seed {spec.seed})"
-    if "trajectory" in spec.method.metrics and len(episode.timestamps) >= 2:
-        stamps = np.asarray(episode.timestamps)
-        m = evaluate_trajectory(
-            PoseTrajectory(stamps, episode.T_world_cam_gt),
-            PoseTrajectory(stamps, episode.T_world_cam_est),
-            alignment=spec.alignment,
-            association="index",
-        )
-        save_trajectory_figure(
-            folder / "trajectory.png", m.gt.timestamps, m.gt.positions, m.est_aligned.positions, m.ate_errors, title
-        )
+    title = run_title(spec)
+    if "trajectory" in spec.method.metrics:
+        save_trajectory_figure(folder / "trajectory.png", scored.gt.timestamps, scored.gt.positions,
+                               scored.est_aligned.positions, scored.ate_errors, title,
+                               style=method_style(spec.method.name))  # fmt: skip
     if depth_est:
         picks = sorted({0, len(depth_est) // 2, len(depth_est) - 1})[:DEPTH_PLOT_KEYFRAMES]
         stamps = [float(t) for t in (kf.timestamp for kf in episode.keyframes)]

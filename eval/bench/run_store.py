@@ -1,6 +1,7 @@
 """The run folders of a benchmark: where a run's artifacts live (``OUT/<suite>/<sequence>/<method>/seed<S>-frames<N>/``,
-:mod:`eval.bench.run`), whether a run is finished (same fingerprint), and storing a run's files atomically (a temporary
-folder renamed into place; what a killed process left behind is cleaned up by :func:`remove_stale_temporaries`)."""
+:mod:`eval.bench.run`), whether a run is finished (same fingerprint), storing a run's files atomically (a temporary
+folder renamed into place; what a killed process left behind is cleaned up by :func:`remove_stale_temporaries`), and
+bringing a folder an earlier judge wrote up to the current one (:func:`complete_run`)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ import uuid
 from collections.abc import Sequence
 from pathlib import Path
 
-from eval.bench.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, write_json
-from eval.errors import RunnerError
-from eval.metrics.results import ResultsError, load_run
+from eval.bench.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, run_title, run_trajectory_metrics, write_json
+from eval.errors import EvalError, RunnerError
+from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
+from eval.metrics.results import ResultsError, RunRecord, load_run
+from eval.metrics.trajectory import PoseTrajectory
 
 
 # ------------------------------------------------------------------------------------------------ the folders
@@ -74,6 +77,34 @@ def store_result(out_root: str | Path, result: RunResult) -> Path:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return final
+
+
+def complete_run(folder: str | Path, spec: RunSpec, record: RunRecord) -> RunRecord:
+    """A finished run whose folder an earlier judge wrote, brought up to this one without running it again: the
+    aligned trajectories it lacks (:mod:`eval.metrics.aligned`) are written into the folder (each atomically), and
+    the trajectory figures its record lacks (the relative error at several distances) are computed from its
+    ``trajectory.tum`` and ``groundtruth.tum`` with the run's alignment and added to the returned record (its
+    ``metrics.json`` is left as it is). A folder without both files is returned as it is."""
+    folder = Path(folder)
+    wanted = aligned_alignments(spec.method.sensor)
+    missing_files = [a for a in wanted if not (folder / ALIGNED_FILES[a]).is_file()]
+    needs_metrics = spec.method.keeps("rpe_dist_m_p10") and "rpe_dist_m_p10" not in record.metrics
+    gt_path, est_path = folder / "groundtruth.tum", folder / "trajectory.tum"
+    if not (missing_files or needs_metrics) or not (gt_path.is_file() and est_path.is_file()):
+        return record
+    try:
+        gt, est = PoseTrajectory.from_tum_file(gt_path), PoseTrajectory.from_tum_file(est_path)
+        scored = run_trajectory_metrics(gt.timestamps, gt.T_world_cam, est.T_world_cam, spec.alignment)
+    except EvalError:
+        return record  # nothing to align (too few poses): the record says why the run has no trajectory figures
+    for name, text in aligned_files(scored, missing_files, run_title(spec)).items():
+        tmp = folder / f".{name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        tmp.write_text(text)
+        os.replace(tmp, folder / name)
+    if needs_metrics:
+        added = {k: v for k, v in scored.flat_metrics().items() if k not in record.metrics and spec.method.keeps(k)}
+        record = record.replace(metrics={**record.metrics, **added})
+    return record
 
 
 def remove_stale_temporaries(folders: Sequence[Path]) -> int:

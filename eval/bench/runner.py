@@ -19,7 +19,7 @@ from tqdm import tqdm
 from eval.bench.executors import Executor, SerialExecutor
 from eval.bench.methods import Method, check_methods
 from eval.bench.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
-from eval.bench.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.bench.run_store import complete_run, is_finished, remove_stale_temporaries, run_folder, store_result
 from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
 from eval.metrics.results import RunRecord, json_ready, load_run
@@ -129,7 +129,8 @@ def run_suite(
     ``rerun``: run every run again, finished or not. ``report_only``: run nothing; take every run folder that holds
     a ``metrics.json``, whatever code made it (each record names its git revision), and report the others failed
     "not_run" (neither failed nor in the tables; the reports list them): for rewriting tables after a change of the
-    report code, without rerunning. Ctrl-C
+    report code, without rerunning. A finished run an earlier judge wrote gets what it lacks of this one's files and
+    trajectory figures (:func:`eval.bench.run_store.complete_run`: aligned trajectories, relative errors). Ctrl-C
     (KeyboardInterrupt) stops the executor and propagates;
     the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence and read
     back by the suite's other runs, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes).
@@ -178,7 +179,8 @@ def run_suite(
         outcome = outcomes[spec.key]
         if outcome.status in ("failed", "not_run"):
             continue
-        records.append(load_run(outcome.folder / DONE_FILE).replace(run=spec.key))
+        record = load_run(outcome.folder / DONE_FILE).replace(run=spec.key)
+        records.append(complete_run(outcome.folder, spec, record) if outcome.status == "cached" else record)
         timing_path = outcome.folder / "timing.json"
         timings[spec.key] = json.loads(timing_path.read_text()) if timing_path.is_file() else {}
     ordered = {s.key: outcomes[s.key] for s in specs}

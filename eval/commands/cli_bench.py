@@ -32,6 +32,7 @@ from eval.bench.methods import ALIGNMENTS, EXTERNAL_LAYOUT, method_table
 from eval.bench.regress import GateAction
 from eval.bench.suites import SUITES
 from eval.errors import InputError
+from eval.reports.style import DEFAULT_FIGURE_FORMAT, FIGURE_FORMATS
 
 
 def _frames(text: str) -> int | str:
@@ -96,6 +97,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "<out>/reports/<suite>-<selection>/; a selection of other sequences or methods never writes into results/)")
     add("--align", choices=ALIGNMENTS, help="alignment of the headline ATE (default: the suite's, se3 as in the "
         "paper; a method's own align wins); every run records ate_se3_rmse and ate_sim3_rmse")
+    add("--figure-format", choices=FIGURE_FORMATS, default=DEFAULT_FIGURE_FORMAT, help="the report's figures: png "
+        "(default), pdf (with a PNG twin for the Markdown and HTML) or svg")
     add("--no-plots", action="store_true", help="no per-run plots (faster)")
     add("--no-progress", action="store_true", help="no progress bars")
     add("--allow-skips", action="store_true", help="exit 0 even when a requested method or folder was skipped")
@@ -143,6 +146,7 @@ def options_of(args: argparse.Namespace) -> BenchOptions:
         settings=tuple(args.set), executor=executor, renderer=args.renderer, frame_cache=not args.no_frame_cache,
         check=not args.no_check, rerun=args.rerun, report_only=args.report_only, plots=not args.no_plots,
         progress=not args.no_progress, out=args.out, results=args.results, command=_command(args),
+        figure_format=args.figure_format,
         gate=_gate_action(args), baseline=args.baseline, allow_skips=args.allow_skips,
     )  # fmt: skip
 
@@ -190,6 +194,9 @@ def summary(outcome: BenchOutcome) -> int:
               else sys.stderr)  # fmt: skip
     if outcome.reports:
         print("wrote " + ", ".join(str(p) for p in outcome.reports))
+        pages = [str(p) for p in outcome.reports if p.suffix == ".html"]
+        if pages:
+            print("report (opens in a browser): " + ", ".join(pages))
     if outcome.gate is not None:
         print(outcome.gate.message)
     if outcome.skipped and outcome.exit_status and not outcome.failed:

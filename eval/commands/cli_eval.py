@@ -4,7 +4,9 @@ Prints the association and alignment used, the ATE statistics (metres) after the
 (SE(3)) and scale-aligned (Sim(3)) ATE RMSE, the rotation error after that alignment and after orientation-only
 alignment (degrees), the RPE and the Sim(3) scale. Repeated timestamps in a TUM file (the official fr2/desk ground
 truth has one) keep the last pose, as the TUM tools and evo do, with one warning line on stderr
-(``--duplicates error|first`` for other policies).
+(``--duplicates error|first`` for other policies). ``--save-aligned FILE`` writes the estimate after the alignment
+as a TUM file (the associated poses at the estimate's timestamps, in the ground truth's frame:
+:mod:`eval.metrics.aligned`), for ``evo_traj tum FILE --ref GROUNDTRUTH`` and ``evo_ape`` without ``-a``.
 
 ``--json`` prints exactly one JSON object instead, schema ``cnnslam-eval/1``::
 
@@ -43,7 +45,14 @@ if "numpy" not in sys.modules:
 from eval.errors import EvalError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.metrics.trajectory import PoseTrajectory
-from eval.metrics.trajectory_metrics import ErrorStatistics, RpeUnit, TrajectoryMetrics, evaluate_trajectory
+from eval.metrics.trajectory_metrics import (
+    RELATIVE_TOLERANCE,
+    ErrorStatistics,
+    RpeUnit,
+    TrajectoryMetrics,
+    error_statistics,
+    evaluate_trajectory,
+)
 from eval.metrics.tum_reader import DUPLICATE_POLICIES
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from slamcommon.errors import MetricError
@@ -92,6 +101,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the text report")
     parser.add_argument("--plot", metavar="FILE", help="save a figure (trajectories, x/y/z, ATE over time) to FILE")
+    parser.add_argument("--save-aligned", metavar="FILE", help="write the estimate after --align (the associated "
+                        "poses, in the ground truth's frame) as a TUM file, e.g. for evo_traj")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -129,6 +140,12 @@ def run(args: argparse.Namespace) -> int:
             metrics.ate_errors,
             title=f"{args.estimate}: ATE RMSE {metrics.ate.rmse:.4f} m ({metrics.alignment.used})",
         )
+    if args.save_aligned:
+        from pathlib import Path
+
+        from eval.metrics.aligned import aligned_tum_text
+
+        Path(args.save_aligned).write_text(aligned_tum_text(metrics, args.align, f"estimate: {args.estimate}"))
     if args.json:
         out = {"schema": EVAL_SCHEMA, "files": {"groundtruth": args.groundtruth, "estimate": args.estimate}}
         out.update(metrics.to_dict())
@@ -137,6 +154,8 @@ def run(args: argparse.Namespace) -> int:
         print(format_report(metrics, args.groundtruth, args.estimate))
         if args.plot:
             print(f"\nfigure: {args.plot}")
+        if args.save_aligned:
+            print(f"aligned estimate: {args.save_aligned}")
     for warning in metrics.warnings:
         _warn(warning)
     return 0
@@ -190,6 +209,12 @@ def format_report(m: TrajectoryMetrics, gt_path: str, est_path: str) -> str:
         *_stats_lines(m.rpe_translation),
         f"RPE over {m.rpe_delta:g} {m.rpe_unit.value}: rotation (deg, alignment-free)",
         *_stats_lines(m.rpe_rotation_deg, 4),
+        "",
+        "relative error at 10-50 % of the ground truth's path (rpg_trajectory_evaluation's distances; pairs within "
+        f"{100 * RELATIVE_TOLERANCE:.0f} % of the distance, after the {fit.used} alignment)",
+        *(f"{r.share:>10} %  {r.distance_m:>7.3g} m  {r.translation.size:>7} pairs  translation RMSE "
+          f"{error_statistics(r.translation).rmse:.6f} m  rotation RMSE {error_statistics(r.rotation_deg).rmse:.4f} deg"
+          for r in m.relative),
         "",
         f"Sim(3) scale {m.scale:.4f} (scale error |1/s - 1| = {m.scale_error:.4f})",
         f"length: ground truth {m.length_gt:.3f} m, aligned estimate {m.length_est:.3f} m",

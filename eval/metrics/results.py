@@ -33,8 +33,13 @@ key-frames), ``depth_density``, ``depth_abs_rel``, ``depth_rmse``, ``depth_delta
 ``semantic_pixel_accuracy``, ``semantic_mean_iou``, ``semantic_iou_<class>``, ``step_ms_{mean,median,max}``,
 ``fps``, ``frames``.
 
-Long form (:func:`runs_frame`): one row per (run, metric) with columns ``sequence, method, metric, value`` plus
-``run`` (the run's index or file), ``agent``, ``uses_ground_truth``, ``alignment``, ``alignment_used``,
+What a run used (:attr:`RunRecord.resources`, :data:`RESOURCE_FIGURES`): wall time, frames per second end to end and
+of the agent's step, peak resident memory. They are measured, not computed: the same run gives other values, so they
+live in the run folder's ``timing.json`` beside ``metrics.json`` (whose bytes the same run always reproduces), and
+:func:`load_run` reads them into the record from there; :meth:`RunRecord.to_json` leaves them out.
+
+Long form (:func:`runs_frame`): one row per (run, metric or resource figure) with columns ``sequence, method, metric,
+value`` plus ``run`` (the run's index or file), ``agent``, ``uses_ground_truth``, ``alignment``, ``alignment_used``,
 ``association`` and one column per metadata key.
 """
 
@@ -69,6 +74,12 @@ from slamcommon.strict_json import json_ready
 
 RUN_SCHEMA = "cnnslam-run/1"
 LONG_COLUMNS = ["sequence", "method", "metric", "value"]
+TIMING_FILE = "timing.json"  # a run folder's measured figures, beside its metrics.json
+# A run's resource figures (RunRecord.resources; the names of timing.json): wall_s (s, the whole run: frames rendered
+# or read, the agent, scoring, plots), fps_end_to_end (frames / wall_s), fps (the agent's step alone: 1 / mean step
+# time), peak_rss_mib (MiB, peak resident memory of the process that ran it; a system run in a process of its own,
+# ORB-SLAM3, is not in it), method_wall_s (s, an external system's own run time)
+RESOURCE_FIGURES: tuple[str, ...] = ("wall_s", "fps_end_to_end", "fps", "peak_rss_mib", "method_wall_s")
 
 
 class ResultsError(EvalError):
@@ -83,7 +94,9 @@ class RunRecord:
     how the trajectory was scored (:mod:`eval.metrics.trajectory_metrics`); ``keyframes``: per key-frame depth rows;
     ``metadata``: the run's settings; ``ground_truth_used`` and ``sensor``: written only when set. ``run``: the run's
     key in its suite (:attr:`eval.bench.run.RunSpec.key`), set when a suite reads the record back; never written to
-    ``metrics.json``. Frozen: derive a changed record with :meth:`replace`.
+    ``metrics.json``. ``resources``: what the run used (:data:`RESOURCE_FIGURES`: wall time, frames per second, peak
+    memory), read from the run's ``timing.json`` by :func:`load_run`; never written to ``metrics.json`` (measured
+    figures differ from run to run; the record's bytes do not). Frozen: derive a changed record with :meth:`replace`.
     """
 
     sequence: str
@@ -100,6 +113,7 @@ class RunRecord:
     ground_truth_used: tuple[str, ...] | None = None
     sensor: str | None = None
     run: str | None = None
+    resources: Mapping[str, float] = field(default_factory=dict)
     schema: str = RUN_SCHEMA
 
     def replace(self, **changes: Any) -> RunRecord:
@@ -166,6 +180,17 @@ class RunRecord:
             run=None if data.get("run") is None else str(data["run"]),
             schema=str(data.get("schema", RUN_SCHEMA)),
         )
+
+
+def resources_of(timing: Mapping[str, Any], frames: float | None = None) -> dict[str, float]:
+    """A run's :data:`RESOURCE_FIGURES` from its ``timing.json`` content (those it has, as floats); a record from
+    before ``fps_end_to_end`` was written gets it as ``frames`` / ``wall_s`` where both are known."""
+    out = {k: float(timing[k]) for k in RESOURCE_FIGURES if isinstance(timing.get(k), int | float)
+           and not isinstance(timing.get(k), bool)}  # fmt: skip
+    wall = out.get("wall_s")
+    if "fps_end_to_end" not in out and frames is not None and wall and math.isfinite(frames) and wall > 0:
+        out["fps_end_to_end"] = float(frames) / wall
+    return out
 
 
 def coverage(metrics: Mapping[str, float]) -> tuple[int, int] | None:
@@ -310,13 +335,22 @@ def save_run(record: RunRecord, path: str | Path) -> Path:
 
 
 def load_run(path: str | Path) -> RunRecord:
-    """Read a run record; null metrics come back as NaN."""
+    """Read a run record; null metrics come back as NaN. A ``metrics.json`` with a ``timing.json`` beside it (a run
+    folder) gets its :attr:`RunRecord.resources` from there (:func:`resources_of`)."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ResultsError(f"{path}: not a readable JSON run record: {exc}") from exc
-    return RunRecord.from_json(data, str(path))
+    record = RunRecord.from_json(data, str(path))
+    timing_path = path.with_name(TIMING_FILE)
+    if path.name != TIMING_FILE and timing_path.is_file():
+        try:
+            timing = json.loads(timing_path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ResultsError(f"{timing_path}: not readable JSON: {exc}") from exc
+        record = record.replace(resources=resources_of(timing, record.metrics.get("frames")))
+    return record
 
 
 # ------------------------------------------------------------------------------------------------------- tables
@@ -337,7 +371,7 @@ def runs_frame(records: Iterable[RunRecord], run_ids: Iterable[str] | None = Non
             "association": rec.association.get("rule"),
         }
         meta = {k: v for k, v in rec.metadata.items() if isinstance(v, str | int | float | bool)}
-        for metric, value in rec.metrics.items():
+        for metric, value in {**rec.metrics, **rec.resources}.items():
             rows.append({**base, **meta, "metric": metric, "value": math.nan if value is None else float(value)})
     if not rows:  # no run scored (all failed): the same columns, a numeric value column
         return pd.DataFrame({c: pd.Series(dtype=float if c == "value" else object) for c in [*LONG_COLUMNS, "run"]})

@@ -24,6 +24,14 @@ k = 0..M-1, ground truth Q_k, aligned estimate P_k); flat names as in :meth:`Tra
   pairs whose target lies past the end are dropped (the TUM script also drops every pair ending on the last pose).
   All pairs are used (the TUM script samples 10000 at random). No world-frame alignment changes the RPE: the
   rotational part is alignment-free, the translational part sees only the alignment's scale (sim3).
+- relative error at several distances (rpg_trajectory_evaluation's boxplots, Zhang and Scaramuzza IROS 2018;
+  ``evo_rpe --delta D --delta_unit m --all_pairs --pairs_from_reference``): the RPE above over pairs (i, j) whose
+  ground-truth path distance is D, for D = 10, 20, 30, 40 and 50 % of the ground truth's path length
+  (:data:`RELATIVE_PATH_SHARES`, rounded to two significant digits: ``rpe_dist_m_p<share>``); for every i, j > i is
+  the pose whose distance along the path from i is nearest to D (the first such), kept when it is within
+  :data:`RELATIVE_TOLERANCE` x D of it (rpg's 20 %); ``rpe_trans_rmse_p<share>`` (m) and ``rpe_rot_deg_rmse_p<share>``
+  (deg) over those pairs, after the run's alignment as the RPE (a monocular estimate aligned with SE(3) pays for
+  its scale here too); NaN when no pair qualifies (a path too short or a tolerance too tight).
 - scale ``scale``: the Sim(3) scale s of the ``ate_sim3`` fit (Umeyama whenever defined, as evo's; along the line of
   motion for a straight line; NaN when not observable), whatever the run's alignment. The estimate's size relative
   to the truth is 1/s, so ``scale_error`` = |1/s - 1| (0.1 = the estimate is 10 % too large or too small).
@@ -58,6 +66,11 @@ from slamcommon.alignment import (
 )
 
 MIN_POSE_PAIRS = 2  # a trajectory to align and score: one pose always aligns onto its ground truth (ATE 0)
+# relative error at several distances: these percentages of the ground truth's path length (rpg_trajectory_evaluation's
+# preset_boxplot_percentages), a pair kept when its path distance is within RELATIVE_TOLERANCE x the distance (rpg's
+# max_dist_diff = 0.2 x the distance; evo_rpe's --delta_tol)
+RELATIVE_PATH_SHARES: tuple[int, ...] = (10, 20, 30, 40, 50)
+RELATIVE_TOLERANCE = 0.2
 
 
 class RpeUnit(StrEnum):
@@ -168,6 +181,67 @@ def relative_pose_errors(
     return np.linalg.norm(tp - tq, axis=1), np.degrees(so3_angle(np.swapaxes(R_q, 1, 2) @ R_p))
 
 
+def path_distance_pairs(distances: np.ndarray, delta: float, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (i, j) a path distance ``delta`` apart (evo's ``filter_pairs_by_path`` with ``all_pairs``): for every
+    i, j > i is the index whose ``distances[j] - distances[i]`` is nearest to ``delta`` (the first of equals), kept
+    when it differs from ``delta`` by at most ``tolerance``. ``distances`` (M,): non-decreasing distance travelled
+    (:func:`eval.metrics.trajectory.distances_along_path`), metres; ``delta``, ``tolerance`` metres."""
+    d = np.asarray(distances, dtype=np.float64).reshape(-1)
+    if not (delta > 0 and np.isfinite(delta)):
+        raise EvalError(f"a relative-error distance must be a positive number of metres, got {delta!r}")
+    if d.size < 2:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    i = np.arange(d.size - 1)
+    target = d[:-1] + delta
+    right = np.clip(np.searchsorted(d, target, side="left"), i + 1, d.size - 1)  # first j with d[j] >= target
+    left = np.searchsorted(d, d[right - 1], side="left")  # the first index holding the value just below the target
+    has_left = right - 1 >= i + 1
+    left = np.where(has_left, np.maximum(left, i + 1), right)
+    start = d[:-1]  # the misses as evo computes them, (d[j] - d[i]) - delta, so that the same pairs pass
+    miss_left, miss_right = np.abs((d[left] - start) - delta), np.abs((d[right] - start) - delta)
+    j = np.where(miss_left <= miss_right, left, right)
+    keep = np.minimum(miss_left, miss_right) <= tolerance
+    return i[keep], j[keep]
+
+
+def relative_distance(length_m: float, share: int) -> float:
+    """``share`` percent of a path ``length_m`` metres long, rounded to two significant digits (metres; 0 for no
+    path)."""
+    value = length_m * share / 100.0
+    return float(f"{value:.2g}") if value > 0 and np.isfinite(value) else 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class RelativeErrors:
+    """The relative error at one distance: ``share`` (percent of the ground truth's path length), ``distance_m``
+    (metres), and per pair ``translation`` (K,) metres and ``rotation_deg`` (K,) degrees (K = 0: no pair)."""
+
+    share: int
+    distance_m: float
+    translation: np.ndarray
+    rotation_deg: np.ndarray
+
+
+def relative_errors(gt: PoseTrajectory, est: PoseTrajectory, shares: tuple[int, ...] = RELATIVE_PATH_SHARES,
+                    tolerance: float = RELATIVE_TOLERANCE) -> tuple[RelativeErrors, ...]:
+    """The relative error (module docstring) of ``est`` against ``gt`` (associated: pair k = k; ``est`` aligned as
+    it is to be scored) at ``shares`` percent of ``gt``'s path length, pairs measured along ``gt``'s path and kept
+    within ``tolerance`` x the distance."""
+    if len(gt) != len(est):
+        raise EvalError(f"associated trajectories must have the same length, got {len(gt)} and {len(est)}")
+    distances = distances_along_path(gt.positions)
+    out = []
+    for share in shares:
+        delta = relative_distance(float(distances[-1]) if distances.size else 0.0, share)
+        if delta > 0:
+            i, j = path_distance_pairs(distances, delta, tolerance * delta)
+            trans, rot = relative_pose_errors(gt.T_world_cam, est.T_world_cam, i, j)
+        else:
+            trans, rot = np.zeros(0), np.zeros(0)
+        out.append(RelativeErrors(int(share), delta, trans, rot))
+    return tuple(out)
+
+
 def rotation_angle_ratio(
     gt: PoseTrajectory, est: PoseTrajectory, delta_s: float = 0.5, min_angle_deg: float = 2.0
 ) -> tuple[float, int]:
@@ -221,7 +295,7 @@ class TrajectoryMetrics:
     ``alignment``: the run's alignment (ATE, rotation error, RPE, length); ``se3_alignment``, ``sim3_alignment``:
     the SE(3) and Sim(3) Umeyama fits behind ``ate_se3_rmse`` and ``ate_sim3_rmse`` (the same object as
     ``alignment`` when that is one of them); ``orientation_rotation``: R_o (3, 3) of the orientation-only alignment.
-    ``gt`` and ``est_aligned``: the associated ground truth and the aligned estimate (M poses each);
+    ``gt``, ``est`` and ``est_aligned``: the associated ground truth, estimate and aligned estimate (M poses each);
     ``ate_errors``: (M,) metres; ``rotation_errors``: (M,) degrees.
     """
 
@@ -248,6 +322,20 @@ class TrajectoryMetrics:
     ate_sim3_rmse: float  # metres
     orientation_rotation: np.ndarray  # (3, 3)
     rotation_orient_deg: ErrorStatistics  # degrees, after the orientation-only alignment
+    relative: tuple[RelativeErrors, ...] = ()  # the relative error at several distances (module docstring)
+    est: PoseTrajectory | None = None  # the associated estimate before any alignment
+
+    def aligned(self, alignment: str | AlignmentMethod) -> PoseTrajectory:
+        """The associated estimate after ``alignment``: ``se3`` or ``sim3`` (the fits behind ``ate_se3_rmse`` and
+        ``ate_sim3_rmse``), or the run's own (:attr:`alignment`'s requested method)."""
+        method = AlignmentMethod(str(alignment))
+        if method == self.alignment.requested:
+            return self.est_aligned
+        fits = {AlignmentMethod.SE3: self.se3_alignment, AlignmentMethod.SIM3: self.sim3_alignment}
+        if method not in fits or self.est is None:
+            raise EvalError(f"no {method.value} fit kept for this trajectory; the kept ones: se3, sim3 and the run's "
+                            f"own ({self.alignment.requested.value})")  # fmt: skip
+        return PoseTrajectory(self.est.timestamps, fits[method].apply(self.est.T_world_cam))
 
     @property
     def degenerate(self) -> bool:
@@ -319,6 +407,10 @@ class TrajectoryMetrics:
                 "length_est_m": self.length_est,
             }
         )
+        for rel in self.relative:
+            m[f"rpe_dist_m_p{rel.share}"] = rel.distance_m
+            m[f"rpe_trans_rmse_p{rel.share}"] = error_statistics(rel.translation).rmse
+            m[f"rpe_rot_deg_rmse_p{rel.share}"] = error_statistics(rel.rotation_deg).rmse
         if self.tracked_share is not None:
             m["tracked_share"] = self.tracked_share
         return {prefix + k: v for k, v in m.items()}
@@ -397,4 +489,6 @@ def evaluate_trajectory(
         ate_sim3_rmse=ate_rmse[AlignmentMethod.SIM3],
         orientation_rotation=R_o,
         rotation_orient_deg=error_statistics(orient_e),
+        relative=relative_errors(gt_m, est_aligned),
+        est=est_m,
     )

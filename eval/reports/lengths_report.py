@@ -6,7 +6,8 @@
   the runs of each length;
 - ``lengths.csv``: length, metric, method, score, sequences, runs, rank;
 - ``lengths_agreement.csv``: the agreement table;
-- ``lengths.png``: per metric, each method's rank at every length (a bump chart).
+- ``lengths.png``: per metric, each method's rank at every length (a bump chart; the report's figure format);
+- ``lengths.html``: the Markdown rendered as one self-contained page, tables sortable, figure inline.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from eval.bench.runner import SuiteRun
+from eval.reports.html_report import markdown_page
 from eval.reports.lengths import (
     DECISIVE_METRICS,
     WHOLE,
@@ -29,7 +31,8 @@ from eval.reports.lengths import (
     shortest_agreeing_length,
 )
 from eval.reports.plots import save_transfer_figure
-from eval.reports.suite_reports import long_frame, status_markdown
+from eval.reports.style import DEFAULT_FIGURE_FORMAT
+from eval.reports.suite_reports import long_frame, markdown_image, status_markdown
 from eval.reports.transfer import TRANSFER_METRICS
 from eval.reports.transfer_report import fmt_score, ranks_markdown
 
@@ -45,7 +48,8 @@ def _label(metric: str) -> str:
     return {m.name: m.label for m in TRANSFER_METRICS}.get(metric, metric)
 
 
-def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: str | Path, command: str) -> list[Path]:
+def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: str | Path, command: str,
+                   figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """Write the length sweep's report (module docstring) into ``results_dir``; returns the files written."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
@@ -61,8 +65,8 @@ def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: st
     ranks.to_csv(csv, index=False, float_format="%.6g")
     agreement_csv = results_dir / "lengths_agreement.csv"
     agreement.to_csv(agreement_csv, index=False, float_format="%.6g")
-    figure = save_transfer_figure(ranks.rename(columns={"length": "domain"}), results_dir / "lengths.png", lengths,
-                                  TRANSFER_METRICS) if not ranks.empty else None  # fmt: skip
+    figure = save_transfer_figure(ranks.rename(columns={"length": "domain"}), results_dir / f"lengths.{figure_format}",
+                                  lengths, TRANSFER_METRICS) if not ranks.empty else None  # fmt: skip
     decisive = " and ".join(_label(m) for m in DECISIVE_METRICS)
     if WHOLE not in lengths:
         verdict = "No whole-sequence runs: there is no reference ranking to compare the lengths with."
@@ -90,13 +94,14 @@ def report_lengths(parts: Sequence[tuple[int | None, SuiteRun]], results_dir: st
         *_settling_markdown(settling, lengths),
         "\n## Scores and ranks per metric: score (rank)\n",
         ranks_markdown(ranks.rename(columns={"length": "domain"}), lengths) if not ranks.empty else "",
-        *([f"![ranks per length]({figure.name})\n"] if figure is not None else []),
+        *([markdown_image(figure, "ranks per length", results_dir)] if figure is not None else []),
         *[f"## Runs at {length_label(n)} {'frames' if n is not None else 'sequences'}\n"
           + status_markdown(run).removeprefix("## Runs\n") for n, run in parts],  # fmt: skip
     ]
     md = results_dir / "lengths.md"
     md.write_text("\n".join(text))
-    return [md, csv, agreement_csv, *([figure] if figure is not None else [])]
+    page = markdown_page("\n".join(text[1:]), results_dir, "lengths", text[0].strip("# \n"))
+    return [md, page, csv, agreement_csv, *([figure] if figure is not None else [])]
 
 
 def _settling_markdown(settling: pd.DataFrame, lengths: Sequence[str]) -> list[str]:

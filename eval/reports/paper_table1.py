@@ -88,3 +88,40 @@ def paper_table1_frame(method_suffix: str = "") -> pd.DataFrame:
                         }
                     )
     return pd.DataFrame(rows)
+
+
+# our Table-1 analogues -> the paper's sequences they stand for
+PAPER_NAMES: dict[str, str] = dict(
+    zip(("office0", "office1", "office2", "living0", "living1", "living2", "tum_long_office",
+         "tum_nostructure_near", "tum_structure_far"), PAPER_SEQUENCES, strict=True)
+)  # fmt: skip
+
+
+def paper_name(label: object, default: str) -> str:
+    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through and however its room is
+    lit (``office0@kinect`` and ``office0+lit@kinect`` are ICL/office0); ``default`` for a sequence of ours only."""
+    return PAPER_NAMES.get(str(label).split("@")[0].split("+")[0], default)
+
+
+def paper_value(label: object, method: str, metric: str, all_sequences: bool = False) -> float:
+    """The paper's Table-1 value beside ours: ``metric`` (``ate_rmse`` or ``depth_percent_correct``) of ``method`` on
+    the paper's sequence our row ``label`` stands for (:func:`paper_name`), or its printed Avg. for the row ``Avg.``
+    when ``all_sequences`` (ours averages all nine of its sequences: an average over fewer is another figure); NaN
+    where the paper has none."""
+    if metric not in ("ate_rmse", "depth_percent_correct"):
+        return math.nan
+    if str(label) == "Avg.":
+        if not all_sequences:
+            return math.nan
+        return (PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH).get(method, math.nan)
+    name = paper_name(label, "")
+    values = (PAPER_ATE if metric == "ate_rmse" else PAPER_CORRECT_DEPTH).get(method)
+    if not name or values is None:
+        return math.nan
+    return float(values[PAPER_SEQUENCES.index(name)])
+
+
+def covers_paper_sequences(labels: object) -> bool:
+    """Whether the rows ``labels`` hold an analogue of every one of the paper's nine sequences."""
+    return {paper_name(label, "") for label in labels} >= set(PAPER_SEQUENCES)  # type: ignore[union-attr]
+

@@ -8,26 +8,39 @@ Plot functions draw into axes the caller passes in and return them; the ``save_*
 - :func:`plot_error_over_time`: a per-pose error (ATE) over time;
 - :func:`plot_depth_error_map`: a key-frame's depth error like the paper's Fig. 3/4: blue where the estimate is
   within 10 % of the ground truth (correct), red shades for wrong estimates (darker = larger error, saturating at
-  50 %), grey where the ground truth is valid but there is no estimate, black where there is no ground truth.
+  50 %), grey where the ground truth is valid but there is no estimate, black where there is no ground truth;
+- for a paper, over every method of a suite: :func:`plot_methods_top` (every method's trajectory aligned to the
+  ground truth in one top view), :func:`plot_ate_bands` (ATE over time, the median over seeds and a band from their
+  min to their max), :func:`plot_relative_error_boxes` (relative error at several distances as boxplots, as
+  rpg_trajectory_evaluation draws them), :func:`plot_method_strip` (a figure per method, e.g. speed and memory).
+
+Every method is drawn in its own colour and marker (:func:`eval.reports.style.method_style`, the same in every
+figure); a method without a value in a panel is named there as ``n/a`` with the reason; every axis states its unit.
+A figure is written in the format its file name says (``.png``, ``.pdf``, ``.svg``; :func:`save_figure`): a PDF
+comes with a PNG twin (same name, ``.png``) for the Markdown and the HTML report, which cannot show a PDF inline;
+PDF and SVG files carry no creation date, so the same figure gives the same bytes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from matplotlib import colormaps
+from matplotlib import colormaps, rc_context
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from eval.errors import EvalError
+from eval.reports.style import GROUND_TRUTH_STYLE, MethodStyle, method_style
 from slamcommon.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
 
-GT_STYLE = {"color": "0.25", "linestyle": "--", "linewidth": 1.2, "label": "ground truth"}
+GT_STYLE = {"color": GROUND_TRUTH_STYLE.color, "linestyle": GROUND_TRUTH_STYLE.linestyle, "linewidth": 1.2,
+            "label": "ground truth"}
 EST_STYLE = {"color": "tab:blue", "linewidth": 1.2, "label": "estimate"}
 CORRECT_RGB = (0.12, 0.35, 0.95)
 MISSING_RGB = (0.55, 0.55, 0.55)
@@ -35,14 +48,17 @@ NO_GT_RGB = (0.0, 0.0, 0.0)
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-def plot_trajectory_top(ax: Axes, gt_positions: np.ndarray, est_positions: np.ndarray, plane: str = "xy") -> Axes:
-    """Both trajectories projected on ``plane`` (two of x, y, z, e.g. "xy" or "xz"), equal axis scale, metres."""
+def plot_trajectory_top(ax: Axes, gt_positions: np.ndarray, est_positions: np.ndarray, plane: str = "xy",
+                        style: MethodStyle | None = None) -> Axes:
+    """Both trajectories projected on ``plane`` (two of x, y, z, e.g. "xy" or "xz"), equal axis scale, metres;
+    ``style``: the estimate's method's look (default: a plain blue)."""
     a, b = (_AXES[c] for c in plane)
     gt, est = np.asarray(gt_positions), np.asarray(est_positions)
+    est_style = EST_STYLE if style is None else {**EST_STYLE, "color": style.color}
     ax.plot(gt[:, a], gt[:, b], **GT_STYLE)
-    ax.plot(est[:, a], est[:, b], **EST_STYLE)
-    ax.plot(gt[:1, a], gt[:1, b], "o", color="0.25", markersize=4)
-    ax.plot(est[:1, a], est[:1, b], "o", color="tab:blue", markersize=4)
+    ax.plot(est[:, a], est[:, b], **est_style)
+    ax.plot(gt[:1, a], gt[:1, b], "o", color=GT_STYLE["color"], markersize=4)
+    ax.plot(est[:1, a], est[:1, b], "o", color=est_style["color"], markersize=4)
     ax.set_xlabel(f"{plane[0]} [m]")
     ax.set_ylabel(f"{plane[1]} [m]")
     ax.set_aspect("equal", adjustable="datalim")
@@ -52,13 +68,16 @@ def plot_trajectory_top(ax: Axes, gt_positions: np.ndarray, est_positions: np.nd
 
 
 def plot_trajectory_axes(
-    axes: Sequence[Axes], timestamps: np.ndarray, gt_positions: np.ndarray, est_positions: np.ndarray
+    axes: Sequence[Axes], timestamps: np.ndarray, gt_positions: np.ndarray, est_positions: np.ndarray,
+    style: MethodStyle | None = None,
 ) -> Sequence[Axes]:
-    """x, y and z [m] over time [s] (relative to the first timestamp), one axis each (3 axes)."""
+    """x, y and z [m] over time [s] (relative to the first timestamp), one axis each (3 axes); ``style``: the
+    estimate's method's look."""
     t = np.asarray(timestamps) - float(timestamps[0])
+    est_style = EST_STYLE if style is None else {**EST_STYLE, "color": style.color}
     for k, ax in enumerate(axes[:3]):
         ax.plot(t, np.asarray(gt_positions)[:, k], **GT_STYLE)
-        ax.plot(t, np.asarray(est_positions)[:, k], **EST_STYLE)
+        ax.plot(t, np.asarray(est_positions)[:, k], **est_style)
         ax.set_ylabel(f"{'xyz'[k]} [m]")
     axes[2].set_xlabel("time [s]")
     axes[0].legend(loc="best", fontsize="small")
@@ -145,14 +164,16 @@ def save_trajectory_figure(
     plane: str = "xy",
     dpi: int = 120,
     labels: tuple[str, str] | None = None,
+    style: MethodStyle | None = None,
 ) -> Path:
     """Top view, x/y/z over time and (if given) the ATE per pose over time, in one figure written to ``path``.
-    ``labels``: legend names of the two trajectories instead of "ground truth" and "estimate"."""
+    ``labels``: legend names of the two trajectories instead of "ground truth" and "estimate"; ``style``: the
+    estimate's method's look (:func:`eval.reports.style.method_style`)."""
     fig = Figure(figsize=(12, 6.5), layout="constrained")
     grid = fig.add_gridspec(4, 2)
-    top = plot_trajectory_top(fig.add_subplot(grid[:3, 0]), gt_positions, est_positions, plane)
+    top = plot_trajectory_top(fig.add_subplot(grid[:3, 0]), gt_positions, est_positions, plane, style)
     axes = [fig.add_subplot(grid[k, 1]) for k in range(3)]
-    plot_trajectory_axes(axes, timestamps, gt_positions, est_positions)
+    plot_trajectory_axes(axes, timestamps, gt_positions, est_positions, style)
     if labels is not None:
         for ax in (top, axes[0]):
             for line, label in zip(ax.lines[:2], labels, strict=True):
@@ -232,10 +253,11 @@ def save_sweep_figure(
         for row, (metric, label) in enumerate((("ate_rmse", "ATE RMSE [m]"),
                                                ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
             ax = grid[2 * band + row, col]
-            for k, method in enumerate(methods):  # one colour per method in every panel
+            for method in methods:  # each method's own colour and marker (eval.reports.style)
                 line = sub[sub["method"] == method].groupby("x")[metric].mean().sort_index()
                 if line.notna().any():
-                    ax.plot(line.index, line.to_numpy(), marker="o", label=method, color=f"C{k % 10}")
+                    look = method_style(method)
+                    ax.plot(line.index, line.to_numpy(), marker=look.marker, label=method, color=look.color)
             ax.set_xlabel(axes_titles[axis])
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
@@ -260,61 +282,89 @@ def save_sweep_figure(
 def save_accuracy_scatter(
     points: pd.DataFrame, path: str | Path, methods: Sequence[str], ate_target: float | None = None, dpi: int = 110
 ) -> Path:
-    """ATE / path length (%) against key-frame correct depth (%), one point per run, one colour per method, and a
-    dashed line at ``ate_target``. ``points``: columns sequence, method, ate_percent_length, depth_percent_correct."""
-    fig = Figure(figsize=(6.4, 4.6), layout="constrained")
+    """ATE / path length (%) against key-frame correct depth (%), one point per run in its method's colour and
+    marker, each labelled with its sequence (the name up to any ``@camera``), and a dashed line at ``ate_target``.
+    ``points``: columns sequence, method, ate_percent_length, depth_percent_correct."""
+    fig = Figure(figsize=(7.2, 5.2), layout="constrained")
     ax = fig.subplots()
-    for k, method in enumerate(methods):
+    for method in methods:
         sub = points[points["method"] == method].dropna(subset=["ate_percent_length", "depth_percent_correct"])
-        if not sub.empty:
-            ax.scatter(sub["depth_percent_correct"], sub["ate_percent_length"], color=f"C{k % 10}", label=method)
+        if sub.empty:
+            continue
+        look = method_style(method)
+        ax.scatter(sub["depth_percent_correct"], sub["ate_percent_length"], color=look.color, marker=look.marker,
+                   label=method, zorder=3)  # fmt: skip
+        for row in sub.itertuples():
+            ax.annotate(str(row.sequence).split("@")[0], (row.depth_percent_correct, row.ate_percent_length),
+                        xytext=(4, 3), textcoords="offset points", fontsize=6, color=look.color)  # fmt: skip
     if ate_target is not None:
         ax.axhline(ate_target, color="0.4", linestyle="--", linewidth=1, label=f"target {ate_target:g} %")
     ax.set_xlabel("key-frame correct depth [%]")
     ax.set_ylabel("ATE / path length [%]")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
+    fig.legend(fontsize="small", loc="outside right upper")
     return _save(fig, path, dpi)
 
 
-def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequence[str],
-                    sequences: Sequence[str]) -> Axes:
-    """Every run's ``metric`` as a dot, one column group per method and a colour per sequence, with each cell's
-    median as a short black bar: the spread over runs that a table's single number hides. ``frame``: the long frame
-    (``sequence, method, metric, value``)."""
+def draw_not_available(ax: Axes, x: float, reason: str) -> None:
+    """Write ``n/a`` and its ``reason`` upright in the column at ``x`` of ``ax`` (data x, axes-fraction y): a method
+    with no value in a panel says why instead of leaving a blank."""
+    ax.text(x, 0.5, f"n/a: {reason}", transform=ax.get_xaxis_transform(), rotation=90, ha="center", va="center",
+            fontsize=7, color="0.35", wrap=True)  # fmt: skip
+
+
+def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequence[str], sequences: Sequence[str],
+                    missing: Mapping[str, str] | None = None) -> Axes:
+    """Every run's ``metric`` as a dot, one column group per method (its name in its colour) and a colour per
+    sequence, with each cell's median as a short black bar: the spread over runs that a table's single number
+    hides. ``frame``: the long frame (``sequence, method, metric, value``); ``missing``: method -> why it has no
+    value (written in its column as ``n/a``)."""
     sub = frame[frame["metric"] == metric]
     cmap = colormaps["tab10"]
     width = 0.8 / max(len(sequences), 1)
+    labelled: set[str] = set()
     for i, method in enumerate(methods):
+        drawn = False
         for j, seq in enumerate(sequences):
             values = sub[(sub["method"] == method) & (sub["sequence"] == seq)]["value"].dropna().to_numpy()
             if not values.size:
                 continue
+            drawn = True
             x = i - 0.4 + (j + 0.5) * width
             jitter = np.linspace(-0.25, 0.25, values.size) * width if values.size > 1 else np.zeros(1)
-            ax.scatter(x + jitter, values, s=10, color=cmap(j % 10), label=seq if i == 0 else None, zorder=3)
+            ax.scatter(x + jitter, values, s=10, color=cmap(j % 10), label=None if seq in labelled else seq,
+                       zorder=3)  # fmt: skip
+            labelled.add(seq)
             ax.hlines(np.median(values), x - 0.4 * width, x + 0.4 * width, color="k", linewidth=1.2, zorder=4)
+        if not drawn:
+            draw_not_available(ax, i, (missing or {}).get(method, "no value"))
     ax.set_xticks(range(len(methods)), list(methods), rotation=30, ha="right")
+    for tick, method in zip(ax.get_xticklabels(), methods, strict=True):
+        tick.set_color(method_style(method).color)
+    ax.set_xlim(-0.6, len(methods) - 0.4)
     ax.set_ylabel(metric)
     ax.grid(axis="y", alpha=0.3)
     return ax
 
 
 def save_runs_figure(frame: pd.DataFrame, path: str | Path, methods: Sequence[str], sequences: Sequence[str],
-                     metrics: Sequence[tuple[str, str]], title: str = "", dpi: int = 110) -> Path | None:
-    """One :func:`plot_runs_strip` panel per ``(metric, label)`` with a value; None when no panel has one."""
+                     metrics: Sequence[tuple[str, str]], title: str = "", dpi: int = 110,
+                     missing: Mapping[str, Mapping[str, str]] | None = None) -> Path | None:
+    """One :func:`plot_runs_strip` panel per ``(metric, label)`` with a value; None when no panel has one.
+    ``missing``: metric -> method -> why the method has no value (its column says ``n/a`` and why)."""
     shown = [(m, label) for m, label in metrics if (frame["metric"] == m).any()]
     if not shown:
         return None
-    fig = Figure(figsize=(max(6.0, 0.9 * len(methods) + 2), 3.2 * len(shown)))
+    fig = Figure(figsize=(max(6.0, 0.9 * len(methods) + 2), 3.2 * len(shown) + 0.8), layout="constrained")
     axes = fig.subplots(len(shown), 1, squeeze=False)[:, 0]
     for ax, (metric, label) in zip(axes, shown, strict=True):
-        plot_runs_strip(ax, frame, metric, methods, sequences)
+        plot_runs_strip(ax, frame, metric, methods, sequences, (missing or {}).get(metric))
         ax.set_ylabel(label)
-    axes[0].legend(fontsize=6, ncol=min(len(sequences), 5), loc="upper left", bbox_to_anchor=(0, 1.25))
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, fontsize=6, ncols=min(len(labels), 5), loc="outside lower center")
     if title:
-        fig.suptitle(title, fontsize=9, y=1.0)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=9)
     return _save(fig, path, dpi)
 
 
@@ -326,16 +376,18 @@ def save_transfer_figure(ranks: pd.DataFrame, path: str | Path, domains: Sequenc
     shown = [m for m in metrics if (ranks["metric"] == m.name).any()]
     if not shown or not domains:
         return None
-    fig = Figure(figsize=(max(4.0, 1.6 * len(domains) + 2.5) * min(len(shown), 2) / 1.4, 3.4 * ((len(shown) + 1) // 2)))
+    fig = Figure(figsize=(max(4.0, 1.6 * len(domains) + 2.5) * min(len(shown), 2) / 1.4,
+                          3.4 * ((len(shown) + 1) // 2) + 0.8), layout="constrained")  # fmt: skip
     axes = fig.subplots((len(shown) + 1) // 2, min(len(shown), 2), squeeze=False).ravel()
-    cmap = colormaps["tab10"]
     methods = sorted(ranks["method"].unique())
     for ax, metric in zip(axes, shown, strict=False):
         sub = ranks[ranks["metric"] == metric.name]
-        for i, method in enumerate(methods):
+        for method in methods:
             row = sub[sub["method"] == method].set_index("domain")["rank"].reindex(domains)
             if row.notna().any():
-                ax.plot(range(len(domains)), row.to_numpy(), "o-", color=cmap(i % 10), label=method)
+                look = method_style(method)
+                ax.plot(range(len(domains)), row.to_numpy(), linestyle="-", marker=look.marker, color=look.color,
+                        label=method)  # fmt: skip
         ax.set_xticks(range(len(domains)), list(domains), rotation=20, ha="right", fontsize=7)
         n = int(sub["rank"].max()) if len(sub) else 1
         ax.set_ylim(n + 0.5, 0.5)
@@ -345,12 +397,168 @@ def save_transfer_figure(ranks: pd.DataFrame, path: str | Path, domains: Sequenc
         ax.grid(alpha=0.3)
     for ax in axes[len(shown):]:
         ax.set_visible(False)
-    handles = {}  # every method of any panel (REMODE has depth only), once
+    handles = {}  # every method of any panel (REMODE has depth only), once, below the panels: it covers no data
     for ax in axes[: len(shown)]:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(label, handle)
-    axes[0].legend(list(handles.values()), list(handles), fontsize=6, loc="lower left")
-    fig.tight_layout()
+    fig.legend(list(handles.values()), list(handles), fontsize=7, loc="outside lower center",
+               ncols=min(len(handles), 6))  # fmt: skip
+    return _save(fig, path, dpi)
+
+
+# ----------------------------------------------------------------------------------------- every method at once
+def plot_methods_top(ax: Axes, gt_positions: np.ndarray, tracks: Mapping[str, np.ndarray], plane: str = "xy",
+                     labels: Mapping[str, str] | None = None) -> Axes:
+    """The ground truth and every method's trajectory (``tracks``: method -> (M, 3) positions, aligned to the ground
+    truth, metres) projected on ``plane``, each in its method's colour, a marker at its start; equal axis scale.
+    ``labels``: legend text per method (default: its name)."""
+    a, b = (_AXES[c] for c in plane)
+    gt = np.asarray(gt_positions)
+    ax.plot(gt[:, a], gt[:, b], **GT_STYLE)
+    for method, positions in tracks.items():
+        p, look = np.asarray(positions), method_style(method)
+        ax.plot(p[:, a], p[:, b], color=look.color, linestyle=look.linestyle, linewidth=1.0,
+                label=(labels or {}).get(method, method))  # fmt: skip
+        ax.plot(p[:1, a], p[:1, b], linestyle="none", marker=look.marker, color=look.color, markersize=5)
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    return ax
+
+
+def plot_ate_bands(ax: Axes, times: np.ndarray, bands: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                   runs: Mapping[str, int] | None = None) -> Axes:
+    """ATE over time per method: ``bands``: method -> (median, min, max) over its runs (seeds) at ``times`` (s from
+    the sequence's start; NaN where a run has no pose), metres. The median is a line in the method's colour, the
+    runs' range a band around it; ``runs``: how many runs each band spans (in the legend)."""
+    t = np.asarray(times, dtype=np.float64)
+    for method, (median, lo, hi) in bands.items():
+        look = method_style(method)
+        n = (runs or {}).get(method)
+        ax.plot(t, median, color=look.color, linestyle=look.linestyle, linewidth=1.0,
+                label=method + (f" ({n} runs)" if n and n > 1 else ""))  # fmt: skip
+        if n is None or n > 1:
+            ax.fill_between(t, lo, hi, color=look.color, alpha=0.2, linewidth=0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("ATE [m]")
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    return ax
+
+
+def plot_relative_error_boxes(ax: Axes, distances: Sequence[str], errors: Mapping[str, Sequence[np.ndarray]],
+                              ylabel: str) -> Axes:
+    """Relative error at several distances as grouped boxplots (rpg_trajectory_evaluation's figure): one group per
+    distance (``distances``: the tick labels, e.g. ``1.3 m``), one box per method in its colour, over the pairs of
+    all its runs (``errors``: method -> one array per distance; an empty array draws no box). Whiskers at 1.5 IQR,
+    no outlier markers (thousands of pairs); ``ylabel`` states the unit."""
+    methods = [m for m, per in errors.items() if any(np.asarray(e).size for e in per)]
+    width = 0.8 / max(len(methods), 1)
+    for k, method in enumerate(methods):
+        look = method_style(method)
+        data = [np.asarray(e, dtype=np.float64) for e in errors[method]]
+        where = [i for i, e in enumerate(data) if e.size]
+        positions = [i - 0.4 + (k + 0.5) * width for i in where]
+        boxes = ax.boxplot([data[i] for i in where], positions=positions, widths=0.85 * width, patch_artist=True,
+                           showfliers=False, manage_ticks=False)  # fmt: skip
+        for box in boxes["boxes"]:
+            box.set(facecolor=look.color, alpha=0.55, edgecolor=look.color)
+        for part in ("whiskers", "caps"):
+            for line in boxes[part]:
+                line.set(color=look.color)
+        for line in boxes["medians"]:
+            line.set(color="black", linewidth=1.0)
+        ax.plot([], [], linestyle="none", marker="s", color=look.color, label=method)  # its legend entry
+    ax.set_xticks(range(len(distances)), list(distances))
+    ax.set_xlim(-0.6, len(distances) - 0.4)
+    ax.set_xlabel("distance travelled [m]")
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(bottom=0)
+    ax.grid(axis="y", alpha=0.3)
+    return ax
+
+
+def plot_method_strip(ax: Axes, values: Mapping[str, np.ndarray], methods: Sequence[str], ylabel: str,
+                      missing: Mapping[str, str] | None = None) -> Axes:
+    """One column per method (``methods`` in order): each run's value (``values``: method -> (K,)) a dot in the
+    method's colour and marker, the median a black bar; a method without a value says ``n/a`` and why (``missing``).
+    ``ylabel`` states the unit."""
+    for i, method in enumerate(methods):
+        v = np.asarray(values.get(method, []), dtype=np.float64)
+        v = v[np.isfinite(v)]
+        if not v.size:
+            draw_not_available(ax, i, (missing or {}).get(method, "no value"))
+            continue
+        look = method_style(method)
+        jitter = np.linspace(-0.15, 0.15, v.size) if v.size > 1 else np.zeros(1)
+        ax.scatter(i + jitter, v, s=14, color=look.color, marker=look.marker, zorder=3)
+        ax.hlines(np.median(v), i - 0.25, i + 0.25, color="k", linewidth=1.2, zorder=4)
+    ax.set_xticks(range(len(methods)), list(methods), rotation=30, ha="right")
+    for tick, method in zip(ax.get_xticklabels(), methods, strict=True):
+        tick.set_color(method_style(method).color)
+    ax.set_xlim(-0.6, len(methods) - 0.4)
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(bottom=0)
+    ax.grid(axis="y", alpha=0.3)
+    return ax
+
+
+def _legend_with_missing(fig: Figure, ax: Axes, missing: Mapping[str, str]) -> None:
+    """The figure's legend (right of the panels, covering no data): ``ax``'s entries, then one ``n/a`` entry per
+    method without a value, with the reason (``missing``: method -> why)."""
+    handles, names = ax.get_legend_handles_labels()
+    for method, why in missing.items():
+        handles.append(Line2D([], [], linestyle="none", marker=method_style(method).marker, color="0.6"))
+        names.append(f"{method}: n/a ({why})")
+    fig.legend(handles, names, loc="outside right upper", fontsize="small")
+
+
+def save_sequence_figure(path: str | Path, title: str, gt_positions: np.ndarray, tracks: Mapping[str, np.ndarray],
+                         times: np.ndarray, bands: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+                         runs: Mapping[str, int], missing: Mapping[str, str], labels: Mapping[str, str] | None = None,
+                         plane: str = "xy", dpi: int = 110) -> Path:
+    """One sequence, every method: the top view of the trajectories aligned to the ground truth
+    (:func:`plot_methods_top`) beside the ATE over time with a band across seeds (:func:`plot_ate_bands`); methods
+    without a trajectory listed in the legend as ``n/a`` with the reason (``missing``)."""
+    fig = Figure(figsize=(11.0, 4.6), layout="constrained")
+    top, ate = fig.subplots(1, 2, width_ratios=(1.0, 1.3))
+    plot_methods_top(top, gt_positions, tracks, plane, labels)
+    top.set_title("trajectories aligned to the ground truth (top view)", fontsize="small")
+    plot_ate_bands(ate, times, bands, runs)
+    ate.set_title("ATE over time: median over runs, band from min to max", fontsize="small")
+    _legend_with_missing(fig, top, missing)
+    fig.suptitle(title, fontsize="medium")
+    return _save(fig, path, dpi)
+
+
+def save_relative_error_figure(path: str | Path, title: str, distances: Sequence[str],
+                               translation: Mapping[str, Sequence[np.ndarray]],
+                               rotation: Mapping[str, Sequence[np.ndarray]], missing: Mapping[str, str],
+                               dpi: int = 110) -> Path:
+    """One sequence, every method: the relative translation error [m] and rotation error [deg] at each distance as
+    boxplots (:func:`plot_relative_error_boxes`), as rpg_trajectory_evaluation draws them; methods without a
+    trajectory listed in the legend as ``n/a`` with the reason."""
+    fig = Figure(figsize=(11.0, 4.2), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    plot_relative_error_boxes(left, distances, translation, "relative translation error [m]")
+    plot_relative_error_boxes(right, distances, rotation, "relative rotation error [deg]")
+    _legend_with_missing(fig, left, missing)
+    fig.suptitle(title, fontsize="medium")
+    return _save(fig, path, dpi)
+
+
+def save_resources_figure(path: str | Path, methods: Sequence[str], fps: Mapping[str, np.ndarray],
+                          memory: Mapping[str, np.ndarray], missing: Mapping[str, str], title: str = "",
+                          dpi: int = 110) -> Path:
+    """Speed and memory per method, as VSLAM-LAB plots them: frames per second end to end and peak resident memory
+    (MiB), one dot per run (:func:`plot_method_strip`)."""
+    fig = Figure(figsize=(max(6.0, 0.8 * len(methods) + 3), 3.6), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    plot_method_strip(left, fps, methods, "frames per second, end to end [1/s]", missing)
+    plot_method_strip(right, memory, methods, "peak resident memory [MiB]", missing)
+    if title:
+        fig.suptitle(title, fontsize="medium")
     return _save(fig, path, dpi)
 
 
@@ -365,8 +573,18 @@ def check_figure_path(path: str | Path) -> Path:
     return path
 
 
-def _save(fig: Figure, path: str | Path, dpi: int) -> Path:
+def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
+    """Write ``fig`` in the format of ``path``'s suffix (module docstring: a PDF gets a PNG twin; PDF and SVG carry no
+    creation date); returns ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
+    suffix = path.suffix.lower()
+    metadata = {"CreationDate": None} if suffix == ".pdf" else {"Date": None} if suffix == ".svg" else None
+    with rc_context({"svg.hashsalt": "cnnslam"}):  # an SVG's element ids from a fixed salt, not at random
+        fig.savefig(path, dpi=dpi, metadata=metadata)
+    if suffix == ".pdf":
+        fig.savefig(path.with_suffix(".png"), dpi=dpi)
     return path
+
+
+_save = save_figure

@@ -16,6 +16,7 @@ import pandas as pd
 
 from eval.bench.runner import SuiteRun
 from eval.bench.suites import PREPROCESSING_CHOICES
+from eval.reports.html_report import markdown_page
 from eval.reports.sensitivity import (
     SENSITIVITY_METRICS,
     TRACKED_SHARE_CHANGE,
@@ -24,6 +25,7 @@ from eval.reports.sensitivity import (
     choice_order,
     choice_ranks,
 )
+from eval.reports.style import DEFAULT_FIGURE_FORMAT
 from eval.reports.suite_reports import long_frame, status_markdown
 from eval.reports.transfer_report import fmt_score as _fmt
 
@@ -40,8 +42,11 @@ def preprocessing_frame(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, st
 
 
 def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, str], ...]]],
-                         results_dir: str | Path, command: str) -> list[Path]:
-    """Write the preprocessing report (module docstring) into ``results_dir``; returns the files written."""
+                         results_dir: str | Path, command: str,
+                         figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
+    """Write the preprocessing report (module docstring) into ``results_dir``, and ``preprocessing.html`` (the same,
+    one self-contained page, tables sortable); returns the files written. It draws no figure
+    (``figure_format`` is taken for the same call as the other reports)."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
     ranks = choice_ranks(preprocessing_frame(parts))
@@ -102,4 +107,5 @@ def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, s
              + status_markdown(run).removeprefix("## Runs\n") for choice, run, _ in parts]  # fmt: skip
     md = results_dir / "preprocessing.md"
     md.write_text("\n".join(text))
-    return [md, csv, changes_csv]
+    page = markdown_page("\n".join(text[1:]), results_dir, "preprocessing", text[0].strip("# \n"))
+    return [md, page, csv, changes_csv]

@@ -22,6 +22,7 @@ rate per method (runs that crashed or timed out, and runs that lost track: track
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -34,8 +35,13 @@ from eval.bench.environment import machine_label
 from eval.bench.runner import SuiteRun, suite_records_json
 from eval.bench.suites import SWEEP_AXES
 from eval.metrics.results import RunRecord, runs_frame
-from eval.reports.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH, PAPER_SEQUENCES, paper_table1_frame
+from eval.reports.html_report import write_html_report
+from eval.reports.paper_figures import figures_dir, resources_figure, sequence_figures
+from eval.reports.paper_table1 import PAPER_NAMES, covers_paper_sequences, paper_name, paper_value  # noqa: F401
 from eval.reports.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
+from eval.reports.run_data import missing_reasons, suite_tracks
+from eval.reports.run_tables import relative_error_markdown, resources_markdown
+from eval.reports.style import DEFAULT_FIGURE_FORMAT
 from eval.reports.tables import (
     AVG_LABEL,
     TABLE1_BLOCKS,
@@ -82,18 +88,6 @@ RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = (
 )
 TARGET_ATE_PERCENT_LENGTH = 2.0
 TARGET_SCALE_ERROR_PERCENT = 5.0
-PAPER_NAMES: dict[str, str] = dict(
-    zip(("office0", "office1", "office2", "living0", "living1", "living2", "tum_long_office",
-         "tum_nostructure_near", "tum_structure_far"), PAPER_SEQUENCES, strict=True)
-)  # fmt: skip
-
-
-def paper_name(label: object, default: str) -> str:
-    """The paper's sequence a Table-1 analogue stands for, whatever camera it is seen through and however its room is
-    lit (``office0@kinect`` and ``office0+lit@kinect`` are ICL/office0); ``default`` for a sequence of ours only."""
-    return PAPER_NAMES.get(str(label).split("@")[0].split("+")[0], default)
-
-
 def camera_sentence(suite: Any) -> str:
     """Which simulated camera(s) the suite's simulated sequences are seen through (:mod:`sim_envs.camera_effects`),
     as a sentence for a report's header; empty when it has none."""
@@ -300,12 +294,18 @@ def _suite_table(run: SuiteRun, blocks: Sequence[tuple[str, str]],
     return table1(frame, **shape), spread_of(frame, **shape)
 
 
-def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3,
-                  spread: Spread | None = None) -> list[Path]:
+def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3, spread: Spread | None = None,
+                  blocks: Sequence[tuple[str, str]] = (), run: SuiteRun | None = None) -> list[Path]:
+    """``stem``.csv and ``stem``.tex; the LaTeX with the best value of each row of ``blocks`` in bold among the
+    methods of ``run`` that receive no ground truth (:func:`eval.reports.tables.best_cells`)."""
     stem.parent.mkdir(parents=True, exist_ok=True)
     csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
     csv.write_text(table_to_csv(table))
-    tex.write_text(table_to_latex(table, digits, caption, spread=spread))
+    fed = sorted({r.method for r in run.records if r.uses_ground_truth}) if run is not None else []
+    if blocks:
+        caption = (caption or "") + (" Bold: the best of each row" + (f" (not counting {', '.join(fed)}, which "
+                                                                      "receive ground truth)" if fed else "") + ".")
+    tex.write_text(table_to_latex(table, digits, caption, spread=spread, blocks=blocks, exclude=fed))
     return [csv, tex]
 
 
@@ -316,12 +316,7 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
     ``spread`` (:func:`eval.reports.tables.spread_of`), ours is ``median [min, max]``, with a partial run's coverage.
     The paper's Avg. is quoted only beside an Avg. over all nine of its sequences: an average over fewer is another
     figure."""
-    paper = paper_table1_frame()
-    paper = paper[paper["metric"] == metric]
-    paper_value = {(row.sequence, row.method): row.value for row in paper.itertuples()}
-    covered = {paper_name(label, "") for label in ours.index if label != AVG_LABEL}
-    paper_avg = (PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH) \
-        if covered >= set(PAPER_SEQUENCES) else {}
+    all_nine = covers_paper_sequences(label for label in ours.index if label != AVG_LABEL)
     block = ours[metric_block] if metric_block in ours.columns.get_level_values(0) else pd.DataFrame(index=ours.index)
     header = ["sequence", *block.columns]
     lines = ["| " + " | ".join(header) + " |", "|---|" + "---:|" * len(block.columns)]
@@ -329,10 +324,7 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
         cells = []
         for method, value in row.items():
             text = cell_text(value, label, (metric_block, method), spread, digits)
-            if label == AVG_LABEL:
-                quoted = paper_avg.get(method, math.nan)
-            else:
-                quoted = paper_value.get((paper_name(label, ""), method), math.nan)
+            quoted = paper_value(label, str(method), metric, all_nine)
             if not math.isnan(quoted):
                 text += f" ({quoted:.{digits}f})"
             cells.append(text)
@@ -341,12 +333,14 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
     return "\n".join(lines) + "\n"
 
 
-def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_table1(run: SuiteRun, results_dir: str | Path, command: str,
+                  figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``table1.{md,csv,tex}`` and ``table1_long.csv``."""
     results_dir = Path(results_dir)
     table, spread = _suite_table(run, TABLE1_BLOCKS)
     sim3, sim3_spread = _suite_table(run, SIM3_BLOCK)
-    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours)", spread=spread)
+    paths = _write_tables(table, results_dir / "table1", "CNN-SLAM Table 1 analogue (ours).", spread=spread,
+                          blocks=TABLE1_BLOCKS, run=run)  # fmt: skip
     ate_title, ate_metric = TABLE1_BLOCKS[0]
     depth_title, depth_metric = TABLE1_BLOCKS[1]
     text = [
@@ -373,7 +367,8 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str) -> list[
         "## Ours alone (as in table1.csv / table1.tex)\n",
         table_to_markdown(table, spread=spread),
     ]
-    return _write_report(run, results_dir, "table1", text, paths)
+    return _write_report(run, results_dir, "table1", text, paths, blocks=(*TABLE1_BLOCKS, *SIM3_BLOCK, *MAP_BLOCKS),
+                         figure_format=figure_format, paper=True)  # fmt: skip
 
 
 def _map_section(run: SuiteRun) -> list[str]:
@@ -396,11 +391,13 @@ def _map_section(run: SuiteRun) -> list[str]:
 
 
 # --------------------------------------------------------------------------------------------------- rotation
-def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_rotation(run: SuiteRun, results_dir: str | Path, command: str,
+                    figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``rotation.{md,csv,tex}`` and ``rotation_long.csv``."""
     results_dir = Path(results_dir)
     table, spread = _suite_table(run, ROTATION_BLOCKS)
-    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences", spread=spread)
+    paths = _write_tables(table, results_dir / "rotation", "Pure-rotation stress sequences.", spread=spread,
+                          blocks=ROTATION_BLOCKS, run=run)  # fmt: skip
     text = [
         header_markdown(run, "Rotation stress: tracking and depth under pure rotation", command),
         "Sequences `rot_<axes>_<deg/s>`: the camera turns about a fixed optical centre (like TUM fr1/rpy), so a "
@@ -411,16 +408,19 @@ def report_rotation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         "no alignment at all. Correct depth as in Table 1.\n",
         table_to_markdown(table, spread=spread),
     ]
-    return _write_report(run, results_dir, "rotation", text, paths)
+    return _write_report(run, results_dir, "rotation", text, paths, blocks=ROTATION_BLOCKS,
+                         figure_format=figure_format)  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------------- ablation
-def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_ablation(run: SuiteRun, results_dir: str | Path, command: str,
+                    figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``ablation.{md,csv,tex}``, ``ablation.png`` (when there are key-frames) and ``ablation_long.csv``."""
     results_dir = Path(results_dir)
     table, spread = _suite_table(run, TABLE1_BLOCKS)
-    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3)", spread=spread)
-    figure = save_ablation_figure(run, results_dir / "ablation.png")
+    paths = _write_tables(table, results_dir / "ablation", "Ablation of the CNN depth (Fig. 3).", spread=spread,
+                          blocks=TABLE1_BLOCKS, run=run)  # fmt: skip
+    figure = save_ablation_figure(run, results_dir / f"ablation.{figure_format}")
     text = [
         header_markdown(run, "Ablation (the paper's Fig. 3): raw CNN depth, focal-length adjustment, refinement",
                         command),  # fmt: skip
@@ -428,29 +428,74 @@ def report_ablation(run: SuiteRun, results_dir: str | Path, command: str) -> lis
         "(the test camera's focal length differs from the training camera's); `adjusted+refined`: the full system, "
         "the adjusted depth refined by small-baseline stereo (eq. 10-11).\n",
         table_to_markdown(table, spread=spread),
-        f"![one key-frame's depth error per variant]({figure.name})\n" if figure else "",
+        markdown_image(figure, "one key-frame's depth error per variant", results_dir) if figure else "",
     ]
-    return _write_report(run, results_dir, "ablation", text, [*paths, *([figure] if figure else [])])
+    return _write_report(run, results_dir, "ablation", text, [*paths, *([figure] if figure else [])],
+                         blocks=TABLE1_BLOCKS, figure_format=figure_format)  # fmt: skip
 
 
-def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], artifacts: list[Path]) -> list[Path]:
-    """Write ``<name>.md`` (``text``, the runs figure and the runs' status), ``<suite>_long.csv``,
-    ``<suite>_stats.csv`` and ``<suite>_runs.png``; return every file the report made: the Markdown, ``artifacts``
-    (tables, figures), the long and statistics CSVs, the runs figure."""
+def markdown_image(path: Path, caption: str, results_dir: Path) -> str:
+    """A figure in a report's Markdown, its path relative to ``results_dir``; a PDF shows its PNG twin
+    (:func:`eval.reports.plots.save_figure`) and links the PDF."""
+    rel = path.relative_to(results_dir) if path.is_relative_to(results_dir) else path
+    if rel.suffix.lower() == ".pdf":
+        return f"![{caption}]({rel.with_suffix('.png').as_posix()})\n\n(PDF: [{rel.name}]({rel.as_posix()}))\n"
+    return f"![{caption}]({rel.as_posix()})\n"
+
+
+def _write_report(run: SuiteRun, results_dir: Path, name: str, text: list[str], artifacts: list[Path], *,
+                  blocks: Sequence[tuple[str, str]] = TABLE1_BLOCKS, figure_format: str = DEFAULT_FIGURE_FORMAT,
+                  paper: bool = False) -> list[Path]:
+    """Write ``<name>.md`` (``text``, then the runs figure, the speed and memory per method, the relative error at
+    several distances, the per-sequence figures and the runs' status) and ``<name>.html`` (the same, with the main
+    tables of ``blocks`` sortable, each cell opening its runs: :mod:`eval.reports.html_report`; ``paper``: the
+    paper's Table 1 beside ours), ``<suite>_long.csv``, ``<suite>_stats.csv``, ``<suite>_runs.<fmt>``,
+    ``<suite>_resources.<fmt>`` and the per-sequence figures (:mod:`eval.reports.paper_figures`), in
+    ``figure_format``; return every file the report made: the Markdown, the HTML, ``artifacts`` (tables, figures),
+    the long and statistics CSVs, the figures."""
     results_dir.mkdir(parents=True, exist_ok=True)
     base = long_frame(run)
     frame = with_relative_errors(base)
     stats = results_dir / f"{run.suite.name}_stats.csv"
     statistics_frame(frame).to_csv(stats, index=False, float_format="%.6g")
-    methods = [m for m in run.suite.methods if (frame["method"] == m).any()] if not frame.empty else []
+    methods = list(run.suite.methods)  # every method of the suite: one without a value says n/a and why
+    missing = {metric: missing_reasons(run, metric, methods) for metric, _ in RUNS_FIGURE_METRICS}
     figure = None if frame.empty else save_runs_figure(
-        frame, results_dir / f"{run.suite.name}_runs.png", methods, [s.name for s in run.suite.sequences],
-        RUNS_FIGURE_METRICS, title=f"{run.suite.name}: every run (dots) and each cell's median (bars)")
-    shown = [f"![every run of the suite]({figure.name})\n"] if figure is not None else []
+        frame, results_dir / f"{run.suite.name}_runs.{figure_format}", methods, [s.name for s in run.suite.sequences],
+        RUNS_FIGURE_METRICS, title=f"{run.suite.name}: every run (dots) and each cell's median (bars)",
+        missing=missing)  # fmt: skip
+    shown = [markdown_image(figure, "every run of the suite", results_dir)] if figure is not None else []
+    resources = resources_figure(run, results_dir, figure_format)
+    speed = resources_markdown(run)
+    if speed and resources is not None:
+        speed += "\n" + markdown_image(resources.path, resources.caption, results_dir)
+    tracks = suite_tracks(run)
+    sequences = sequence_figures(run, tracks, results_dir, figure_format)
+    per_sequence = (["## Figures per sequence\n", f"Files under `{figures_dir(results_dir, run.suite.name).name}/` "
+                     f"({figure_format}); every method in its own colour and marker in every figure "
+                     "(`eval/reports/style.py`).\n", *(markdown_image(f.path, f.caption, results_dir)
+                                                       for f in sequences)] if sequences else [])  # fmt: skip
+    markdown = "\n".join([*text, *shown, speed, relative_error_markdown(run), *per_sequence, methods_markdown(run),
+                          alignment_markdown(run, frame), status_markdown(run)])  # fmt: skip
     md = results_dir / f"{name}.md"
-    md.write_text("\n".join([*text, *shown, methods_markdown(run), alignment_markdown(run, frame),
-                             status_markdown(run)]))  # fmt: skip
-    return [md, *artifacts, write_long_csv(run, results_dir, base), stats, *([figure] if figure is not None else [])]
+    md.write_text(markdown)
+    title = next((line[2:].strip() for line in text[0].splitlines() if line.startswith("# ")), name) if text else name
+    page = write_html_report(run, results_dir, name, title, run_command(text), markdown, blocks, frame, tracks,
+                             paper=paper, machines=_plain(machines_sentence(run)).removeprefix("Machines: "),
+                             camera=_plain(camera_sentence(run.suite)), figure_format=figure_format)  # fmt: skip
+    figures = [f for f in (figure, resources.path if resources else None, *(f.path for f in sequences)) if f]
+    return [md, page, *artifacts, write_long_csv(run, results_dir, base), stats, *figures]
+
+
+def run_command(text: list[str]) -> str:
+    """The command a report's header quotes (``Made by `...```), empty when it quotes none."""
+    found = re.search(r"Made by `([^`]+)`", text[0]) if text else None
+    return found.group(1) if found else ""
+
+
+def _plain(markdown: str) -> str:
+    """A Markdown sentence as plain text (backticks and bold marks dropped)."""
+    return markdown.replace("`", "").replace("**", "")
 
 
 def _keyframes_of(run: SuiteRun, record: RunRecord) -> dict[str, np.ndarray] | None:
@@ -525,14 +570,15 @@ def sweep_points(run: SuiteRun) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns)
 
 
-def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
+                 figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``sweep.png``, ``sweep.md``, ``sweep.csv`` (one row per point) and ``sweep_long.csv``."""
     results_dir = Path(results_dir)
     points = sweep_points(run)
     csv = results_dir / "sweep.csv"
     csv.parent.mkdir(parents=True, exist_ok=True)
     points.to_csv(csv, index=False, float_format="%.6g")
-    figure = save_sweep_figure(points, results_dir / "sweep.png", list(run.suite.methods), SWEEP_AXES)
+    figure = save_sweep_figure(points, results_dir / f"sweep.{figure_format}", list(run.suite.methods), SWEEP_AXES)
     text = [
         header_markdown(run, "Difficulty sweep: one axis at a time", command),
         "Axes: texture density of the room (share of textured surfaces); share of rotation in the motion (the "
@@ -544,7 +590,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         "motion blur (exposure x half a frame interval, global shutter), auto-exposure (exposure jitter x 1 %), "
         "rolling shutter (readout in frame intervals; kinect 0.05, hard 0.5) and lens distortion (x TUM fr1's, "
         "undistorted and cropped to what the lens saw before the agent sees it).\n",
-        f"![ATE and correct depth against each axis]({figure.name})\n",
+        markdown_image(figure, "ATE and correct depth against each axis", results_dir),
     ]
     for axis, title in SWEEP_AXES.items():
         sub = points[points["axis"] == axis]
@@ -553,7 +599,8 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"],
                                aggfunc="median")
         text.append(f"### {title}\n\n" + _pivot_markdown(wide))
-    return _write_report(run, results_dir, "sweep", text, [csv, figure])
+    return _write_report(run, results_dir, "sweep", text, [csv, figure],
+                         blocks=(*TABLE1_BLOCKS, ("Tracked share", "tracked_share")), figure_format=figure_format)
 
 
 def _pivot_markdown(wide: pd.DataFrame) -> str:
@@ -583,16 +630,17 @@ def target_checks(table: pd.DataFrame, method: str = "CNN-SLAM", reference: str 
     })  # fmt: skip
 
 
-def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str,
+                         figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``depth_quality.{md,csv,tex}``, ``depth_quality.png`` and ``depth_quality_long.csv``."""
     results_dir = Path(results_dir)
     frame = with_relative_errors(long_frame(run))
     table, spread = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
-    paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth",
-                          spread=spread)
+    paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth.",
+                          spread=spread, blocks=DEPTH_QUALITY_BLOCKS, run=run)  # fmt: skip
     points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
               .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
-    figure = save_accuracy_scatter(points, results_dir / "depth_quality.png", list(run.suite.methods),
+    figure = save_accuracy_scatter(points, results_dir / f"depth_quality.{figure_format}", list(run.suite.methods),
                                    TARGET_ATE_PERCENT_LENGTH)  # fmt: skip
     checks = target_checks(table)
     lines = [f"| sequence | ATE / length <= {TARGET_ATE_PERCENT_LENGTH:g} % | scale error <= "
@@ -613,13 +661,15 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str) -
         f"## Targets, CNN-SLAM\n\nMet on {met['ate']} / {met['scale']} / {met['depth']} of {len(checks)} sequences "
         "(ATE / scale / depth).\n",
         "\n".join(lines) + "\n",
-        f"![ATE / length against correct depth]({figure.name})\n",
+        markdown_image(figure, "ATE / length against correct depth, each run labelled with its sequence", results_dir),
     ]
-    return _write_report(run, results_dir, "depth_quality", text, [*paths, figure])
+    return _write_report(run, results_dir, "depth_quality", text, [*paths, figure], blocks=DEPTH_QUALITY_BLOCKS,
+                         figure_format=figure_format)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------------------ quick
-def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_quick(run: SuiteRun, results_dir: str | Path, command: str,
+                 figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``quick.md``, ``quick_runs.json`` (the gate's run file) and ``quick_long.csv``."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
@@ -632,18 +682,22 @@ def report_quick(run: SuiteRun, results_dir: str | Path, command: str) -> list[P
         "`tests/eval/test_quick_regression.py`; after an intended change: `cnnslam bench quick --update-baseline`.\n",
         table_to_markdown(table, spread=spread),
     ]
-    return _write_report(run, results_dir, "quick", text, [runs_json])
+    return _write_report(run, results_dir, "quick", text, [runs_json], blocks=QUICK_BLOCKS,
+                         figure_format=figure_format)  # fmt: skip
 
 
-def report_generic(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
+def report_generic(run: SuiteRun, results_dir: str | Path, command: str,
+                   figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """``<suite>.{md,csv,tex}`` with the Table-1 blocks and tracked share, and ``<suite>_long.csv``; for sequences
     with a second reference in the dataset list, a section scoring every run against it too."""
     results_dir = Path(results_dir)
     table, spread = _suite_table(run, QUICK_BLOCKS)
-    paths = _write_tables(table, results_dir / run.suite.name, f"suite {run.suite.name}", spread=spread)
+    paths = _write_tables(table, results_dir / run.suite.name, f"Suite {run.suite.name}.", spread=spread,
+                          blocks=QUICK_BLOCKS, run=run)  # fmt: skip
     text = [header_markdown(run, f"Suite {run.suite.name}", command), table_to_markdown(table, spread=spread)]
     second = second_reference_markdown(run)
-    return _write_report(run, results_dir, run.suite.name, [*text, *([second] if second else [])], paths)
+    return _write_report(run, results_dir, run.suite.name, [*text, *([second] if second else [])], paths,
+                         blocks=QUICK_BLOCKS, figure_format=figure_format)  # fmt: skip
 
 
 SECOND_REFERENCE_METRICS: tuple[tuple[str, str, float], ...] = (  # (metric, heading, factor)
@@ -741,6 +795,8 @@ REPORTS = {  # a suite's report layout (eval.bench.suites.REPORT_LAYOUTS) -> its
 }
 
 
-def write_report(run: SuiteRun, results_dir: str | Path, command: str) -> list[Path]:
-    """The suite's outputs in ``results_dir`` (see the module docstring); returns the files written."""
-    return REPORTS[run.suite.report](run, results_dir, command)
+def write_report(run: SuiteRun, results_dir: str | Path, command: str,
+                 figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
+    """The suite's outputs in ``results_dir`` (see the module docstring), figures in ``figure_format`` (png, pdf,
+    svg); returns the files written."""
+    return REPORTS[run.suite.report](run, results_dir, command, figure_format)

@@ -10,6 +10,10 @@ mean of the cells where seeds do not line up), shown only for a column with a va
 over a different subset of sequences would not compare). Missing cells are NaN in the numeric table and ``-`` when
 written, like REMODE's ATE in the paper. Written as CSV (numeric medians, two header rows), Markdown and LaTeX
 (``median [min, max]`` per cell where its runs differ), and the statistics in long form (:func:`statistics_frame`).
+LaTeX (and the HTML report) set the best value of each row of a block in bold (:func:`best_cells`: lower or higher
+is better by the metric, :func:`better_direction`), among the methods that receive no ground truth: a method fed
+the true depth or poses (the oracle, LSD-BS, REMODE) is a reference, not a competitor, as VSLAM-LAB's tables bold the
+best of the compared systems.
 
 A run that covers less than its sequence (an external trajectory with frames missing:
 :func:`eval.metrics.results.coverage`) shows it in its cell, ``0.012 (10/60 frames)`` (the cell's least covered
@@ -34,6 +38,13 @@ TABLE1_BLOCKS: tuple[tuple[str, str], ...] = (
 )
 AVG_LABEL = "Avg."
 MISSING = "-"
+# which way is better, by metric name prefix (the first that matches): higher for shares and rates, lower for errors
+HIGHER_IS_BETTER: tuple[str, ...] = ("depth_percent_correct", "depth_density", "depth_delta_1_25", "tracked_share",
+                                     "map_accuracy_within", "map_completeness_within", "map_label_accuracy",
+                                     "semantic_", "fps")  # fmt: skip
+LOWER_IS_BETTER: tuple[str, ...] = ("ate_", "rot_deg_", "rpe_trans_", "rpe_rot_deg_", "scale_error", "depth_abs_rel",
+                                    "depth_rmse", "map_accuracy_median", "map_completeness_median", "wall_s",
+                                    "peak_rss_")  # fmt: skip
 STATISTICS: tuple[str, ...] = ("median", "q1", "q3", "min", "max")
 _QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 
@@ -146,14 +157,49 @@ def table1(
     return table
 
 
+def better_direction(metric: str) -> str | None:
+    """``"higher"`` or ``"lower"``: which values of ``metric`` are better (:data:`HIGHER_IS_BETTER`,
+    :data:`LOWER_IS_BETTER`); None when neither is (a scale, a count, a length)."""
+    if metric.startswith(HIGHER_IS_BETTER):
+        return "higher"
+    if metric.startswith(LOWER_IS_BETTER):
+        return "lower"
+    return None
+
+
+def best_cells(table: pd.DataFrame, blocks: Sequence[tuple[str, str]], digits: int = 3,
+               exclude: Sequence[str] = ()) -> set[tuple[object, tuple[str, str]]]:
+    """(row, (block title, method)) of the best value of each row in each block of ``table`` (a :func:`table1`
+    table; ``blocks``: its (title, metric) pairs) whose metric has a direction (:func:`better_direction`), among the
+    methods not in ``exclude``; values equal at ``digits`` decimals tie (all bold)."""
+    out: set[tuple[object, tuple[str, str]]] = set()
+    titles = set(table.columns.get_level_values(0)) if len(table.columns) else set()
+    for title, metric in blocks:
+        direction = better_direction(metric)
+        if direction is None or title not in titles:
+            continue
+        block = table[title]
+        block = block[[m for m in block.columns if m not in set(exclude)]].round(digits)
+        for row, values in block.iterrows():
+            finite = values.dropna()
+            if finite.empty:
+                continue
+            best = finite.max() if direction == "higher" else finite.min()
+            out.update((row, (title, method)) for method, v in finite.items() if v == best)
+    return out
+
+
 def cell_text(value: float, row: object, method: object, spread: Spread | None, digits: int,
-              latex: bool = False) -> str:
-    """One cell as written: ``-`` when missing, else the median with ``digits`` decimals, its runs' range
-    ``[min, max]`` where they differ (LaTeX: in small type) and its coverage where a run is partial (``spread``: the
-    cell's :class:`Spread`; the range looked up by (row, column) of the table the value comes from)."""
+              latex: bool = False, bold: bool = False) -> str:
+    """One cell as written: ``-`` when missing, else the median with ``digits`` decimals (LaTeX and ``bold``: in
+    ``\\textbf``), its runs' range ``[min, max]`` where they differ (LaTeX: in small type) and its coverage where a
+    run is partial (``spread``: the cell's :class:`Spread`; the range looked up by (row, column) of the table the
+    value comes from)."""
     if pd.isna(value):
         return MISSING
     text = f"{value:.{digits}f}"
+    if bold and latex:
+        text = f"\\textbf{{{text}}}"
     if spread is None:
         return text
     lo, hi = (t.at[row, method] for t in (spread.lo, spread.hi))
@@ -165,16 +211,17 @@ def cell_text(value: float, row: object, method: object, spread: Spread | None, 
 
 
 def format_table(table: pd.DataFrame, digits: int = 3, spread: Spread | None = None,
-                 latex: bool = False) -> pd.DataFrame:
+                 latex: bool = False, bold: set | frozenset = frozenset()) -> pd.DataFrame:
     """The table as strings with ``digits`` decimals and ``-`` for missing cells; with ``spread``
     (:func:`spread_of`), ``median [min, max]`` where the runs differ (LaTeX: the range in small type) and a partial
-    run's coverage, ``(10/60 frames)``; a bare number is a cell whose runs all agree (or a single run)."""
+    run's coverage, ``(10/60 frames)``; a bare number is a cell whose runs all agree (or a single run). LaTeX:
+    the cells of ``bold`` ((row, column) pairs, :func:`best_cells`) in bold."""
     out = table.map(lambda v: MISSING if pd.isna(v) else f"{v:.{digits}f}")
-    if spread is None:
+    if spread is None and not bold:
         return out
     for col in table.columns:
         for row in table.index:
-            out.at[row, col] = cell_text(table.at[row, col], row, col, spread, digits, latex)
+            out.at[row, col] = cell_text(table.at[row, col], row, col, spread, digits, latex, (row, col) in bold)
     return out
 
 
@@ -210,14 +257,18 @@ def table_to_markdown(table: pd.DataFrame, digits: int = 3, spread: Spread | Non
 
 
 def table_to_latex(table: pd.DataFrame, digits: int = 3, caption: str | None = None,
-                   spread: Spread | None = None) -> str:
+                   spread: Spread | None = None, blocks: Sequence[tuple[str, str]] = (),
+                   exclude: Sequence[str] = ()) -> str:
     """LaTeX (booktabs) with a multicolumn header per block; missing cells ``-``; ``spread``: see
-    :func:`format_table`."""
-    if spread is not None:  # cells carry LaTeX markup, so the labels are escaped here instead of by pandas
-        cells = format_table(table, digits, spread, latex=True)
+    :func:`format_table`; ``blocks`` (the table's (title, metric) pairs): the best value of each row of each block
+    in bold, among the methods not in ``exclude`` (:func:`best_cells`)."""
+    bold = best_cells(table, blocks, digits, exclude) if blocks else set()
+    if spread is not None or bold:  # cells carry LaTeX markup, so the labels are escaped here instead of by pandas
+        cells = format_table(table, digits, spread, latex=True, bold=bold)
         cells = cells.rename(columns=_latex_escape, index=_latex_escape)
         cells.index.name = _latex_escape(table.index.name or "")
-        return cells.to_latex(multicolumn=True, multicolumn_format="c", caption=caption, escape=False)
+        return cells.to_latex(multicolumn=True, multicolumn_format="c", caption=caption, escape=False,
+                              column_format="l" + "r" * len(cells.columns))  # fmt: skip
     return table.to_latex(
         na_rep=MISSING,
         float_format=lambda v: f"{v:.{digits}f}",

@@ -1,4 +1,4 @@
-"""``transfer.{md,csv,png}``: the transfer suite's report (the numbers come from :mod:`eval.reports.transfer`).
+"""``transfer.{md,html,csv,png}``: the transfer suite's report (the numbers come from :mod:`eval.reports.transfer`).
 
 Like for like: each length (the bench length, whole sequences) is compared within itself, the simulated sequences
 against the real ones cut into windows of that length (:func:`eval.bench.suites.transfer_parts`).
@@ -15,7 +15,9 @@ against the real ones cut into windows of that length (:func:`eval.bench.suites.
   (:func:`eval.reports.transfer.holdout_agreement`), per length, simulated domain, metric and k;
 - ``transfer_runs.csv``: every run behind the figures (length, domain, sequence, method, seed, metric, value), so
   that anyone can recompute them from the committed file;
-- ``transfer.png``: per metric, each method's rank in every domain and length (a bump chart).
+- ``transfer.png``: per metric, each method's rank in every domain and length (a bump chart; the report's figure
+  format, ``--figure-format``);
+- ``transfer.html``: the Markdown rendered as one self-contained page, tables sortable, figure inline.
 """
 
 from __future__ import annotations
@@ -28,8 +30,10 @@ import pandas as pd
 
 from eval.bench.runner import SuiteRun
 from eval.bench.suites import TransferPart
+from eval.reports.html_report import markdown_page
 from eval.reports.plots import save_transfer_figure
-from eval.reports.suite_reports import long_frame, status_markdown
+from eval.reports.style import DEFAULT_FIGURE_FORMAT
+from eval.reports.suite_reports import long_frame, markdown_image, status_markdown
 from eval.reports.transfer import (
     ALL_METRICS,
     BOOTSTRAP_DRAWS,
@@ -259,7 +263,7 @@ def _dropped_line(frame: pd.DataFrame, ranks: pd.DataFrame) -> str:
 
 
 def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir: str | Path,
-                    command: str) -> list[Path]:
+                    command: str, figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """Write the transfer report (module docstring) into ``results_dir``; returns the files written."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
@@ -282,7 +286,7 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
     runs.to_csv(runs_csv, index=False, float_format="%.6g")
     columns = [f"{d} ({length})" for length, d in dict.fromkeys(zip(ranks["length"], ranks["domain"], strict=True))]
     wide = ranks.assign(domain=ranks["domain"] + " (" + ranks["length"] + ")")
-    figure = save_transfer_figure(wide, results_dir / "transfer.png", columns, TRANSFER_METRICS) \
+    figure = save_transfer_figure(wide, results_dir / f"transfer.{figure_format}", columns, TRANSFER_METRICS) \
         if not ranks.empty else None  # fmt: skip
     reals = [d for d in ranks["domain"].unique() if str(d).startswith(REAL_PREFIX)] if not ranks.empty else []
     verdict = ("No real sequence was available (list folders in datasets.toml or $CNNSLAM_DATASETS): there is "
@@ -336,10 +340,11 @@ def report_transfer(parts: Sequence[tuple[TransferPart, SuiteRun]], results_dir:
         "## Scores and ranks per metric: score (rank)\n",
         *[f"\n### Length: {length}\n" + ranks_markdown(sub, list(dict.fromkeys(sub["domain"])))
           for length, sub in ranks.groupby("length", sort=False)],  # fmt: skip
-        *([f"![ranks per domain]({figure.name})\n"] if figure is not None else []),
+        *([markdown_image(figure, "ranks per domain", results_dir)] if figure is not None else []),
         *[f"## Runs of `{run.suite.name}`, {_length_label(part.length)}\n"
           + status_markdown(run).removeprefix("## Runs\n") for part, run in parts],  # fmt: skip
     ]
     md = results_dir / "transfer.md"
     md.write_text("\n".join(text))
-    return [md, csv, corr_csv, null_csv, needs_csv, runs_csv, *([figure] if figure is not None else [])]
+    page = markdown_page("\n".join(text[1:]), results_dir, "transfer", text[0].strip("# \n"))
+    return [md, page, csv, corr_csv, null_csv, needs_csv, runs_csv, *([figure] if figure is not None else [])]

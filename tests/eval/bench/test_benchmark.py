@@ -52,6 +52,7 @@ def test_a_plain_suite_runs_and_the_outcome_lists_every_run(tmp_path):
     (dict(seeds=(-1,)), "--seeds takes whole numbers >= 0 .*, got -1"),
     (dict(sequences=("office9",)), "unknown sequence 'office9'"),
     (dict(executor=ExecutorOptions("serial", timeout_s=0)), "--timeout must be a number of seconds > 0"),
+    (dict(figure_format="jpg"), "unknown figure format 'jpg'; valid formats: png, pdf, svg"),
 ])
 def test_bad_input_is_refused_before_any_run(tmp_path, changes, message):
     with pytest.raises(InputError, match=message):

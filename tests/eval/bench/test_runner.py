@@ -37,7 +37,8 @@ def oracle_run():
 def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
     assert oracle_run.status == "done", oracle_run.error
     assert set(oracle_run.files) == {
-        "metrics.json", "timing.json", "agent_extras.json", "trajectory.tum", "groundtruth.tum", "keyframes.npz"
+        "metrics.json", "timing.json", "agent_extras.json", "trajectory.tum", "groundtruth.tum", "keyframes.npz",
+        "trajectory_aligned_se3.tum", "trajectory_aligned_sim3.tum",  # the oracle is a monocular method
     }  # fmt: skip
     folder = store_result(tmp_path, oracle_run)
     assert folder == tmp_path / "test" / "office0" / "oracle" / f"seed0-frames{FRAMES}"
@@ -54,10 +55,19 @@ def test_an_oracle_run_is_scored_and_packaged(oracle_run, tmp_path):
     assert meta["fingerprint"] == spec_of(ORACLE).fingerprint() and 0.0 <= meta["rotation_share"] <= 1.0
     timing = json.loads((folder / "timing.json").read_text())
     assert timing["wall_s"] > 0 and timing["fps"] > 0
+    assert timing["frames"] == FRAMES and timing["fps_end_to_end"] == pytest.approx(FRAMES / timing["wall_s"])
+    assert timing["peak_rss_mib"] > 50  # this process: numpy, the renderer...
+    from eval.metrics.results import load_run
+
+    assert load_run(folder / "metrics.json").resources["peak_rss_mib"] == timing["peak_rss_mib"]
+    assert m["rpe_dist_m_p10"] > 0 and "rpe_trans_rmse_p50" in m  # the relative error at 10-50 % of the path
     assert timing["environment"]["packages"]["numpy"] == np.__version__ and timing["environment"]["python"]
     stamps, est = read_tum_trajectory(folder / "trajectory.tum")
     _, gt = read_tum_trajectory(folder / "groundtruth.tum")
     assert stamps.shape == (FRAMES,) and np.allclose(est, gt, atol=1e-8)
+    for name in ("trajectory_aligned_se3.tum", "trajectory_aligned_sim3.tum"):
+        aligned_stamps, aligned = read_tum_trajectory(folder / name)
+        assert np.array_equal(aligned_stamps, stamps) and np.allclose(aligned, gt, atol=1e-8)
     with np.load(folder / "keyframes.npz") as kf:
         assert kf["depth"].shape == (1, 240, 320) and kf["T_world_cam"].shape == (1, 4, 4)
         assert kf["timestamps"][0] == 0.0 and kf["depth"].dtype == np.float32
@@ -230,6 +240,31 @@ def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
 
     assert "1 not run (--report-only" in status_markdown(again) and "Not run (" in status_markdown(again)
     assert set(failure_frame(again)["method"]) == {"oracle"}  # a run not run is no failure
+
+
+def test_a_folder_an_earlier_judge_wrote_is_completed_without_running_it(tmp_path):
+    """A finished run from before the aligned files and the relative errors: report-only writes the files into its
+    folder and adds the figures to its record, from its trajectory.tum and groundtruth.tum."""
+    suite = get_suite("quick").select(["office0@clean"], ["oracle"], frames=12, runs=1)
+    first = run_suite(suite, {"oracle": ORACLE}, tmp_path, plots=False, progress=False, check=False)
+    folder = first.outcomes[first.specs[0].key].folder
+    complete = first.records[0].metrics
+    old = json.loads((folder / "metrics.json").read_text())
+    old["metrics"] = {k: v for k, v in old["metrics"].items() if "_p" not in k or not k.startswith("rpe_")}
+    (folder / "metrics.json").write_text(json.dumps(old))
+    for name in ("trajectory_aligned_se3.tum", "trajectory_aligned_sim3.tum"):
+        (folder / name).unlink()
+    again = run_suite(suite, {"oracle": ORACLE}, tmp_path, plots=False, progress=False, check=False,
+                      report_only=True)  # fmt: skip
+    assert again.counts() == {"cached": 1}
+    assert again.records[0].metrics["rpe_dist_m_p30"] == complete["rpe_dist_m_p30"]
+    assert "rpe_dist_m_p30" not in json.loads((folder / "metrics.json").read_text())["metrics"]  # left as it was
+    assert (folder / "trajectory_aligned_se3.tum").read_bytes() == first_bytes(first, "trajectory_aligned_se3.tum")
+
+
+def first_bytes(run, name):
+    """What a fresh run wrote as ``name``: the same run executed again (its files are deterministic)."""
+    return execute_run(run.specs[0]).files[name]
 
 
 METHODS_SEEN = ("oracle", "LSD-BS", "CNN-SLAM")

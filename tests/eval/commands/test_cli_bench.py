@@ -315,3 +315,40 @@ def test_the_command_is_a_thin_shell_around_the_library_call():
     returns = len(stays) - len(set(stays))
     assert len(stays) <= 20 and returns <= 8, stays
     assert set(stays) <= {"eval/commands/cli_bench.py", "eval/bench/benchmark.py", "eval/bench/methods.py"}
+
+
+@pytest.mark.slow  # 7 runs of 40 frames (about a minute on 2 cores) and a browser
+def test_the_report_target_command(tmp_path, browser_page, evo):
+    """Issue 41's target, run exactly as written (in an empty folder, so its runs and report land under runs/ there):
+    PDF figures and an HTML report that headless Chromium renders with no uncaught error and no request but the
+    file; every run record with peak memory, frames per second and the relative error at several distances; every
+    run folder with aligned trajectories that ``evo_traj tum`` reads."""
+    import subprocess
+    import sys
+
+    from eval.metrics.results import load_run
+
+    command = "cnnslam bench table1 --sequences office0 --frames 40 --methods CNN-SLAM LSD oracle --figure-format pdf"
+    done = subprocess.run([sys.executable, "-m", "cnnslam.cli", *command.split()[1:]], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=900)  # fmt: skip
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    [report] = (tmp_path / "runs" / "reports").glob("table1-*")
+    pdfs = sorted(p.relative_to(report).as_posix() for p in report.rglob("*.pdf"))
+    assert pdfs == ["table1_figures/office0_kinect_relative_error.pdf",
+                    "table1_figures/office0_kinect_trajectories.pdf", "table1_resources.pdf", "table1_runs.pdf"]
+    assert all((report / p).read_bytes().startswith(b"%PDF") for p in pdfs)
+    page = report / "table1.html"
+    assert f"report (opens in a browser): runs/reports/{report.name}/table1.html" in done.stdout
+    browser_page.open(page)
+    assert browser_page.errors == []
+    assert [u for u in browser_page.requests if not u.startswith("data:")] == [page.resolve().as_uri()]
+    assert browser_page.evaluate("document.querySelectorAll('#runs .run').length") == 7
+    records = [load_run(p) for p in sorted((tmp_path / "runs" / "table1").rglob("metrics.json"))]
+    assert len(records) == 7  # CNN-SLAM and LSD 3 seeds each, the oracle once
+    for record in records:
+        assert record.resources["peak_rss_mib"] > 100 and record.resources["fps_end_to_end"] > 0
+        assert record.resources["fps"] > 0 and record.resources["wall_s"] > 0
+        assert all(record.metrics[f"rpe_trans_rmse_p{share}"] >= 0 for share in (10, 20, 30, 40, 50))
+    for folder in {p.parent for p in (tmp_path / "runs" / "table1").rglob("metrics.json")}:
+        for name in ("trajectory_aligned_se3.tum", "trajectory_aligned_sim3.tum"):  # all three are monocular
+            assert "40 poses" in evo("evo_traj", "tum", str(folder / name))["stdout"]

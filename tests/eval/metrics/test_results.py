@@ -142,3 +142,28 @@ def test_a_run_record_is_typed_frozen_and_round_trips_in_a_fixed_key_order():
     assert rec.with_warning("w").warnings[-1] == "w" and "w" not in rec.warnings
     with pytest.raises(ResultsError, match="mem: a run record needs 'sequence'"):
         RunRecord.from_json({"metrics": {}}, "mem")
+
+
+def test_a_run_folders_record_holds_what_the_run_used_and_metrics_json_stays_the_same_bytes(tmp_path):
+    """resources come from timing.json beside metrics.json (measured figures differ from run to run); the record's
+    JSON leaves them out, so the same run still writes the same metrics.json."""
+    import json
+
+    from eval.metrics.results import RESOURCE_FIGURES, resources_of
+
+    rec = evaluate_episode(episode(), method="CNN-SLAM")
+    path = save_run(rec, tmp_path / "run" / "metrics.json")
+    written = path.read_bytes()
+    (tmp_path / "run" / "timing.json").write_text(json.dumps(
+        {"wall_s": 4.0, "fps": 50.0, "peak_rss_mib": 812.5, "step_ms_mean": 20.0,
+         "environment": {"cpu": "x"}}))  # fmt: skip
+    back = load_run(path)
+    frames = rec.metrics["frames"]
+    # fps_end_to_end from frames and wall time: a timing.json from before it was written
+    assert back.resources == {"wall_s": 4.0, "fps": 50.0, "peak_rss_mib": 812.5, "fps_end_to_end": frames / 4.0}
+    assert set(back.resources) <= set(RESOURCE_FIGURES)
+    assert "resources" not in back.to_json() and save_run(back, path).read_bytes() == written
+    frame = runs_frame([back])
+    assert frame.loc[frame.metric == "peak_rss_mib", "value"].tolist() == [812.5]
+    assert resources_of({"wall_s": True, "fps_end_to_end": 9.0}) == {"fps_end_to_end": 9.0}  # no bools
+    assert load_run(tmp_path / "run" / "metrics.json").resources["peak_rss_mib"] == 812.5

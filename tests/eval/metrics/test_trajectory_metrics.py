@@ -319,3 +319,55 @@ def test_nearly_collinear_positions_keep_evos_fit_and_say_so(alignment):
     assert m.alignment.used == alignment and m.alignment.degenerate and not m.alignment.fallback
     assert "collinear" in m.warnings[0] or "across" in m.warnings[0]
     assert m.flat_metrics()["ate_alignment_degenerate"] == 1.0
+
+
+def test_path_distance_pairs_take_the_nearest_pose_within_the_tolerance():
+    from eval.metrics.trajectory_metrics import path_distance_pairs
+
+    d = np.array([0.0, 1.0, 1.0, 1.0, 3.0])
+    i, j = path_distance_pairs(d, 1.4, 0.5)  # from 0: 1.0 (index 1, the first of three) misses by 0.4, 3.0 by 1.6
+    assert list(zip(i.tolist(), j.tolist(), strict=True)) == [(0, 1)]
+    i, j = path_distance_pairs(d, 2.0, 0.0)  # exactly 2 m: from each 1.0 to 3.0
+    assert list(zip(i.tolist(), j.tolist(), strict=True)) == [(1, 4), (2, 4), (3, 4)]
+    with pytest.raises(EvalError, match="positive number of metres"):
+        path_distance_pairs(d, 0.0, 0.1)
+
+
+def test_relative_error_of_a_path_ten_percent_too_long():
+    """A straight 1 m path in 1 cm steps, estimated 10 % too long and not aligned: at 10-50 % of the path (0.1-0.5
+    m; a tolerance under one step, so only pairs exactly that far apart) every pair's translation error is 10 % of
+    its distance, its rotation error 0; with the default 20 % tolerance, pairs near the end come in too."""
+    from eval.metrics.trajectory_metrics import relative_distance, relative_errors
+
+    n = 101
+    T = np.repeat(np.eye(4)[None], n, axis=0)
+    T[:, 0, 3] = np.linspace(0.0, 1.0, n)
+    est = T.copy()
+    est[:, 0, 3] *= 1.1
+    stamps = np.arange(n) / 30.0
+    rel = relative_errors(PoseTrajectory(stamps, T), PoseTrajectory(stamps, est), tolerance=0.01)
+    assert [r.distance_m for r in rel] == [0.1, 0.2, 0.3, 0.4, 0.5]
+    for r in rel:
+        assert r.translation.size == n - round(100 * r.distance_m)  # every start with a pose d further on
+        np.testing.assert_allclose(r.translation, 0.1 * r.distance_m, atol=1e-12)
+        np.testing.assert_allclose(r.rotation_deg, 0.0, atol=1e-9)
+    loose = relative_errors(PoseTrajectory(stamps, T), PoseTrajectory(stamps, est))[0]  # pairs 0.09 m apart too
+    assert loose.translation.size > n - 10 and loose.translation.min() == pytest.approx(0.009)
+    assert relative_distance(13.0838, 10) == 1.3 and relative_distance(0.0, 50) == 0.0
+
+
+def test_the_run_record_names_of_the_relative_error():
+    n = 61
+    T = np.repeat(np.eye(4)[None], n, axis=0)
+    T[:, 0, 3] = np.linspace(0.0, 0.6, n)
+    T[:, 1, 3] = 0.1 * np.sin(np.linspace(0, 3, n))  # not a line: a defined fit
+    stamps = np.arange(n) / 30.0
+    flat = evaluate_trajectory(PoseTrajectory(stamps, T), PoseTrajectory(stamps, T), association="index").flat_metrics()
+    for share in (10, 20, 30, 40, 50):
+        assert flat[f"rpe_trans_rmse_p{share}"] == pytest.approx(0.0, abs=1e-9)
+        assert flat[f"rpe_rot_deg_rmse_p{share}"] == pytest.approx(0.0, abs=1e-6)
+        assert flat[f"rpe_dist_m_p{share}"] > 0
+    static = np.repeat(np.eye(4)[None], 5, axis=0)  # no path: no distance, no pairs, NaN
+    flat = evaluate_trajectory(PoseTrajectory(stamps[:5], static), PoseTrajectory(stamps[:5], static),
+                               association="index").flat_metrics()  # fmt: skip
+    assert flat["rpe_dist_m_p10"] == 0.0 and np.isnan(flat["rpe_trans_rmse_p10"])

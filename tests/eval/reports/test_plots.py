@@ -54,3 +54,34 @@ def test_matplotlib_stays_in_plots():
     root = pathlib.Path(eval.__file__).parent
     users = [p.name for p in root.rglob("*.py") if "matplotlib" in p.read_text() and p.name != "plots.py"]
     assert users == [] or pytest.fail(f"matplotlib imported outside eval/reports/plots.py: {users}")
+
+
+def test_a_method_without_a_value_says_why_in_its_column(tmp_path):
+    import pandas as pd
+
+    from eval.reports.plots import plot_runs_strip
+
+    frame = pd.DataFrame({"sequence": ["s1", "s1"], "method": ["A", "A"], "metric": ["ate_rmse"] * 2,
+                          "value": [0.1, 0.2]})  # fmt: skip
+    ax = Figure().subplots()
+    plot_runs_strip(ax, frame, "ate_rmse", ["A", "REMODE"], ["s1"], {"REMODE": "no trajectory of its own"})
+    assert [t.get_text() for t in ax.texts] == ["n/a: no trajectory of its own"]
+    assert ax.texts[0].get_position()[0] == 1  # in REMODE's column
+
+
+@pytest.mark.parametrize("suffix", ["png", "pdf", "svg"])
+def test_a_figure_in_each_format_and_a_pdf_with_its_png_twin(tmp_path, suffix):
+    from eval.reports.plots import save_figure
+
+    def figure():
+        fig = Figure()
+        fig.subplots().plot([0, 1], [1, 0])
+        return fig
+
+    path = save_figure(figure(), tmp_path / f"f.{suffix}")
+    head = {"png": b"\x89PNG", "pdf": b"%PDF", "svg": b"<?xml"}[suffix]
+    assert path.read_bytes().startswith(head)
+    assert (tmp_path / "f.png").is_file() == (suffix != "svg")  # a PDF's twin for the Markdown and the HTML
+    if suffix != "png":  # no creation date: the same figure, the same bytes
+        again = save_figure(figure(), tmp_path / f"g.{suffix}")
+        assert again.read_bytes() == path.read_bytes()

@@ -129,3 +129,26 @@ def test_a_run_covering_part_of_its_sequence_shows_it_and_gets_no_average():
     assert t.at["b", col] == pytest.approx(0.15) and np.isnan(t.at["Avg.", col])
     md = table_to_markdown(t, spread=spread_of(frame))
     assert "| b | 0.150 [0.100, 0.200] (10/60 frames) |" in md and "| a | 0.500 |" in md and "| Avg. | - |" in md
+
+
+def test_latex_sets_the_best_of_each_row_in_bold_among_the_methods_fed_no_ground_truth():
+    import pandas as pd
+
+    from eval.reports.tables import TABLE1_BLOCKS, best_cells, better_direction, table1, table_to_latex
+
+    rows = [("s1", "A", "ate_rmse", 0.1), ("s1", "B", "ate_rmse", 0.2), ("s1", "oracle", "ate_rmse", 0.0),
+            ("s1", "A", "depth_percent_correct", 10.0), ("s1", "B", "depth_percent_correct", 30.0),
+            ("s1", "oracle", "depth_percent_correct", 100.0), ("s2", "A", "ate_rmse", 0.3),
+            ("s2", "B", "ate_rmse", 0.3), ("s2", "A", "depth_percent_correct", 5.0),
+            ("s2", "B", "depth_percent_correct", 1.0)]  # fmt: skip
+    table = table1(pd.DataFrame(rows, columns=["sequence", "method", "metric", "value"]))
+    best = best_cells(table, TABLE1_BLOCKS, exclude=["oracle"])
+    ate, depth = (t for t, _ in TABLE1_BLOCKS)
+    assert best == {("s1", (ate, "A")), ("s2", (ate, "A")), ("s2", (ate, "B")), ("s1", (depth, "B")),
+                    ("s2", (depth, "A")), ("Avg.", (ate, "A")), ("Avg.", (depth, "B"))}
+    # ties both bold; the oracle's 0 m and 100 % are no competitors; the Avg. row is a row too
+    latex = table_to_latex(table, blocks=TABLE1_BLOCKS, exclude=["oracle"])
+    assert "s1 & \\textbf{0.100} & 0.200 & 0.000 & 10.000 & \\textbf{30.000} & 100.000 \\\\" in latex
+    assert "{lrrrrrr}" in latex
+    assert better_direction("ate_sim3_rmse") == "lower" and better_direction("tracked_share") == "higher"
+    assert better_direction("scale") is None and better_direction("rpe_trans_rmse_p10") == "lower"

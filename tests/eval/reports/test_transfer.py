@@ -203,8 +203,10 @@ def test_the_report_compares_each_length_within_itself(tmp_path):
     assert corr.loc["whole", ["rho_low", "rho_high"]].tolist() == pytest.approx([-1.0, -1.0])
     md = (tmp_path / "transfer.md").read_text()
     assert "### Length: 10" in md and "### Length: whole" in md and "| 10 | sim:kinect | real:kitchen |" in md
-    assert {p.name for p in paths} >= {"transfer.md", "transfer.csv", "transfer_correlations.csv", "transfer.png",
-                                       "transfer_null.csv", "transfer_recordings.csv", "transfer_runs.csv"}  # fmt: skip
+    assert {p.name for p in paths} >= {"transfer.md", "transfer.html", "transfer.csv", "transfer_correlations.csv",
+                                       "transfer.png", "transfer_null.csv", "transfer_recordings.csv",
+                                       "transfer_runs.csv"}  # fmt: skip
+    assert "<h1>Sim-to-real transfer" in (tmp_path / "transfer.html").read_text()
     # both simulated sequences rank alike, so one more simulated recording scores +1 against the simulator; the
     # windows' +1 sits in the middle of that null (percentile 50), the whole sequence's -1 below all of it (0)
     assert corr.loc["10", ["null_median", "null_percentile"]].tolist() == pytest.approx([1.0, 50.0])

@@ -1,0 +1,145 @@
+"""Tables of a suite's report that summarise its runs rather than a metric per cell: what each method used (speed and
+memory, as VSLAM-LAB and SLAMBench summarise them) and the relative error at several distances per sequence and
+method (rpg_trajectory_evaluation's distances). Each is a frame (numbers) and its Markdown; the HTML report renders
+the Markdown with the rest of the report.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from eval.bench.runner import SuiteRun
+from eval.metrics.trajectory_metrics import RELATIVE_PATH_SHARES, RELATIVE_TOLERANCE
+from eval.reports.run_data import missing_reasons
+
+RESOURCE_COLUMNS: tuple[tuple[str, str, int], ...] = (  # (resource figure, heading, decimals)
+    ("wall_s", "wall time per run [s]", 1),
+    ("fps_end_to_end", "frames per second, end to end", 1),
+    ("fps", "frames per second, the agent's step", 1),
+    ("peak_rss_mib", "peak memory [MiB]", 0),
+)
+
+
+def _cell(median: float, lo: float, hi: float, digits: int) -> str:
+    """``median [min, max]`` with ``digits`` decimals, a bare median where the range is one value."""
+    text = f"{median:.{digits}f}"
+    return text if f"{lo:.{digits}f}" == f"{hi:.{digits}f}" else f"{text} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def _spread_text(values: np.ndarray, digits: int) -> str:
+    """:func:`_cell` of the finite values, ``-`` for none."""
+    v = values[np.isfinite(values)]
+    return _cell(float(np.median(v)), float(v.min()), float(v.max()), digits) if v.size else "-"
+
+
+def resources_frame(run: SuiteRun) -> pd.DataFrame:
+    """One row per method with finished runs (suite order): ``runs``, ``frames`` (median per run), then per
+    resource figure of :data:`RESOURCE_COLUMNS` the ``median``, ``min``, ``max`` and
+    ``count`` over its runs (columns ``<figure>_<stat>``), and ``wall_min_total`` (minutes, all its runs)."""
+    rows = []
+    for method in run.suite.methods:
+        records = [r for r in run.records if r.method == method]
+        if not records:
+            continue
+        row: dict[str, float | str] = {"method": method, "runs": len(records),
+                                       "frames": float(np.median([r.metrics.get("frames", math.nan) for r in records]))}
+        for name in (c[0] for c in RESOURCE_COLUMNS):
+            v = np.array([r.resources.get(name, math.nan) for r in records], dtype=float)
+            f = v[np.isfinite(v)]
+            row.update({f"{name}_median": float(np.median(f)) if f.size else math.nan,
+                        f"{name}_min": float(f.min()) if f.size else math.nan,
+                        f"{name}_max": float(f.max()) if f.size else math.nan, f"{name}_count": int(f.size)})
+        walls = np.array([r.resources.get("wall_s", math.nan) for r in records], dtype=float)
+        row["wall_min_total"] = float(np.nansum(walls) / 60.0) if np.isfinite(walls).any() else math.nan
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def resources_markdown(run: SuiteRun) -> str:
+    """The speed and memory table per method (median [min, max] over its runs); a figure a method has no value of
+    says ``n/a`` and why. Empty when no run finished."""
+    frame = resources_frame(run)
+    if frame.empty:
+        return ""
+    heads = [h for _, h, _ in RESOURCE_COLUMNS]
+    lines = ["## Speed and memory per method\n",
+             "Per run, median [min, max] over the method's runs: wall time (the whole run: frames rendered or read, "
+             "the agent, scoring, plots; runs two at a time share the machine), frames per second end to end "
+             "(frames / wall time) and of the agent's step alone, and the peak resident memory of the process that ran "
+             "it (a fresh worker per run; a system run in a process of its own, ORB-SLAM3, is not in it). Every run's "
+             "figures: `resources` of its record, `timing.json` of its folder.\n",
+             "| method | runs | frames per run | " + " | ".join(heads) + " | all its runs [min] |",
+             "|---|---:|---:|" + "---:|" * len(heads) + "---:|"]  # fmt: skip
+    for row in frame.itertuples(index=False):
+        data = row._asdict()
+        cells = []
+        for name, _, digits in RESOURCE_COLUMNS:
+            values = np.array([r.resources.get(name, math.nan) for r in run.records if r.method == row.method])
+            text = _spread_text(values.astype(float), digits)
+            if text == "-":
+                why = missing_reasons(run, name, [row.method]).get(row.method, "not recorded")
+                text = "n/a (" + ("not recorded by the code that made these runs" if why == "no value on its runs"
+                                  else why) + ")"  # fmt: skip
+            cells.append(text)
+        total = "-" if math.isnan(data["wall_min_total"]) else f"{data['wall_min_total']:.1f}"
+        lines.append(f"| {row.method} | {row.runs} | {data['frames']:.0f} | " + " | ".join(cells) + f" | {total} |")
+    return "\n".join(lines) + "\n"
+
+
+def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SHARES) -> pd.DataFrame:
+    """Long: one row per (sequence, method, share) with a value: ``distance_m`` and, over the cell's runs, the
+    median, min and max of the relative translation (``trans_*``, m) and rotation (``rot_*``, deg) error RMSE."""
+    rows = []
+    for sequence in [s.name for s in run.suite.sequences]:
+        for method in run.suite.methods:
+            records = [r for r in run.records if r.sequence == sequence and r.method == method]
+            for share in shares:
+                t = np.array([r.metrics.get(f"rpe_trans_rmse_p{share}", math.nan) for r in records], dtype=float)
+                q = np.array([r.metrics.get(f"rpe_rot_deg_rmse_p{share}", math.nan) for r in records], dtype=float)
+                d = [r.metrics.get(f"rpe_dist_m_p{share}", math.nan) for r in records]
+                if not np.isfinite(t).any():
+                    continue
+                ft, fq = t[np.isfinite(t)], q[np.isfinite(q)]
+                rows.append({"sequence": sequence, "method": method, "share": share,
+                             "distance_m": float(np.nanmedian(np.asarray(d, dtype=float))),
+                             "trans_median": float(np.median(ft)), "trans_min": float(ft.min()),
+                             "trans_max": float(ft.max()),
+                             "rot_median": float(np.median(fq)) if fq.size else math.nan,
+                             "rot_min": float(fq.min()) if fq.size else math.nan,
+                             "rot_max": float(fq.max()) if fq.size else math.nan})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def relative_error_markdown(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SHARES) -> str:
+    """Two tables, relative translation error [m] and relative rotation error [deg], one row per sequence and method
+    with a trajectory, one column per distance (``share`` % of the ground truth's path; the distances in metres in
+    the row), median [min, max] over the cell's runs of each run's RMSE; empty without values."""
+    frame = relative_error_frame(run, shares)
+    if frame.empty:
+        return ""
+    lines = ["## Relative error at several distances\n",
+             f"rpg_trajectory_evaluation's relative error: the RPE over every pair of poses whose ground-truth path "
+             f"distance is {', '.join(f'{s}' for s in shares)} % of the sequence's path (within "
+             f"{100 * RELATIVE_TOLERANCE:.0f} % of the distance; evo_rpe --delta D --delta_unit m --all_pairs "
+             "--pairs_from_reference), after the run's ATE alignment; each run's RMSE, median [min, max] over the "
+             "cell's runs. Boxplots over every pair: the per-sequence figures below.\n"]  # fmt: skip
+    for kind, title, digits in (("trans", "Relative translation error [m]", 4), ("rot", "Relative rotation error "
+                                                                                        "[deg]", 3)):  # fmt: skip
+        lines += [f"**{title}**\n", "| sequence | method | distances [m] | " + " | ".join(f"{s} %" for s in shares)
+                  + " |", "|---|---|---|" + "---:|" * len(shares)]  # fmt: skip
+        for (sequence, method), cell in frame.groupby(["sequence", "method"], sort=False):
+            by_share = cell.set_index("share")
+            texts = []
+            for s in shares:
+                if s not in by_share.index or not np.isfinite(by_share.at[s, f"{kind}_median"]):
+                    texts.append("-")
+                    continue
+                texts.append(_cell(*(by_share.at[s, f"{kind}_{k}"] for k in ("median", "min", "max")), digits))
+            distances = ", ".join(f"{d:g}" for d in cell["distance_m"])
+            lines.append(f"| {sequence} | {method} | {distances} | " + " | ".join(texts) + " |")
+        lines.append("")
+    return "\n".join(lines) + "\n"
