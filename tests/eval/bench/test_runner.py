@@ -246,15 +246,16 @@ def test_a_method_without_a_seed_runs_once_per_cell():
 
 def test_the_frame_cache_changes_no_byte_of_a_run(tmp_path):
     """The same runs without the cache, with it cold (frames rendered and stored) and warm (frames read back):
-    every file but the wall times the same (LSD-BS reads the sensor depth too; the oracle scores depth and labels)."""
+    every file but the wall times the same (LSD-BS reads the sensor depth too; the oracle scores depth and labels;
+    LSD sees the images alone, read without the rest of the frame)."""
     methods = load_methods()
     ref = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
     cache = str(tmp_path / ".frames")
-    for name in ("LSD-BS", "oracle"):
+    for name in ("LSD-BS", "oracle", "LSD"):
         spec = RunSpec("quick", ref, methods[name], frames=15, plots=False, git_revision="r")
         plain, cold, warm = (execute_run(replace(spec, frame_cache=c)) for c in (None, cache, cache))
         for result in (plain, cold, warm):
             assert result.status == "done", result.error
         for name_ in set(plain.files) - {"timing.json", "agent_extras.json"}:
             assert plain.files[name_] == cold.files[name_] == warm.files[name_], (name, name_)
-    assert len(list((tmp_path / ".frames").rglob("*.npz"))) == 15  # one folder, rendered once
+    assert len(list((tmp_path / ".frames").rglob("*.frame"))) == 15  # one folder, rendered once
