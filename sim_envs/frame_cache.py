@@ -32,6 +32,7 @@ from sim_envs.frames import Frame
 _ARRAYS = ("rgb", "depth", "T_world_cam", "labels", "instances", "sensor_depth")
 CACHE_FORMAT = f"frames/2+{FRAME_FORMAT}"  # 1: one uncompressed .npz per frame; 2: sim_envs.frame_codec files
 FRAME_SUFFIX = ".frame"
+TRAJECTORY_FILE = "trajectory.npz"  # the source's timestamps and poses (uncompressed .npz: exact float64)
 
 
 @lru_cache(maxsize=1)
@@ -77,10 +78,42 @@ class CachedFrames:
     def __len__(self) -> int:
         return len(self._source)
 
-    def __getattr__(self, name: str) -> Any:  # name, intrinsics, timestamps, poses, describe, ...
+    def __getattr__(self, name: str) -> Any:  # name, intrinsics, scene, describe, ...
         if name.startswith("__"):
             raise AttributeError(name)
         return getattr(self._source, name)
+
+    @property
+    def timestamps(self) -> np.ndarray:
+        """(N,) float64 seconds: the source's, kept in ``folder/trajectory.npz`` with the poses once asked for, so
+        that a later reader need not generate the room and the camera path (a second or two)."""
+        return self._trajectory()[0]
+
+    @property
+    def poses(self) -> np.ndarray:
+        """(N, 4, 4) float64 ground-truth camera-to-world poses: the source's, kept like :attr:`timestamps`."""
+        return self._trajectory()[1]
+
+    def _trajectory(self) -> tuple[np.ndarray, np.ndarray]:
+        cached = self.__dict__.get("_stamps_poses")
+        if cached is not None:
+            return cached
+        path = self.folder / TRAJECTORY_FILE
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                cached = (data["timestamps"], data["poses"])
+        except FileNotFoundError:
+            cached = None
+        except (OSError, ValueError, KeyError):  # a damaged file: made again from the source
+            path.unlink(missing_ok=True)
+            cached = None
+        if cached is None:
+            cached = (np.asarray(self._source.timestamps), np.asarray(self._source.poses))
+            self._write(path, lambda out: np.savez(out, timestamps=cached[0], poses=cached[1]), "the trajectory")
+        for array in cached:
+            array.setflags(write=False)
+        self.__dict__["_stamps_poses"] = cached
+        return cached
 
     def path(self, index: int) -> Path:
         """The file of frame ``index``."""
@@ -134,14 +167,18 @@ class CachedFrames:
     def _store(self, path: Path, frame: Frame) -> None:
         arrays = {k: getattr(frame, k) for k in _ARRAYS if getattr(frame, k) is not None}
         data = encode_frame(frame.index, frame.timestamp, arrays)
+        self._write(path, lambda out: out.write(data), f"frame {frame.index}")
+
+    def _write(self, path: Path, write: Any, what: str) -> None:
+        """``write(file)`` into a temporary file of the folder, renamed to ``path`` (two writers leave one file)."""
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=self.folder, suffix=".tmp")
             with os.fdopen(fd, "wb") as out:
-                out.write(data)
+                write(out)
             os.replace(tmp, path)
         except OSError as exc:
-            raise SimEnvError(f"cannot store frame {frame.index} in the frame cache {self.folder}: {exc}") from exc
+            raise SimEnvError(f"cannot store {what} in the frame cache {self.folder}: {exc}") from exc
 
     def close(self) -> None:
         self._source.close()

@@ -3,7 +3,9 @@
 Probes (:file:`eval/perf.toml`, one subprocess each, ``python -m MODULE ...``): render frames per second per
 renderer and output set (``sim_envs.bench_render``), depth-network milliseconds per frame
 (``cnnslam.depthnet.bench --json FILE``), CNN-SLAM tracking and whole-system frames per second
-(``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``). Modules with
+(``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``), one run of
+each Table-1 method inside a suite with where its time goes (``eval.bench.profile --json``: a table, ``columns``
+and ``rows``, shown as one). Modules with
 a JSON output are read as JSON; the two without one (``bench_render``, ``bench_metrics``) are parsed from the figures
 they print (:func:`parse_render_table`, :func:`parse_metrics_text`: a line that does not look like a figure is ignored,
 and a probe that yields no figure at all is reported failed). A probe that fails or times out is reported with its
@@ -241,8 +243,13 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
         if not probe.ok:
             lines.append(f"**failed**: {probe.error}\n")
             continue
+        figures = dict(probe.figures)
+        if isinstance(figures.get("columns"), list) and isinstance(figures.get("rows"), list):  # a table probe
+            from eval.bench.profile import format_table
+
+            lines += [format_table({"columns": figures.pop("columns"), "rows": figures.pop("rows")}), ""]
         lines += ["| figure | value |", "|---|---:|"]
-        for key, value in probe.figures.items():
+        for key, value in figures.items():
             text = (f"{value:.2f}" if abs(value) >= 1 or value == 0 else f"{value:.4g}") if isinstance(value, float) \
                 else str(value)
             lines.append(f"| {key} | {text} |")

@@ -12,8 +12,10 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 - ``metrics.json``: the run record (:mod:`eval.metrics.results`) with the method's metric groups only, and ``metadata``
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
-- ``timing.json``: wall time of the run, per-frame step times, frames per second, and ``environment``, the machine
-  and package versions it ran on (:mod:`eval.bench.environment`; never compared by the gate);
+- ``timing.json``: wall time of the run, per-frame step times, frames per second, ``stages`` (where the run's wall
+  seconds went, :data:`STAGES`; read by :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames
+  read from the frame cache / rendered), and ``environment``, the machine and package versions it ran on
+  (:mod:`eval.bench.environment`; never compared by the gate);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
 - ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
@@ -66,6 +68,12 @@ FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames ren
 RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
+# where a run's wall seconds go (timing.json "stages"): building the agent and the environment; reading (or
+# rendering) frames; the agent's steps; its finish(); the rest of the episode loop (the env's observations, the
+# driver's checks); scoring the trajectory; scoring key-frame depth and labels; scoring the global model; writing
+# the run's files; drawing its plots; and whatever is left (other)
+STAGES: tuple[str, ...] = ("setup", "frames", "agent", "finish", "env_driver", "trajectory_metrics",
+                           "keyframe_metrics", "map_metrics", "files", "plots", "other")
 
 
 @dataclass(frozen=True)
@@ -125,6 +133,40 @@ class RunResult:
     wall_s: float = 0.0
 
 
+# --------------------------------------------------------------------------------------- frames ahead of runs
+@dataclass(frozen=True)
+class FramesJob:
+    """Render the first ``frames`` frames (None: all) of a simulated ``sequence`` into the frame cache under
+    ``cache`` before the suite's runs read them (:func:`render_frames`); picklable, like a :class:`RunSpec`."""
+
+    sequence: SequenceRef
+    frames: int | None
+    renderer: str
+    cache: str
+
+    @property
+    def key(self) -> str:
+        """A readable name of the job."""
+        return f"frames of {self.sequence.name} ({'all' if self.frames is None else self.frames})"
+
+
+def render_frames(job: FramesJob) -> int:
+    """Render (and store) every frame of ``job`` the cache lacks, and the sequence's timestamps and poses; returns
+    how many frames were rendered (0: all were there). The frames are those any run would render (same bytes)."""
+    source = job.sequence.make_source(job.renderer, job.cache)
+    rendered = 0
+    try:
+        n = len(source) if job.frames is None else min(len(source), int(job.frames))
+        source.timestamps  # noqa: B018 - kept in the cache beside the frames
+        for i in range(n):
+            if not source.has(i):
+                source.frame(i)
+                rendered += 1
+    finally:
+        source.close()
+    return rendered
+
+
 # ------------------------------------------------------------------------------------------------- one run
 @dataclass(frozen=True)
 class ExternalEpisode:
@@ -163,10 +205,12 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
 def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
     scene = None
+    stages: dict[str, float] = {}
+    reads: dict[str, int] = {}
     if method.kind == "external":
         episode, n_frames, source_info = _external_episode(spec)
     else:
-        episode, source_info, scene = _agent_episode(spec, progress)
+        episode, source_info, scene = _agent_episode(spec, progress, stages, reads)
         n_frames = int(episode.timestamps.shape[0])
     metadata = {
         "suite": spec.suite,
@@ -186,7 +230,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
     }
     if source_info is not None:
         metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
-    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
+    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata,
+                              seconds=stages)
     record = record.replace(sequence=ref.name)
     metrics = dict(record.metrics)
     has_depth = source_info is None or source_info.get("has_depth", True)
@@ -198,7 +243,7 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         t_map = time.perf_counter()
         metrics.update(map_metrics(model, episode.T_world_cam_gt, episode.T_world_cam_est, episode.keyframe_gt,
                                    episode.intrinsics.as_array(), scene, str(spec.alignment)))
-        metrics["map_scoring_s"] = time.perf_counter() - t_map
+        metrics["map_scoring_s"] = stages["map_metrics"] = time.perf_counter() - t_map
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
@@ -214,30 +259,56 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
         folder = Path(tmp)
+        t_files = time.perf_counter()
         write_json(folder / "metrics.json", record.to_json())
         write_json(folder / "agent_extras.json", episode.extras)
         _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
         _write_tum(folder / "groundtruth.tum", episode.timestamps, episode.T_world_cam_gt, f"ground truth: {ref.name}")
         depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
+        t_plots = time.perf_counter()
+        stages["files"] = t_plots - t_files
         if spec.plots:
             _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
+            stages["plots"] = time.perf_counter() - t_plots
         timing["wall_s"] = time.perf_counter() - start
+        stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
+        timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
+        timing.update(reads)
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
         write_json(folder / "timing.json", timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None, Any]:
+def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | None = None,
+                   reads: dict[str, int] | None = None) -> tuple[Any, dict[str, Any] | None, Any]:
     """The agent's episode, the frame source's own description (:func:`_source_info`) and its scene (simulated
-    sequences; None for folders)."""
+    sequences whose agent handed back a model; None for folders and without a model). ``stages``: the wall seconds
+    of the episode's stages are added to it (setup, frames, agent, finish, env_driver; see :data:`STAGES`);
+    ``reads``: the frames read from the frame cache and rendered (``frame_reads``, ``frame_renders``; a source
+    without a cache counts none)."""
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
 
+    stages = {} if stages is None else stages
+    t0 = time.perf_counter()
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
     env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
     try:
         source = env.unwrapped.source
-        return run_episode(env, agent, progress=progress), _source_info(source), getattr(source, "scene", None)
+        t1 = time.perf_counter()
+        stages["setup"] = t1 - t0
+        episode = run_episode(env, agent, progress=progress)
+        t2 = time.perf_counter()
+        # the room, for the map metrics only: generating it costs a second or more, so not for agents without a map
+        scene = getattr(source, "scene", None) if getattr(episode, "model", None) is not None else None
+        frames_s = float(getattr(source, "read_seconds", 0.0)) + float(getattr(source, "render_seconds", 0.0))
+        agent_s = float(np.sum(episode.step_seconds))
+        finish_s = float(episode.extras.get("finish_seconds") or 0.0)
+        stages.update(frames=frames_s, agent=agent_s, finish=finish_s,
+                      env_driver=max(0.0, (t2 - t1) - frames_s - agent_s - finish_s))
+        if reads is not None:
+            reads.update(frame_reads=int(getattr(source, "reads", 0)), frame_renders=int(getattr(source, "renders", 0)))
+        return episode, _source_info(source), scene
     finally:
         env.close()
 

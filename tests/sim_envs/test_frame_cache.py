@@ -58,3 +58,32 @@ def test_the_key_follows_source_renderer_and_environment(monkeypatch) -> None:
     monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES")
     monkeypatch.setattr(frame_cache, "CACHE_FORMAT", "frames/1")  # a cache of another format is another folder
     assert cache_key({"name": "office0"}, "mujoco") != a
+
+
+def test_timestamps_and_poses_are_kept_beside_the_frames(tmp_path) -> None:
+    spec = get_sequence("office1")
+    with SimulatedSequence(spec) as plain:
+        stamps, poses = plain.timestamps.copy(), plain.poses.copy()
+
+    class NoPath:  # a source that can no longer make its camera path: a second reader gets it from the folder
+        name, intrinsics = spec.name, None
+
+        def __len__(self) -> int:
+            return spec.n_frames
+
+        def close(self) -> None:
+            pass
+
+        @property
+        def poses(self):
+            raise AssertionError("the trajectory was generated again")
+
+        timestamps = poses
+
+    first = CachedFrames(SimulatedSequence(spec), tmp_path)
+    assert np.array_equal(first.timestamps, stamps) and np.array_equal(first.poses, poses)
+    assert (tmp_path / "trajectory.npz").is_file() and not first.poses.flags.writeable
+    second = CachedFrames(NoPath(), tmp_path)
+    assert second.timestamps.tobytes() == stamps.tobytes() and second.poses.tobytes() == poses.tobytes()
+    (tmp_path / "trajectory.npz").write_bytes(b"broken")  # made again from the source
+    assert np.array_equal(CachedFrames(SimulatedSequence(spec), tmp_path).poses, poses)
