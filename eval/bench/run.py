@@ -14,7 +14,9 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
 - ``timing.json``: wall time of the run, per-frame step times, frames per second, ``stages`` (where the run's wall
   seconds went, :data:`STAGES`; read by :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames
-  read from the frame cache / rendered), and ``environment``, the machine and package versions it ran on
+  read from the frame cache / rendered), ``unit_s`` / ``frames_per_unit`` (the machine unit timed around the run,
+  :mod:`slamcommon.machine_unit`, and the run's frames per unit: the suite speed gate's figure,
+  :mod:`eval.bench.suite_speed`), and ``environment``, the machine and package versions it ran on
   (:mod:`eval.bench.environment`; never compared by the gate);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
@@ -51,6 +53,7 @@ from eval.metrics.map_metrics import map_metrics
 from eval.metrics.results import evaluate_episode, json_ready
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds
 
 RUN_FILES: tuple[str, ...] = (
     "metrics.json",
@@ -68,6 +71,7 @@ FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames ren
 RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
+UNIT_REPEATS = 30  # machine units timed before and after a run (0.4 ms each on a 2-core EPYC: ~25 ms a run)
 # where a run's wall seconds go (timing.json "stages"): building the agent and the environment; reading (or
 # rendering) frames; the agent's steps; its finish(); the rest of the episode loop (the env's observations, the
 # driver's checks); scoring the trajectory; scoring key-frame depth and labels; scoring the global model; writing
@@ -188,9 +192,10 @@ class ExternalEpisode:
 
 def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
+    units = [machine_unit_seconds() for _ in range(UNIT_REPEATS)]  # before the run's clock starts
     start = time.perf_counter()
     try:
-        files = _run_and_package(spec, progress, start)
+        files = _run_and_package(spec, progress, start, units)
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded with its error; the others go on
         return RunResult(
             spec,
@@ -202,7 +207,8 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
 
 
-def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
+def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[float] | None = None,
+                     ) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
     scene = None
     stages: dict[str, float] = {}
@@ -274,6 +280,12 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
         timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
         timing.update(reads)
+        # the run's speed in machine units (slamcommon.machine_unit, timed here just before and just after it): what
+        # the suite speed gate compares (eval.bench.suite_speed)
+        units = [*(units or []), *(machine_unit_seconds() for _ in range(UNIT_REPEATS))]
+        timing["unit_version"] = UNIT_VERSION
+        timing["unit_s"] = float(np.mean(units))
+        timing["frames_per_unit"] = n_frames * timing["unit_s"] / timing["wall_s"] if timing["wall_s"] > 0 else 0.0
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
         write_json(folder / "timing.json", timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
