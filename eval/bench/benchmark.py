@@ -400,8 +400,12 @@ def _executor(suite: Suite, methods: Mapping[str, Method], options: BenchOptions
     if suite.kind is SuiteKind.PERF or options.gate is GateAction.CALIBRATE:
         return None
     ex = options.executor
-    # the fork server imports the agents' modules once; each run still gets a fresh worker forked from it
+    # the fork server imports the agents' modules once, the modules they import late (their method's preload) and
+    # the plots' module; each run still gets a fresh worker forked from it
     preload = [m.entry_point.partition(":")[0] for m in methods.values() if m.entry_point]
+    preload += [name for m in methods.values() for name in m.preload]
+    if options.plots:
+        preload.append("eval.reports.plots")
     return make_executor(ex.kind, ex.jobs, ex.address, fresh_workers=not ex.reuse_workers, preload=preload,
                          **({"timeout_s": ex.timeout_s} if ex.timeout_s is not None else {}))  # fmt: skip
 

@@ -91,7 +91,9 @@ class Method:
     ``rgbd`` or ``stereo``; uses_ground_truth: what ground truth an external system declares it used (``depth``,
     ``scale``, ``poses``). cost: about how many milliseconds a frame of the method takes in a suite on a 2-core
     machine, for scheduling only (a suite starts its longest runs first, :func:`eval.bench.runner.run_order`); not
-    part of a run's fingerprint.
+    part of a run's fingerprint. preload: modules a run of the method imports late (the network's, and torch with it)
+    that a suite's fork server imports once ahead of the runs (:mod:`eval.bench.executors`), so that no run pays
+    the import (1-2 s); names, never imported by the judge itself; not part of a run's fingerprint.
     """
 
     name: str
@@ -108,8 +110,13 @@ class Method:
     sensor: str = "mono"
     uses_ground_truth: tuple[str, ...] = ()
     cost: float = DEFAULT_COST_MS
+    preload: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "preload", tuple(str(m) for m in self.preload))
+        bad_modules = [m for m in self.preload if not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", m)]
+        if bad_modules:
+            raise MethodError(f"method {self.name!r}: preload names modules ('package.module'), got {bad_modules}")
         if isinstance(self.cost, bool) or not isinstance(self.cost, int | float) or not self.cost > 0:
             raise MethodError(f"method {self.name!r}: cost must be a positive number of milliseconds per frame, "
                               f"got {self.cost!r}")
@@ -299,7 +306,7 @@ def _thaw(value: Any) -> Any:
 
 # ------------------------------------------------------------------------------------------------------ the table
 _FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
-           "sensor", "uses_ground_truth", "cost"}
+           "sensor", "uses_ground_truth", "cost", "preload"}
 SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
 GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
 ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)
