@@ -12,12 +12,12 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 - ``metrics.json``: the run record (:mod:`eval.metrics.results`) with the method's metric groups only, and ``metadata``
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
-- ``timing.json``: wall time of the run, per-frame step times, frames per second, ``stages`` (where the run's wall
-  seconds went, :data:`STAGES`; read by :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames
-  read from the frame cache / rendered), ``unit_s`` / ``frames_per_unit`` (the machine unit timed around the run,
-  :mod:`slamcommon.machine_unit`, and the run's frames per unit: the suite speed gate's figure,
-  :mod:`eval.bench.suite_speed`), and ``environment``, the machine and package versions it ran on
-  (:mod:`eval.bench.environment`; never compared by the gate);
+- ``timing.json``: wall time of the run, its process's CPU time (``cpu_s``), per-frame step times, frames per
+  second, ``stages`` (where the run's wall seconds went, :data:`STAGES`; read by :mod:`eval.bench.profile`),
+  ``frame_reads`` / ``frame_renders`` (frames read from the frame cache / rendered), ``unit_s`` /
+  ``frames_per_unit`` (the machine unit timed around the run, :mod:`slamcommon.machine_unit`, and the run's frames
+  per unit: the suite speed gate's figure, :mod:`eval.bench.suite_speed`), and ``environment``, the machine and
+  package versions it ran on (:mod:`eval.bench.environment`; never compared by the gate);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
 - ``keyframes.npz``: ``timestamps`` (K,), ``T_world_cam`` (K, 4, 4), ``depth`` (K, H, W) float32 metres (resized to
@@ -195,7 +195,7 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     units = [machine_unit_seconds() for _ in range(UNIT_REPEATS)]  # before the run's clock starts
     start = time.perf_counter()
     try:
-        files = _run_and_package(spec, progress, start, units)
+        files = _run_and_package(spec, progress, start, units, time.process_time())
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded with its error; the others go on
         return RunResult(
             spec,
@@ -208,7 +208,7 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
 
 
 def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[float] | None = None,
-                     ) -> dict[str, bytes]:
+                     cpu_start: float | None = None) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
     scene = None
     stages: dict[str, float] = {}
@@ -277,6 +277,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
             _write_plots(folder, spec, episode, depth_est if has_depth else [], depth_gt)
             stages["plots"] = time.perf_counter() - t_plots
         timing["wall_s"] = time.perf_counter() - start
+        if cpu_start is not None:  # CPU seconds of the run's process, all its threads: what a loaded machine's wall
+            timing["cpu_s"] = time.process_time() - cpu_start  # time hides
         stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
         timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
         timing.update(reads)
