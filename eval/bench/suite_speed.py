@@ -18,12 +18,11 @@ import json
 import statistics
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
-from eval.bench.perf import MAX_SLOWDOWN, PerfError, machine_info
-from eval.metrics.results import json_ready
+from eval.bench.perf import BaselineRecord, PerfError, load_baseline_record, machine_info
 from slamcommon.machine_unit import UNIT_VERSION
 
 SUITE_SPEED_BASELINE: Path = Path(__file__).resolve().parents[2] / "results" / "baselines" / "suite_speed.json"
@@ -32,20 +31,12 @@ GATED_SUITE = "quick"
 
 
 @dataclass(frozen=True)
-class SuiteSpeedBaseline:
-    """Per method the frames per machine unit a suite's runs reached (:func:`method_speeds`), in unit
-    ``unit_version``, with the allowed slowdown, the suite runs it was made from, the machine and revision."""
+class SuiteSpeedBaseline(BaselineRecord):
+    """Per method (``figures``) the frames per machine unit a suite's runs reached (:func:`method_speeds`), with
+    the fields of every speed baseline (:class:`eval.bench.perf.BaselineRecord`)."""
 
     suite: str
-    unit_version: str
-    figures: dict[str, float]
-    max_slowdown: float = MAX_SLOWDOWN
-    runs: tuple[dict[str, float], ...] = ()
-    machine: dict[str, Any] = field(default_factory=dict)
-    git_revision: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return json_ready({"schema": SUITE_SPEED_SCHEMA, **asdict(self), "runs": list(self.runs)})
+    SCHEMA: ClassVar[str] = SUITE_SPEED_SCHEMA
 
 
 def method_speeds(runs: Iterable[tuple[str, Mapping[str, Any]]], unit_version: str = UNIT_VERSION,
@@ -73,25 +64,14 @@ def baseline_from(speeds: Sequence[Mapping[str, float]], suite: str = GATED_SUIT
         raise PerfError("a suite speed baseline needs at least one suite run")
     methods = list(dict.fromkeys(m for s in speeds for m in s))
     figures = {m: float(statistics.median(s[m] for s in speeds if m in s)) for m in methods}
-    return SuiteSpeedBaseline(suite, UNIT_VERSION, figures, runs=tuple(dict(s) for s in speeds),
+    return SuiteSpeedBaseline(suite, unit_version=UNIT_VERSION, figures=figures, runs=tuple(dict(s) for s in speeds),
                               machine=machine_info(), git_revision=git_revision)
 
 
 def load_suite_speed_baseline(path: str | Path | None = None) -> SuiteSpeedBaseline:
     """Read a suite speed baseline (default :data:`SUITE_SPEED_BASELINE`); one clear error when it cannot be used."""
-    path = Path(path) if path is not None else SUITE_SPEED_BASELINE
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise PerfError(f"{path}: cannot read the suite speed baseline: {exc}") from exc
-    if data.get("schema") != SUITE_SPEED_SCHEMA:
-        raise PerfError(f"{path}: schema {data.get('schema')!r}, expected {SUITE_SPEED_SCHEMA!r}")
-    data.pop("schema")
-    try:
-        data["runs"] = tuple(data.get("runs", ()))
-        return SuiteSpeedBaseline(**data)
-    except TypeError as exc:
-        raise PerfError(f"{path}: {exc}") from exc
+    return load_baseline_record(Path(path) if path is not None else SUITE_SPEED_BASELINE, SUITE_SPEED_SCHEMA,
+                                SuiteSpeedBaseline, "the suite speed baseline")
 
 
 def suite_speed_regressions(speeds: Mapping[str, float], baseline: SuiteSpeedBaseline,
