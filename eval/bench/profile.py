@@ -5,8 +5,9 @@
 renders the sequences into a fresh frame cache (timed: the rendering a suite does once, ahead of its runs), runs
 each method once as a Table-1 suite would (``eval.bench.run_bench``, fresh worker processes, plots on), and prints
 the table (Markdown, or one JSON object with ``--json``: the perf suite's ``suite`` probe, ``eval/perf.toml``,
-shown in ``results/perf.md``). One job at a time by default, so that runs do not slow each other down; the figures
-depend on the machine and its load, and are measured, never asserted.
+shown in ``results/perf.md``). One job at a time by default, so that runs do not slow each other down, with one
+math thread per run as in a 2-job suite on 2 cores (``make bench``; ``--threads``); the figures depend on the
+machine and its load, and are measured, never asserted.
 """
 
 from __future__ import annotations
@@ -85,10 +86,10 @@ def format_table(table: Mapping[str, Any]) -> str:
 
 
 def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_FRAMES,
-            methods: Sequence[str] = TABLE1_METHODS, jobs: int = 1) -> dict[str, Any]:
+            methods: Sequence[str] = TABLE1_METHODS, jobs: int = 1, threads: int = 1) -> dict[str, Any]:
     """Render ``sequences`` (first ``frames`` frames) into a fresh frame cache, run each of ``methods`` once on each
-    as the Table-1 suite does, and return :func:`profile_table` with the rendering's milliseconds per frame, the
-    suite's wall seconds and the machine's load."""
+    as the Table-1 suite does (``jobs`` at a time, ``threads`` math threads each), and return :func:`profile_table`
+    with the rendering's milliseconds per frame, the suite's wall seconds and the machine's load."""
     import os
 
     from eval.bench import BenchOptions, run_bench
@@ -104,12 +105,13 @@ def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_
             render_frames(FramesJob(resolve_sequence(name), frames, "mujoco", str(out / FRAME_CACHE_DIR)))
         render_s = time.perf_counter() - t0
         options = BenchOptions(sequences=tuple(sequences), frames=frames, runs=1, out=out, results=out / "reports",
-                               gate=GateAction.OFF, progress=False, executor=ExecutorOptions(jobs=jobs))
+                               gate=GateAction.OFF, progress=False,
+                               executor=ExecutorOptions(jobs=jobs, threads=threads))
         t1 = time.perf_counter()
         outcome = run_bench("table1", list(methods), options)
         suite_s = time.perf_counter() - t1
         profiles = [p for _, part in outcome.parts for p in suite_profile(part)]
-    return {**profile_table(profiles), "sequences": list(sequences), "frames": frames, "jobs": jobs,
+    return {**profile_table(profiles), "sequences": list(sequences), "frames": frames, "jobs": jobs, "threads": threads,
             "rendering_ms_per_frame": round(1e3 * render_s / max(1, frames * len(sequences)), 2),
             "suite_wall_s": round(suite_s, 1), "failed_runs": len(outcome.failed),
             "load_average_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None}
@@ -121,9 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=DEFAULT_FRAMES)
     parser.add_argument("--methods", nargs="+", default=list(TABLE1_METHODS), metavar="NAME")
     parser.add_argument("--jobs", type=int, default=1, help="runs at a time (default 1: none slows another)")
+    parser.add_argument("--threads", type=int, default=1, help="math threads per run (default 1, as make bench)")
     parser.add_argument("--json", action="store_true", help="print one JSON object (the perf suite's probe)")
     args = parser.parse_args(argv)
-    result = measure(args.sequences, args.frames, args.methods, args.jobs)
+    result = measure(args.sequences, args.frames, args.methods, args.jobs, args.threads)
     if args.json:
         print(json.dumps(result))
     else:
