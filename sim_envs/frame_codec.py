@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 import zstandard
 
+from sim_envs.errors import SimEnvError
+
 FRAME_FORMAT = "cnnslam-frame/1"  # bump when the bytes of a stored frame change meaning
 MAGIC = b"CNNSLAMFRAME1\n"
 ZSTD_LEVEL = 3  # Zstandard's default: 1.7 ms to compress a kinect RGB frame, 0.3 ms to decompress it
@@ -40,7 +42,7 @@ PALETTE_SAMPLE_MAX = 2048  # ... this many distinct values (rendered depth has t
 _HEADER_LEN = struct.Struct("<I")
 
 
-class FrameCodecError(ValueError):
+class FrameCodecError(SimEnvError, ValueError):
     """Bytes that are not a frame of this format (a damaged or foreign file)."""
 
 

@@ -4,7 +4,7 @@ Probes (:file:`eval/perf.toml`, one subprocess each, ``python -m MODULE ...``): 
 renderer and output set (``sim_envs.bench_render``), depth-network milliseconds per frame
 (``cnnslam.depthnet.bench --json FILE``), CNN-SLAM tracking and whole-system frames per second
 (``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``), one run of
-each Table-1 method inside a suite with where its time goes (``eval.bench.profile --json``: a table, ``columns``
+each Table-1 method inside a suite with where its time goes (``eval.commands.cli_profile --json``: a table, ``columns``
 and ``rows``, shown as one). Modules with
 a JSON output are read as JSON; the two without one (``bench_render``, ``bench_metrics``) are parsed from the figures
 they print (:func:`parse_render_table`, :func:`parse_metrics_text`: a line that does not look like a figure is ignored,

@@ -1,19 +1,18 @@
 """Where a suite's time goes, per method: the stages of its runs (:data:`eval.bench.run.STAGES`, from each run's
 ``timing.json``) summed over the method's runs, in milliseconds per frame, beside its frames per second end to end.
 
-``python -m eval.bench.profile [--sequences office0@kinect] [--frames 100] [--methods ...] [--jobs 1] [--json]``
-renders the sequences into a fresh frame cache (timed: the rendering a suite does once, ahead of its runs), runs
-each method once as a Table-1 suite would (``eval.bench.run_bench``, fresh worker processes, plots on), and prints
-the table (Markdown, or one JSON object with ``--json``: the perf suite's ``suite`` probe, ``eval/perf.toml``,
-shown in ``results/perf.md``). One job at a time by default, so that runs do not slow each other down, with one
-math thread per run as in a 2-job suite on 2 cores (``make bench``; ``--threads``); the figures depend on the
-machine and its load, and are measured, never asserted.
+:func:`measure` (the command: ``python -m eval.commands.cli_profile [--sequences office0@kinect] [--frames 100]
+[--methods ...] [--jobs 1] [--threads 1] [--json]``) renders the sequences into a fresh frame cache (timed: the
+rendering a suite does once, ahead of its runs), runs each method once as a Table-1 suite would
+(``eval.bench.run_bench``, fresh worker processes, plots on), and the command prints the table (Markdown, or one
+JSON object with ``--json``: the perf suite's ``suite`` probe, ``eval/perf.toml``, shown in ``results/perf.md``).
+One job at a time by default, so that runs do not slow each other down, with one math thread per run as in a 2-job
+suite on 2 cores (``make bench``; ``--threads``); the figures depend on the machine and its load, and are measured,
+never asserted.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import tempfile
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -115,26 +114,3 @@ def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_
             "rendering_ms_per_frame": round(1e3 * render_s / max(1, frames * len(sequences)), 2),
             "suite_wall_s": round(suite_s, 1), "failed_runs": len(outcome.failed),
             "load_average_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None}
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m eval.bench.profile", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sequences", nargs="+", default=list(DEFAULT_SEQUENCES), metavar="NAME")
-    parser.add_argument("--frames", type=int, default=DEFAULT_FRAMES)
-    parser.add_argument("--methods", nargs="+", default=list(TABLE1_METHODS), metavar="NAME")
-    parser.add_argument("--jobs", type=int, default=1, help="runs at a time (default 1: none slows another)")
-    parser.add_argument("--threads", type=int, default=1, help="math threads per run (default 1, as make bench)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object (the perf suite's probe)")
-    args = parser.parse_args(argv)
-    result = measure(args.sequences, args.frames, args.methods, args.jobs, args.threads)
-    if args.json:
-        print(json.dumps(result))
-    else:
-        print(format_table(result))
-        print(f"\nrendering {result['rendering_ms_per_frame']} ms per frame, suite {result['suite_wall_s']} s, "
-              f"load {result['load_average_1min']}")
-    return 0 if not result["failed_runs"] else 1
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -2,21 +2,21 @@
 (``results/baselines/suite_speed.json``); a method more than 1.5 times slower fails CI.
 
 Each run times the machine unit (:mod:`slamcommon.machine_unit`, the frozen workload of CNN-SLAM's speed gate) in its
-own process just before and just after itself and records its ``frames_per_unit`` (``timing.json``:
-frames x unit seconds / wall seconds, :mod:`eval.bench.run`): a figure that carries the machine's speed and the
-share of the cores the run got, so that a baseline made on one machine judges another. A method's figure in a suite
-run is the best of its runs (the quick suite: 3 sequences x 3 seeds): a neighbour's burst slows some runs, a real
-slowdown slows them all. The gate runs in ``make test`` on the quick suite's runs (``tests/eval/
-test_quick_regression.py``); ``python -m eval.bench.suite_speed --update`` remakes the baseline after an intended
-change (the quick suite as the gate runs it, ``--repeats`` times, the median of each method's figure).
+own process just before and just after itself and records its ``frames_per_unit`` (``timing.json``: frames x the
+unit's CPU seconds / the run's CPU seconds, :mod:`eval.bench.run`): a figure that carries the machine's speed, so
+that a baseline made on one machine judges another, and in CPU time, which the other processes on the cores do not
+inflate (wall time did: ``make test`` runs two test files beside the quick suite's two jobs, and the unit, timed
+for a few milliseconds around a run of a minute, did not see that share: CNN-SLAM read 1.6 times slower). A
+method's figure in a suite run is the best of its runs (the quick suite: 3 sequences x 3 seeds): a neighbour's
+burst slows some runs, a real slowdown slows them all. The gate runs in ``make test`` on the quick suite's runs
+(``tests/eval/test_quick_regression.py``); ``python -m eval.commands.cli_suite_speed --update`` remakes the baseline
+after an intended change (the quick suite as the gate runs it, ``--repeats`` times, the median of each method's
+figure).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -81,7 +81,7 @@ def suite_speed_regressions(speeds: Mapping[str, float], baseline: SuiteSpeedBas
     with that reason. Methods the baseline does not hold are not judged."""
     if unit_version != baseline.unit_version:
         return [f"runs timed in machine unit {unit_version!r}, the baseline in {baseline.unit_version!r}: remake the "
-                "baseline (python -m eval.bench.suite_speed --update)"]
+                "baseline (python -m eval.commands.cli_suite_speed --update)"]
     failures = []
     for method, reference in baseline.figures.items():
         value = speeds.get(method)
@@ -104,34 +104,3 @@ def measure_quick(out_root: Path, progress: bool = False) -> dict[str, float]:
     if run.failed:
         raise PerfError(f"{len(run.failed)} quick-suite run(s) failed: {run.failed[0].key}: {run.failed[0].error}")
     return suite_speeds(run)
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m eval.bench.suite_speed", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--update", action="store_true", help="write the baseline (after an intended change)")
-    parser.add_argument("--repeats", type=int, default=1, help="quick-suite runs for --update (the median)")
-    parser.add_argument("--baseline", type=Path, default=SUITE_SPEED_BASELINE)
-    args = parser.parse_args(argv)
-    from eval.bench.runner import git_revision
-
-    speeds = []
-    for k in range(max(1, args.repeats if args.update else 1)):
-        with tempfile.TemporaryDirectory(prefix=f"cnnslam-suite-speed-{k}-") as tmp:
-            speeds.append(measure_quick(Path(tmp), progress=True))
-    if args.update:
-        baseline = baseline_from(speeds, git_revision=git_revision())
-        args.baseline.parent.mkdir(parents=True, exist_ok=True)
-        args.baseline.write_text(json.dumps(baseline.to_dict(), indent=2, allow_nan=False) + "\n")
-        print(f"wrote {args.baseline}")
-    baseline = load_suite_speed_baseline(args.baseline)
-    for method, value in speeds[-1].items():
-        reference = baseline.figures.get(method)
-        ratio = f"{reference / value:.2f}" if reference else "-"
-        print(f"{method:20s} {value:.4g} frames per unit (baseline {reference or '-'}, baseline / this run {ratio})")
-    failures = suite_speed_regressions(speeds[-1], baseline)
-    print("\n".join(failures) if failures else "passed")
-    return 1 if failures else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -55,7 +55,7 @@ def test_the_default_probes():
     assert by_name["cnn"].output == "json_file" and "{json}" in by_name["cnn"].args
     assert by_name["slam"].output == "json_stdout" and "--json" in by_name["slam"].args
     assert by_name["metrics"].module == "eval.metrics.bench_metrics" and by_name["metrics"].output == "metrics_text"
-    assert by_name["suite"].module == "eval.bench.profile" and "--json" in by_name["suite"].args
+    assert by_name["suite"].module == "eval.commands.cli_profile" and "--json" in by_name["suite"].args
     with pytest.raises(PerfError, match="output must be one of"):
         Probe("x", "x", "json.tool", output="xml")
 

@@ -9,10 +9,11 @@ import pytest
 
 from eval.bench.methods import load_methods
 from eval.bench.perf import PerfReport, ProbeResult, format_perf_markdown, parse_json_stdout
-from eval.bench.profile import main, profile_runs, profile_table, suite_profile
+from eval.bench.profile import profile_runs, profile_table, suite_profile
 from eval.bench.run import STAGES
 from eval.bench.runner import run_suite
 from eval.bench.suites import get_suite
+from eval.commands.cli_profile import main
 
 
 def test_known_answers() -> None:
@@ -42,7 +43,7 @@ def test_the_probe_prints_a_table_perf_md_shows(capsys) -> None:
     figures = parse_json_stdout(capsys.readouterr().out)
     assert figures["columns"][0] == "method" and [r[0] for r in figures["rows"]] == ["oracle"]
     assert figures["rendering_ms_per_frame"] > 0 and figures["failed_runs"] == 0
-    probe = ProbeResult("suite", "suite profile", ["python", "-m", "eval.bench.profile"], True, figures)
+    probe = ProbeResult("suite", "suite profile", ["python", "-m", "eval.commands.cli_profile"], True, figures)
     text = format_perf_markdown(PerfReport([probe], {"cores_available": 2}, "r"))
     assert "| method | runs | frames | fps | wall_s | setup_ms |" in text and "| oracle | 1 | 3 |" in text
     json.dumps(figures)
