@@ -13,10 +13,11 @@ compiled and the network is warmed up on a short run first. Four runs over the s
 - the two-thread system again without the global model (``global_model.enabled = False``): what fusing the model
   in the key-frame thread costs the frame thread.
 
-Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``): fps times
-the seconds of a frozen reference workload (:func:`machine_unit_seconds`) timed in the same process just before
-and just after that run, so that figures from machines of other speeds and under other loads compare; the speed
-gate (``eval.bench.perf.speed_regressions``) compares them with ``results/baselines/perf.json``.
+Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``): fps
+times the seconds of a frozen reference workload (:func:`slamcommon.machine_unit.machine_unit_seconds`) timed in
+the same process just before and just after that run, so that figures from machines of other speeds and under
+other loads compare; the speed gate (``eval.bench.perf.speed_regressions``) compares them with
+``results/baselines/perf.json``.
 
 Figures print as a table and come back from :func:`benchmark` as a dict. Speed is measured, never asserted.
 """
@@ -31,76 +32,13 @@ import time
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from cnnslam.config import CnnSlamConfig
 from cnnslam.depth_prediction import GroundTruthHint
 from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam
+from slamcommon.machine_unit import UNIT_VERSION, units_around
 from slamcommon.resources import peak_rss_mib  # the one reading of peak memory (also the judge's)
-
-# ------------------------------------------------------------------------------------------- the machine-speed unit
-# A fixed workload timed in the same process as the figures, so that fps from machines of other speeds, or under
-# other loads, can be compared: a figure times the unit's seconds is frames per unit (the speed gate's currency,
-# eval.bench.perf.speed_regressions). The workload is frozen: it calls nothing of the project (a change to tracking must
-# not move the unit), and editing it invalidates results/baselines/perf.json (bump UNIT_VERSION, remake the baseline).
-# Its mix is tracking's: a rigid warp, bilinear samples of an interleaved float32 image, divisions, a square root and
-# the 21 products of a 6x6 normal equation per point, in a numba loop.
-
-UNIT_VERSION = "warp-bilinear-6x6/1"
-_UNIT_POINTS = 20000
-
-
-@njit(cache=True, nogil=True, fastmath=True)
-def _unit_kernel(image: np.ndarray, points: np.ndarray, rounds: int) -> float:  # pragma: no cover - numba
-    h, w = image.shape[0], image.shape[1]
-    total = 0.0
-    for k in range(rounds):
-        c, s = np.cos(0.01 * k), np.sin(0.01 * k)
-        H = np.zeros((6, 6))
-        g = np.zeros(3)
-        J = np.zeros(6)
-        for i in range(points.shape[0]):
-            x = c * points[i, 0] - s * points[i, 2] + 0.01 * k
-            y = points[i, 1]
-            z = s * points[i, 0] + c * points[i, 2]
-            iz = 1.0 / z
-            u = 250.0 * x * iz + 160.0
-            v = 250.0 * y * iz + 120.0
-            if not (u > 1.0 and v > 1.0 and u < w - 2.0 and v < h - 2.0):
-                continue
-            iu, iv = int(u), int(v)
-            au, av = u - iu, v - iv
-            for ch in range(3):
-                g[ch] = ((1.0 - au) * (1.0 - av) * image[iv, iu, ch] + au * (1.0 - av) * image[iv, iu + 1, ch]
-                         + (1.0 - au) * av * image[iv + 1, iu, ch] + au * av * image[iv + 1, iu + 1, ch])
-            wgt = 1.0 / np.sqrt(16.0 + g[0] * g[0] * 1e-3)
-            J[0], J[1], J[2] = g[1] * iz, g[2] * iz, -(g[1] * x + g[2] * y) * iz * iz
-            J[3], J[4], J[5] = g[1] * y, g[2] * x, g[0] * iz
-            for a in range(6):
-                for b in range(a, 6):
-                    H[a, b] += wgt * J[a] * J[b]
-        total += H[0, 0] + H[5, 5]
-    return total
-
-
-_UNIT_DATA: tuple[np.ndarray, np.ndarray] | None = None
-
-
-def machine_unit_seconds() -> float:
-    """Wall seconds of one unit of the frozen reference workload (20 000 points warped, sampled and accumulated),
-    timed in this process; compiled and warmed on first use."""
-    global _UNIT_DATA
-    if _UNIT_DATA is None:
-        rng = np.random.default_rng(0)
-        image = rng.uniform(0.0, 255.0, (240, 320, 3)).astype(np.float32)
-        points = np.column_stack([rng.uniform(-1.2, 1.2, _UNIT_POINTS), rng.uniform(-0.9, 0.9, _UNIT_POINTS),
-                                  rng.uniform(1.0, 4.0, _UNIT_POINTS)]).astype(np.float32)
-        _UNIT_DATA = (image, points)
-        _unit_kernel(image, points, 1)
-    t0 = time.perf_counter()
-    _unit_kernel(*_UNIT_DATA, 1)
-    return time.perf_counter() - t0
 
 
 def _available_cores() -> int:
@@ -193,16 +131,6 @@ def _run(config: CnnSlamConfig, intrinsics: np.ndarray, frames: list, predictor:
     return wall, steps, result.stats
 
 
-def _units_around(run: Any, repeats: int = 60) -> tuple[Any, float]:
-    """``run()``'s value and the mean machine unit over ``repeats`` back-to-back timings just before it and as many
-    just after (about 0.1 s in all: a mean over that long sees the share of the cores this process got, as the run
-    did, where a median of short timings would pick the ones no other process interrupted)."""
-    before = [machine_unit_seconds() for _ in range(repeats)]
-    value = run()
-    after = [machine_unit_seconds() for _ in range(repeats)]
-    return value, float(np.mean(before + after))
-
-
 def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "auto") -> dict[str, Any]:
     """Time the system on the first ``n_frames`` of ``sequence``; returns the figures (see the module docstring).
 
@@ -215,9 +143,9 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
     _run(base.with_overrides({"system.threads": False}), intrinsics, frames[: min(40, len(frames))], pred)  # warm-up
     single = base.with_overrides({"system.threads": False})
     with _KernelTimer() as kernel:
-        (wall_1, steps_1, stats_1), unit_1 = _units_around(lambda: _run(single, intrinsics, frames, pred))
+        (wall_1, steps_1, stats_1), unit_1 = units_around(lambda: _run(single, intrinsics, frames, pred))
     two = base.with_overrides({"system.threads": True})
-    (wall_2, steps_2, stats_2), unit_2 = _units_around(lambda: _run(two, intrinsics, frames, pred))
+    (wall_2, steps_2, stats_2), unit_2 = units_around(lambda: _run(two, intrinsics, frames, pred))
     # the same without the global model (Sec. 3.5): fusion runs in the key-frame thread and must not slow the
     # frame thread
     wall_off, steps_off, _ = _run(two.with_overrides({"global_model.enabled": False}), intrinsics, frames, pred)

@@ -157,20 +157,24 @@ def _median(d: np.ndarray) -> float:
 
 
 def distance_to_surface(points: np.ndarray, samples: np.ndarray, normals: np.ndarray | None = None,
-                        spacing: float | None = None, tree: cKDTree | None = None) -> tuple[np.ndarray, np.ndarray]:
+                        spacing: float | None = None, tree: cKDTree | None = None,
+                        nearest: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Distance (N,) float64 metres from each of ``points`` (N, 3) to the surface sampled by ``samples`` (M, 3),
     and the index (N,) int64 of the nearest sample.
 
     With ``normals`` (M, 3) and ``spacing`` the nearest-sample distance is refined as in the module docstring
     (point-to-plane over the sample's cell); without them it is the plain Euclidean distance to the nearest sample.
-    ``tree``: a prebuilt ``cKDTree(samples)`` to reuse.
+    ``tree``: a prebuilt ``cKDTree(samples)`` to reuse; ``nearest``: ``cKDTree(samples).query(points, k=1)`` already
+    made (distances, indices), to reuse.
     """
     p = _points("points", points)
     s = _points("samples", samples, allow_empty=False)
     if p.shape[0] == 0:
         return np.zeros(0), np.zeros(0, dtype=np.int64)
-    tree = cKDTree(s) if tree is None else tree
-    d, idx = tree.query(p, k=1)
+    if nearest is None:
+        tree = cKDTree(s) if tree is None else tree
+        nearest = tree.query(p, k=1)
+    d, idx = nearest
     idx = np.asarray(idx, dtype=np.int64)
     if normals is None or spacing is None:
         return np.asarray(d, dtype=np.float64), idx
@@ -189,19 +193,21 @@ def distance_to_surface(points: np.ndarray, samples: np.ndarray, normals: np.nda
 
 def reconstruction_metrics(model_points: np.ndarray, gt_points: np.ndarray, gt_normals: np.ndarray | None = None,
                            gt_spacing: float | None = None, threshold: float = DEFAULT_THRESHOLD,
-                           seen: np.ndarray | None = None) -> ReconstructionMetrics:
+                           seen: np.ndarray | None = None,
+                           nearest: tuple[np.ndarray, np.ndarray] | None = None) -> ReconstructionMetrics:
     """Accuracy and completeness of a model (N, 3) against ground-truth samples (M, 3) (module docstring).
 
     gt_normals (M, 3) and gt_spacing (m) enable the point-to-surface refinement of the accuracy distances. ``seen``
     (M,) bool: the samples that count for completeness, the surfaces the views saw (:func:`visible_in_views`); the
     accuracy is still measured against every sample (a model point on a surface no view saw in full is not an
-    error). ``n_gt`` counts the samples scored for completeness.
+    error). ``n_gt`` counts the samples scored for completeness. ``nearest``: the model points' nearest samples
+    already found (``cKDTree(gt_points).query(model_points, k=1)``), to reuse.
     """
     model = _points("model_points", model_points)
     all_gt = _points("gt_points", gt_points, allow_empty=False)
     if not (math.isfinite(threshold) and threshold > 0):
         raise ReconstructionMetricsError(f"threshold must be positive metres, got {threshold!r}")
-    acc, _ = distance_to_surface(model, all_gt, gt_normals, gt_spacing)
+    acc, _ = distance_to_surface(model, all_gt, gt_normals, gt_spacing, nearest=nearest)
     gt = all_gt
     if seen is not None:
         seen = np.asarray(seen)

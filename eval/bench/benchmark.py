@@ -75,13 +75,15 @@ Frames = int | Literal["all"] | None
 class ExecutorOptions:
     """Where runs execute (:mod:`eval.bench.executors`): ``kind`` local (a process pool), serial (this process) or
     ray; ``jobs`` at a time; ``address`` of a Ray cluster; ``reuse_workers`` (local: several runs per worker);
-    ``timeout_s``: a run's time limit (None: none)."""
+    ``timeout_s``: a run's time limit (None: none); ``threads``: math threads per local worker (None: the cores
+    shared among the jobs)."""
 
     kind: str = "local"
     jobs: int = DEFAULT_JOBS
     address: str | None = None
     reuse_workers: bool = False
     timeout_s: float | None = None
+    threads: int | None = None
 
     @property
     def is_default(self) -> bool:
@@ -406,9 +408,14 @@ def _executor(suite: Suite, methods: Mapping[str, Method], options: BenchOptions
     if suite.kind is SuiteKind.PERF or options.gate is GateAction.CALIBRATE:
         return None
     ex = options.executor
-    # the fork server imports the agents' modules once; each run still gets a fresh worker forked from it
+    # the fork server imports the agents' modules once, the modules they import late (their method's preload) and
+    # the plots' module; each run still gets a fresh worker forked from it
     preload = [m.entry_point.partition(":")[0] for m in methods.values() if m.entry_point]
+    preload += [name for m in methods.values() for name in m.preload]
+    if options.plots:
+        preload.append("eval.reports.plots")
     return make_executor(ex.kind, ex.jobs, ex.address, fresh_workers=not ex.reuse_workers, preload=preload,
+                         threads=ex.threads,
                          **({"timeout_s": ex.timeout_s} if ex.timeout_s is not None else {}))  # fmt: skip
 
 

@@ -481,9 +481,11 @@ def make_executor(
     fresh_workers: bool = True,
     timeout_s: float | None = None,
     preload: Iterable[str] = (),
+    threads: int | None = None,
 ) -> Executor:
-    """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers`` and
-    ``preload`` (modules the fork server imports for its workers) only for ``local``; ``timeout_s``, the time limit
+    """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers``,
+    ``preload`` (modules the fork server imports for its workers) and ``threads`` (math threads per worker; None:
+    the cores shared among the jobs) only for ``local``; ``timeout_s``, the time limit
     of a run, for ``local`` and ``ray`` (``serial`` cannot stop a run in its own process)."""
     if name not in EXECUTORS:
         raise ExecutorError(f"unknown executor {name!r}; valid executors: {', '.join(EXECUTORS)}")
@@ -498,6 +500,6 @@ def make_executor(
             )
         return SerialExecutor()
     if name == "local":
-        return LocalExecutor(jobs, fresh_workers=fresh_workers, timeout_s=timeout_s, preload=preload)
+        return LocalExecutor(jobs, threads, fresh_workers=fresh_workers, timeout_s=timeout_s, preload=preload)
     import_ray()  # fail now, with the install hint, not after the suite is planned
     return RayExecutor(address, jobs, timeout_s=timeout_s)

@@ -80,6 +80,9 @@ FOLDER/method.toml                   optional: sensor = "mono" | "rgbd" | "stere
 _FILE_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")
 
 
+DEFAULT_COST_MS = 30.0  # a method's scheduling cost when its table gives none (ms per frame, about CNN-SLAM's)
+
+
 class MethodError(InputError):
     """A method definition or choice that cannot be used (a bad table, an unknown name, a setting its configuration
     does not take)."""
@@ -99,7 +102,11 @@ class Method:
     An input is ``"package:path/inside/it"`` (found without importing the package) or a file path. align: the
     trajectory alignment of the method's headline ATE (``se3``, ``sim3``, ...; None: the suite's); sensor: ``mono``,
     ``rgbd`` or ``stereo``; uses_ground_truth: what ground truth an external system declares it used (``depth``,
-    ``scale``, ``poses``).
+    ``scale``, ``poses``). cost: about how many milliseconds a frame of the method takes in a suite on a 2-core
+    machine, for scheduling only (a suite starts its longest runs first, :func:`eval.bench.runner.run_order`); not
+    part of a run's fingerprint. preload: modules a run of the method imports late (the network's, and torch with it)
+    that a suite's fork server imports once ahead of the runs (:mod:`eval.bench.executors`), so that no run pays
+    the import (1-2 s); names, never imported by the judge itself; not part of a run's fingerprint.
     """
 
     name: str
@@ -115,8 +122,18 @@ class Method:
     align: str | None = None
     sensor: str = "mono"
     uses_ground_truth: tuple[str, ...] = ()
+    cost: float = DEFAULT_COST_MS
+    preload: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "preload", tuple(str(m) for m in self.preload))
+        bad_modules = [m for m in self.preload if not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", m)]
+        if bad_modules:
+            raise MethodError(f"method {self.name!r}: preload names modules ('package.module'), got {bad_modules}")
+        if isinstance(self.cost, bool) or not isinstance(self.cost, int | float) or not self.cost > 0:
+            raise MethodError(f"method {self.name!r}: cost must be a positive number of milliseconds per frame, "
+                              f"got {self.cost!r}")
+        object.__setattr__(self, "cost", float(self.cost))
         kwargs = self.kwargs
         items = kwargs.items() if isinstance(kwargs, Mapping) else kwargs
         object.__setattr__(self, "kwargs", tuple(sorted((str(k), _freeze(v)) for k, v in items)))
@@ -302,7 +319,7 @@ def _thaw(value: Any) -> Any:
 
 # ------------------------------------------------------------------------------------------------------ the table
 _FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
-           "sensor", "uses_ground_truth"}
+           "sensor", "uses_ground_truth", "cost", "preload"}
 SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
 GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
 ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)

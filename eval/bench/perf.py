@@ -3,7 +3,9 @@
 Probes (:file:`eval/perf.toml`, one subprocess each, ``python -m MODULE ...``): render frames per second per
 renderer and output set (``sim_envs.bench_render``), depth-network milliseconds per frame
 (``cnnslam.depthnet.bench --json FILE``), CNN-SLAM tracking and whole-system frames per second
-(``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``). Modules with
+(``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``), one run of
+each Table-1 method inside a suite with where its time goes (``eval.commands.cli_profile --json``: a table, ``columns``
+and ``rows``, shown as one). Modules with
 a JSON output are read as JSON; the two without one (``bench_render``, ``bench_metrics``) are parsed from the figures
 they print (:func:`parse_render_table`, :func:`parse_metrics_text`: a line that does not look like a figure is ignored,
 and a probe that yields no figure at all is reported failed). A probe that fails or times out is reported with its
@@ -27,9 +29,9 @@ import tempfile
 import time
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import KW_ONLY, asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, TypeVar
 
 from tqdm import tqdm
 
@@ -37,6 +39,7 @@ from eval.bench.executors import available_cores
 from eval.errors import EvalError
 from eval.metrics.results import json_ready
 
+T = TypeVar("T")
 PROBES_FILE: Path = Path(__file__).resolve().parents[1] / "perf.toml"  # eval/perf.toml
 # before/after tables measured side by side at named revisions (hand-run, see its text), shown at the end of perf.md
 PERF_HISTORY: Path = Path(__file__).resolve().parents[2] / "results" / "perf_history.md"
@@ -241,8 +244,13 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
         if not probe.ok:
             lines.append(f"**failed**: {probe.error}\n")
             continue
+        figures = dict(probe.figures)
+        if isinstance(figures.get("columns"), list) and isinstance(figures.get("rows"), list):  # a table probe
+            from eval.bench.profile import format_table
+
+            lines += [format_table({"columns": figures.pop("columns"), "rows": figures.pop("rows")}), ""]
         lines += ["| figure | value |", "|---|---:|"]
-        for key, value in probe.figures.items():
+        for key, value in figures.items():
             text = (f"{value:.2f}" if abs(value) >= 1 or value == 0 else f"{value:.4g}") if isinstance(value, float) \
                 else str(value)
             lines.append(f"| {key} | {text} |")
@@ -324,14 +332,13 @@ MAX_SLOWDOWN = 1.5
 
 
 @dataclass(frozen=True)
-class SpeedBaseline:
-    """What the speed gate compares with: the median frames per machine unit of ``SPEED_GATED`` over several runs
-    of ``python -m cnnslam.bench_slam --sequence SEQUENCE --frames FRAMES --predictor PREDICTOR``, with the unit's
-    version (a figure in another unit compares with nothing), the runs themselves, the machine and revision."""
+class BaselineRecord:
+    """What every speed baseline holds (keyword fields): the machine unit's version its figures are in, the
+    figures, the allowed slowdown, the runs it was made from, the machine and the revision; :meth:`to_dict` writes
+    its ``SCHEMA`` and its fields, ``runs`` as a list (the schema's reader: :func:`load_baseline_record`)."""
 
-    sequence: str
-    frames: int
-    predictor: str
+    SCHEMA: ClassVar[str] = ""
+    _: KW_ONLY
     unit_version: str
     figures: dict[str, float]
     max_slowdown: float = MAX_SLOWDOWN
@@ -340,7 +347,19 @@ class SpeedBaseline:
     git_revision: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return json_ready({"schema": SPEED_SCHEMA, **asdict(self), "runs": list(self.runs)})
+        return json_ready({"schema": self.SCHEMA, **asdict(self), "runs": list(self.runs)})
+
+
+@dataclass(frozen=True)
+class SpeedBaseline(BaselineRecord):
+    """What the speed gate compares with: the median frames per machine unit of ``SPEED_GATED`` over several runs
+    of ``python -m cnnslam.bench_slam --sequence SEQUENCE --frames FRAMES --predictor PREDICTOR``, with the unit's
+    version (a figure in another unit compares with nothing), the runs themselves, the machine and revision."""
+
+    sequence: str
+    frames: int
+    predictor: str
+    SCHEMA: ClassVar[str] = SPEED_SCHEMA
 
 
 def speed_baseline_from_runs(runs: Sequence[Mapping[str, Any]], *, sequence: str, frames: int, predictor: str,
@@ -355,23 +374,30 @@ def speed_baseline_from_runs(runs: Sequence[Mapping[str, Any]], *, sequence: str
     if missing:
         raise PerfError(f"runs without the gated figures {sorted(set(missing))}")
     figures = {k: float(statistics.median(r[k] for r in runs)) for k in SPEED_GATED}
-    return SpeedBaseline(sequence, int(frames), predictor, str(versions.pop()), figures,
+    return SpeedBaseline(sequence, int(frames), predictor, unit_version=str(versions.pop()), figures=figures,
                          runs=tuple(dict(r) for r in runs), machine=machine_info(), git_revision=git_revision)
 
 
 def load_speed_baseline(path: str | Path | None = None) -> SpeedBaseline:
     """Read a speed baseline (default :data:`SPEED_BASELINE`); one clear error when it cannot be used."""
-    path = Path(path) if path is not None else SPEED_BASELINE
+    return load_baseline_record(Path(path) if path is not None else SPEED_BASELINE, SPEED_SCHEMA, SpeedBaseline,
+                                "the speed baseline")
+
+
+def load_baseline_record(path: Path, schema: str, cls: type[T], what: str) -> T:
+    """The JSON record at ``path`` of schema ``schema`` as a ``cls`` (its other keys are ``cls``'s fields, ``runs``
+    a list made a tuple); :class:`PerfError` naming ``what`` when it cannot be read or does not fit."""
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
-        raise PerfError(f"{path}: cannot read the speed baseline: {exc}") from exc
-    if data.get("schema") != SPEED_SCHEMA:
-        raise PerfError(f"{path}: schema {data.get('schema')!r}, expected {SPEED_SCHEMA!r}")
+        raise PerfError(f"{path}: cannot read {what}: {exc}") from exc
+    if not isinstance(data, dict) or data.get("schema") != schema:
+        found = data.get("schema") if isinstance(data, dict) else None
+        raise PerfError(f"{path}: schema {found!r}, expected {schema!r}")
     data.pop("schema")
     try:
         data["runs"] = tuple(data.get("runs", ()))
-        return SpeedBaseline(**data)
+        return cls(**data)
     except TypeError as exc:
         raise PerfError(f"{path}: {exc}") from exc
 

@@ -13,9 +13,14 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
 - ``timing.json``: what the run used (:data:`eval.metrics.results.RESOURCE_FIGURES`: wall time, frames per second
-  end to end and of the agent's step, peak resident memory of the run's process), per-frame
-  step times, and ``environment``, the machine and package versions it ran on (:mod:`eval.bench.environment`; never
-  compared by the gate; :func:`eval.metrics.results.load_run` reads them into the record's ``resources``);
+  end to end and of the agent's step, peak resident memory of the run's process), its process's CPU time
+  (``cpu_s``), per-frame step times, ``stages`` (where the run's wall seconds went, :data:`STAGES`; read by
+  :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames read from the frame cache / rendered),
+  ``unit_cpu_s`` / ``frames_per_unit`` (the machine unit timed around the run in CPU seconds,
+  :mod:`slamcommon.machine_unit`, and the run's frames per unit of CPU time: the suite speed gate's figure,
+  :mod:`eval.bench.suite_speed`), and ``environment``, the machine and package versions it ran on
+  (:mod:`eval.bench.environment`; never compared by the gate; :func:`eval.metrics.results.load_run` reads them
+  into the record's ``resources``);
 - ``agent_extras.json``: the agent's own diagnostics (``AgentOutput.extras``);
 - ``trajectory.tum`` / ``groundtruth.tum``: estimated (the agent's own frame and scale) and ground-truth poses;
 - ``trajectory_aligned_se3.tum`` and, for a monocular method, ``trajectory_aligned_sim3.tum``: the estimate aligned
@@ -57,6 +62,7 @@ from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
 from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds
 from slamcommon.resources import peak_rss_mib
 
 RUN_FILES: tuple[str, ...] = (
@@ -76,6 +82,13 @@ FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames ren
 RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
 DEPTH_PLOT_KEYFRAMES = 3  # key-frames shown in a run's depth.png (first, middle, last)
+UNIT_REPEATS = 30  # machine units timed before and after a run (0.4 ms each on a 2-core EPYC: ~25 ms a run)
+# where a run's wall seconds go (timing.json "stages"): building the agent and the environment; reading (or
+# rendering) frames; the agent's steps; its finish(); the rest of the episode loop (the env's observations, the
+# driver's checks); scoring the trajectory; scoring key-frame depth and labels; scoring the global model; writing
+# the run's files; drawing its plots; and whatever is left (other)
+STAGES: tuple[str, ...] = ("setup", "frames", "agent", "finish", "env_driver", "trajectory_metrics",
+                           "keyframe_metrics", "map_metrics", "files", "plots", "other")
 
 
 @dataclass(frozen=True)
@@ -135,6 +148,40 @@ class RunResult:
     wall_s: float = 0.0
 
 
+# --------------------------------------------------------------------------------------- frames ahead of runs
+@dataclass(frozen=True)
+class FramesJob:
+    """Render the first ``frames`` frames (None: all) of a simulated ``sequence`` into the frame cache under
+    ``cache`` before the suite's runs read them (:func:`render_frames`); picklable, like a :class:`RunSpec`."""
+
+    sequence: SequenceRef
+    frames: int | None
+    renderer: str
+    cache: str
+
+    @property
+    def key(self) -> str:
+        """A readable name of the job."""
+        return f"frames of {self.sequence.name} ({'all' if self.frames is None else self.frames})"
+
+
+def render_frames(job: FramesJob) -> int:
+    """Render (and store) every frame of ``job`` the cache lacks, and the sequence's timestamps and poses; returns
+    how many frames were rendered (0: all were there). The frames are those any run would render (same bytes)."""
+    source = job.sequence.make_source(job.renderer, job.cache)
+    rendered = 0
+    try:
+        n = len(source) if job.frames is None else min(len(source), int(job.frames))
+        source.timestamps  # noqa: B018 - kept in the cache beside the frames
+        for i in range(n):
+            if not source.has(i):
+                source.frame(i)
+                rendered += 1
+    finally:
+        source.close()
+    return rendered
+
+
 # ------------------------------------------------------------------------------------------------- one run
 @dataclass(frozen=True)
 class ExternalEpisode:
@@ -156,9 +203,10 @@ class ExternalEpisode:
 
 def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
+    units = [machine_unit_seconds(time.process_time) for _ in range(UNIT_REPEATS)]  # before the run's clocks start
     start = time.perf_counter()
     try:
-        files = _run_and_package(spec, progress, start)
+        files = _run_and_package(spec, progress, start, units, time.process_time())
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded with its error; the others go on
         return RunResult(
             spec,
@@ -170,13 +218,16 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
 
 
-def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, bytes]:
+def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[float] | None = None,
+                     cpu_start: float | None = None) -> dict[str, bytes]:
     method, ref = spec.method, spec.sequence
     scene = None
+    stages: dict[str, float] = {}
+    reads: dict[str, int] = {}
     if method.kind == "external":
         episode, n_frames, source_info = _external_episode(spec)
     else:
-        episode, source_info, scene = _agent_episode(spec, progress)
+        episode, source_info, scene = _agent_episode(spec, progress, stages, reads)
         n_frames = int(episode.timestamps.shape[0])
     metadata = {
         "suite": spec.suite,
@@ -196,7 +247,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
     }
     if source_info is not None:
         metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
-    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata)
+    record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata,
+                              seconds=stages)
     record = record.replace(sequence=ref.name)
     metrics = dict(record.metrics)
     has_depth = source_info is None or source_info.get("has_depth", True)
@@ -208,7 +260,7 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         t_map = time.perf_counter()
         metrics.update(map_metrics(model, episode.T_world_cam_gt, episode.T_world_cam_est, episode.keyframe_gt,
                                    episode.intrinsics.as_array(), scene, str(spec.alignment)))
-        metrics["map_scoring_s"] = time.perf_counter() - t_map
+        metrics["map_scoring_s"] = stages["map_metrics"] = time.perf_counter() - t_map
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
         metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
@@ -224,6 +276,7 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
         folder = Path(tmp)
+        t_files = time.perf_counter()
         write_json(folder / "metrics.json", record.to_json())
         write_json(folder / "agent_extras.json", episode.extras)
         _write_tum(folder / "trajectory.tum", episode.timestamps, episode.T_world_cam_est, f"estimate: {method.name}")
@@ -233,10 +286,26 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float) -> dict[str, b
         for name, text in aligned_files(scored, aligned_alignments(method.sensor), run_title(spec)).items():
             (folder / name).write_text(text)
         depth_est, depth_gt = _write_keyframes(folder / "keyframes.npz", episode)
+        t_plots = time.perf_counter()
+        stages["files"] = t_plots - t_files
         if spec.plots:
             _write_plots(folder, spec, episode, scored, depth_est if has_depth else [], depth_gt)
+            stages["plots"] = time.perf_counter() - t_plots
         timing["wall_s"] = time.perf_counter() - start
         timing.update(resource_figures(n_frames, timing["wall_s"]))
+        if cpu_start is not None:  # CPU seconds of the run's process, all its threads: what a loaded machine's wall
+            timing["cpu_s"] = time.process_time() - cpu_start  # time hides
+        stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
+        timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
+        timing.update(reads)
+        # the run's speed in machine units (slamcommon.machine_unit, timed here just before and just after it), both
+        # in this process's CPU seconds, which other processes on the cores do not inflate as they do wall time:
+        # what the suite speed gate compares (eval.bench.suite_speed)
+        units = [*(units or []), *(machine_unit_seconds(time.process_time) for _ in range(UNIT_REPEATS))]
+        timing["unit_version"] = UNIT_VERSION
+        timing["unit_cpu_s"] = float(np.mean(units))
+        cpu = timing.get("cpu_s") or 0.0
+        timing["frames_per_unit"] = n_frames * timing["unit_cpu_s"] / cpu if cpu > 0 else 0.0
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
         write_json(folder / TIMING_FILE, timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
@@ -267,17 +336,36 @@ def run_trajectory_metrics(timestamps: np.ndarray, T_gt: np.ndarray, T_est: np.n
                                association="index")  # fmt: skip
 
 
-def _agent_episode(spec: RunSpec, progress: bool) -> tuple[Any, dict[str, Any] | None, Any]:
+def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | None = None,
+                   reads: dict[str, int] | None = None) -> tuple[Any, dict[str, Any] | None, Any]:
     """The agent's episode, the frame source's own description (:func:`_source_info`) and its scene (simulated
-    sequences; None for folders)."""
+    sequences whose agent handed back a model; None for folders and without a model). ``stages``: the wall seconds
+    of the episode's stages are added to it (setup, frames, agent, finish, env_driver; see :data:`STAGES`);
+    ``reads``: the frames read from the frame cache and rendered (``frame_reads``, ``frame_renders``; a source
+    without a cache counts none)."""
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
 
+    stages = {} if stages is None else stages
+    t0 = time.perf_counter()
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
     env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
     try:
         source = env.unwrapped.source
-        return run_episode(env, agent, progress=progress), _source_info(source), getattr(source, "scene", None)
+        t1 = time.perf_counter()
+        stages["setup"] = t1 - t0
+        episode = run_episode(env, agent, progress=progress)
+        t2 = time.perf_counter()
+        # the room, for the map metrics only: generating it costs a second or more, so not for agents without a map
+        scene = getattr(source, "scene", None) if getattr(episode, "model", None) is not None else None
+        frames_s = float(getattr(source, "read_seconds", 0.0)) + float(getattr(source, "render_seconds", 0.0))
+        agent_s = float(np.sum(episode.step_seconds))
+        finish_s = float(episode.extras.get("finish_seconds") or 0.0)
+        stages.update(frames=frames_s, agent=agent_s, finish=finish_s,
+                      env_driver=max(0.0, (t2 - t1) - frames_s - agent_s - finish_s))
+        if reads is not None:
+            reads.update(frame_reads=int(getattr(source, "reads", 0)), frame_renders=int(getattr(source, "renders", 0)))
+        return episode, _source_info(source), scene
     finally:
         env.close()
 

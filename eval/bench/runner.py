@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import subprocess
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -18,11 +19,23 @@ from tqdm import tqdm
 
 from eval.bench.executors import Executor, SerialExecutor
 from eval.bench.methods import Method, check_methods
-from eval.bench.run import DONE_FILE, FRAME_CACHE_DIR, RunResult, RunSpec, RunStatus, execute_run
+from eval.bench.run import (
+    DONE_FILE,
+    FRAME_CACHE_DIR,
+    FramesJob,
+    RunResult,
+    RunSpec,
+    RunStatus,
+    execute_run,
+    render_frames,
+)
 from eval.bench.run_store import complete_run, is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
 from eval.metrics.results import RunRecord, json_ready, load_run
+
+logger = logging.getLogger(__name__)
 
 
 # -------------------------------------------------------------------------------------------------- a suite run
@@ -104,6 +117,44 @@ def plan_runs(
     ]
 
 
+UNKNOWN_LENGTH = 1000  # frames assumed for a run of a whole sequence whose length is not known before it runs
+
+
+def run_frames(spec: RunSpec) -> int:
+    """How many frames ``spec`` runs: its ``frames``, else its sequence's length (a simulated sequence's; a folder's
+    is not read: :data:`UNKNOWN_LENGTH`)."""
+    ref = spec.sequence
+    length = UNKNOWN_LENGTH
+    if ref.folder is None:
+        length = max(0, int(ref.spec().n_frames) - int(ref.start))
+    return length if spec.frames is None else min(length, int(spec.frames))
+
+
+def run_order(specs: Sequence[RunSpec]) -> list[RunSpec]:
+    """The runs longest first (frames x the method's cost per frame, :attr:`eval.bench.methods.Method.cost`), plan
+    order among equals: the longest-processing-time rule, so that the last runs to start are short ones and no core
+    waits alone on a long run at the end of a suite."""
+    return sorted(specs, key=lambda s: -run_frames(s) * s.method.cost)
+
+
+def frames_jobs(specs: Sequence[RunSpec], cache: str | Path) -> list[FramesJob]:
+    """One job per simulated sequence the runs read (the most frames any of them reads), longest first: rendered
+    before the runs (:func:`eval.bench.run.render_frames`), each sequence once, where the first run of each
+    sequence used to render it while the others waited for nothing (and the last sequences' first runs ran long)."""
+    longest: dict[Any, tuple[SequenceRef, int | None]] = {}
+    for spec in specs:
+        ref = spec.sequence
+        if ref.folder is not None or ref.registered:  # a folder is read from disk; a registered one is never cached
+            continue
+        whole = replace(ref, start=0)  # a window reads the whole sequence's cached frames
+        frames = None if spec.frames is None else int(spec.frames) + int(ref.start)
+        key = (whole.name, json.dumps(whole.describe(), sort_keys=True, default=str), spec.renderer)
+        _, known = longest.get(key, (whole, 0))
+        longest[key] = (whole, None if frames is None or known is None else max(frames, known))
+    jobs = [FramesJob(ref, frames, key[2], str(cache)) for key, (ref, frames) in longest.items()]
+    return sorted(jobs, key=lambda j: -(int(j.sequence.spec().n_frames) if j.frames is None else j.frames))
+
+
 def run_suite(
     suite: Suite,
     methods: Mapping[str, Method],
@@ -132,8 +183,9 @@ def run_suite(
     report code, without rerunning. A finished run an earlier judge wrote gets what it lacks of this one's files and
     trajectory figures (:func:`eval.bench.run_store.complete_run`: aligned trajectories, relative errors). Ctrl-C
     (KeyboardInterrupt) stops the executor and propagates;
-    the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence and read
-    back by the suite's other runs, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes).
+    the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence, on the
+    executor before the runs (:func:`frames_jobs`), and read back by every run, under ``out_root/.frames``
+    (:mod:`sim_envs.frame_cache`; the same bytes). The runs start longest first (:func:`run_order`).
     """
     unknown = [m for m in suite.methods if m not in methods]
     if unknown:
@@ -159,6 +211,9 @@ def run_suite(
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
             todo.append(replace(spec, frame_cache=str(out_root / FRAME_CACHE_DIR)) if frame_cache else spec)
+    if frame_cache and todo:
+        _render_ahead(executor, frames_jobs(todo, out_root / FRAME_CACHE_DIR), progress)
+    todo = run_order(todo)
     serial = isinstance(executor, SerialExecutor)
     fn = partial(execute_run, progress=progress and serial)
     with tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar:
@@ -185,6 +240,19 @@ def run_suite(
         timings[spec.key] = json.loads(timing_path.read_text()) if timing_path.is_file() else {}
     ordered = {s.key: outcomes[s.key] for s in specs}
     return SuiteRun(suite, out_root, tuple(specs), ordered, checked.skipped, records, timings, checked.available)
+
+
+def _render_ahead(executor: Executor, jobs: Sequence[FramesJob], progress: bool) -> None:
+    """Render the sequences of ``jobs`` into the frame cache on ``executor`` (longest first). A job that fails is
+    logged and left to the runs, which render what they miss themselves (and fail with the error)."""
+    if not jobs:
+        return
+    with tqdm(total=len(jobs), desc="rendering", unit="sequence", disable=not progress) as bar:
+        for job, result in executor.map(render_frames, jobs):
+            if isinstance(result, BaseException):
+                logger.warning("rendering %s ahead of its runs failed (%s: %s); its runs render it themselves",
+                               job.key, type(result).__name__, result)
+            bar.update(1)
 
 
 def suite_records_json(records: Sequence[RunRecord]) -> str:

@@ -23,6 +23,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sim_envs.surface_sampling import sample_scene_surface
 from slamcommon.alignment import align
@@ -30,7 +31,6 @@ from slamcommon.labels import NO_LABEL
 from slamcommon.reconstruction_metrics import (
     DEFAULT_LABEL_DISTANCE,
     DEFAULT_THRESHOLD,
-    nearest_labels,
     reconstruction_metrics,
     visible_in_views,
 )
@@ -57,7 +57,10 @@ def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndar
     seen = visible_in_views(surface.points, T_gt, [f.depth for f in keyframe_gt], np.asarray(intrinsics))
     if not seen.any():
         return {}
-    recon = reconstruction_metrics(points, surface.points, surface.normals, surface.spacing, threshold, seen=seen)
+    # each model point's nearest surface sample, found once: the accuracy's distances and the labels' samples
+    distances, nearest = cKDTree(surface.points).query(points, k=1)
+    recon = reconstruction_metrics(points, surface.points, surface.normals, surface.spacing, threshold, seen=seen,
+                                   nearest=(distances, nearest))
     out = {
         "map_accuracy_median": recon.accuracy_median,
         "map_accuracy_within": recon.accuracy_within,
@@ -68,7 +71,9 @@ def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndar
     labels = None if model.labels is None else np.asarray(model.labels).reshape(-1)
     if labels is not None and (labels != NO_LABEL).any():
         labelled = labels != NO_LABEL
-        gt_labels, _ = nearest_labels(points[labelled], surface.points, surface.labels, DEFAULT_LABEL_DISTANCE)
+        # slamcommon.reconstruction_metrics.nearest_labels of the labelled points, from the search above
+        gt_labels = np.where(distances[labelled] <= DEFAULT_LABEL_DISTANCE, surface.labels[nearest[labelled]],
+                             NO_LABEL).astype(np.uint8)
         scored = gt_labels != NO_LABEL
         out["map_label_accuracy"] = (float(np.mean(labels[labelled][scored] == gt_labels[scored])) if scored.any()
                                      else math.nan)

@@ -48,6 +48,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import time
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -214,6 +215,7 @@ def evaluate_episode(
     depth_threshold: float = CORRECT_THRESHOLD,
     method: str | None = None,
     metadata: Mapping[str, Any] | None = None,
+    seconds: dict[str, float] | None = None,
 ) -> RunRecord:
     """Score a driver's episode result (duck-typed on the fields of ``sim_envs.driver.EpisodeResult``).
 
@@ -222,8 +224,11 @@ def evaluate_episode(
     ground truth at each key-frame), ``step_seconds`` (N,), ``uses_ground_truth`` and ``extras``. Estimated and
     ground-truth poses are paired by index (rule ``"index"``). A key-frame is matched to the ground-truth frame with
     its timestamp; one that cannot be scored is skipped with a warning, never losing the rest.
-    ``method``: the name shown in tables (default: the agent string).
+    ``method``: the name shown in tables (default: the agent string). ``seconds``: when given, the wall seconds of
+    the trajectory metrics and of the key-frame (depth and label) metrics are added to it (``trajectory_metrics``,
+    ``keyframe_metrics``), for the run's profile.
     """
+    t_start = time.perf_counter()
     timestamps = np.asarray(result.timestamps, dtype=np.float64)
     gt = PoseTrajectory(timestamps, result.T_world_cam_gt)
     est = PoseTrajectory(timestamps, result.T_world_cam_est)
@@ -240,6 +245,7 @@ def evaluate_episode(
     metrics: dict[str, float] = traj.flat_metrics()
     metrics["frames"] = float(len(timestamps))
     metrics.update(_timing_metrics(np.asarray(getattr(result, "step_seconds", []), dtype=np.float64)))
+    t_keyframes = time.perf_counter()
     per_kf, kf_rows, conf = _score_keyframes(result.keyframes, result.keyframe_gt, depth_threshold, warnings)
     pooled = aggregate_depth_metrics(per_kf, "pooled")
     mean = aggregate_depth_metrics(per_kf, "mean")
@@ -257,6 +263,10 @@ def evaluate_episode(
     if conf is not None:
         sem = metrics_from_confusion(conf)
         metrics.update({f"semantic_{k}": float(v) for k, v in sem.to_dict().items() if k != "n_pixels"})
+    if seconds is not None:
+        t_end = time.perf_counter()
+        seconds["trajectory_metrics"] = seconds.get("trajectory_metrics", 0.0) + t_keyframes - t_start
+        seconds["keyframe_metrics"] = seconds.get("keyframe_metrics", 0.0) + t_end - t_keyframes
     agent = str(result.agent)
     return RunRecord(
         sequence=str(result.sequence),

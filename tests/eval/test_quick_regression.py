@@ -13,7 +13,9 @@ Proved here, as the baseline's calibration promises:
   resolution, a 2 deg yaw bias in the answered poses (1 deg is below the gate's resolution for a heading bias: see
   injected_regressions.toml); halving the tracking iterations changes no byte of any run
   (the caps are never reached) and must not alarm;
-- a doctored run (a worse ATE, a worse depth, a lost run) fails.
+- a doctored run (a worse ATE, a worse depth, a lost run) fails;
+- the suite speed gate: every method's runs, in frames per machine unit, are not 1.5 times slower than in
+  results/baselines/suite_speed.json (eval/bench/suite_speed.py), and a run doctored 1.6 times slower fails.
 """
 
 import math
@@ -24,6 +26,7 @@ import pytest
 from eval.bench.calibrate import MATRIX, Perturbation, run_configuration
 from eval.bench.methods import load_methods
 from eval.bench.regress import compare, format_report, gate_metrics, load_baseline
+from eval.bench.suite_speed import load_suite_speed_baseline, suite_speed_regressions, suite_speeds
 from eval.bench.suites import get_suite
 
 pytestmark = pytest.mark.slow
@@ -53,6 +56,18 @@ def test_the_quick_suite_passes_the_committed_baseline(quick_run, baseline):
     report = compare(baseline, gate_metrics(quick_run.records))
     assert report.passed, format_report(report, only_changes=True)
     assert len(report.rows) >= len(baseline.metrics)
+
+
+def test_no_method_of_the_quick_suite_is_slower_than_its_speed_baseline(quick_run):
+    """Frames per machine unit, each method's best run against results/baselines/suite_speed.json (a neighbour's
+    burst slows some runs, a real slowdown all of them); CNN-SLAM's figure doctored to 1.6 times the baseline's
+    time fails."""
+    baseline = load_suite_speed_baseline()
+    speeds = suite_speeds(quick_run)
+    assert suite_speed_regressions(speeds, baseline) == [], speeds
+    slowed = {**speeds, "CNN-SLAM": baseline.figures["CNN-SLAM"] / 1.6}
+    failures = suite_speed_regressions(slowed, baseline)
+    assert len(failures) == 1 and failures[0].startswith("CNN-SLAM "), failures
 
 
 def test_the_gate_holds_with_the_network_perturbed_as_on_another_cpu(quick_run, baseline, tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim_envs import frame_cache
 from sim_envs.frame_cache import CachedFrames, cache_key, world_source_hash
 from sim_envs.sequences import get_sequence, with_camera
 from sim_envs.simsource import SimulatedSequence
@@ -31,11 +32,19 @@ def test_frames_read_back_are_the_rendered_ones(tmp_path) -> None:
         first = [cached.frame(i) for i in (0, 7)]  # rendered and stored
         again = [cached.frame(i) for i in (0, 7)]  # read back
         assert len(cached) == spec.n_frames and cached.name == spec.name
-        assert sorted(p.name for p in (tmp_path / "office0").iterdir()) == ["000000.npz", "000007.npz"]
+        assert sorted(p.name for p in (tmp_path / "office0").iterdir()) == ["000000.frame", "000007.frame"]
         for e, f, a in zip(expected, first, again, strict=True):
             assert _same(e, f) and _same(e, a) and a.sensor_depth is not None
-        (tmp_path / "office0" / "000007.npz").write_bytes(b"broken")  # an interrupted copy is rendered again
-        assert _same(cached.frame(7), expected[1])
+        rgb = cached.rgb(7)  # the image alone, from the same file
+        assert rgb.dtype == np.uint8 and np.array_equal(rgb, expected[1].rgb) and rgb.flags.writeable
+        assert (cached.reads, cached.renders) == (3, 2)
+        size = sum(p.stat().st_size for p in (tmp_path / "office0").iterdir())
+        assert size < 0.4 * 2 * sum(x.nbytes for x in (expected[0].rgb, expected[0].depth, expected[0].labels,
+                                                        expected[0].instances, expected[0].sensor_depth))
+        (tmp_path / "office0" / "000007.frame").write_bytes(b"broken")  # an interrupted copy is rendered again
+        assert _same(cached.frame(7), expected[1]) and cached.renders == 3
+        (tmp_path / "office0" / "000007.frame").write_bytes(b"")
+        assert np.array_equal(cached.rgb(7), expected[1].rgb) and cached.renders == 4
     finally:
         cached.close()
 
@@ -46,3 +55,35 @@ def test_the_key_follows_source_renderer_and_environment(monkeypatch) -> None:
     assert a != cache_key({"name": "office1"}, "mujoco") and a != cache_key({"name": "office0"}, "pyrender")
     monkeypatch.setenv("NPY_DISABLE_CPU_FEATURES", "AVX512F")
     assert cache_key({"name": "office0"}, "mujoco") != a
+    monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES")
+    monkeypatch.setattr(frame_cache, "CACHE_FORMAT", "frames/1")  # a cache of another format is another folder
+    assert cache_key({"name": "office0"}, "mujoco") != a
+
+
+def test_timestamps_and_poses_are_kept_beside_the_frames(tmp_path) -> None:
+    spec = get_sequence("office1")
+    with SimulatedSequence(spec) as plain:
+        stamps, poses = plain.timestamps.copy(), plain.poses.copy()
+
+    class NoPath:  # a source that can no longer make its camera path: a second reader gets it from the folder
+        name, intrinsics = spec.name, None
+
+        def __len__(self) -> int:
+            return spec.n_frames
+
+        def close(self) -> None:
+            pass
+
+        @property
+        def poses(self):
+            raise AssertionError("the trajectory was generated again")
+
+        timestamps = poses
+
+    first = CachedFrames(SimulatedSequence(spec), tmp_path)
+    assert np.array_equal(first.timestamps, stamps) and np.array_equal(first.poses, poses)
+    assert (tmp_path / "trajectory.npz").is_file() and not first.poses.flags.writeable
+    second = CachedFrames(NoPath(), tmp_path)
+    assert second.timestamps.tobytes() == stamps.tobytes() and second.poses.tobytes() == poses.tobytes()
+    (tmp_path / "trajectory.npz").write_bytes(b"broken")  # made again from the source
+    assert np.array_equal(CachedFrames(SimulatedSequence(spec), tmp_path).poses, poses)

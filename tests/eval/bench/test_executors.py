@@ -315,7 +315,9 @@ def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
 @pytest.mark.slow  # > 5 s: the full lane only
 def test_fork_server_workers_give_the_bytes_of_spawned_ones():
     """A run in a worker forked from the preloaded fork server (after that server served other runs) writes the
-    same bytes as in a freshly spawned interpreter: CNN-SLAM (network, numba kernels, threads) and LSD-BS."""
+    same bytes as in a freshly spawned interpreter: CNN-SLAM (network, numba kernels, threads) and LSD-BS; the
+    server has imported what a suite's does (the agents, the network's module and torch: methods.toml's preload,
+    the plots)."""
     methods = load_methods()
     ref = SequenceRef("office0", base="office0")
 
@@ -323,7 +325,7 @@ def test_fork_server_workers_give_the_bytes_of_spawned_ones():
         return RunSpec("quick", ref, methods[name], seed=seed, frames=30, plots=False, git_revision="r")
 
     order = [spec("LSD-BS"), spec("CNN-SLAM", 1), spec("CNN-SLAM"), spec("LSD-BS", 1)]
-    preload = ("cnnslam.agent", "cnnslam.baselines")
+    preload = ("cnnslam.agent", "cnnslam.baselines", "cnnslam.depthnet.predict", "eval.reports.plots")
     forked = {s.key: r for s, r in LocalExecutor(jobs=1, start_method="forkserver", preload=preload).map(execute_run,
                                                                                                           order)}
     spawned = {s.key: r for s, r in LocalExecutor(jobs=1, start_method="spawn").map(execute_run, order[2:])}

@@ -46,7 +46,7 @@ def test_parsers_read_the_figures_and_skip_the_rest():
 def test_the_default_probes():
     probes, frames = load_probes()
     by_name = {p.name: p for p in probes}
-    assert set(by_name) == {"render", "cameras", "cameras_late", "cameras_lit", "cnn", "slam", "metrics"}
+    assert set(by_name) == {"render", "cameras", "cameras_late", "cameras_lit", "cnn", "slam", "metrics", "suite"}
     assert frames > 0
     assert tuple(by_name["cameras_lit"].args[:3]) == ("--cameras", "--lighting", "lit")
     assert tuple(by_name["cameras_late"].args[:3]) == ("--cameras", "--first", "900")
@@ -55,6 +55,7 @@ def test_the_default_probes():
     assert by_name["cnn"].output == "json_file" and "{json}" in by_name["cnn"].args
     assert by_name["slam"].output == "json_stdout" and "--json" in by_name["slam"].args
     assert by_name["metrics"].module == "eval.metrics.bench_metrics" and by_name["metrics"].output == "metrics_text"
+    assert by_name["suite"].module == "eval.commands.cli_profile" and "--json" in by_name["suite"].args
     with pytest.raises(PerfError, match="output must be one of"):
         Probe("x", "x", "json.tool", output="xml")
 

@@ -12,7 +12,7 @@ import pytest
 from eval.bench.methods import Method, external_method, load_methods
 from eval.bench.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, execute_run
 from eval.bench.run_store import is_finished, remove_stale_temporaries, run_folder, store_result
-from eval.bench.runner import plan_runs, run_suite
+from eval.bench.runner import frames_jobs, plan_runs, run_order, run_suite
 from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import get_suite
 from sim_envs.datasets import export_tum_rgbd
@@ -281,15 +281,41 @@ def test_a_method_without_a_seed_runs_once_per_cell():
 
 def test_the_frame_cache_changes_no_byte_of_a_run(tmp_path):
     """The same runs without the cache, with it cold (frames rendered and stored) and warm (frames read back):
-    every file but the wall times the same (LSD-BS reads the sensor depth too; the oracle scores depth and labels)."""
+    every file but the wall times the same (LSD-BS reads the sensor depth too; the oracle scores depth and labels;
+    LSD sees the images alone, read without the rest of the frame)."""
     methods = load_methods()
     ref = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
     cache = str(tmp_path / ".frames")
-    for name in ("LSD-BS", "oracle"):
+    for name in ("LSD-BS", "oracle", "LSD"):
         spec = RunSpec("quick", ref, methods[name], frames=15, plots=False, git_revision="r")
         plain, cold, warm = (execute_run(replace(spec, frame_cache=c)) for c in (None, cache, cache))
         for result in (plain, cold, warm):
             assert result.status == "done", result.error
         for name_ in set(plain.files) - {"timing.json", "agent_extras.json"}:
             assert plain.files[name_] == cold.files[name_] == warm.files[name_], (name, name_)
-    assert len(list((tmp_path / ".frames").rglob("*.npz"))) == 15  # one folder, rendered once
+    assert len(list((tmp_path / ".frames").rglob("*.frame"))) == 15  # one folder, rendered once
+
+
+def test_runs_start_longest_first_and_frames_are_rendered_once_before_them(tmp_path):
+    kinect = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
+    window = replace(kinect, name="office0@kinect~5", start=5)
+    slow, fast = replace(CONSTANT, name="slow", cost=50.0), replace(ORACLE, name="fast", cost=2.0)
+    specs = [spec_of(fast, 40, sequence=kinect), spec_of(slow, 10, sequence=kinect), spec_of(slow, 30),
+             spec_of(fast, 6, sequence=window)]
+    # frames x cost: 80, 500, 1500 and 12: the registered office0 run first, the window's last
+    assert [(s.method.name, s.frames) for s in run_order(specs)] == [("slow", 30), ("slow", 10), ("fast", 40),
+                                                                     ("fast", 6)]
+    # one job per cached sequence, the most frames any run reads (a window: its start too, from its whole
+    # sequence's frames), longest first; none for office0 (registered: never cached)
+    jobs = frames_jobs([*specs, spec_of(slow, 20, sequence=kinect)], tmp_path)
+    assert [(j.sequence.name, j.frames, j.sequence.start) for j in jobs] == [("office0@kinect", 40, 0),
+                                                                            ("office0@kinect~5", 11, 0)]
+    suite = get_suite("table1").select(["office0@kinect"], ["oracle", "constant-pose"], frames=4, runs=1)
+    done = run_suite(suite, METHODS, tmp_path, plots=False, progress=False, check=False, revision="r")
+    assert done.counts() == {"done": 2}
+    assert len(list((tmp_path / ".frames").rglob("*.frame"))) == 4
+    for key, timing in done.timings.items():  # every frame read from the cache, none rendered by the runs
+        assert timing["frame_renders"] == 0 and timing["frame_reads"] >= 4, key
+        assert set(timing["stages"]) >= {"setup", "frames", "agent", "finish", "env_driver", "trajectory_metrics",
+                                         "keyframe_metrics", "files", "other"}
+        assert sum(timing["stages"].values()) == pytest.approx(timing["wall_s"], rel=1e-6)

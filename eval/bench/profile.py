@@ -1,0 +1,116 @@
+"""Where a suite's time goes, per method: the stages of its runs (:data:`eval.bench.run.STAGES`, from each run's
+``timing.json``) summed over the method's runs, in milliseconds per frame, beside its frames per second end to end.
+
+:func:`measure` (the command: ``python -m eval.commands.cli_profile [--sequences office0@kinect] [--frames 100]
+[--methods ...] [--jobs 1] [--threads 1] [--json]``) renders the sequences into a fresh frame cache (timed: the
+rendering a suite does once, ahead of its runs), runs each method once as a Table-1 suite would
+(``eval.bench.run_bench``, fresh worker processes, plots on), and the command prints the table (Markdown, or one
+JSON object with ``--json``: the perf suite's ``suite`` probe, ``eval/perf.toml``, shown in ``results/perf.md``).
+One job at a time by default, so that runs do not slow each other down, with one math thread per run as in a 2-job
+suite on 2 cores (``make bench``; ``--threads``); the figures depend on the machine and its load, and are measured,
+never asserted.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from eval.bench.run import STAGES
+
+DEFAULT_SEQUENCES = ("office0@kinect",)
+DEFAULT_FRAMES = 100
+TABLE1_METHODS = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
+
+
+@dataclass(frozen=True)
+class MethodProfile:
+    """One method's runs: how many, their frames, their wall seconds and the seconds of each stage (summed)."""
+
+    method: str
+    runs: int
+    frames: int
+    wall_s: float
+    stages: dict[str, float]
+
+    @property
+    def fps(self) -> float:
+        """Frames per second end to end (frames over the runs' wall time)."""
+        return self.frames / self.wall_s if self.wall_s > 0 else 0.0
+
+    def ms_per_frame(self, stage: str) -> float:
+        """Milliseconds per frame spent in ``stage`` (0 when the runs had none)."""
+        return 1e3 * self.stages.get(stage, 0.0) / self.frames if self.frames else 0.0
+
+
+def profile_runs(runs: Iterable[tuple[str, int, Mapping[str, Any]]]) -> list[MethodProfile]:
+    """Per method, in first-seen order: ``runs`` are (method, frames, timing.json content) of finished runs; a run
+    without stages (made before they were recorded) counts in frames and wall time only."""
+    acc: dict[str, dict[str, Any]] = {}
+    for method, frames, timing in runs:
+        a = acc.setdefault(method, {"runs": 0, "frames": 0, "wall_s": 0.0, "stages": dict.fromkeys(STAGES, 0.0)})
+        a["runs"] += 1
+        a["frames"] += int(frames)
+        a["wall_s"] += float(timing.get("wall_s") or 0.0)
+        for stage, seconds in (timing.get("stages") or {}).items():
+            a["stages"][stage] = a["stages"].get(stage, 0.0) + float(seconds)
+    return [MethodProfile(m, a["runs"], a["frames"], a["wall_s"], a["stages"]) for m, a in acc.items()]
+
+
+def suite_profile(suite_run: Any) -> list[MethodProfile]:
+    """The profile of a :class:`eval.bench.runner.SuiteRun`'s finished runs (its records and timings)."""
+    return profile_runs((r.method, int(r.metrics.get("frames", 0)), suite_run.timings.get(r.run or "", {}))
+                        for r in suite_run.records)
+
+
+def profile_table(profiles: Sequence[MethodProfile]) -> dict[str, Any]:
+    """JSON-ready: ``columns`` (method, runs, frames, fps, wall_s, then each stage in ms per frame) and ``rows``."""
+    columns = ["method", "runs", "frames", "fps", "wall_s", *(f"{s}_ms" for s in STAGES)]
+    rows = [[p.method, p.runs, p.frames, round(p.fps, 2), round(p.wall_s, 2),
+             *(round(p.ms_per_frame(s), 2) for s in STAGES)] for p in profiles]
+    return {"columns": columns, "rows": rows}
+
+
+def format_table(table: Mapping[str, Any]) -> str:
+    """A ``columns`` / ``rows`` table (:func:`profile_table`) as Markdown."""
+    columns = list(table["columns"])
+    lines = ["| " + " | ".join(columns) + " |", "|" + "|".join(["---"] + ["---:"] * (len(columns) - 1)) + "|"]
+    for row in table["rows"]:
+        lines.append("| " + " | ".join(f"{v:.2f}" if isinstance(v, float) else str(v) for v in row) + " |")
+    return "\n".join(lines)
+
+
+def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_FRAMES,
+            methods: Sequence[str] = TABLE1_METHODS, jobs: int = 1, threads: int = 1) -> dict[str, Any]:
+    """Render ``sequences`` (first ``frames`` frames) into a fresh frame cache, run each of ``methods`` once on each
+    as the Table-1 suite does (``jobs`` at a time, ``threads`` math threads each), and return :func:`profile_table`
+    with the rendering's milliseconds per frame, the suite's wall seconds and the machine's load."""
+    import os
+
+    from eval.bench import BenchOptions, run_bench
+    from eval.bench.benchmark import ExecutorOptions
+    from eval.bench.regress import GateAction
+    from eval.bench.run import FRAME_CACHE_DIR, FramesJob, render_frames
+    from eval.bench.sequence_ref import resolve_sequence
+
+    with tempfile.TemporaryDirectory(prefix="cnnslam-profile-") as tmp:
+        out = Path(tmp)
+        t0 = time.perf_counter()
+        for name in sequences:
+            render_frames(FramesJob(resolve_sequence(name), frames, "mujoco", str(out / FRAME_CACHE_DIR)))
+        render_s = time.perf_counter() - t0
+        options = BenchOptions(sequences=tuple(sequences), frames=frames, runs=1, out=out, results=out / "reports",
+                               gate=GateAction.OFF, progress=False,
+                               executor=ExecutorOptions(jobs=jobs, threads=threads))
+        t1 = time.perf_counter()
+        outcome = run_bench("table1", list(methods), options)
+        suite_s = time.perf_counter() - t1
+        profiles = [p for _, part in outcome.parts for p in suite_profile(part)]
+    return {**profile_table(profiles), "sequences": list(sequences), "frames": frames, "jobs": jobs, "threads": threads,
+            "rendering_ms_per_frame": round(1e3 * render_s / max(1, frames * len(sequences)), 2),
+            "suite_wall_s": round(suite_s, 1), "failed_runs": len(outcome.failed),
+            "load_average_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None}

@@ -1,0 +1,207 @@
+"""Lossless, compact bytes for one frame of the frame cache (:mod:`sim_envs.frame_cache`): every array comes back with
+the same dtype, shape and bytes (NaN payloads and -0.0 included), and one array (the RGB image) can be decoded
+without the others.
+
+Each array goes through a reversible transform that leaves small numbers where neighbouring pixels agree, then
+Zstandard (level :data:`ZSTD_LEVEL`). The encoder tries every transform that applies to the array's dtype and keeps
+the shortest result (the choice is stored):
+
+- ``u8-left``: uint8 images, channel planes, each pixel minus its left neighbour (mod 256). Camera images with sensor
+  noise compress to about 55 % (a 320x240 RGB frame of the ``kinect`` camera: 230 -> 125 KB).
+- ``b32-delta2``: 4-byte arrays (float32 depth, int32 instances) as their 32-bit patterns, differences along the row,
+  then along the column (wrapping int32 arithmetic: exact for any bit pattern), the four byte planes apart. Rendered
+  planar depth: 300 -> 64 KB.
+- ``palette``: arrays with at most 65 536 distinct values (labels, a quantising depth sensor's depth): the sorted
+  distinct values and each element's index as uint8 or uint16. A Kinect-like sensor depth: 300 -> 4 KB.
+- ``raw``: the bytes as they are (any dtype).
+
+Format of a frame (:data:`FRAME_FORMAT`): ``MAGIC``, a little-endian uint32 header length, a JSON header (the frame's
+index and timestamp, and per array its name, dtype, shape, transform, byte offset and length in the payload, and the
+palette's length), then the payload. Floats in JSON round-trip exactly (``repr``).
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import zstandard
+
+from sim_envs.errors import SimEnvError
+
+FRAME_FORMAT = "cnnslam-frame/1"  # bump when the bytes of a stored frame change meaning
+MAGIC = b"CNNSLAMFRAME1\n"
+ZSTD_LEVEL = 3  # Zstandard's default: 1.7 ms to compress a kinect RGB frame, 0.3 ms to decompress it
+PALETTE_MAX = 65536  # distinct values a palette may hold (uint16 indices)
+PALETTE_SAMPLE_STEP = 16  # the palette is tried only when every 16th element has at most ...
+PALETTE_SAMPLE_MAX = 2048  # ... this many distinct values (rendered depth has thousands: 0.4 ms to find out)
+_HEADER_LEN = struct.Struct("<I")
+
+
+class FrameCodecError(SimEnvError, ValueError):
+    """Bytes that are not a frame of this format (a damaged or foreign file)."""
+
+
+@dataclass(frozen=True)
+class EncodedFrame:
+    """A frame's scalars and arrays as they come back from :func:`decode_frame`: ``index``, ``timestamp`` (seconds),
+    ``arrays`` (name -> array; only the names asked for)."""
+
+    index: int
+    timestamp: float
+    arrays: dict[str, np.ndarray]
+
+
+# ------------------------------------------------------------------------------------------------- the transforms
+def _u8_left(a: np.ndarray) -> bytes:
+    planes = a.reshape(a.shape[0], a.shape[1], -1).transpose(2, 0, 1)  # (C, H, W)
+    out = np.empty(planes.shape, np.uint8)
+    out[:, :, 0] = planes[:, :, 0]
+    np.subtract(planes[:, :, 1:], planes[:, :, :-1], out=out[:, :, 1:])  # uint8 arithmetic wraps (mod 256)
+    return out.tobytes()
+
+
+def _u8_left_inverse(raw: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    h, w = shape[0], shape[1]
+    c = int(np.prod(shape[2:], dtype=np.int64))
+    planes = np.frombuffer(raw, np.uint8).reshape(c, h, w)
+    summed = np.cumsum(planes, axis=2, dtype=np.uint8)  # wraps mod 256: undoes the differences exactly
+    return np.ascontiguousarray(summed.transpose(1, 2, 0)).reshape(shape)
+
+
+def _b32_delta2(a: np.ndarray) -> bytes:
+    bits = np.ascontiguousarray(a).view(np.int32).reshape(a.shape[0], -1)
+    with np.errstate(over="ignore"):
+        d = np.empty_like(bits)
+        d[:, 0] = bits[:, 0]
+        np.subtract(bits[:, 1:], bits[:, :-1], out=d[:, 1:])
+        e = np.empty_like(d)
+        e[0] = d[0]
+        np.subtract(d[1:], d[:-1], out=e[1:])
+    return np.ascontiguousarray(e.view(np.uint8).reshape(-1, 4).T).tobytes()  # byte planes
+
+
+def _b32_delta2_inverse(raw: bytes, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+    rows = shape[0]
+    planes = np.frombuffer(raw, np.uint8).reshape(4, -1)
+    e = np.ascontiguousarray(planes.T).view(np.int32).reshape(rows, -1)
+    with np.errstate(over="ignore"):
+        bits = np.cumsum(np.cumsum(e, axis=0, dtype=np.int32), axis=1, dtype=np.int32)  # int32 wraps like the encoder
+    return bits.view(dtype).reshape(shape)
+
+
+def _palette(a: np.ndarray) -> tuple[bytes, int] | None:
+    """The palette's bytes and length, or None when the array has too many distinct values for one to pay (a
+    strided sample of it already has more than :data:`PALETTE_SAMPLE_MAX`) or for uint16 indices."""
+    flat = np.ascontiguousarray(a).reshape(-1)
+    # distinct bit patterns, so that NaN payloads and -0.0 survive (and NaN is one value, not one per element)
+    key = flat.view(f"u{a.dtype.itemsize}") if a.dtype.kind == "f" else flat
+    if np.unique(key[::PALETTE_SAMPLE_STEP]).size > PALETTE_SAMPLE_MAX:
+        return None
+    values = np.unique(key)
+    if values.size > PALETTE_MAX:
+        return None
+    index = np.searchsorted(values, key).astype(np.uint8 if values.size <= 256 else np.uint16)
+    return values.tobytes() + index.tobytes(), int(values.size)
+
+
+def _palette_inverse(raw: bytes, shape: tuple[int, ...], dtype: np.dtype, n_values: int) -> np.ndarray:
+    key_dtype = np.dtype(f"u{dtype.itemsize}") if dtype.kind == "f" else dtype
+    split = n_values * dtype.itemsize
+    values = np.frombuffer(raw[:split], key_dtype)
+    index = np.frombuffer(raw[split:], np.uint8 if n_values <= 256 else np.uint16)
+    return values[index].view(dtype).reshape(shape)
+
+
+def _candidates(a: np.ndarray) -> Iterable[tuple[str, bytes, int]]:
+    """(transform, transformed bytes, palette length) of every transform that applies to ``a``."""
+    if a.dtype == np.uint8 and a.ndim in (2, 3) and a.size:
+        yield "u8-left", _u8_left(a), 0
+    if a.dtype.itemsize == 4 and a.ndim >= 2 and a.size:
+        yield "b32-delta2", _b32_delta2(a), 0
+    if a.dtype.itemsize > 1 and a.size >= 1024:  # uint8 indices would be no shorter than uint8 values
+        pal = _palette(a)
+        if pal is not None:
+            yield "palette", pal[0], pal[1]
+    yield "raw", np.ascontiguousarray(a).tobytes(), 0
+
+
+# ------------------------------------------------------------------------------------------------- a whole frame
+def encode_frame(index: int, timestamp: float, arrays: Mapping[str, np.ndarray]) -> bytes:
+    """The bytes of one frame: ``index``, ``timestamp`` (seconds) and ``arrays`` (name -> array of any numeric
+    dtype and shape; each stored with its shortest transform)."""
+    compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+    entries, blobs, offset = [], [], 0
+    for name, value in arrays.items():
+        a = np.asarray(value)
+        if a.dtype.hasobject:
+            raise FrameCodecError(f"array {name!r}: dtype {a.dtype} cannot be stored")
+        best: tuple[str, bytes, int] | None = None
+        for transform, raw, n_values in _candidates(a):
+            packed = compressor.compress(raw)
+            if best is None or len(packed) < len(best[1]):
+                best = (transform, packed, n_values)
+        assert best is not None  # "raw" always applies
+        entries.append({"name": name, "dtype": a.dtype.str, "shape": list(a.shape), "transform": best[0],
+                        "offset": offset, "length": len(best[1]), "values": best[2]})
+        blobs.append(best[1])
+        offset += len(best[1])
+    header = json.dumps({"format": FRAME_FORMAT, "index": int(index), "timestamp": float(timestamp),
+                         "arrays": entries}, separators=(",", ":")).encode()
+    return b"".join([MAGIC, _HEADER_LEN.pack(len(header)), header, *blobs])
+
+
+def frame_fields(data: bytes) -> tuple[str, ...]:
+    """The names of the arrays a frame's bytes hold."""
+    return tuple(e["name"] for e in _header(data)[0]["arrays"])
+
+
+def decode_frame(data: bytes, names: Iterable[str] | None = None) -> EncodedFrame:
+    """The frame in ``data`` (:func:`encode_frame`'s bytes) with the arrays ``names`` (None: all; a name the frame
+    does not hold is left out). Arrays are fresh, writable and C-contiguous. :class:`FrameCodecError`
+    when ``data`` is not such a frame."""
+    header, start = _header(data)
+    wanted = None if names is None else set(names)
+    decompressor = zstandard.ZstdDecompressor()
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        for e in header["arrays"]:
+            if wanted is not None and e["name"] not in wanted:
+                continue
+            blob = data[start + e["offset"]: start + e["offset"] + e["length"]]
+            raw = decompressor.decompress(blob)
+            dtype, shape = np.dtype(e["dtype"]), tuple(int(s) for s in e["shape"])
+            transform = e["transform"]
+            if transform == "u8-left":
+                a = _u8_left_inverse(raw, shape)
+            elif transform == "b32-delta2":
+                a = _b32_delta2_inverse(raw, shape, dtype)
+            elif transform == "palette":
+                a = _palette_inverse(raw, shape, dtype, int(e["values"]))
+            elif transform == "raw":
+                a = np.frombuffer(raw, dtype).reshape(shape).copy()
+            else:
+                raise FrameCodecError(f"unknown transform {transform!r}")
+            arrays[e["name"]] = a
+    except (zstandard.ZstdError, KeyError, TypeError, ValueError) as exc:
+        raise FrameCodecError(f"damaged frame: {exc}") from exc
+    return EncodedFrame(int(header["index"]), float(header["timestamp"]), arrays)
+
+
+def _header(data: bytes) -> tuple[dict[str, Any], int]:
+    if not data.startswith(MAGIC) or len(data) < len(MAGIC) + _HEADER_LEN.size:
+        raise FrameCodecError("not a frame of the frame cache (bad magic)")
+    (n,) = _HEADER_LEN.unpack_from(data, len(MAGIC))
+    start = len(MAGIC) + _HEADER_LEN.size
+    try:
+        header = json.loads(data[start: start + n])
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FrameCodecError(f"damaged frame header: {exc}") from exc
+    if not isinstance(header, dict) or header.get("format") != FRAME_FORMAT:
+        raise FrameCodecError(f"frame format {header.get('format') if isinstance(header, dict) else None!r}, "
+                              f"expected {FRAME_FORMAT!r}")
+    return header, start + n

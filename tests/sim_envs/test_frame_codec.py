@@ -1,0 +1,93 @@
+"""The frame codec: every array comes back with its dtype, shape and bytes, whatever transform the encoder picked;
+one array can be decoded alone; damaged bytes raise."""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+
+from sim_envs import frame_codec as fc
+from sim_envs.frame_codec import MAGIC, FrameCodecError, decode_frame, encode_frame, frame_fields
+
+
+def _transforms(data: bytes) -> dict[str, str]:
+    (n,) = struct.unpack_from("<I", data, len(MAGIC))
+    header = json.loads(data[len(MAGIC) + 4: len(MAGIC) + 4 + n])
+    return {e["name"]: e["transform"] for e in header["arrays"]}
+
+
+def _arrays(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    h, w = 48, 64
+    yy, xx = np.mgrid[0:h, 0:w]
+    depth = (1.0 / (0.2 + 0.001 * xx + 0.002 * yy)).astype(np.float32)
+    depth[:5, :7] = 0.0
+    depth[10, 10], depth[11, 11], depth[12, 12] = np.nan, -0.0, np.inf
+    nan_payload = np.array([0x7FC00123], np.uint32).view(np.float32)[0]  # a NaN with a payload keeps its bits
+    depth[13, 13] = nan_payload
+    return {
+        "rgb": np.clip(xx[..., None] * 3 + rng.integers(0, 9, (h, w, 3)), 0, 255).astype(np.uint8),  # u8-left
+        "depth": depth,  # b32-delta2
+        "sensor_depth": (np.round(depth * 50) / 50).astype(np.float32),  # a quantised depth: palette
+        "labels": (xx // 20).astype(np.uint8),
+        "instances": np.where(xx < 30, 3, -1).astype(np.int32),
+        "T_world_cam": np.eye(4) + rng.normal(size=(4, 4)),  # raw float64
+        "noise": rng.integers(-(2**31), 2**31 - 1, (h, w), dtype=np.int64).astype(np.int32),  # wrapping deltas
+        "empty": np.zeros((0, 3), np.float32),
+        "wide": rng.integers(0, 1000, 20000).astype(np.uint32) * 4099,  # palette with uint16 indices
+    }
+
+
+def test_every_array_comes_back_byte_for_byte() -> None:
+    arrays = _arrays(np.random.default_rng(0))
+    data = encode_frame(7, 0.23333333333333334, arrays)
+    out = decode_frame(data)
+    assert (out.index, out.timestamp) == (7, 0.23333333333333334)
+    assert set(out.arrays) == set(arrays) and frame_fields(data) == tuple(arrays)
+    for name, a in arrays.items():
+        b = out.arrays[name]
+        assert b.dtype == a.dtype and b.shape == a.shape and b.tobytes() == a.tobytes(), name
+        assert b.flags.c_contiguous and b.flags.writeable
+    used = _transforms(data)
+    assert used["rgb"] == "u8-left" and used["sensor_depth"] == "palette"
+    assert used["T_world_cam"] == "raw" and used["wide"] == "palette"
+    assert len(data) < 0.5 * sum(a.nbytes for a in arrays.values())
+
+
+def test_one_array_alone_and_names_it_does_not_hold() -> None:
+    arrays = _arrays(np.random.default_rng(1))
+    out = decode_frame(encode_frame(0, 0.0, arrays), ["rgb", "absent"])
+    assert list(out.arrays) == ["rgb"] and np.array_equal(out.arrays["rgb"], arrays["rgb"])
+
+
+@pytest.mark.parametrize("cut", [b"", b"not a frame", MAGIC + b"\x05\x00\x00\x00{bad}"])
+def test_damaged_bytes_raise(cut: bytes) -> None:
+    with pytest.raises(FrameCodecError):
+        decode_frame(cut)
+
+
+def test_a_truncated_or_foreign_frame_raises() -> None:
+    data = encode_frame(0, 0.0, {"rgb": np.zeros((8, 8, 3), np.uint8) + 7})
+    with pytest.raises(FrameCodecError):
+        decode_frame(data[:-3])
+    with pytest.raises(FrameCodecError):
+        decode_frame(data.replace(b"cnnslam-frame/1", b"cnnslam-frame/0"))
+    with pytest.raises(FrameCodecError):
+        encode_frame(0, 0.0, {"bad": np.array([object()])})
+
+
+@pytest.mark.parametrize("name", ["rgb", "depth", "sensor_depth", "instances", "noise", "labels"])
+def test_each_transform_is_exact_on_its_own(name: str) -> None:
+    a = _arrays(np.random.default_rng(2))[name]
+    if a.dtype == np.uint8:
+        back = fc._u8_left_inverse(fc._u8_left(a), a.shape)
+        assert back.dtype == a.dtype and back.tobytes() == a.tobytes()
+    if a.dtype.itemsize == 4:
+        back = fc._b32_delta2_inverse(fc._b32_delta2(a), a.shape, a.dtype)
+        assert back.dtype == a.dtype and back.tobytes() == a.tobytes()
+    pal = fc._palette(a) if a.dtype.itemsize > 1 else None
+    if pal is not None:
+        back = fc._palette_inverse(pal[0], a.shape, a.dtype, pal[1])
+        assert back.dtype == a.dtype and back.tobytes() == a.tobytes()
