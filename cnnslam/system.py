@@ -294,7 +294,8 @@ class CnnSlam:
         self._counters = {"lost": 0, "recovered": 0, "refined_pixels": 0, "observed_pixels": 0,
                           "alignments": 0, "edges_rejected": 0, "optimisations": 0}
         self._seconds = {"tracking": 0.0, "refinement": 0.0, "keyframe_wait": 0.0, "pyramid": 0.0,
-                         "keyframe_init": 0.0, "pose_graph": 0.0, "prediction": 0.0, "fusion": 0.0}
+                         "keyframe_init": 0.0, "pose_graph": 0.0, "prediction": 0.0, "fusion": 0.0,
+                         "tracking_cpu": 0.0}  # the frame thread's CPU seconds in tracking (time.thread_time)
         self._finished = False
 
     # ------------------------------------------------------------------------------------------------ frame thread
@@ -318,7 +319,7 @@ class CnnSlam:
         if self._active is None:
             return self._start(rgb, pyramid, float(timestamp), ground_truth, seconds)
 
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         active = self._active
         assert self._prev is not None
         T_world_prev = self._prev[0].T_world_kf @ self._prev[1]
@@ -326,6 +327,7 @@ class CnnSlam:
         result, keyframe, recovered = self._track(pyramid, active, T_world_pred)
         seconds["tracking"] = time.perf_counter() - t0
         self._seconds["tracking"] += seconds["tracking"]
+        self._seconds["tracking_cpu"] += time.thread_time() - c0
         if result is None or keyframe is None:  # lost: report the prediction, then hold it (no extrapolation)
             self._counters["lost"] += 1
             T_kf_cur = orthonormalize(se3_inverse(active.T_world_kf) @ T_world_pred)

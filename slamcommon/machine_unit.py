@@ -81,11 +81,13 @@ def machine_unit_seconds(clock: Callable[[], float] = time.perf_counter) -> floa
     return clock() - t0
 
 
-def units_around(run: Callable[[], T], repeats: int = 60) -> tuple[T, float]:
-    """``run()``'s value and the mean machine unit over ``repeats`` back-to-back timings just before it and as many
-    just after (about 0.1 s in all: a mean over that long sees the share of the cores this process got, as the run
-    did, where a median of short timings would pick the ones no other process interrupted)."""
-    before = [machine_unit_seconds() for _ in range(repeats)]
+def units_around(run: Callable[[], T], repeats: int = 60,
+                 clock: Callable[[], float] = time.perf_counter) -> tuple[T, float]:
+    """``run()``'s value and the mean machine unit, timed by ``clock``, over ``repeats`` back-to-back timings just
+    before it and as many just after (about 0.1 s in all: in wall time, a mean over that long sees the share of the
+    cores this process got, as the run did, where a median of short timings would pick the ones no other process
+    interrupted; in CPU time, ``time.process_time``, other processes on the cores do not count at all)."""
+    before = [machine_unit_seconds(clock) for _ in range(repeats)]
     value = run()
-    after = [machine_unit_seconds() for _ in range(repeats)]
+    after = [machine_unit_seconds(clock) for _ in range(repeats)]
     return value, float(np.mean(before + after))

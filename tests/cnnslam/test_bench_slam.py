@@ -14,6 +14,11 @@ def test_benchmark_reports_every_figure() -> None:
                 "whole_system_fps_without_model", "fusion_ms_per_keyframe"):
         assert figures[key] > 0, key
     assert figures["tracked_share"] == 1.0
+    # the gated figures are in CPU time: the frame thread's CPU in tracking cannot exceed the wall time it took
+    # (one thread; the numba kernels are serial), and both are positive
+    tracking_wall_ms = 1000 / figures["tracking_fps"]
+    assert 0 < figures["tracking_cpu_ms_per_frame"] <= tracking_wall_ms * 1.001 + 0.01
+    assert figures["whole_system_cpu_s"] > 0 and figures["tracking_frames_per_unit"] > 0
     text = format_figures(figures)
     assert "tracking_fps" in text and "whole_system_fps" in text
 
