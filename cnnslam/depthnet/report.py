@@ -146,11 +146,18 @@ def _optimisation_lines(manifest: dict[str, Any]) -> list[str]:
     schedule = ("constant" if train.get("lr") == train.get("min_lr") and not train.get("warmup_steps")
                 else "warm-up, cosine decay")
     stage = f"Fine-tune from {manifest['initialised_from']['weights']}" if start else "Optimisation"
+    space = "log depth" if train.get("depth_space") == "log" else "depth"
+    loss = f"berHu (c = 0.2 max |error| per batch) on {space}"
+    if train.get("silog_weight"):
+        loss += f" + {train['silog_weight']} x scale-invariant log loss"
+    if train.get("gradient_weight"):
+        loss += f" + {train['gradient_weight']} x log-depth gradient matching"
+    env = manifest.get("environment") or {}
+    where = (f"one {env['device']}" if env.get("device") and env.get("device") != "cpu"
+             else f"{env.get('threads')} CPU threads")
     lines.append(
         f"- {stage}: {manifest.get('steps')} steps of batch {train.get('batch_size')} {what}"
         f"{_stage_data(manifest) if start else ''}, AdamW lr "
-        f"{train.get('lr')} ({schedule}), berHu (c = 0.2 max |error| per batch) on "
-        f"{'log depth' if train.get('depth_space') == 'log' else 'depth'} + {train.get('semantic_weight')} x "
-        f"cross-entropy; {manifest.get('wall_time_s', 0) / 3600:.2f} h on "
-        f"{(manifest.get('environment') or {}).get('threads')} CPU threads.")
+        f"{train.get('lr')} ({schedule}), {loss} + {train.get('semantic_weight')} x "
+        f"cross-entropy; {manifest.get('wall_time_s', 0) / 3600:.2f} h on {where}.")
     return lines

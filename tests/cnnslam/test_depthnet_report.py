@@ -35,3 +35,16 @@ def test_every_stage_gets_a_line_with_its_data() -> None:
     assert "b.pt: 1200 steps" in lines[2] and "8000 frames of 400 rooms (data seed 1, focal length x 0.80..1.25" \
         in lines[2]
     assert _first_stage(third) is first and _first_stage(first) is first
+
+
+def test_a_stage_says_its_losses_and_where_it_ran() -> None:
+    """The shipped recipe's stage: trained on a GPU with the scale-invariant and gradient terms, as its manifest says
+    (a line that read '4 CPU threads' and only berHu for it was wrong)."""
+    gpu = _manifest(7000, [120, 160], None)
+    gpu["training"].update(silog_weight=0.5, gradient_weight=0.5)
+    gpu["environment"] = {"threads": 4, "device": "NVIDIA H200"}
+    (line,) = _optimisation_lines(gpu)
+    assert "+ 0.5 x scale-invariant log loss + 0.5 x log-depth gradient matching + 0.5 x cross-entropy" in line
+    assert line.endswith("0.10 h on one NVIDIA H200.")
+    (cpu_line,) = _optimisation_lines(_manifest(100, [96, 128], None))
+    assert cpu_line.endswith("on log depth + 0.5 x cross-entropy; 0.10 h on 2 CPU threads.")
