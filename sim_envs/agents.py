@@ -142,8 +142,13 @@ class BiasedPoseAgent:
         return out
 
     def finish(self) -> AgentOutput:
-        """The wrapped agent's key-frames, their poses turned by the bias too."""
+        """The wrapped agent's key-frames and final trajectory (if it hands one back), their poses turned by the bias
+        too (the driver puts a final trajectory in place of the per-step answers)."""
         out = self.inner.finish()
         keyframes = [replace(kf, T_world_cam=np.asarray(kf.T_world_cam, dtype=np.float64) @ self._bias)
                      for kf in out.keyframes]
-        return replace(out, keyframes=keyframes)
+        trajectory = out.trajectory
+        if trajectory is not None:
+            trajectory = replace(trajectory, T_world_cam=np.asarray(trajectory.T_world_cam, dtype=np.float64)
+                                 @ self._bias)
+        return replace(out, keyframes=keyframes, trajectory=trajectory)

@@ -1,7 +1,9 @@
+from typing import Any
+
 import numpy as np
 import pytest
 
-from sim_envs.agent import AgentOutput, load_agent
+from sim_envs.agent import AgentOutput, FinalTrajectory, load_agent
 from sim_envs.agents import ConstantPoseAgent, OracleAgent
 from sim_envs.errors import SimEnvError
 
@@ -84,3 +86,44 @@ def test_biased_pose_agent_turns_every_pose_in_the_camera_frame():
     np.testing.assert_allclose(kf.T_world_cam, out["T_world_cam"])
     with pytest.raises(SimEnvError, match="yaw_deg"):
         BiasedPoseAgent("sim_envs.agents:OracleAgent", yaw_deg=float("nan"))
+
+
+class _RevisingAgent:
+    """An agent that hands back a final trajectory at the end (as CNN-SLAM does, its pose-graph poses)."""
+
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        self.stamps: list[float] = []
+
+    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
+        self.stamps.append(float(observation["timestamp"][0]))
+        return {"T_world_cam": np.eye(4), "tracked": True}
+
+    def finish(self) -> AgentOutput:
+        T = np.repeat(np.eye(4)[None], len(self.stamps), axis=0)
+        T[:, 0, 3] = np.arange(len(self.stamps))  # the revised poses differ from the per-step answers
+        return AgentOutput(keyframes=[], trajectory=FinalTrajectory(np.array(self.stamps), T))
+
+
+def test_biased_pose_agent_turns_the_final_trajectory_too(monkeypatch):
+    """The driver puts a final trajectory in place of the per-step answers: without the bias there, a wrapped
+    CNN-SLAM came out unbiased and the quick gate's yaw-bias-2deg regression passed unseen (round 38)."""
+    import sys
+    import types
+
+    from scipy.spatial.transform import Rotation
+
+    from sim_envs.agents import BiasedPoseAgent
+
+    module = types.ModuleType("revising_test_agent")
+    module.Agent = _RevisingAgent
+    monkeypatch.setitem(sys.modules, "revising_test_agent", module)
+    agent = BiasedPoseAgent("revising_test_agent:Agent", yaw_deg=2.0)
+    agent.reset(np.array([5.0, 5.0, 2.5, 1.5]), (4, 6))
+    for t in (0.0, 0.1, 0.2):
+        agent.step(_obs(t))
+    final = agent.finish().trajectory
+    assert final is not None and len(final) == 3
+    np.testing.assert_allclose(final.T_world_cam[:, 0, 3], [0.0, 1.0, 2.0])  # positions untouched
+    for T in final.T_world_cam:
+        rel = Rotation.from_matrix(T[:3, :3])
+        np.testing.assert_allclose(rel.as_rotvec(degrees=True), [0.0, 2.0, 0.0], atol=1e-9)
