@@ -3,7 +3,7 @@ results/baselines/perf.json (eval.bench.perf.speed_regressions, allowed 1.5x slo
 
 The first test measures the figures exactly as ``cnnslam bench perf``'s slam probe does (a fresh process), the
 second in this process with tracking slowed on purpose; in CPU time, the unit (a frozen reference workload timed in
-the same process) carries the machine's speed, so the baseline made on one machine judges another. The second test slows tracking down on purpose and the gate must catch it.
+the same process) carries the machine's speed, so the baseline made on one machine judges another.
 """
 
 from __future__ import annotations
