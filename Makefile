@@ -10,9 +10,9 @@ STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
 # the main job: the Table-1 suite on whole sequences (the paper's protocol; the length sweep, results/lengths.md, found
 # no shorter length that ranks the methods as whole sequences do) x 8 methods, BENCH_RUNS runs per cell (seeds
-# 0 .. BENCH_RUNS-1; the oracle runs once), JOBS runs at a time -> results/bench/. One run per cell: 25 min 37 s end to
-# end in a fresh clone on a 2-core AMD EPYC (round 34, rendering included); BENCH_RUNS=3 is the committed
-# results/table1.md's protocol (about 1 h 10 min, estimated from that run).
+# 0 .. BENCH_RUNS-1; the oracle runs once), JOBS runs at a time -> results/bench/. One run per cell: 31 min 16 s end to
+# end in a fresh clone on a 2-core AMD EPYC (round 38, rendering included, 3 min 25 s); BENCH_RUNS=3 is the committed
+# results/table1.md's protocol (about 1.5 h, estimated from that run).
 # BENCH_FRAMES=N scores the first N frames instead (not the whole sequences' verdict). Finished runs under runs/ are
 # reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= all
