@@ -16,9 +16,9 @@ compiled and the network is warmed up on a short run first. Four runs over the s
 Beside fps, each of the two headline figures comes in **frames per machine unit** (``*_frames_per_unit``), in CPU
 time: frames per CPU second of that work (tracking: the frame thread's CPU seconds in tracking, ``time.thread_time``;
 whole system: the process's CPU seconds over the two-thread run, all threads) times the CPU seconds of a frozen
-reference workload (:func:`slamcommon.machine_unit.machine_unit_seconds`) timed in the same process just before and
-just after that run, so that figures from machines of other speeds compare, and other processes on the cores (a
-neighbouring test file, a suite's other job) do not move them as they move wall time; the speed gate
+reference workload (:func:`slamcommon.machine_unit.machine_unit_seconds`) timed in the calling thread's CPU time just
+before and just after that run, so that figures from machines of other speeds compare, and other processes on the
+cores (a neighbouring test file, a suite's other job) do not move them as they move wall time; the speed gate
 (``eval.bench.perf.speed_regressions``) compares them with ``results/baselines/perf.json``.
 
 Figures print as a table and come back from :func:`benchmark` as a dict. Speed is measured, never asserted.
@@ -145,8 +145,7 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
     _run(base.with_overrides({"system.threads": False}), intrinsics, frames[: min(40, len(frames))], pred)  # warm-up
     single = base.with_overrides({"system.threads": False})
     with _KernelTimer() as kernel:
-        (wall_1, steps_1, stats_1), unit_1 = units_around(lambda: _run(single, intrinsics, frames, pred),
-                                                          clock=time.process_time)
+        (wall_1, steps_1, stats_1), unit_1 = units_around(lambda: _run(single, intrinsics, frames, pred))
     two = base.with_overrides({"system.threads": True})
 
     def timed_two() -> tuple[tuple[float, list[float], dict[str, Any]], float]:
@@ -154,7 +153,7 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         value = _run(two, intrinsics, frames, pred)
         return value, time.process_time() - c0
 
-    ((wall_2, steps_2, stats_2), cpu_2), unit_2 = units_around(timed_two, clock=time.process_time)
+    ((wall_2, steps_2, stats_2), cpu_2), unit_2 = units_around(timed_two)
     # the same without the global model (Sec. 3.5): fusion runs in the key-frame thread and must not slow the
     # frame thread
     wall_off, steps_off, _ = _run(two.with_overrides({"global_model.enabled": False}), intrinsics, frames, pred)

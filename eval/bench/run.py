@@ -16,7 +16,7 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
   end to end and of the agent's step, peak resident memory of the run's process), its process's CPU time
   (``cpu_s``), per-frame step times, ``stages`` (where the run's wall seconds went, :data:`STAGES`; read by
   :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames read from the frame cache / rendered),
-  ``unit_cpu_s`` / ``frames_per_unit`` (the machine unit timed around the run in CPU seconds,
+  ``unit_cpu_s`` / ``frames_per_unit`` (the machine unit timed around the run in the thread's CPU seconds,
   :mod:`slamcommon.machine_unit`, and the run's frames per unit of CPU time: the suite speed gate's figure,
   :mod:`eval.bench.suite_speed`), and ``environment``, the machine and package versions it ran on
   (:mod:`eval.bench.environment`; never compared by the gate; :func:`eval.metrics.results.load_run` reads them
@@ -62,7 +62,7 @@ from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
 from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
-from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds
+from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds, unit_summary
 from slamcommon.resources import peak_rss_mib
 
 RUN_FILES: tuple[str, ...] = (
@@ -203,7 +203,7 @@ class ExternalEpisode:
 
 def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
-    units = [machine_unit_seconds(time.process_time) for _ in range(UNIT_REPEATS)]  # before the run's clocks start
+    units = [machine_unit_seconds(time.thread_time) for _ in range(UNIT_REPEATS)]  # before the run's clocks start
     start = time.perf_counter()
     try:
         files = _run_and_package(spec, progress, start, units, time.process_time())
@@ -298,12 +298,12 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
         timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
         timing.update(reads)
-        # the run's speed in machine units (slamcommon.machine_unit, timed here just before and just after it), both
-        # in this process's CPU seconds, which other processes on the cores do not inflate as they do wall time:
-        # what the suite speed gate compares (eval.bench.suite_speed)
-        units = [*(units or []), *(machine_unit_seconds(time.process_time) for _ in range(UNIT_REPEATS))]
+        # the run's speed in machine units (slamcommon.machine_unit, timed here just before and just after it, in this
+        # thread's CPU seconds; the run in its process's, all threads), CPU time, which other processes on the cores
+        # do not inflate as they do wall time: what the suite speed gate compares (eval.bench.suite_speed)
+        units = [*(units or []), *(machine_unit_seconds(time.thread_time) for _ in range(UNIT_REPEATS))]
         timing["unit_version"] = UNIT_VERSION
-        timing["unit_cpu_s"] = float(np.mean(units))
+        timing["unit_cpu_s"] = unit_summary(units)
         cpu = timing.get("cpu_s") or 0.0
         timing["frames_per_unit"] = n_frames * timing["unit_cpu_s"] / cpu if cpu > 0 else 0.0
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
