@@ -204,7 +204,48 @@ def triangulation_uncertainty(bearing_ref: np.ndarray, depth: float, t_ref_cur: 
 # ------------------------------------------------------------------------------------------------ the filter kernel
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
+def _patch_sums(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10: float, w11: float,
+                tmpl: np.ndarray, half: int) -> tuple[float, float, float]:
+    """Sums of I, I^2 and I T over a (2 half + 1)^2 patch of ``cur`` bilinearly sampled with the shared weights
+    w00..w11 at the integer corner (iu, iv0), T the template (row-major): the three sums of a ZNCC score."""
+    side = 2 * half + 1
+    s_i = 0.0
+    s_ii = 0.0
+    s_it = 0.0
+    for oy in range(side):
+        r0 = iv0 + oy - half
+        for ox in range(side):
+            c0 = iu + ox - half
+            iv = w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0] + w11 * cur[r0 + 1, c0 + 1]
+            tv = tmpl[oy * side + ox]
+            s_i += iv
+            s_ii += iv * iv
+            s_it += iv * tv
+    return s_i, s_ii, s_it
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _patch_sums_5x5(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10: float, w11: float,
+                    tmpl: np.ndarray) -> tuple[float, float, float]:
+    """:func:`_patch_sums` for REMODE's 5x5 patch with constant bounds, so the compiler unrolls it: the same
+    arithmetic in the same order (the same bits)."""
+    s_i = 0.0
+    s_ii = 0.0
+    s_it = 0.0
+    for oy in range(5):
+        r0 = iv0 + oy - 2
+        for ox in range(5):
+            c0 = iu + ox - 2
+            iv = w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0] + w11 * cur[r0 + 1, c0 + 1]
+            tv = tmpl[oy * 5 + ox]
+            s_i += iv
+            s_ii += iv * iv
+            s_it += iv * tv
+    return s_i, s_ii, s_it
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_std: np.ndarray,
                   mu: np.ndarray, sigma2: np.ndarray, a: np.ndarray, b: np.ndarray, state: np.ndarray,
                   R_cr: np.ndarray, t_cr: np.ndarray, t_rc: np.ndarray, intr: np.ndarray, depth_range: float,
@@ -224,6 +265,8 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
     eta_in, eta_out, sig_ratio, min_std = params[5], params[6], params[7], params[8]
     n_patch = (2 * half + 1) * (2 * half + 1)
     outcome = np.zeros((h, w), np.uint8)
+    side = 2 * half + 1
+    tmpl = np.empty(side * side)
     for y in range(h):
         for x in range(w):
             if state[y, x] != UPDATE:
@@ -272,6 +315,9 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
             half_len = 0.5 * min(length, max_extent)
             t_mean = tmpl_mean[y, x]
             t_std = tmpl_std[y, x]
+            for oy in range(side):
+                for ox in range(side):
+                    tmpl[oy * side + ox] = ref[y + oy - half, x + ox - half]
             best = -1.0
             best_u = 0.0
             best_v = 0.0
@@ -291,19 +337,10 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
                 w01 = fu * (1.0 - fv)
                 w10 = (1.0 - fu) * fv
                 w11 = fu * fv
-                s_i = 0.0
-                s_ii = 0.0
-                s_it = 0.0
-                for oy in range(-half, half + 1):
-                    r0 = iv0 + oy
-                    for ox in range(-half, half + 1):
-                        c0 = iu + ox
-                        iv = (w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0]
-                              + w11 * cur[r0 + 1, c0 + 1])
-                        tv = ref[y + oy, x + ox]
-                        s_i += iv
-                        s_ii += iv * iv
-                        s_it += iv * tv
+                if side == 5:
+                    s_i, s_ii, s_it = _patch_sums_5x5(cur, iu, iv0, w00, w01, w10, w11, tmpl)
+                else:
+                    s_i, s_ii, s_it = _patch_sums(cur, iu, iv0, w00, w01, w10, w11, tmpl, half)
                 mean_i = s_i / n_patch
                 var_i = s_ii / n_patch - mean_i * mean_i
                 if var_i <= 1e-12:
