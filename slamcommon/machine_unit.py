@@ -27,8 +27,8 @@ T = TypeVar("T")
 # process's CPU time (time.process_time), which also counts the library thread pools of the process spinning after a
 # run (torch's OpenMP workers after the network): on a quiet 2-core EPYC the unit read 1.31 ms in the speed probe
 # against 0.65 ms in the calling thread, on a loaded one 0.82 ms, so the gate's figures moved by 1.8x with no change
-# to the code (round 38's CI failure); in the thread's CPU time the probe's tracking figure reads 0.081 quiet and
-# 0.078 with two busy processes beside it.
+# to the code (round 38's CI failure); in the thread's CPU time, the median, the probe's tracking figure reads
+# 0.0774 and 0.0778 quiet and 0.0687 with two busy processes beside it (results/perf_history.md, round 39).
 
 UNIT_VERSION = "warp-bilinear-6x6/2"
 _UNIT_POINTS = 20000
