@@ -208,7 +208,8 @@ def triangulation_uncertainty(bearing_ref: np.ndarray, depth: float, t_ref_cur: 
 def _patch_sums(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10: float, w11: float,
                 tmpl: np.ndarray, half: int) -> tuple[float, float, float]:
     """Sums of I, I^2 and I T over a (2 half + 1)^2 patch of ``cur`` bilinearly sampled with the shared weights
-    w00..w11 at the integer corner (iu, iv0), T the template (row-major): the three sums of a ZNCC score."""
+    w00..w11 at the integer corner (iu, iv0), T the template (row-major): the three sums of a ZNCC score. Inlined;
+    called with a literal ``half`` the compiler unrolls it."""
     side = 2 * half + 1
     s_i = 0.0
     s_ii = 0.0
@@ -219,26 +220,6 @@ def _patch_sums(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10:
             c0 = iu + ox - half
             iv = w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0] + w11 * cur[r0 + 1, c0 + 1]
             tv = tmpl[oy * side + ox]
-            s_i += iv
-            s_ii += iv * iv
-            s_it += iv * tv
-    return s_i, s_ii, s_it
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _patch_sums_5x5(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10: float, w11: float,
-                    tmpl: np.ndarray) -> tuple[float, float, float]:
-    """:func:`_patch_sums` for REMODE's 5x5 patch with constant bounds, so the compiler unrolls it: the same
-    arithmetic in the same order (the same bits)."""
-    s_i = 0.0
-    s_ii = 0.0
-    s_it = 0.0
-    for oy in range(5):
-        r0 = iv0 + oy - 2
-        for ox in range(5):
-            c0 = iu + ox - 2
-            iv = w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0] + w11 * cur[r0 + 1, c0 + 1]
-            tv = tmpl[oy * 5 + ox]
             s_i += iv
             s_ii += iv * iv
             s_it += iv * tv
@@ -337,8 +318,8 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
                 w01 = fu * (1.0 - fv)
                 w10 = (1.0 - fu) * fv
                 w11 = fu * fv
-                if side == 5:
-                    s_i, s_ii, s_it = _patch_sums_5x5(cur, iu, iv0, w00, w01, w10, w11, tmpl)
+                if half == 2:  # REMODE's 5x5 patch: constant bounds, unrolled (the same arithmetic, the same bits)
+                    s_i, s_ii, s_it = _patch_sums(cur, iu, iv0, w00, w01, w10, w11, tmpl, 2)
                 else:
                     s_i, s_ii, s_it = _patch_sums(cur, iu, iv0, w00, w01, w10, w11, tmpl, half)
                 mean_i = s_i / n_patch
