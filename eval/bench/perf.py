@@ -402,6 +402,12 @@ def load_baseline_record(path: Path, schema: str, cls: type[T], what: str) -> T:
         raise PerfError(f"{path}: {exc}") from exc
 
 
+def too_slow(value: float, reference: float, max_slowdown: float) -> bool:
+    """True when ``value`` (frames per unit) is more than ``max_slowdown`` times below ``reference``; exactly at the
+    limit passes (float rounding of ``reference / max_slowdown``). Both speed gates judge by it."""
+    return value * max_slowdown < reference * (1.0 - 1e-9)
+
+
 def speed_regressions(figures: Mapping[str, Any], baseline: SpeedBaseline) -> list[str]:
     """One line per gated figure that is more than ``baseline.max_slowdown`` times slower than the baseline, in
     frames per machine unit (empty: the gate passes). Figures in another unit version fail with that reason."""
@@ -413,7 +419,7 @@ def speed_regressions(figures: Mapping[str, Any], baseline: SpeedBaseline) -> li
         value, reference = figures.get(key), baseline.figures[key]
         if not isinstance(value, (int, float)) or value <= 0:
             failures.append(f"{key}: no figure ({value!r})")
-        elif value * baseline.max_slowdown < reference * (1.0 - 1e-9):  # exactly at the limit passes
+        elif too_slow(value, reference, baseline.max_slowdown):
             failures.append(f"{key} {value:.4g} is {reference / value:.2f}x slower than the baseline's {reference:.4g} "
                             f"(allowed {baseline.max_slowdown:g}x)")
     return failures

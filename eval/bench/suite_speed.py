@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
-from eval.bench.perf import BaselineRecord, PerfError, load_baseline_record, machine_info
+from eval.bench.perf import BaselineRecord, PerfError, load_baseline_record, machine_info, too_slow
 from slamcommon.machine_unit import UNIT_VERSION
 
 SUITE_SPEED_BASELINE: Path = Path(__file__).resolve().parents[2] / "results" / "baselines" / "suite_speed.json"
@@ -87,7 +87,7 @@ def suite_speed_regressions(speeds: Mapping[str, float], baseline: SuiteSpeedBas
         value = speeds.get(method)
         if value is None or not value > 0:
             failures.append(f"{method}: no frames-per-unit figure in this suite run")
-        elif value * baseline.max_slowdown < reference * (1.0 - 1e-9):  # exactly at the limit passes
+        elif too_slow(value, reference, baseline.max_slowdown):
             failures.append(f"{method} {value:.4g} frames per unit is {reference / value:.2f}x slower than the "
                             f"baseline's {reference:.4g} (allowed {baseline.max_slowdown:g}x)")
     return failures
