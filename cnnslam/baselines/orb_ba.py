@@ -9,26 +9,26 @@ camera), the inverse of this project's ``T_world_cam``; they are updated by left
 - :func:`optimize_pose`: motion-only refinement of one frame against fixed map points (ORB-SLAM's
   PoseOptimization: 4 rounds of 10 Gauss-Newton iterations with Huber weights, observations re-classified as
   outliers at chi2 > 5.991 between rounds). A 6x6 problem, solved directly in numpy.
-- :func:`bundle_adjust`: key-frame poses (some held fixed) and points jointly, with
-  :func:`scipy.optimize.least_squares` (trust-region reflective, LSMR, sparse Jacobian: analytic by default, or
-  finite differences over the ``jac_sparsity`` pattern), the Huber kernel applied by reweighting as in g2o.
+- :func:`bundle_adjust`: key-frame poses (some held fixed) and points jointly, by g2o's Levenberg-Marquardt with
+  the points marginalised (Schur complement: ORB-SLAM's LocalBundleAdjustment), in numba kernels
+  (:mod:`cnnslam.baselines.orb_ba_kernels`); the Huber kernel weights each linearisation as in g2o.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.sparse import coo_matrix, csr_matrix
 
+from cnnslam.baselines.orb_ba_kernels import normal_equations, robust_cost, schur_step
 from cnnslam.baselines.orb_config import CHI2_2DOF
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import hat, se3_exp
 
 HUBER_DELTA: float = float(np.sqrt(CHI2_2DOF))  # ORB: robust kernel delta sqrt(5.991) on normalised errors
 MIN_DEPTH: float = 1e-6  # points closer than this (map units) to a camera plane give no usable residual (ours)
+_LM_TAU: float = 1e-5  # g2o OptimizationAlgorithmLevenberg: initial lambda = tau * max diagonal of H
+_LM_TRIALS: int = 10  # g2o: tries (lambda raised each time) before an iteration gives up
 
 
 def project(T_cam_world: np.ndarray, points_world: np.ndarray, intrinsics: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -117,7 +117,7 @@ class BundleResult:
     T_cam_world: (K, 4, 4) optimised world -> camera of every camera (fixed ones unchanged); points: (P, 3)
     optimised world points; chi2: (O,) squared normalised reprojection error of each observation afterwards;
     cost_initial, cost_final: robust cost sum of rho(chi2) (Huber at sqrt(5.991), g2o's form) before and after;
-    nfev: residual evaluations.
+    iterations: Levenberg-Marquardt iterations run (each one solve that was accepted, or the last rejected one).
     """
 
     T_cam_world: np.ndarray
@@ -125,7 +125,7 @@ class BundleResult:
     chi2: np.ndarray
     cost_initial: float
     cost_final: float
-    nfev: int
+    iterations: int
 
 
 def huber_weights(chi2: np.ndarray, delta: float = HUBER_DELTA) -> np.ndarray:
@@ -142,126 +142,75 @@ def huber_cost(chi2: np.ndarray, delta: float = HUBER_DELTA) -> float:
 
 def bundle_adjust(
     T_cam_world: np.ndarray, fixed: np.ndarray, points: np.ndarray, obs_cam: np.ndarray, obs_point: np.ndarray,
-    obs_uv: np.ndarray, obs_inv_sigma: np.ndarray, intrinsics: np.ndarray, max_nfev: int = 10, rounds: int = 2,
-    jacobian: Literal["analytic", "finite_difference"] = "analytic",
+    obs_uv: np.ndarray, obs_inv_sigma: np.ndarray, intrinsics: np.ndarray, iterations: int = 10,
 ) -> BundleResult:
-    """Bundle adjustment of cameras and points with :func:`scipy.optimize.least_squares` (sparse Jacobian).
+    """Bundle adjustment of cameras and points by g2o's Levenberg-Marquardt with the points marginalised (Schur
+    complement), as ORB-SLAM runs it.
 
     T_cam_world: (K, 4, 4) initial world -> camera; fixed: (K,) bool cameras held constant (the gauge: at least one
     should be fixed); points: (P, 3) initial world points; obs_cam, obs_point: (O,) int indices of each
     observation's camera and point; obs_uv: (O, 2) pixels; obs_inv_sigma: (O,) 1 / sigma (pixels^-1); intrinsics:
-    [fx, fy, cx, cy]; max_nfev: residual evaluations per round; rounds: Huber reweightings.
+    [fx, fy, cx, cy]; iterations: Levenberg-Marquardt iterations (ORB: 5 before its outlier check, 10 after).
 
-    The Huber kernel is applied as g2o applies it, by iteratively reweighted least squares: each round fixes the
-    weights w = min(1, delta / |e|) of every observation's 2-vector error and solves the weighted problem with
-    ``least_squares(loss="linear", tr_solver="lsmr")``. (scipy's own ``loss="huber"`` acts per residual coordinate
-    with a second-order correction that stalls the trust region when many residuals are in the linear part: on a
-    6-camera test it stayed at 60 % of the initial cost where this reaches the optimum in two rounds.) Each round
-    also changes variables to x = x_k + P y with P the block-Jacobi (J^T W J)^-1/2 (6x6 per camera, 3x3 per point),
-    the classical preconditioner of bundle adjustment, so that LSMR converges in few iterations; the initial trust
-    radius covers the whole Gauss-Newton step. ``jacobian="finite_difference"`` lets scipy difference the residuals
-    over the sparsity pattern (``jac_sparsity``) instead of the closed form (same result, slower).
+    Each iteration linearises at the current estimate with the Huber kernel's weights (g2o's robustified
+    linearisation), solves (H + lambda I) dx = -g through the Schur complement on the points
+    (:func:`~cnnslam.baselines.orb_ba_kernels.schur_step`) and keeps the step when the robust cost falls; g2o's
+    OptimizationAlgorithmLevenberg: lambda starts at 1e-5 of H's largest diagonal entry, a kept step with gain
+    ratio rho scales it by clamp(1 - (2 rho - 1)^3, 1/3, 2/3), a rejected one by 2, 4, 8, ... (at most 10 tries an
+    iteration, then the optimisation stops). Cameras move by left twists, points additively.
     """
     T0 = np.asarray(T_cam_world, dtype=np.float64)
     fixed = np.asarray(fixed, dtype=bool)
-    X0 = np.asarray(points, dtype=np.float64)
+    X = np.array(points, dtype=np.float64)
     obs_cam = np.asarray(obs_cam, dtype=np.int64)
     obs_point = np.asarray(obs_point, dtype=np.int64)
     uv = np.asarray(obs_uv, dtype=np.float64)
     inv_sigma = np.asarray(obs_inv_sigma, dtype=np.float64)
     intr = np.asarray(intrinsics, dtype=np.float64).reshape(4)
-    k, p, o = len(T0), len(X0), len(obs_cam)
+    k, p, o = len(T0), len(X), len(obs_cam)
     if fixed.shape != (k,) or obs_point.shape != (o,) or uv.shape != (o, 2) or inv_sigma.shape != (o,):
         raise CnnSlamError(f"bundle_adjust: inconsistent shapes (cameras {T0.shape}, fixed {fixed.shape}, points "
-                           f"{X0.shape}, observations {obs_cam.shape} / {obs_point.shape} / {uv.shape})")
-    if jacobian not in ("analytic", "finite_difference"):
-        raise CnnSlamError(f"jacobian must be 'analytic' or 'finite_difference', got {jacobian!r}")
+                           f"{X.shape}, observations {obs_cam.shape} / {obs_point.shape} / {uv.shape})")
+    if o and (obs_cam.min() < 0 or obs_cam.max() >= k or obs_point.min() < 0 or obs_point.max() >= p):
+        raise CnnSlamError(f"bundle_adjust: observation indices out of range ({k} cameras, {p} points)")
     if o == 0:
-        return BundleResult(T0.copy(), X0.copy(), np.zeros(0), 0.0, 0.0, 0)
-    free_cam = np.flatnonzero(~fixed)
-    col_of_cam = np.full(k, -1, dtype=np.int64)
-    col_of_cam[free_cam] = 6 * np.arange(len(free_cam))
-    n_cam_params = 6 * len(free_cam)
-    n_params = n_cam_params + 3 * p
-    cam_cols = col_of_cam[obs_cam]
-    has_cam = cam_cols >= 0
-    pt_cols = n_cam_params + 3 * obs_point
-    rows2 = np.arange(2 * o).reshape(o, 2)
-    rows = np.r_[np.repeat(rows2, 3, axis=1).reshape(-1), np.repeat(rows2[has_cam], 6, axis=1).reshape(-1)]
-    cols = np.r_[np.tile(pt_cols[:, None] + np.arange(3), (1, 2)).reshape(-1),
-                 np.tile(cam_cols[has_cam][:, None] + np.arange(6), (1, 2)).reshape(-1)]
-
-    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        T = T0.copy()
-        if len(free_cam):
-            T[free_cam] = se3_exp(x[:n_cam_params].reshape(-1, 6)) @ T0[free_cam]
-        return T, x[n_cam_params:].reshape(p, 3)
-
-    def linearise(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Residuals (O, 2), d e / d X_world (O, 2, 3), d e / d xi (O, 2, 6) at x."""
-        T, X = unpack(x)
-        p_cam = np.einsum("oij,oj->oi", T[obs_cam, :3, :3], X[obs_point]) + T[obs_cam, :3, 3]
-        e, J_p, J_xi = _residual_and_jacobian(p_cam, uv, inv_sigma, intr)
-        return e, J_p @ T[obs_cam, :3, :3], J_xi
-
-    def jac_matrix(J_X: np.ndarray, J_xi: np.ndarray, sw: np.ndarray) -> csr_matrix:
-        vals = np.r_[(J_X * sw[:, None, None]).reshape(-1), (J_xi[has_cam] * sw[has_cam, None, None]).reshape(-1)]
-        return coo_matrix((vals, (rows, cols)), shape=(2 * o, n_params)).tocsr()
-
-    x = np.r_[np.zeros(n_cam_params), X0.reshape(-1)]
-    e, J_X, J_xi = linearise(x)
-    cost0 = huber_cost((e * e).sum(axis=1))
-    nfev = 0
-    for _ in range(int(rounds)):
-        sw = np.sqrt(huber_weights((e * e).sum(axis=1)))
-        P = _block_jacobi(J_X, J_xi, sw, obs_point, cam_cols, has_cam, n_cam_params, p)
-        x_k = x.copy()
-
-        def fun_y(y: np.ndarray, x_k: np.ndarray = x_k, P: csr_matrix = P, sw: np.ndarray = sw) -> np.ndarray:
-            return (linearise(x_k + P @ y)[0] * sw[:, None]).reshape(-1)
-
-        def jac_y(y: np.ndarray, x_k: np.ndarray = x_k, P: csr_matrix = P, sw: np.ndarray = sw) -> csr_matrix:
-            _, jx, jxi = linearise(x_k + P @ y)
-            return (jac_matrix(jx, jxi, sw) @ P).tocsr()
-
-        f_start = (e * sw[:, None]).reshape(-1)
-        if jacobian == "analytic":
-            jac_arg, sparsity = jac_y, None
-        else:
-            jac_arg = "2-point"
-            sparsity = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(2 * o, n_params)).tocsr()
-        res = least_squares(fun_y, np.zeros(n_params), jac=jac_arg, jac_sparsity=sparsity, method="trf",
-                            loss="linear", x_scale=max(float(np.linalg.norm(f_start)), 1.0), tr_solver="lsmr",
-                            max_nfev=int(max_nfev), xtol=1e-10, ftol=1e-6)
-        nfev += int(res.nfev)
-        x = x_k + P @ res.x
-        e, J_X, J_xi = linearise(x)
-    T, X = unpack(x)
-    chi2 = (e * e).sum(axis=1)
-    return BundleResult(T, X.copy(), chi2, cost0, huber_cost(chi2), nfev)
-
-
-def _block_jacobi(J_X: np.ndarray, J_xi: np.ndarray, sw: np.ndarray, obs_point: np.ndarray, cam_cols: np.ndarray,
-                  has_cam: np.ndarray, n_cam_params: int, n_points: int) -> csr_matrix:
-    """Sparse block-diagonal (J^T W J)^-1/2: a 6x6 block per free camera, 3x3 per point (eigenvalues floored at
-    1e-9 of the block's largest, so that a point seen by one camera, or by none, stays finite)."""
-    w = sw * sw
-    B = np.zeros((n_points, 3, 3))
-    np.add.at(B, obs_point, np.einsum("o,oki,okj->oij", w, J_X, J_X))
-    n_cams = n_cam_params // 6
-    A = np.zeros((n_cams, 6, 6))
-    if n_cams:
-        np.add.at(A, cam_cols[has_cam] // 6, np.einsum("o,oki,okj->oij", w[has_cam], J_xi[has_cam], J_xi[has_cam]))
-    rows, cols, vals = [], [], []
-    for blocks, start, size in ((A, 0, 6), (B, n_cam_params, 3)):
-        if len(blocks) == 0:
-            continue
-        ev, V = np.linalg.eigh(blocks)
-        ev = np.maximum(ev, 1e-9 * np.maximum(ev[:, -1:], 1e-12))
-        inv_sqrt = np.einsum("bij,bj,bkj->bik", V, 1.0 / np.sqrt(ev), V)
-        idx = start + size * np.arange(len(blocks))[:, None] + np.arange(size)
-        rows.append(np.repeat(idx, size, axis=1).reshape(-1))
-        cols.append(np.tile(idx, (1, size)).reshape(-1))
-        vals.append(inv_sqrt.reshape(-1))
-    n = n_cam_params + 3 * n_points
-    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+        return BundleResult(T0.copy(), X, np.zeros(0), 0.0, 0.0, 0)
+    free = np.flatnonzero(~fixed)
+    free_col = np.full(k, -1, dtype=np.int64)
+    free_col[free] = np.arange(len(free))
+    by_point = np.argsort(obs_point, kind="stable")
+    point_start = np.searchsorted(obs_point[by_point], np.arange(p + 1))
+    T = T0.copy()
+    args = (obs_cam, obs_point, uv, inv_sigma, intr)
+    cost, chi2 = robust_cost(T[:, :3, :3], T[:, :3, 3], X, *args, HUBER_DELTA, MIN_DEPTH)
+    cost0 = float(cost)
+    lam, done = 0.0, 0
+    for it in range(int(iterations)):
+        Hcc, gc, Hpp, gp, W = normal_equations(T[:, :3, :3], T[:, :3, 3], X, *args, free_col, len(free),
+                                               HUBER_DELTA, MIN_DEPTH)
+        if it == 0:
+            diag = np.r_[np.diagonal(Hcc), np.diagonal(Hpp, axis1=1, axis2=2).reshape(-1)]
+            lam = _LM_TAU * float(diag.max())
+        ni, accepted = 2.0, False
+        done += 1
+        for _ in range(_LM_TRIALS):
+            dc, dp, ok = schur_step(Hcc, gc, Hpp, gp, W, obs_cam, free_col, by_point, point_start, lam)
+            if ok:
+                T_new = T.copy()
+                T_new[free] = se3_exp(dc.reshape(-1, 6)) @ T[free]
+                X_new = X + dp
+                cost_new, chi2_new = robust_cost(T_new[:, :3, :3], T_new[:, :3, 3], X_new, *args, HUBER_DELTA,
+                                                 MIN_DEPTH)
+                dx = np.r_[dc, dp.reshape(-1)]
+                scale = float(dx @ (lam * dx - np.r_[gc, gp.reshape(-1)])) + 1e-3
+                rho = (cost - cost_new) / scale
+            if ok and rho > 0 and np.isfinite(cost_new):
+                T, X, cost, chi2 = T_new, X_new, cost_new, chi2_new
+                lam *= min(max(1.0 - (2.0 * rho - 1.0) ** 3, 1.0 / 3.0), 2.0 / 3.0)
+                accepted = True
+                break
+            lam *= ni
+            ni *= 2.0
+        if not accepted:
+            break
+    return BundleResult(T, X, chi2, cost0, float(cost), done)

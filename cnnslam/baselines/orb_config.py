@@ -116,8 +116,8 @@ class OrbConfig(Configurable):
     # points), every other key-frame that sees their points is held fixed (ours: at most 10).
     local_ba_keyframes: int = 10
     local_ba_fixed_keyframes: int = 10
-    # ORB: 5 then 10 Levenberg-Marquardt iterations, outliers (chi2 > 5.991) removed in between. Ours: at most 5
-    # residual evaluations of scipy's least_squares with one Huber weighting, then 2 reweightings of at most 5 each.
+    # ORB: 5 then 10 Levenberg-Marquardt iterations, outliers (chi2 > 5.991) removed in between. Ours the same
+    # (g2o's LM, points marginalised), except that the Huber kernel stays on in the second run (ORB drops it).
     local_ba_rounds: tuple[int, int] = (5, 10)
     # ORB PoseOptimization: 4 rounds of 10 iterations, outliers re-classified each round at chi2 = 5.991.
     pose_rounds: int = 4

@@ -268,7 +268,7 @@ def refine_two_view(res: TwoViewResult, uv_ref: np.ndarray, uv_cur: np.ndarray, 
     obs_pt = np.r_[np.arange(k), np.arange(k)]
     ba = bundle_adjust(cams, np.array([True, False]), res.points_ref, obs_cam, obs_pt,
                        np.r_[uv_ref[idx], uv_cur[idx]], np.r_[inv_sigma_ref[idx], inv_sigma_cur[idx]], intr,
-                       max_nfev=20, rounds=2)
+                       iterations=20)
     T = ba.T_cam_world[1].copy()
     scale = 1.0 / max(float(np.linalg.norm(T[:3, 3])), 1e-12)
     T[:3, 3] *= scale

@@ -297,11 +297,10 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
                        for k, i in zip(okf, okp, strict=True)])
     T0 = np.stack([k.T_cam_world for k in cams])
     X0 = m.positions[pts]
-    first = bundle_adjust(T0, fixed, X0, oc_a, op_a, ouv_a, osig_a, intrinsics, max_nfev=config.local_ba_rounds[0],
-                          rounds=1)
+    first = bundle_adjust(T0, fixed, X0, oc_a, op_a, ouv_a, osig_a, intrinsics, iterations=config.local_ba_rounds[0])
     inl = _inlier_observations(first.T_cam_world, first.points, oc_a, op_a, first.chi2)
     second = bundle_adjust(first.T_cam_world, fixed, first.points, oc_a[inl], op_a[inl], ouv_a[inl], osig_a[inl],
-                           intrinsics, max_nfev=max(1, config.local_ba_rounds[1] // 2), rounds=2)
+                           intrinsics, iterations=config.local_ba_rounds[1])
     for i, k in enumerate(cams):
         if not fixed[i]:
             k.T_cam_world = second.T_cam_world[i]
