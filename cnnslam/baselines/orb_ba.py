@@ -8,7 +8,8 @@ camera), the inverse of this project's ``T_world_cam``; they are updated by left
 
 - :func:`optimize_pose`: motion-only refinement of one frame against fixed map points (ORB-SLAM's
   PoseOptimization: 4 rounds of 10 Gauss-Newton iterations with Huber weights, observations re-classified as
-  outliers at chi2 > 5.991 between rounds). A 6x6 problem, solved directly in numpy.
+  outliers at chi2 > 5.991 between rounds): a 6x6 problem, one numba kernel
+  (:func:`~cnnslam.baselines.orb_ba_kernels.pose_only`).
 - :func:`bundle_adjust`: key-frame poses (some held fixed) and points jointly, by g2o's Levenberg-Marquardt with
   the points marginalised (Schur complement: ORB-SLAM's LocalBundleAdjustment), in numba kernels
   (:mod:`cnnslam.baselines.orb_ba_kernels`); the Huber kernel weights each linearisation as in g2o.
@@ -20,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnnslam.baselines.orb_ba_kernels import normal_equations, robust_cost, schur_step
+from cnnslam.baselines.orb_ba_kernels import normal_equations, pose_only, robust_cost, schur_step
 from cnnslam.baselines.orb_config import CHI2_2DOF
 from cnnslam.errors import CnnSlamError
-from cnnslam.geometry import hat, se3_exp
+from cnnslam.geometry import se3_exp
 
 HUBER_DELTA: float = float(np.sqrt(CHI2_2DOF))  # ORB: robust kernel delta sqrt(5.991) on normalised errors
 MIN_DEPTH: float = 1e-6  # points closer than this (map units) to a camera plane give no usable residual (ours)
@@ -45,24 +46,6 @@ def project(T_cam_world: np.ndarray, points_world: np.ndarray, intrinsics: np.nd
     return uv, z
 
 
-def _residual_and_jacobian(p_cam: np.ndarray, uv: np.ndarray, inv_sigma: np.ndarray, intr: np.ndarray,
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Normalised residuals (M, 2), d e / d p_cam (M, 2, 3), and d e / d xi (M, 2, 6) for left twists."""
-    fx, fy, cx, cy = intr
-    x, y = p_cam[:, 0], p_cam[:, 1]
-    z = np.maximum(p_cam[:, 2], MIN_DEPTH)
-    iz = 1.0 / z
-    e = np.stack([fx * x * iz + cx - uv[:, 0], fy * y * iz + cy - uv[:, 1]], axis=1) * inv_sigma[:, None]
-    J_p = np.zeros((len(z), 2, 3))
-    J_p[:, 0, 0] = fx * iz
-    J_p[:, 0, 2] = -fx * x * iz * iz
-    J_p[:, 1, 1] = fy * iz
-    J_p[:, 1, 2] = -fy * y * iz * iz
-    J_p *= inv_sigma[:, None, None]
-    d_pcam_d_xi = np.concatenate([np.broadcast_to(np.eye(3), (len(z), 3, 3)), -hat(p_cam)], axis=2)  # (M, 3, 6)
-    return e, J_p, J_p @ d_pcam_d_xi
-
-
 def optimize_pose(
     T_cam_world: np.ndarray, points_world: np.ndarray, uv: np.ndarray, inv_sigma: np.ndarray, intrinsics: np.ndarray,
     rounds: int = 4, iterations: int = 10, inliers: np.ndarray | None = None,
@@ -75,39 +58,14 @@ def optimize_pose(
     the last round).
     """
     intr = np.asarray(intrinsics, dtype=np.float64).reshape(4)
-    pts = np.asarray(points_world, dtype=np.float64)
-    uv = np.asarray(uv, dtype=np.float64)
-    inv_sigma = np.asarray(inv_sigma, dtype=np.float64)
-    T = np.array(T_cam_world, dtype=np.float64)
+    pts = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
     m = len(pts)
     use = np.ones(m, bool) if inliers is None else np.asarray(inliers, bool).copy()
     if m == 0:
-        return T, use
-    chi2 = np.full(m, np.inf)
-    for r in range(rounds):
-        robust = r < rounds - 1  # ORB: no robust kernel in the last round
-        for _ in range(iterations):
-            if use.sum() < 3:
-                break
-            p_cam = pts[use] @ T[:3, :3].T + T[:3, 3]
-            e, _, J = _residual_and_jacobian(p_cam, uv[use], inv_sigma[use], intr)
-            norm = np.linalg.norm(e, axis=1)
-            w = np.where(robust & (norm > HUBER_DELTA), HUBER_DELTA / np.maximum(norm, 1e-12), 1.0)
-            H = np.einsum("n,nki,nkj->ij", w, J, J)
-            g = np.einsum("n,nki,nk->i", w, J, e)
-            H[np.diag_indices(6)] *= 1.0 + 1e-6
-            try:
-                xi = -np.linalg.solve(H + 1e-12 * np.eye(6), g)
-            except np.linalg.LinAlgError:
-                break
-            T = se3_exp(xi) @ T
-            if float(xi @ xi) < 1e-16:
-                break
-        p_cam = pts @ T[:3, :3].T + T[:3, 3]
-        e, _, _ = _residual_and_jacobian(p_cam, uv, inv_sigma, intr)
-        chi2 = (e * e).sum(axis=1)
-        use = (chi2 <= CHI2_2DOF) & (p_cam[:, 2] > MIN_DEPTH)
-    return T, use
+        return np.array(T_cam_world, dtype=np.float64), use
+    return pose_only(np.asarray(T_cam_world, dtype=np.float64), pts, np.asarray(uv, dtype=np.float64),
+                     np.asarray(inv_sigma, dtype=np.float64), intr, use, int(rounds), int(iterations), HUBER_DELTA,
+                     float(CHI2_2DOF), MIN_DEPTH)
 
 
 @dataclass(frozen=True)

@@ -195,15 +195,17 @@ def schur_step(Hcc, gc, Hpp, gp, W, o_cam, free_col, by_point, point_start, lam)
                 for j in range(3):
                     Y[a, i, j] = W[a, i, 0] * inv[0, j] + W[a, i, 1] * inv[1, j] + W[a, i, 2] * inv[2, j]
                 r[6 * ca + i] += Y[a, i, 0] * gp[p, 0] + Y[a, i, 1] * gp[p, 1] + Y[a, i, 2] * gp[p, 2]
-            for ib in range(point_start[p], point_start[p + 1]):
+            for ib in range(point_start[p], ia + 1):  # the pairs (b, a) with b up to a; (a, b) is its transpose
                 b = by_point[ib]
                 cb = free_col[o_cam[b]]
                 if cb < 0:
                     continue
                 for i in range(6):
                     for j in range(6):
-                        S[6 * ca + i, 6 * cb + j] -= (Y[a, i, 0] * W[b, j, 0] + Y[a, i, 1] * W[b, j, 1]
-                                                      + Y[a, i, 2] * W[b, j, 2])
+                        v = Y[a, i, 0] * W[b, j, 0] + Y[a, i, 1] * W[b, j, 1] + Y[a, i, 2] * W[b, j, 2]
+                        S[6 * ca + i, 6 * cb + j] -= v
+                        if ib != ia:
+                            S[6 * cb + j, 6 * ca + i] -= v
     if nc:
         dc, ok = _cholesky_solve(S, r)
         if not ok:
@@ -226,3 +228,96 @@ def schur_step(Hcc, gc, Hpp, gp, W, o_cam, free_col, by_point, point_start, lam)
         for j in range(3):
             dp[p, j] = Vinv[p, j, 0] * q0 + Vinv[p, j, 1] * q1 + Vinv[p, j, 2] * q2
     return dc, dp, True
+
+
+@njit(cache=True, nogil=True)
+def _left_update(T, xi):  # pragma: no cover - compiled
+    """exp(xi) T for a twist xi = [v, w] (Rodrigues; V = I + a W + b W^2 as cnnslam.geometry.se3_exp)."""
+    w0, w1, w2 = xi[3], xi[4], xi[5]
+    th2 = w0 * w0 + w1 * w1 + w2 * w2
+    th = math.sqrt(th2)
+    if th > 0:
+        s = math.sin(th) / th
+        a = 2.0 * math.sin(0.5 * th) ** 2 / th2
+    else:
+        s, a = 1.0, 0.5
+    b = 1.0 / 6.0 - th2 / 120.0 + th2 * th2 / 5040.0 if th < 1e-2 else (th - math.sin(th)) / (th2 * th)
+    Wm = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
+    W2 = Wm @ Wm
+    E = np.eye(4)
+    for i in range(3):
+        for j in range(3):
+            I = 1.0 if i == j else 0.0
+            E[i, j] = I + s * Wm[i, j] + a * W2[i, j]
+        E[i, 3] = 0.0
+        for j in range(3):
+            I = 1.0 if i == j else 0.0
+            E[i, 3] += (I + a * Wm[i, j] + b * W2[i, j]) * xi[j]
+    return E @ T
+
+
+@njit(cache=True, nogil=True)
+def pose_only(T_cam_world, pts, uv, inv_sigma, intr, use, rounds, iterations, delta, chi2_max,
+              min_depth):  # pragma: no cover - compiled
+    """ORB-SLAM's PoseOptimization of one camera against fixed points: ``rounds`` rounds of at most ``iterations``
+    Gauss-Newton steps (left twists) on the observations marked ``use``, Huber-weighted except in the last round;
+    after each round every observation is classified again (inlier: chi2 <= chi2_max and in front of the camera).
+    Returns (T_cam_world (4, 4), inlier mask (M,))."""
+    fx, fy, cx, cy = intr[0], intr[1], intr[2], intr[3]
+    T = T_cam_world.copy()
+    use = use.copy()
+    m = pts.shape[0]
+    Jc = np.empty((2, 6))
+    for r in range(rounds):
+        robust = r < rounds - 1
+        for _ in range(iterations):
+            if use.sum() < 3:
+                break
+            H = np.zeros((6, 6))
+            g = np.zeros(6)
+            for k in range(m):
+                if not use[k]:
+                    continue
+                x = T[0, 0] * pts[k, 0] + T[0, 1] * pts[k, 1] + T[0, 2] * pts[k, 2] + T[0, 3]
+                y = T[1, 0] * pts[k, 0] + T[1, 1] * pts[k, 1] + T[1, 2] * pts[k, 2] + T[1, 3]
+                zr = T[2, 0] * pts[k, 0] + T[2, 1] * pts[k, 1] + T[2, 2] * pts[k, 2] + T[2, 3]
+                z = max(zr, min_depth)
+                iz = 1.0 / z
+                s = inv_sigma[k]
+                e0 = (fx * x * iz + cx - uv[k, 0]) * s
+                e1 = (fy * y * iz + cy - uv[k, 1]) * s
+                norm = math.sqrt(e0 * e0 + e1 * e1)
+                w = delta / max(norm, 1e-12) if (robust and norm > delta) else 1.0
+                a00 = fx * iz * s
+                a02 = -fx * x * iz * iz * s
+                a11 = fy * iz * s
+                a12 = -fy * y * iz * iz * s
+                Jc[0, 0], Jc[0, 1], Jc[0, 2] = a00, 0.0, a02
+                Jc[1, 0], Jc[1, 1], Jc[1, 2] = 0.0, a11, a12
+                Jc[0, 3] = a02 * y
+                Jc[0, 4] = a00 * zr - a02 * x
+                Jc[0, 5] = -a00 * y
+                Jc[1, 3] = -a11 * zr + a12 * y
+                Jc[1, 4] = -a12 * x
+                Jc[1, 5] = a11 * x
+                for i in range(6):
+                    for j in range(6):
+                        H[i, j] += w * (Jc[0, i] * Jc[0, j] + Jc[1, i] * Jc[1, j])
+                    g[i] += w * (Jc[0, i] * e0 + Jc[1, i] * e1)
+            for i in range(6):
+                H[i, i] = H[i, i] * (1.0 + 1e-6) + 1e-12
+            xi, ok = _cholesky_solve(H, -g)
+            if not ok:
+                break
+            T = _left_update(T, xi)
+            if xi @ xi < 1e-16:
+                break
+        for k in range(m):
+            x = T[0, 0] * pts[k, 0] + T[0, 1] * pts[k, 1] + T[0, 2] * pts[k, 2] + T[0, 3]
+            y = T[1, 0] * pts[k, 0] + T[1, 1] * pts[k, 1] + T[1, 2] * pts[k, 2] + T[1, 3]
+            zr = T[2, 0] * pts[k, 0] + T[2, 1] * pts[k, 1] + T[2, 2] * pts[k, 2] + T[2, 3]
+            z = max(zr, min_depth)
+            e0 = (fx * x / z + cx - uv[k, 0]) * inv_sigma[k]
+            e1 = (fy * y / z + cy - uv[k, 1]) * inv_sigma[k]
+            use[k] = (e0 * e0 + e1 * e1 <= chi2_max) and zr > min_depth
+    return T, use

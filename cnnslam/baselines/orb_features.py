@@ -7,11 +7,12 @@ ORB-SLAM weights its reprojection errors by ``1 / scale^2`` of the observing lev
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.spatial import cKDTree
+from numba import njit
 
 from cnnslam.baselines.orb_config import OrbConfig
 
@@ -155,6 +156,79 @@ def unique_matches(pairs: np.ndarray, distance: np.ndarray) -> np.ndarray:
     return pairs[first_a]  # np.unique sorts: pairs ordered by the first index
 
 
+def _descriptor_words(desc: np.ndarray) -> np.ndarray:
+    """(N, 32) uint8 descriptors as (N, 4) uint64 words (the same bits)."""
+    return np.ascontiguousarray(desc, dtype=np.uint8).view(np.uint64).reshape(-1, 4)
+
+
+@njit(cache=True, nogil=True)
+def _popcount64(x):  # pragma: no cover - compiled
+    """Set bits of a uint64 (SWAR)."""
+    x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    x = (x + (x >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return (x * np.uint64(0x0101010101010101)) >> np.uint64(56)
+
+
+@njit(cache=True, nogil=True)
+def _window_search(uv_a, radius, words_a, uv_b, words_b, allowed):  # pragma: no cover - compiled
+    """For each a: the smallest and second smallest Hamming distance to the allowed b keypoints within its radius
+    (Euclidean, pixels) and the b of the smallest (first in ``allowed`` order among equals); inf / -1 when none.
+    The b keypoints are bucketed in a grid of cells as wide as the largest radius."""
+    m = uv_a.shape[0]
+    cell = max(radius.max(), 1.0)
+    k = allowed.shape[0]
+    cx = np.empty(k, np.int64)
+    cy = np.empty(k, np.int64)
+    for q in range(k):
+        cx[q] = int(math.floor(uv_b[allowed[q], 0] / cell))
+        cy[q] = int(math.floor(uv_b[allowed[q], 1] / cell))
+    x0, y0 = cx.min(), cy.min()
+    nx, ny = cx.max() - x0 + 1, cy.max() - y0 + 1
+    count = np.zeros(nx * ny + 1, np.int64)
+    for q in range(k):
+        count[(cy[q] - y0) * nx + (cx[q] - x0) + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    members = np.empty(k, np.int64)
+    for q in range(k):  # allowed order kept within a cell
+        c = (cy[q] - y0) * nx + (cx[q] - x0)
+        members[fill[c]] = q
+        fill[c] += 1
+    best = np.full(m, np.inf)
+    second = np.full(m, np.inf)
+    best_j = np.full(m, -1, np.int64)
+    for i in range(m):
+        u, v, r = uv_a[i, 0], uv_a[i, 1], radius[i]
+        if not (math.isfinite(u) and math.isfinite(v)):
+            continue
+        gx0 = max(int(math.floor((u - r) / cell)), x0)
+        gx1 = min(int(math.floor((u + r) / cell)), x0 + nx - 1)
+        gy0 = max(int(math.floor((v - r) / cell)), y0)
+        gy1 = min(int(math.floor((v + r) / cell)), y0 + ny - 1)
+        b1, b2, bj, bq = np.inf, np.inf, -1, k
+        for gy in range(gy0, gy1 + 1):
+            for gx in range(gx0, gx1 + 1):
+                c = (gy - y0) * nx + (gx - x0)
+                for s in range(start[c], start[c + 1]):
+                    q = members[s]
+                    j = allowed[q]
+                    du = uv_b[j, 0] - u
+                    dv = uv_b[j, 1] - v
+                    if not math.sqrt(du * du + dv * dv) <= r:
+                        continue
+                    d = 0.0
+                    for w in range(4):
+                        d += _popcount64(words_a[i, w] ^ words_b[j, w])
+                    if d < b1 or (d == b1 and q < bq):
+                        b2 = b1 if d < b1 else d
+                        b1, bj, bq = d, j, q
+                    elif d < b2:
+                        b2 = d
+        best[i], second[i], best_j[i] = b1, b2, bj
+    return best, best_j, second
+
+
 def match_in_windows(
     uv_a: np.ndarray, desc_a: np.ndarray, uv_b: np.ndarray, desc_b: np.ndarray, radius: np.ndarray | float,
     max_distance: int, ratio: float, candidates_b: np.ndarray | None = None,
@@ -169,26 +243,13 @@ def match_in_windows(
     m, n = len(uv_a), len(uv_b)
     if m == 0 or n == 0:
         return np.zeros((0, 2), np.int64)
-    radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,))
+    radius = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, dtype=np.float64), (m,)))
     allowed = np.arange(n) if candidates_b is None else np.flatnonzero(candidates_b)
     if allowed.size == 0:
         return np.zeros((0, 2), np.int64)
-    rmax = float(radius.max())
-    near = cKDTree(uv_a).sparse_distance_matrix(cKDTree(uv_b[allowed]), rmax, output_type="ndarray")
-    if near.size == 0:
-        return np.zeros((0, 2), np.int64)
-    ia = near["i"].astype(np.int64)
-    keep = near["v"] <= radius[ia]
-    ia, jb = ia[keep], allowed[near["j"][keep].astype(np.int64)]
-    if ia.size == 0:
-        return np.zeros((0, 2), np.int64)
-    d = hamming(desc_a[ia], desc_b[jb]).astype(np.float64)
-    order = np.lexsort((d, ia))
-    ia, jb, d = ia[order], jb[order], d[order]
-    first = np.flatnonzero(np.r_[True, ia[1:] != ia[:-1]])
-    count = np.diff(np.r_[first, ia.size])
-    best = d[first]
-    second = np.where(count > 1, d[np.minimum(first + 1, ia.size - 1)], np.inf)
+    best, best_j, second = _window_search(np.ascontiguousarray(uv_a, dtype=np.float64), radius,
+                                          _descriptor_words(desc_a), np.ascontiguousarray(uv_b, dtype=np.float64),
+                                          _descriptor_words(desc_b), allowed.astype(np.int64))
     ok = (best <= max_distance) & (best < ratio * second)
-    pairs = np.stack([ia[first[ok]], jb[first[ok]]], axis=1)
+    pairs = np.stack([np.flatnonzero(ok), best_j[ok]], axis=1)
     return unique_matches(pairs, best[ok])

@@ -205,42 +205,52 @@ class SparseMap:
         if ids.size == 0:
             return
         levels = self.scale_factor ** np.arange(self.n_levels)
-        kf_ids = sorted({k for pid in ids for k in self.observations[pid]})
-        slot = {k: i for i, k in enumerate(kf_ids)}
-        centers = np.stack([self.keyframes[k].center for k in kf_ids])
-        counts = np.array([len(self.observations[pid]) for pid in ids])
+        # every observation of the points, flattened in each point's dict order: key-frame, keypoint
+        obs = [self.observations[pid] for pid in ids]
+        counts = np.fromiter((len(o) for o in obs), np.int64, len(obs))
+        total = int(counts.sum())
+        flat_kf = np.fromiter((k for o in obs for k in o), np.int64, total)
+        flat_kp = np.fromiter((i for o in obs for i in o.values()), np.int64, total)
+        kf_ids, flat_slot = np.unique(flat_kf, return_inverse=True)
+        centers = np.stack([self.keyframes[int(k)].center for k in kf_ids])
+        flat_octave = np.empty(total, np.int64)
+        flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
+        by_slot = np.argsort(flat_slot, kind="stable")
+        bounds = np.searchsorted(flat_slot[by_slot], np.arange(len(kf_ids) + 1))
+        for slot, k in enumerate(kf_ids):
+            rows = by_slot[bounds[slot]:bounds[slot + 1]]
+            feats = self.keyframes[int(k)].features
+            flat_octave[rows] = feats.octave[flat_kp[rows]]
+            if flat_desc is not None:
+                flat_desc[rows] = feats.descriptors[flat_kp[rows]]
+        offsets = np.cumsum(counts) - counts
         for n in np.unique(counts):
-            group = ids[counts == n]
-            obs = [self.observations[pid] for pid in group]
-            kslot = np.array([[slot[k] for k in o] for o in obs], dtype=np.int64)  # (G, n)
-            kps = np.array([list(o.values()) for o in obs], dtype=np.int64)  # (G, n)
+            sel = counts == n
+            group = ids[sel]
+            rows = offsets[sel][:, None] + np.arange(n)  # (G, n) flat rows of each point's observations
+            kslot = flat_slot[rows]
             X = self.positions[group]
             rays = X[:, None, :] - centers[kslot]
             rays /= np.maximum(np.linalg.norm(rays, axis=2), 1e-12)[..., None]
             mean = rays.sum(axis=1)
             self.normals[group] = mean / np.maximum(np.linalg.norm(mean, axis=1), 1e-12)[:, None]
             # reference observation: the creating key-frame if it still observes the point, else the first one
-            first = self.first_kf[group]
-            ref_col = np.zeros(len(group), dtype=np.int64)
-            for g, o in enumerate(obs):
-                if int(first[g]) in o:
-                    ref_col[g] = list(o).index(int(first[g]))
-            ref_kf = [kf_ids[kslot[g, c]] for g, c in enumerate(ref_col)]
-            octave = np.array([self.keyframes[k].features.octave[kps[g, c]]
-                               for g, (k, c) in enumerate(zip(ref_kf, ref_col, strict=True))], dtype=np.int64)
-            dist = np.linalg.norm(X - centers[kslot[np.arange(len(group)), ref_col]], axis=1)
+            is_first = flat_kf[rows] == self.first_kf[group][:, None]
+            ref_col = np.where(is_first.any(axis=1), np.argmax(is_first, axis=1), 0)
+            pick = np.arange(len(group))
+            octave = flat_octave[rows[pick, ref_col]]
+            dist = np.linalg.norm(X - centers[kslot[pick, ref_col]], axis=1)
             self.max_distance[group] = dist * levels[octave]
             self.min_distance[group] = self.max_distance[group] / levels[-1]
-            if not descriptors:
+            if flat_desc is None:
                 continue
-            descs = np.stack([np.stack([self.keyframes[k].features.descriptors[i] for k, i in o.items()])
-                              for o in obs])  # (G, n, 32)
+            descs = flat_desc[rows]  # (G, n, 32)
             if n > 2:
                 d = hamming(descs[:, :, None, :], descs[:, None, :, :])  # (G, n, n)
                 best = np.argmin(np.median(d, axis=2), axis=1)
             else:
                 best = np.zeros(len(group), dtype=np.int64)
-            self.descriptors[group] = descs[np.arange(len(group)), best]
+            self.descriptors[group] = descs[pick, best]
 
     def predict_octave(self, ids: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """ORB-SLAM's PredictScale: the pyramid level at which points ``ids`` seen from ``distance`` (map units)

@@ -291,10 +291,15 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
     if not oc:
         return LocalBAStats(len(local), len(fixed_ids), len(pts), 0, 0, 0.0, 0.0)
     oc_a, op_a = np.array(oc), np.array(op)
-    okf_a = np.array(okf)
-    ouv_a = np.stack([m.keyframes[k].features.uv[i] for k, i in zip(okf, okp, strict=True)])
-    osig_a = np.array([level_inv_sigma(m.keyframes[k].features.octave[i], config.scale_factor)
-                       for k, i in zip(okf, okp, strict=True)])
+    okf_a, okp_a = np.array(okf), np.array(okp)
+    ouv_a = np.empty((len(oc), 2))
+    oct_a = np.empty(len(oc), np.int64)
+    for k in np.unique(okf_a):
+        sel = okf_a == k
+        feats = m.keyframes[int(k)].features
+        ouv_a[sel] = feats.uv[okp_a[sel]]
+        oct_a[sel] = feats.octave[okp_a[sel]]
+    osig_a = level_inv_sigma(oct_a, config.scale_factor)
     T0 = np.stack([k.T_cam_world for k in cams])
     X0 = m.positions[pts]
     first = bundle_adjust(T0, fixed, X0, oc_a, op_a, ouv_a, osig_a, intrinsics, iterations=config.local_ba_rounds[0])

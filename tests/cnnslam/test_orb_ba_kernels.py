@@ -108,3 +108,13 @@ def test_schur_step_solves_the_damped_dense_system() -> None:
         assert ok
         ref = np.linalg.solve(H + lam * np.eye(n), -g)
         np.testing.assert_allclose(np.r_[dc, dp.reshape(-1)], ref, rtol=1e-7, atol=1e-9 * np.abs(ref).max())
+
+
+def test_left_update_is_se3_exp_times_the_pose() -> None:
+    from cnnslam.baselines.orb_ba_kernels import _left_update
+
+    rng = np.random.default_rng(2)
+    T = se3_exp(rng.normal(0, 0.5, 6))
+    for scale in (0.0, 1e-9, 1e-3, 0.3, 2.5):  # zero, the series branch, and large angles
+        xi = rng.normal(0, 1, 6) * scale
+        np.testing.assert_allclose(_left_update(T, xi), se3_exp(xi) @ T, atol=1e-13)
