@@ -48,6 +48,21 @@ class KeyFrame:
         return self.point_ids[self.point_ids >= 0]
 
 
+@dataclass(frozen=True)
+class FlatObservations:
+    """Observations of some map points, flattened (:meth:`SparseMap.flat_observations`).
+
+    counts: (P,) observations of each point; keyframe, keypoint, octave: (O,) int64 of each observation, the
+    points' observations one after another; descriptors: (O, 32) uint8 of the observing keypoints, or None.
+    """
+
+    counts: np.ndarray
+    keyframe: np.ndarray
+    keypoint: np.ndarray
+    octave: np.ndarray
+    descriptors: np.ndarray | None
+
+
 @dataclass
 class SparseMap:
     """Key-frames and map points (see the module docstring). Point attributes are arrays indexed by point id."""
@@ -197,6 +212,26 @@ class SparseMap:
         self.bad[old] = True
         self.version += 1
 
+    def flat_observations(self, ids: np.ndarray, descriptors: bool = False) -> FlatObservations:
+        """Every observation of points ``ids`` (in that order, each point's in its dict order) as flat arrays."""
+        obs = [self.observations[int(pid)] for pid in ids]
+        counts = np.fromiter((len(o) for o in obs), np.int64, len(obs))
+        total = int(counts.sum())
+        flat_kf = np.fromiter((k for o in obs for k in o), np.int64, total)
+        flat_kp = np.fromiter((i for o in obs for i in o.values()), np.int64, total)
+        flat_octave = np.empty(total, np.int64)
+        flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
+        by_kf = np.argsort(flat_kf, kind="stable")
+        kf_ids, bounds = np.unique(flat_kf[by_kf], return_index=True)
+        bounds = np.r_[bounds, total]
+        for slot, k in enumerate(kf_ids):
+            rows = by_kf[bounds[slot]:bounds[slot + 1]]
+            feats = self.keyframes[int(k)].features
+            flat_octave[rows] = feats.octave[flat_kp[rows]]
+            if flat_desc is not None:
+                flat_desc[rows] = feats.descriptors[flat_kp[rows]]
+        return FlatObservations(counts, flat_kf, flat_kp, flat_octave, flat_desc)
+
     def update_points(self, ids: np.ndarray, descriptors: bool = True) -> None:
         """Recompute the viewing direction, distance range and (``descriptors=True``) representative descriptor of
         points ``ids`` from their observations. Vectorised over points with the same number of observations."""
@@ -205,24 +240,10 @@ class SparseMap:
         if ids.size == 0:
             return
         levels = self.scale_factor ** np.arange(self.n_levels)
-        # every observation of the points, flattened in each point's dict order: key-frame, keypoint
-        obs = [self.observations[pid] for pid in ids]
-        counts = np.fromiter((len(o) for o in obs), np.int64, len(obs))
-        total = int(counts.sum())
-        flat_kf = np.fromiter((k for o in obs for k in o), np.int64, total)
-        flat_kp = np.fromiter((i for o in obs for i in o.values()), np.int64, total)
+        flat = self.flat_observations(ids, descriptors=descriptors)
+        counts, flat_kf, flat_octave, flat_desc = flat.counts, flat.keyframe, flat.octave, flat.descriptors
         kf_ids, flat_slot = np.unique(flat_kf, return_inverse=True)
         centers = np.stack([self.keyframes[int(k)].center for k in kf_ids])
-        flat_octave = np.empty(total, np.int64)
-        flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
-        by_slot = np.argsort(flat_slot, kind="stable")
-        bounds = np.searchsorted(flat_slot[by_slot], np.arange(len(kf_ids) + 1))
-        for slot, k in enumerate(kf_ids):
-            rows = by_slot[bounds[slot]:bounds[slot + 1]]
-            feats = self.keyframes[int(k)].features
-            flat_octave[rows] = feats.octave[flat_kp[rows]]
-            if flat_desc is not None:
-                flat_desc[rows] = feats.descriptors[flat_kp[rows]]
         offsets = np.cumsum(counts) - counts
         for n in np.unique(counts):
             sel = counts == n

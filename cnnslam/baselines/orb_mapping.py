@@ -228,14 +228,11 @@ def cull_keyframes(m: SparseMap, kf: KeyFrame, config: OrbConfig, protected: set
         kps = kps[~m.bad[other.point_ids[kps]]]
         if kps.size == 0:
             continue
-        redundant = 0
-        for kp in kps:
-            pid = int(other.point_ids[kp])
-            octave = int(other.features.octave[kp])
-            seen = sum(1 for k, i in m.observations[pid].items()
-                       if k != other.id and m.keyframes[k].features.octave[i] <= octave + 1)
-            if seen >= config.redundant_observers:
-                redundant += 1
+        flat = m.flat_observations(other.point_ids[kps])
+        owner = np.repeat(np.arange(kps.size), flat.counts)  # the point (index into kps) of each observation
+        finer = (flat.keyframe != other.id) & (flat.octave <= other.features.octave[kps][owner] + 1)
+        seen = np.bincount(owner[finer], minlength=kps.size)
+        redundant = int((seen >= config.redundant_observers).sum())
         if redundant > config.redundant_share * kps.size:
             m.set_keyframe_bad(other)
             removed += 1
@@ -268,37 +265,28 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
     local = [kf] + m.best_covisible(kf, config.local_ba_keyframes - 1)
     local_ids = {k.id for k in local}
     pts = m.points_of(local)
-    counts: dict[int, int] = {}
-    for pid in pts:
-        for k in m.observations[pid]:
-            if k not in local_ids and not m.keyframes[k].bad:
-                counts[k] = counts.get(k, 0) + 1
-    fixed_ids = [k for _, k in sorted((-c, k) for k, c in counts.items())[: config.local_ba_fixed_keyframes]]
+    flat = m.flat_observations(pts)
+    owner = np.repeat(np.arange(len(pts)), flat.counts)  # index into pts of each observation
+    bad_ids = [k for k in np.unique(flat.keyframe) if m.keyframes[int(k)].bad]
+    outside = ~np.isin(flat.keyframe, list(local_ids)) & ~np.isin(flat.keyframe, bad_ids)
+    ids, counts = np.unique(flat.keyframe[outside], return_counts=True)
+    fixed_ids = [int(k) for _, k in sorted(zip(-counts, ids, strict=True))[: config.local_ba_fixed_keyframes]]
     cams = local + [m.keyframes[k] for k in fixed_ids]
     fixed = np.array([k.id == anchor_id for k in local] + [True] * len(fixed_ids))
     if not fixed.any():  # no gauge: hold the oldest key-frame
         fixed[int(np.argmin([k.id for k in cams]))] = True
-    cam_index = {k.id: i for i, k in enumerate(cams)}
-    pt_index = {int(p): i for i, p in enumerate(pts)}
-    oc, op, okf, okp = [], [], [], []
-    for pid in pts:
-        for k, kp in m.observations[pid].items():
-            if k in cam_index:
-                oc.append(cam_index[k])
-                op.append(pt_index[int(pid)])
-                okf.append(k)
-                okp.append(kp)
-    if not oc:
+    cam_ids = np.array([k.id for k in cams])
+    used = np.isin(flat.keyframe, cam_ids)
+    if not used.any():
         return LocalBAStats(len(local), len(fixed_ids), len(pts), 0, 0, 0.0, 0.0)
-    oc_a, op_a = np.array(oc), np.array(op)
-    okf_a, okp_a = np.array(okf), np.array(okp)
-    ouv_a = np.empty((len(oc), 2))
-    oct_a = np.empty(len(oc), np.int64)
+    okf_a, okp_a, oct_a = flat.keyframe[used], flat.keypoint[used], flat.octave[used]
+    order = np.argsort(cam_ids)
+    oc_a = order[np.searchsorted(cam_ids[order], okf_a)]
+    op_a = owner[used]
+    ouv_a = np.empty((len(oc_a), 2))
     for k in np.unique(okf_a):
         sel = okf_a == k
-        feats = m.keyframes[int(k)].features
-        ouv_a[sel] = feats.uv[okp_a[sel]]
-        oct_a[sel] = feats.octave[okp_a[sel]]
+        ouv_a[sel] = m.keyframes[int(k)].features.uv[okp_a[sel]]
     osig_a = level_inv_sigma(oct_a, config.scale_factor)
     T0 = np.stack([k.T_cam_world for k in cams])
     X0 = m.positions[pts]
@@ -319,7 +307,7 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
             m.erase_observation(pid, m.keyframes[int(okf_a[o])])
     m.update_points(pts[~m.bad[pts]], descriptors=False)
     m.update_points(pts[op_a[bad_obs]])  # their observations changed
-    return LocalBAStats(len(local), len(fixed_ids), len(pts), len(oc), len(bad_obs), first.cost_initial,
+    return LocalBAStats(len(local), len(fixed_ids), len(pts), len(oc_a), len(bad_obs), first.cost_initial,
                         second.cost_final)
 
 
