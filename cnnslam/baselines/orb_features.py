@@ -162,7 +162,7 @@ def _descriptor_words(desc: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _popcount64(x):  # pragma: no cover - compiled
+def popcount64(x):  # pragma: no cover - compiled
     """Set bits of a uint64 (SWAR)."""
     x = x - ((x >> np.uint64(1)) & np.uint64(0x5555555555555555))
     x = (x & np.uint64(0x3333333333333333)) + ((x >> np.uint64(2)) & np.uint64(0x3333333333333333))
@@ -219,7 +219,7 @@ def _window_search(uv_a, radius, words_a, uv_b, words_b, allowed):  # pragma: no
                         continue
                     d = 0.0
                     for w in range(4):
-                        d += _popcount64(words_a[i, w] ^ words_b[j, w])
+                        d += popcount64(words_a[i, w] ^ words_b[j, w])
                     if d < b1 or (d == b1 and q < bq):
                         b2 = b1 if d < b1 else d
                         b1, bj, bq = d, j, q

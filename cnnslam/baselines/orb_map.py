@@ -12,11 +12,13 @@ predicted visible / actually found). Points and key-frames are never deleted, on
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
-from cnnslam.baselines.orb_features import Features, hamming
+from cnnslam.baselines.orb_features import Features, popcount64
 from cnnslam.geometry import se3_inverse
 
 
@@ -46,6 +48,55 @@ class KeyFrame:
     def tracked_points(self) -> np.ndarray:
         """Ids of the (not necessarily good) map points it observes."""
         return self.point_ids[self.point_ids >= 0]
+
+
+@njit(cache=True, nogil=True)
+def _point_summaries(counts, slot, keyframe, octave, words, centers, X, first_kf, levels,
+                     descriptors):  # pragma: no cover - compiled
+    """Per point (its observations in consecutive rows): the mean unit viewing ray (normalised), the far end of
+    its scale-invariance range (distance from the reference key-frame, the creating one if it still observes the
+    point, else the first, times the scale of the observing level) and the row of its representative descriptor
+    (least median Hamming distance to the point's others; the first for 2 or fewer)."""
+    P = counts.shape[0]
+    normals = np.zeros((P, 3))
+    max_distance = np.zeros(P)
+    best = np.zeros(P, np.int64)
+    start = 0
+    for p in range(P):
+        n = counts[p]
+        mx, my, mz = 0.0, 0.0, 0.0
+        ref, found = start, False
+        for r in range(start, start + n):
+            c = slot[r]
+            rx, ry, rz = X[p, 0] - centers[c, 0], X[p, 1] - centers[c, 1], X[p, 2] - centers[c, 2]
+            norm = max(math.sqrt(rx * rx + ry * ry + rz * rz), 1e-12)
+            mx += rx / norm
+            my += ry / norm
+            mz += rz / norm
+            if not found and keyframe[r] == first_kf[p]:
+                ref, found = r, True
+        norm = max(math.sqrt(mx * mx + my * my + mz * mz), 1e-12)
+        normals[p, 0], normals[p, 1], normals[p, 2] = mx / norm, my / norm, mz / norm
+        c = slot[ref]
+        dx, dy, dz = X[p, 0] - centers[c, 0], X[p, 1] - centers[c, 1], X[p, 2] - centers[c, 2]
+        max_distance[p] = math.sqrt(dx * dx + dy * dy + dz * dz) * levels[octave[ref]]
+        best[p] = start
+        if descriptors and n > 2:
+            d = np.empty(n)
+            best_median = np.inf
+            for i in range(n):
+                for j in range(n):
+                    h = 0
+                    for w in range(4):
+                        h += popcount64(words[start + i, w] ^ words[start + j, w])
+                    d[j] = h
+                d.sort()
+                median = d[n // 2] if n % 2 else (d[n // 2 - 1] + d[n // 2]) / 2.0
+                if median < best_median:
+                    best_median = median
+                    best[p] = start + i
+        start += n
+    return normals, max_distance, best
 
 
 @dataclass(frozen=True)
@@ -84,6 +135,7 @@ class SparseMap:
     # bumped by every change of an observation; covisibility is cached per key-frame against it
     version: int = 0
     _covisibility: dict[int, tuple[int, dict[int, int]]] = field(default_factory=dict, repr=False)
+    _covisibility_sorted: dict[int, list[tuple[int, int]]] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------------------------------------- key-frames
 
@@ -104,6 +156,7 @@ class SparseMap:
         cached = self._covisibility.get(kf.id)
         if cached is not None and cached[0] == self.version:
             return cached[1]
+        self._covisibility_sorted.pop(kf.id, None)
         counts: dict[int, int] = {}
         for pid in kf.tracked_points():
             if self.bad[pid]:
@@ -117,8 +170,14 @@ class SparseMap:
 
     def best_covisible(self, kf: KeyFrame, n: int, min_shared: int = 1) -> list[KeyFrame]:
         """Up to ``n`` key-frames sharing most points with ``kf`` (at least ``min_shared``), most shared first."""
-        cov = sorted(((-c, k) for k, c in self.covisibility(kf).items() if c >= min_shared))
-        return [self.keyframes[k] for _, k in cov[:n]]
+        counts = self.covisibility(kf)
+        ranked = self._covisibility_sorted.get(kf.id)
+        if ranked is None:  # by shared count, then id; cached with the counts (dropped when they are recomputed)
+            ranked = [(c, k) for k, c in sorted(counts.items(), key=lambda kc: (-kc[1], kc[0]))]
+            self._covisibility_sorted[kf.id] = ranked
+        if min_shared > 1:
+            return [self.keyframes[k] for c, k in ranked if c >= min_shared][:n]
+        return [self.keyframes[k] for _, k in ranked[:n]]
 
     def set_keyframe_bad(self, kf: KeyFrame) -> None:
         """Flag a key-frame bad and drop its observations (points left with fewer than 2 become bad)."""
@@ -234,44 +293,25 @@ class SparseMap:
 
     def update_points(self, ids: np.ndarray, descriptors: bool = True) -> None:
         """Recompute the viewing direction, distance range and (``descriptors=True``) representative descriptor of
-        points ``ids`` from their observations. Vectorised over points with the same number of observations."""
+        points ``ids`` from their observations (one numba pass, :func:`_point_summaries`)."""
         ids = np.unique(np.asarray(ids, dtype=np.int64))
         ids = ids[~self.bad[ids]]
         if ids.size == 0:
             return
         levels = self.scale_factor ** np.arange(self.n_levels)
         flat = self.flat_observations(ids, descriptors=descriptors)
-        counts, flat_kf, flat_octave, flat_desc = flat.counts, flat.keyframe, flat.octave, flat.descriptors
-        kf_ids, flat_slot = np.unique(flat_kf, return_inverse=True)
+        kf_ids, flat_slot = np.unique(flat.keyframe, return_inverse=True)
         centers = np.stack([self.keyframes[int(k)].center for k in kf_ids])
-        offsets = np.cumsum(counts) - counts
-        for n in np.unique(counts):
-            sel = counts == n
-            group = ids[sel]
-            rows = offsets[sel][:, None] + np.arange(n)  # (G, n) flat rows of each point's observations
-            kslot = flat_slot[rows]
-            X = self.positions[group]
-            rays = X[:, None, :] - centers[kslot]
-            rays /= np.maximum(np.linalg.norm(rays, axis=2), 1e-12)[..., None]
-            mean = rays.sum(axis=1)
-            self.normals[group] = mean / np.maximum(np.linalg.norm(mean, axis=1), 1e-12)[:, None]
-            # reference observation: the creating key-frame if it still observes the point, else the first one
-            is_first = flat_kf[rows] == self.first_kf[group][:, None]
-            ref_col = np.where(is_first.any(axis=1), np.argmax(is_first, axis=1), 0)
-            pick = np.arange(len(group))
-            octave = flat_octave[rows[pick, ref_col]]
-            dist = np.linalg.norm(X - centers[kslot[pick, ref_col]], axis=1)
-            self.max_distance[group] = dist * levels[octave]
-            self.min_distance[group] = self.max_distance[group] / levels[-1]
-            if flat_desc is None:
-                continue
-            descs = flat_desc[rows]  # (G, n, 32)
-            if n > 2:
-                d = hamming(descs[:, :, None, :], descs[:, None, :, :])  # (G, n, n)
-                best = np.argmin(np.median(d, axis=2), axis=1)
-            else:
-                best = np.zeros(len(group), dtype=np.int64)
-            self.descriptors[group] = descs[pick, best]
+        words = (np.zeros((0, 4), np.uint64) if flat.descriptors is None
+                 else flat.descriptors.view(np.uint64).reshape(-1, 4))
+        normals, max_distance, best = _point_summaries(
+            flat.counts, flat_slot.astype(np.int64), flat.keyframe, flat.octave, words, centers,
+            self.positions[ids], self.first_kf[ids], levels, flat.descriptors is not None)
+        self.normals[ids] = normals
+        self.max_distance[ids] = max_distance
+        self.min_distance[ids] = max_distance / levels[-1]
+        if flat.descriptors is not None:
+            self.descriptors[ids] = flat.descriptors[best]
 
     def predict_octave(self, ids: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """ORB-SLAM's PredictScale: the pyramid level at which points ``ids`` seen from ``distance`` (map units)

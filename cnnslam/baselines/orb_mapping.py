@@ -221,20 +221,33 @@ def cull_keyframes(m: SparseMap, kf: KeyFrame, config: OrbConfig, protected: set
     ``redundant_share`` of its points are seen by ``redundant_observers`` other key-frames at the same or a finer
     scale. Returns the number removed."""
     removed = 0
-    for other in m.best_covisible(kf, 10**6):
-        if other.id in protected or other.bad:
+    candidates = [o for o in m.best_covisible(kf, 10**6) if o.id not in protected and not o.bad]
+    if not candidates:
+        return 0
+    # the observations of every candidate's points, flattened once; a key-frame culled below has its rows masked
+    # (set_keyframe_bad erases exactly its observations), points it leaves bad drop out through m.bad
+    union = np.unique(np.concatenate([o.tracked_points() for o in candidates]))
+    flat = m.flat_observations(union)
+    start = np.cumsum(flat.counts) - flat.counts
+    live = np.ones(len(flat.keyframe), dtype=bool)
+    for other in candidates:
+        if other.bad:
             continue
         kps = np.flatnonzero(other.point_ids >= 0)
         kps = kps[~m.bad[other.point_ids[kps]]]
         if kps.size == 0:
             continue
-        flat = m.flat_observations(other.point_ids[kps])
-        owner = np.repeat(np.arange(kps.size), flat.counts)  # the point (index into kps) of each observation
-        finer = (flat.keyframe != other.id) & (flat.octave <= other.features.octave[kps][owner] + 1)
+        idx = np.searchsorted(union, other.point_ids[kps])
+        counts = flat.counts[idx]
+        owner = np.repeat(np.arange(kps.size), counts)  # the point (index into kps) of each observation
+        rows = start[idx][owner] + np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        finer = live[rows] & (flat.keyframe[rows] != other.id) & (
+            flat.octave[rows] <= other.features.octave[kps][owner] + 1)
         seen = np.bincount(owner[finer], minlength=kps.size)
         redundant = int((seen >= config.redundant_observers).sum())
         if redundant > config.redundant_share * kps.size:
             m.set_keyframe_bad(other)
+            live &= flat.keyframe != other.id
             removed += 1
     return removed
 
