@@ -211,6 +211,35 @@ def test_sparse_map_observations_fusion_and_culling() -> None:
     assert m.good_point_ids().size == 0
 
 
+def test_update_points_summaries_have_known_answers() -> None:
+    # one point at (0, 0, 4) seen by 4 key-frames centred at x = 0, 1, 2, 3, all at level 2, kf 0 the creating
+    # one; its descriptors: all zeros (kf 0), one bit set (kf 1), two bits (kf 2), all 256 bits (kf 3)
+    m = SparseMap(1.2, 8)
+    feats = []
+    for bits in ([0] * 32, [1] + [0] * 31, [3] + [0] * 31, [255] * 32):
+        f = _features(3, 0)
+        desc = f.descriptors.copy()
+        desc[1] = np.array(bits, dtype=np.uint8)
+        feats.append(Features(f.uv, np.full(3, 2, np.int64), desc, f.response))
+    kfs = [m.new_keyframe(i, i / 30, se3_inverse(se3_exp(np.r_[float(i), 0, 0, 0, 0, 0])), feats[i])
+           for i in range(4)]
+    pid = int(m.add_points(np.array([[0.0, 0.0, 4.0]]), kfs[0], np.array([1]), kfs[1], np.array([1]))[0])
+    m.add_observation(pid, kfs[2], 1)
+    m.add_observation(pid, kfs[3], 1)
+    m.update_points(np.array([pid]))
+    rays = np.array([[0.0, 0.0, 4.0]]) - np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]])
+    mean = (rays / np.linalg.norm(rays, axis=1, keepdims=True)).sum(axis=0)
+    np.testing.assert_allclose(m.normals[pid], mean / np.linalg.norm(mean), rtol=1e-12)
+    assert m.max_distance[pid] == pytest.approx(4.0 * 1.2**2)  # from kf 0, the creating key-frame, level 2
+    assert m.min_distance[pid] == pytest.approx(4.0 * 1.2**2 / 1.2**7)
+    # Hamming distances: 0-1: 1, 0-2: 2, 1-2: 1, x-3: 256, 255, 254; medians of each row (4 values, self 0):
+    # kf0 (0,1,2,256) 1.5, kf1 (1,0,1,255) 1.0, kf2 (2,1,0,254) 1.5, kf3 (256,255,254,0) 254.5 -> kf 1's
+    np.testing.assert_array_equal(m.descriptors[pid], feats[1].descriptors[1])
+    m.erase_observation(pid, kfs[0])  # the creating key-frame gone: the first remaining observation is the reference
+    m.update_points(np.array([pid]))
+    assert m.max_distance[pid] == pytest.approx(np.hypot(1.0, 4.0) * 1.2**2)
+
+
 # ------------------------------------------------------------------------------------------------ initialisation
 
 
