@@ -13,6 +13,7 @@ predicted visible / actually found). Points and key-frames are never deleted, on
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -132,10 +133,11 @@ class SparseMap:
     n_found: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     observations: list[dict[int, int]] = field(default_factory=list)
     next_kf_id: int = 0
-    # bumped by every change of an observation; covisibility is cached per key-frame against it
-    version: int = 0
-    _covisibility: dict[int, tuple[int, dict[int, int]]] = field(default_factory=dict, repr=False)
-    _covisibility_sorted: dict[int, list[tuple[int, int]]] = field(default_factory=dict, repr=False)
+    # the covisibility graph, kept up to date by every change of an observation (ORB-SLAM's connection weights):
+    # {key-frame id: {other key-frame id: number of good points both observe}}; bad points observe nothing
+    _shared: dict[int, dict[int, int]] = field(default_factory=dict, repr=False)
+    # best_covisible's ranking per key-frame, dropped when one of its counts changes
+    _ranked: dict[int, list[tuple[int, int]]] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------------------------------------- key-frames
 
@@ -153,28 +155,27 @@ class SparseMap:
 
     def covisibility(self, kf: KeyFrame) -> dict[int, int]:
         """Other good key-frames sharing good map points with ``kf``: {key-frame id: shared point count}."""
-        cached = self._covisibility.get(kf.id)
-        if cached is not None and cached[0] == self.version:
-            return cached[1]
-        self._covisibility_sorted.pop(kf.id, None)
-        counts: dict[int, int] = {}
-        for pid in kf.tracked_points():
-            if self.bad[pid]:
+        shared = self._shared.get(kf.id, {})
+        return {k: c for k, c in shared.items() if c > 0 and not self.keyframes[k].bad}
+
+    def _share(self, a: int, others: Iterable[int], delta: int) -> None:
+        """Add ``delta`` to the shared-point count of key-frame ``a`` with each of ``others`` (both ways)."""
+        row = self._shared.setdefault(a, {})
+        for b in others:
+            if b == a:
                 continue
-            for other in self.observations[pid]:
-                if other != kf.id:
-                    counts[other] = counts.get(other, 0) + 1
-        result = {k: c for k, c in counts.items() if not self.keyframes[k].bad}
-        self._covisibility[kf.id] = (self.version, result)
-        return result
+            row[b] = row.get(b, 0) + delta
+            col = self._shared.setdefault(b, {})
+            col[a] = col.get(a, 0) + delta
+            self._ranked.pop(b, None)
+        self._ranked.pop(a, None)
 
     def best_covisible(self, kf: KeyFrame, n: int, min_shared: int = 1) -> list[KeyFrame]:
         """Up to ``n`` key-frames sharing most points with ``kf`` (at least ``min_shared``), most shared first."""
-        counts = self.covisibility(kf)
-        ranked = self._covisibility_sorted.get(kf.id)
-        if ranked is None:  # by shared count, then id; cached with the counts (dropped when they are recomputed)
-            ranked = [(c, k) for k, c in sorted(counts.items(), key=lambda kc: (-kc[1], kc[0]))]
-            self._covisibility_sorted[kf.id] = ranked
+        ranked = self._ranked.get(kf.id)
+        if ranked is None:  # by shared count, then id; dropped when a count of kf's changes
+            ranked = [(c, k) for k, c in sorted(self.covisibility(kf).items(), key=lambda kc: (-kc[1], kc[0]))]
+            self._ranked[kf.id] = ranked
         if min_shared > 1:
             return [self.keyframes[k] for c, k in ranked if c >= min_shared][:n]
         return [self.keyframes[k] for _, k in ranked[:n]]
@@ -184,7 +185,6 @@ class SparseMap:
         for kp in np.flatnonzero(kf.point_ids >= 0):
             self.erase_observation(int(kf.point_ids[kp]), kf)
         kf.bad = True
-        self.version += 1
 
     # ----------------------------------------------------------------------------------------------- map points
 
@@ -216,7 +216,8 @@ class SparseMap:
             self.observations.append({kf_a.id: int(a), kf_b.id: int(b)})
             kf_a.point_ids[a] = pid
             kf_b.point_ids[b] = pid
-        self.version += 1
+        if m:
+            self._share(kf_a.id, (kf_b.id,), m)
         self.update_points(ids)
         return ids
 
@@ -229,28 +230,32 @@ class SparseMap:
             self.erase_observation(old, kf)
         if kf.id in self.observations[pid]:  # the point already had another keypoint in this key-frame
             kf.point_ids[self.observations[pid][kf.id]] = -1
+        else:
+            self._share(kf.id, self.observations[pid], 1)
         self.observations[pid][kf.id] = int(kp)
         kf.point_ids[kp] = pid
-        self.version += 1
 
     def erase_observation(self, pid: int, kf: KeyFrame) -> None:
         """Remove ``kf``'s observation of ``pid``; a point left with fewer than 2 observations becomes bad."""
         kp = self.observations[pid].pop(kf.id, None)
-        if kp is not None and kf.point_ids[kp] == pid:
-            kf.point_ids[kp] = -1
-        self.version += 1
+        if kp is not None:
+            self._share(kf.id, self.observations[pid], -1)
+            if kf.point_ids[kp] == pid:
+                kf.point_ids[kp] = -1
         if len(self.observations[pid]) < 2:
             self.set_point_bad(pid)
 
     def set_point_bad(self, pid: int) -> None:
         """Flag a point bad and detach it from every key-frame."""
+        observers = list(self.observations[pid])
+        for i, kf_id in enumerate(observers):
+            self._share(kf_id, observers[i + 1:], -1)
         for kf_id, kp in list(self.observations[pid].items()):
             kf = self.keyframes[kf_id]
             if kf.point_ids[kp] == pid:
                 kf.point_ids[kp] = -1
         self.observations[pid] = {}
         self.bad[pid] = True
-        self.version += 1
 
     def replace_point(self, old: int, new: int) -> None:
         """Fuse duplicate ``old`` into ``new`` (ORB-SLAM's MapPoint::Replace): ``old``'s observations move to ``new``
@@ -258,18 +263,21 @@ class SparseMap:
         ``new`` afterwards."""
         if old == new or self.bad[old] or self.bad[new]:
             return
+        observers = list(self.observations[old])
+        for i, kf_id in enumerate(observers):
+            self._share(kf_id, observers[i + 1:], -1)
         for kf_id, kp in list(self.observations[old].items()):
             kf = self.keyframes[kf_id]
             if kf_id in self.observations[new]:
                 kf.point_ids[kp] = -1
             else:
+                self._share(kf_id, self.observations[new], 1)
                 self.observations[new][kf_id] = kp
                 kf.point_ids[kp] = new
         self.n_visible[new] += self.n_visible[old]
         self.n_found[new] += self.n_found[old]
         self.observations[old] = {}
         self.bad[old] = True
-        self.version += 1
 
     def flat_observations(self, ids: np.ndarray, descriptors: bool = False) -> FlatObservations:
         """Every observation of points ``ids`` (in that order, each point's in its dict order) as flat arrays."""

@@ -240,6 +240,57 @@ def test_update_points_summaries_have_known_answers() -> None:
     assert m.max_distance[pid] == pytest.approx(np.hypot(1.0, 4.0) * 1.2**2)
 
 
+def test_covisibility_kept_by_every_change_equals_a_recount() -> None:
+    # random additions, fusions, erasures, bad points and a bad key-frame; after each, the maintained counts must
+    # equal a count from scratch over the key-frames' good points
+    rng = np.random.default_rng(3)
+    m = SparseMap(1.2, 8)
+    kfs = [m.new_keyframe(i, i / 30, np.eye(4), _features(40, i)) for i in range(6)]
+
+    def recount(kf) -> dict[int, int]:
+        counts: dict[int, int] = {}
+        for pid in kf.tracked_points():
+            if m.bad[pid]:
+                continue
+            for other in m.observations[pid]:
+                if other != kf.id:
+                    counts[other] = counts.get(other, 0) + 1
+        return {k: c for k, c in counts.items() if not m.keyframes[k].bad}
+
+    for step in range(300):
+        op = step % 5 if step > 20 else 0
+        a, b = (kfs[i] for i in rng.choice(6, 2, replace=False))
+        if op == 0:
+            fa, fb = np.flatnonzero(a.point_ids < 0), np.flatnonzero(b.point_ids < 0)
+            if fa.size and fb.size:
+                m.add_points(rng.normal(0, 1, (1, 3)) + [0, 0, 3], a, fa[:1], b, fb[:1])
+        elif op == 1:
+            good = m.good_point_ids()
+            if good.size:
+                m.add_observation(int(rng.choice(good)), a, int(rng.integers(0, 40)))
+        elif op == 2:
+            obs = a.tracked_points()
+            if obs.size:
+                m.erase_observation(int(rng.choice(obs)), a)
+        elif op == 3:
+            good = m.good_point_ids()
+            if good.size >= 2:
+                old, new = rng.choice(good, 2, replace=False)
+                m.replace_point(int(old), int(new))
+        elif step % 7 == 0:
+            good = m.good_point_ids()
+            if good.size:
+                m.set_point_bad(int(rng.choice(good)))
+        if step == 200:
+            m.set_keyframe_bad(kfs[5])
+        for kf in kfs:
+            assert m.covisibility(kf) == recount(kf), step
+            ranked = m.best_covisible(kf, 3)
+            expected = sorted(recount(kf).items(), key=lambda kc: (-kc[1], kc[0]))[:3]
+            assert [k.id for k in ranked] == [k for k, _ in expected]
+    assert sum(len(m.covisibility(kf)) for kf in kfs) > 0 and m.bad.sum() > 0 and kfs[5].bad
+
+
 # ------------------------------------------------------------------------------------------------ initialisation
 
 
