@@ -372,7 +372,7 @@ def save_baseline(baseline: Baseline, path: str | Path) -> Path:
 
 def update_baseline(
     path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None,
-    description: str | None = None, only_new: bool = False, replace_all: bool = False,
+    description: str | None = None, only_new: bool = False, replace_all: bool = False, merge: bool = False,
 ) -> Baseline:
     """Replace the baseline's metrics by the run's, keeping everything else it holds (tolerances, policy,
     calibrated tolerances and their record), or ``tolerances`` / ``description`` where given; write and return it.
@@ -383,17 +383,23 @@ def update_baseline(
     it holds as it is (their calibration was measured around them, on the machines of its record); the default
     tolerance rules whose patterns the baseline lacks are appended to its rules, so the new figures get theirs.
 
+    ``merge``: replace the figures the run holds and keep those it lacks (a run of one changed method: its figures
+    are rewritten, the other methods' stay as measured, with their calibration).
+
     An update that would drop gated figures (the baseline holds figures the run lacks: another selection of
-    sequences or methods) is refused with :class:`GateError`, unless ``replace_all`` (``--replace``): a gate whose
-    figures silently shrink to another run's no longer gates what it did.
+    sequences or methods) is refused with :class:`GateError`, unless ``replace_all`` (``--replace``) or ``merge``: a
+    gate whose figures silently shrink to another run's no longer gates what it did.
     """
+    if sum((only_new, replace_all, merge)) > 1:
+        raise GateError("only one of only_new (--only-new), replace_all (--replace) and merge (--merge) at a time")
     path = Path(path)
     old = load_baseline(path) if path.exists() else Baseline({})
     dropped = sorted(set(old.metrics) - set(run_metrics))
-    if dropped and not (only_new or replace_all):
+    if dropped and not (only_new or replace_all or merge):
         raise GateError(f"not updating {path}: the run lacks {len(dropped)} of its {len(old.metrics)} gated figures "
                         f"(e.g. {dropped[0]}), which the update would drop; --replace to replace them by the run's "
-                        f"{len(run_metrics)}, --only-new to add the run's new figures only")  # fmt: skip
+                        f"{len(run_metrics)}, --merge to rewrite only the run's figures, --only-new to add the run's "
+                        "new figures only")  # fmt: skip
     if only_new:
         added = {k: v for k, v in run_metrics.items() if k not in old.metrics}
         patterns = {t.pattern for t in old.tolerances}
@@ -402,6 +408,8 @@ def update_baseline(
         calibration = dict(old.calibration)
         calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
         new = replace(old, metrics={**old.metrics, **added}, tolerances=rules, calibration=calibration)
+    elif merge:
+        new = replace(old, metrics={**old.metrics, **run_metrics})
     else:
         new = replace(old, metrics=dict(run_metrics))
     if tolerances is not None:

@@ -4,7 +4,8 @@ Prints the diff table and PASS/FAIL. Exit status: 0 when nothing regressed or we
 a regression or a missing metric, 2 when a file cannot be read or an update is refused. ``--update`` rewrites
 BASELINE with the run's metrics (keeping its tolerances) and exits 0: review the diff and commit it like code. An
 update that would drop gated figures (the run lacks some the baseline holds) is refused in one line: ``--replace``
-to mean it, ``--only-new`` to add the run's new figures only.
+to mean it, ``--merge`` to rewrite only the run's figures (a run of the one method that changed), ``--only-new``
+to add the run's new figures only.
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--only-new", action="store_true",
                         help="with --update: add only the figures the baseline does not hold yet (newly gated "
                              "metrics), keeping every other figure and its calibration")
+    parser.add_argument("--merge", action="store_true",
+                        help="with --update: rewrite only the figures the run holds and keep the others (e.g. a run "
+                             "of the one method whose results changed)")
     parser.add_argument("--replace", action="store_true",
                         help="with --update: replace the baseline's figures by the run's even where the run lacks "
                              "some (they are dropped from the gate)")
@@ -32,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         metrics = load_run_metrics(args.run)
         if args.update:
-            new = update_baseline(args.baseline, metrics, only_new=args.only_new, replace_all=args.replace)
+            new = update_baseline(args.baseline, metrics, only_new=args.only_new, replace_all=args.replace,
+                                  merge=args.merge)
             print(f"updated {args.baseline}: {len(new.metrics)} metrics, {len(new.tolerances)} tolerance rules")
             return 0
         report = compare(load_baseline(args.baseline), metrics)

@@ -113,6 +113,14 @@ def test_files_and_suite_flattening(tmp_path):
     assert added.calibrated == again.calibrated and added.tolerances[0] == Tolerance("*", "higher")
     assert added.calibration == {"how": "test", "added_after_calibration": ["x/map_label_accuracy"]}
     assert added.tolerance_for("x/map_label_accuracy").pattern == "*"  # an earlier, broader rule still wins
+    # merge: the run's figures rewritten, the one it lacks kept, calibration and policy kept; the refusal names it
+    with pytest.raises(GateError, match="--merge"):
+        update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25})
+    merged = update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25}, merge=True)
+    assert merged.metrics == {"x/ate_rmse": 0.25, "x/map_label_accuracy": 0.6} and merged.policy == "two-sided"
+    assert merged.calibrated == again.calibrated and merged.calibration == added.calibration
+    with pytest.raises(GateError, match="one of"):
+        update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25}, merge=True, only_new=True)
 
 
 def test_command_line_exit_codes(tmp_path, capsys):
