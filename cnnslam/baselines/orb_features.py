@@ -93,14 +93,14 @@ def extract_features(gray: np.ndarray, orb: cv2.ORB, config: OrbConfig) -> Featu
     keypoints = orb.detect(gray, None)
     if not keypoints:
         return empty_features()
-    uv = np.array([k.pt for k in keypoints], dtype=np.float64)
+    uv = cv2.KeyPoint_convert(keypoints).astype(np.float64).reshape(-1, 2)  # k.pt of each, as float32 -> float64
     response = np.array([k.response for k in keypoints], dtype=np.float32)
     chosen = grid_select(uv, response, gray.shape[:2], config.grid_cell_px, config.n_features)
     keypoints, descriptors = orb.compute(gray, [keypoints[i] for i in chosen])
     if descriptors is None or not keypoints:
         return empty_features()
     return Features(
-        uv=np.array([k.pt for k in keypoints], dtype=np.float64),
+        uv=cv2.KeyPoint_convert(keypoints).astype(np.float64).reshape(-1, 2),
         octave=np.array([k.octave for k in keypoints], dtype=np.int64),
         descriptors=np.ascontiguousarray(descriptors, dtype=np.uint8),
         response=np.array([k.response for k in keypoints], dtype=np.float32),
