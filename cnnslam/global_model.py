@@ -400,7 +400,7 @@ class GlobalModel:
                 merged_ids = key_ids[found]
                 self._merge_into(merged_ids, _take(meas, found), anchor)
                 voxel_merged = int(found.sum())
-                seen = np.union1d(seen, merged_ids)
+                seen = np.concatenate([seen, merged_ids])  # (marks the confirmed surfels below)
             new = ~found
             if new.any():
                 self._append(_take(meas, new), ukeys[new], frame, anchor)
@@ -408,7 +408,9 @@ class GlobalModel:
 
         # 5. surfels in view that this frame did not confirm: seen through, or a duplicate layer
         removed = 0
-        missed = np.setdiff1d(in_view, seen, assume_unique=False)
+        confirmed = np.zeros(len(self.store), bool)
+        confirmed[seen] = True
+        missed = in_view[~confirmed[in_view]]  # in view, not confirmed (unsorted: the update below is per surfel)
         if missed.size:
             misses_column = self.store.columns["misses"]
             misses_column[missed] = np.minimum(misses_column[missed].astype(np.int64) + 1, 65535)
