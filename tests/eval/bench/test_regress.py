@@ -142,7 +142,10 @@ def test_command_line_exit_codes(tmp_path, capsys):
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "the run lacks 1 of its 2 gated figures (e.g. s/A/ate_rmse)" in err
     assert "--replace" in err and load_baseline(base).metrics == {"s/A/ate_rmse": 0.1, "s/A/fps": 30.0}
-    # ... unless meant
+    # --merge rewrites the run's figures only and keeps the one it lacks
+    assert main(["regress", str(base), str(run), "--update", "--merge"]) == 0
+    assert load_baseline(base).metrics == {"s/A/ate_rmse": 0.1, "s/A/fps": 31.0}
+    # ... or the gate's figures shrink to the run's when meant
     assert main(["regress", str(base), str(run), "--update", "--replace"]) == 0
     assert load_baseline(base).metrics == {"s/A/fps": 31.0}
     assert main(["regress", str(base), str(run)]) == 0
