@@ -74,6 +74,9 @@ GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", 
 GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics is "missing"), not averaged
 AVERAGE_PREFIX = "avg"
 ADDED_KEY = "added_after_calibration"  # the baseline's figures written by update_baseline(only_new=True)
+# the baseline's figures given new values by update_baseline(merge=True): like the added ones, in no machine record
+# made before (the records keep their old values until --calibrate is run again on their machines)
+REWRITTEN_KEY = "rewritten_after_calibration"
 CALIBRATION_K = 3.0  # allowed change = k x the spread measured over the perturbation matrix (ours: see calibrate)
 Direction = Literal["lower", "higher", "match"]
 Policy = Literal["one-sided", "two-sided"]
@@ -384,7 +387,9 @@ def update_baseline(
     tolerance rules whose patterns the baseline lacks are appended to its rules, so the new figures get theirs.
 
     ``merge``: replace the figures the run holds and keep those it lacks (a run of one changed method: its figures
-    are rewritten, the other methods' stay as measured, with their calibration).
+    are rewritten, the other methods' stay as measured, with their calibration); the calibration record lists the
+    figures it gave new values (``rewritten_after_calibration``: no machine record holds them until ``--calibrate``
+    runs again) and the ones it added.
 
     An update that would drop gated figures (the baseline holds figures the run lacks: another selection of
     sequences or methods) is refused with :class:`GateError`, unless ``replace_all`` (``--replace``) or ``merge``: a
@@ -409,7 +414,14 @@ def update_baseline(
         calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
         new = replace(old, metrics={**old.metrics, **added}, tolerances=rules, calibration=calibration)
     elif merge:
-        new = replace(old, metrics={**old.metrics, **run_metrics})
+        calibration = dict(old.calibration)
+        added = [k for k in run_metrics if k not in old.metrics]
+        changed = [k for k, v in run_metrics.items() if k in old.metrics and old.metrics[k] != v]
+        if added:
+            calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
+        if changed:
+            calibration[REWRITTEN_KEY] = sorted({*calibration.get(REWRITTEN_KEY, []), *changed})
+        new = replace(old, metrics={**old.metrics, **run_metrics}, calibration=calibration)
     else:
         new = replace(old, metrics=dict(run_metrics))
     if tolerances is not None:

@@ -118,7 +118,8 @@ def test_files_and_suite_flattening(tmp_path):
         update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25})
     merged = update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25}, merge=True)
     assert merged.metrics == {"x/ate_rmse": 0.25, "x/map_label_accuracy": 0.6} and merged.policy == "two-sided"
-    assert merged.calibrated == again.calibrated and merged.calibration == added.calibration
+    assert merged.calibrated == again.calibrated
+    assert merged.calibration == {**added.calibration, "rewritten_after_calibration": ["x/ate_rmse"]}
     with pytest.raises(GateError, match="one of"):
         update_baseline(tmp_path / "results" / "base.json", {"x/ate_rmse": 0.25}, merge=True, only_new=True)
 
