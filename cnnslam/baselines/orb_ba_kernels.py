@@ -28,6 +28,41 @@ def _project(R, t, X, o_cam, o_pt, k):  # pragma: no cover - compiled
     return x, y, z
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _to_camera(T, pts, k):  # pragma: no cover - compiled
+    """Camera coordinates of point k of ``pts`` under the (4, 4) world -> camera ``T``."""
+    x = T[0, 0] * pts[k, 0] + T[0, 1] * pts[k, 1] + T[0, 2] * pts[k, 2] + T[0, 3]
+    y = T[1, 0] * pts[k, 0] + T[1, 1] * pts[k, 1] + T[1, 2] * pts[k, 2] + T[1, 3]
+    z = T[2, 0] * pts[k, 0] + T[2, 1] * pts[k, 1] + T[2, 2] * pts[k, 2] + T[2, 3]
+    return x, y, z
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _linearise(x, y, zr, u, v, s, fx, fy, cx, cy, min_depth, Jc):  # pragma: no cover - compiled
+    """The normalised residual (e0, e1) of camera point (x, y, zr) observed at pixel (u, v) with 1 / sigma ``s``,
+    and its derivatives: d e / d p_cam's non-zero entries (a00, a02, a11, a12) returned, d e / d xi for a left twist
+    written to Jc (2, 6): (d e / d p_cam) [I, -hat(p_cam)] (p_cam's own depth in hat, the clamped one in the
+    division)."""
+    z = max(zr, min_depth)
+    iz = 1.0 / z
+    e0 = (fx * x * iz + cx - u) * s
+    e1 = (fy * y * iz + cy - v) * s
+    a00 = fx * iz * s
+    a02 = -fx * x * iz * iz * s
+    a11 = fy * iz * s
+    a12 = -fy * y * iz * iz * s
+    Jc[0, 0], Jc[0, 1], Jc[0, 2] = a00, 0.0, a02
+    Jc[1, 0], Jc[1, 1], Jc[1, 2] = 0.0, a11, a12
+    # -hat(p) = [[0, z, -y], [-z, 0, x], [y, -x, 0]]
+    Jc[0, 3] = a02 * y
+    Jc[0, 4] = a00 * zr - a02 * x
+    Jc[0, 5] = -a00 * y
+    Jc[1, 3] = -a11 * zr + a12 * y
+    Jc[1, 4] = -a12 * x
+    Jc[1, 5] = a11 * x
+    return e0, e1, a00, a02, a11, a12
+
+
 @njit(cache=True, nogil=True)
 def robust_cost(R, t, X, o_cam, o_pt, uv, inv_sigma, intr, delta, min_depth):  # pragma: no cover - compiled
     """(sum of rho(chi2) over the observations, chi2 (O,)) at the estimate (R, t, X)."""
@@ -69,18 +104,10 @@ def normal_equations(R, t, X, o_cam, o_pt, uv, inv_sigma, intr, free_col, n_free
     for k in range(n):
         c, p = o_cam[k], o_pt[k]
         x, y, zr = _project(R, t, X, o_cam, o_pt, k)
-        z = max(zr, min_depth)
-        iz = 1.0 / z
-        s = inv_sigma[k]
-        e0 = (fx * x * iz + cx - uv[k, 0]) * s
-        e1 = (fy * y * iz + cy - uv[k, 1]) * s
+        e0, e1, a00, a02, a11, a12 = _linearise(x, y, zr, uv[k, 0], uv[k, 1], inv_sigma[k], fx, fy, cx, cy,
+                                                min_depth, Jc)
         norm = math.sqrt(e0 * e0 + e1 * e1)
         w = 1.0 if norm <= delta else delta / norm
-        # d e / d p_cam (2x3)
-        a00 = fx * iz * s
-        a02 = -fx * x * iz * iz * s
-        a11 = fy * iz * s
-        a12 = -fy * y * iz * iz * s
         # d e / d X = (d e / d p_cam) R
         for j in range(3):
             Jp[0, j] = a00 * R[c, 0, j] + a02 * R[c, 2, j]
@@ -92,16 +119,6 @@ def normal_equations(R, t, X, o_cam, o_pt, uv, inv_sigma, intr, free_col, n_free
         col = free_col[c]
         if col < 0:
             continue
-        # d e / d xi = (d e / d p_cam) [I, -hat(p_cam)] (p_cam's own depth in hat, the clamped one in the division)
-        Jc[0, 0], Jc[0, 1], Jc[0, 2] = a00, 0.0, a02
-        Jc[1, 0], Jc[1, 1], Jc[1, 2] = 0.0, a11, a12
-        # -hat(p) = [[0, z, -y], [-z, 0, x], [y, -x, 0]]
-        Jc[0, 3] = a02 * y
-        Jc[0, 4] = a00 * zr - a02 * x
-        Jc[0, 5] = -a00 * y
-        Jc[1, 3] = -a11 * zr + a12 * y
-        Jc[1, 4] = -a12 * x
-        Jc[1, 5] = a11 * x
         b = 6 * col
         for i in range(6):
             for j in range(6):
@@ -278,28 +295,11 @@ def pose_only(T_cam_world, pts, uv, inv_sigma, intr, use, rounds, iterations, de
             for k in range(m):
                 if not use[k]:
                     continue
-                x = T[0, 0] * pts[k, 0] + T[0, 1] * pts[k, 1] + T[0, 2] * pts[k, 2] + T[0, 3]
-                y = T[1, 0] * pts[k, 0] + T[1, 1] * pts[k, 1] + T[1, 2] * pts[k, 2] + T[1, 3]
-                zr = T[2, 0] * pts[k, 0] + T[2, 1] * pts[k, 1] + T[2, 2] * pts[k, 2] + T[2, 3]
-                z = max(zr, min_depth)
-                iz = 1.0 / z
-                s = inv_sigma[k]
-                e0 = (fx * x * iz + cx - uv[k, 0]) * s
-                e1 = (fy * y * iz + cy - uv[k, 1]) * s
+                x, y, zr = _to_camera(T, pts, k)
+                e0, e1, _, _, _, _ = _linearise(x, y, zr, uv[k, 0], uv[k, 1], inv_sigma[k], fx, fy, cx, cy,
+                                                min_depth, Jc)
                 norm = math.sqrt(e0 * e0 + e1 * e1)
                 w = delta / max(norm, 1e-12) if (robust and norm > delta) else 1.0
-                a00 = fx * iz * s
-                a02 = -fx * x * iz * iz * s
-                a11 = fy * iz * s
-                a12 = -fy * y * iz * iz * s
-                Jc[0, 0], Jc[0, 1], Jc[0, 2] = a00, 0.0, a02
-                Jc[1, 0], Jc[1, 1], Jc[1, 2] = 0.0, a11, a12
-                Jc[0, 3] = a02 * y
-                Jc[0, 4] = a00 * zr - a02 * x
-                Jc[0, 5] = -a00 * y
-                Jc[1, 3] = -a11 * zr + a12 * y
-                Jc[1, 4] = -a12 * x
-                Jc[1, 5] = a11 * x
                 for i in range(6):
                     for j in range(6):
                         H[i, j] += w * (Jc[0, i] * Jc[0, j] + Jc[1, i] * Jc[1, j])
@@ -313,9 +313,7 @@ def pose_only(T_cam_world, pts, uv, inv_sigma, intr, use, rounds, iterations, de
             if xi @ xi < 1e-16:
                 break
         for k in range(m):
-            x = T[0, 0] * pts[k, 0] + T[0, 1] * pts[k, 1] + T[0, 2] * pts[k, 2] + T[0, 3]
-            y = T[1, 0] * pts[k, 0] + T[1, 1] * pts[k, 1] + T[1, 2] * pts[k, 2] + T[1, 3]
-            zr = T[2, 0] * pts[k, 0] + T[2, 1] * pts[k, 1] + T[2, 2] * pts[k, 2] + T[2, 3]
+            x, y, zr = _to_camera(T, pts, k)
             z = max(zr, min_depth)
             e0 = (fx * x / z + cx - uv[k, 0]) * inv_sigma[k]
             e1 = (fy * y / z + cy - uv[k, 1]) * inv_sigma[k]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cnnslam.baselines.orb_ba import HUBER_DELTA, MIN_DEPTH, huber_weights, project
-from cnnslam.baselines.orb_ba_kernels import normal_equations, robust_cost, schur_step
+from cnnslam.baselines.orb_ba_kernels import _left_update, normal_equations, robust_cost, schur_step
 from cnnslam.geometry import se3_exp, se3_inverse
 
 INTR = np.array([240.6, 240.0, 159.5, 119.5])
@@ -111,8 +111,6 @@ def test_schur_step_solves_the_damped_dense_system() -> None:
 
 
 def test_left_update_is_se3_exp_times_the_pose() -> None:
-    from cnnslam.baselines.orb_ba_kernels import _left_update
-
     rng = np.random.default_rng(2)
     T = se3_exp(rng.normal(0, 0.5, 6))
     for scale in (0.0, 1e-9, 1e-3, 0.3, 2.5):  # zero, the series branch, and large angles
