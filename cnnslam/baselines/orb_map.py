@@ -105,14 +105,19 @@ class FlatObservations:
     """Observations of some map points, flattened (:meth:`SparseMap.flat_observations`).
 
     counts: (P,) observations of each point; keyframe, keypoint, octave: (O,) int64 of each observation, the
-    points' observations one after another; descriptors: (O, 32) uint8 of the observing keypoints, or None.
+    points' observations one after another; uv: (O, 2) the observing keypoints' pixels; descriptors: (O, 32) uint8
+    of the observing keypoints, or None; keyframe_ids: the sorted distinct key-frames, slot: (O,) each
+    observation's index into them.
     """
 
     counts: np.ndarray
     keyframe: np.ndarray
     keypoint: np.ndarray
     octave: np.ndarray
+    uv: np.ndarray
     descriptors: np.ndarray | None
+    keyframe_ids: np.ndarray
+    slot: np.ndarray
 
 
 @dataclass
@@ -287,17 +292,20 @@ class SparseMap:
         flat_kf = np.fromiter((k for o in obs for k in o), np.int64, total)
         flat_kp = np.fromiter((i for o in obs for i in o.values()), np.int64, total)
         flat_octave = np.empty(total, np.int64)
+        flat_uv = np.empty((total, 2))
         flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
-        by_kf = np.argsort(flat_kf, kind="stable")
-        kf_ids, bounds = np.unique(flat_kf[by_kf], return_index=True)
-        bounds = np.r_[bounds, total]
-        for slot, k in enumerate(kf_ids):
-            rows = by_kf[bounds[slot]:bounds[slot + 1]]
+        kf_ids, slot = np.unique(flat_kf, return_inverse=True)
+        by_kf = np.argsort(slot, kind="stable")
+        bounds = np.searchsorted(slot[by_kf], np.arange(len(kf_ids) + 1))
+        for i, k in enumerate(kf_ids):
+            rows = by_kf[bounds[i]:bounds[i + 1]]
             feats = self.keyframes[int(k)].features
             flat_octave[rows] = feats.octave[flat_kp[rows]]
+            flat_uv[rows] = feats.uv[flat_kp[rows]]
             if flat_desc is not None:
                 flat_desc[rows] = feats.descriptors[flat_kp[rows]]
-        return FlatObservations(counts, flat_kf, flat_kp, flat_octave, flat_desc)
+        return FlatObservations(counts, flat_kf, flat_kp, flat_octave, flat_uv, flat_desc, kf_ids,
+                                slot.astype(np.int64))
 
     def update_points(self, ids: np.ndarray, descriptors: bool = True) -> None:
         """Recompute the viewing direction, distance range and (``descriptors=True``) representative descriptor of
@@ -308,12 +316,11 @@ class SparseMap:
             return
         levels = self.scale_factor ** np.arange(self.n_levels)
         flat = self.flat_observations(ids, descriptors=descriptors)
-        kf_ids, flat_slot = np.unique(flat.keyframe, return_inverse=True)
-        centers = np.stack([self.keyframes[int(k)].center for k in kf_ids])
+        centers = np.stack([self.keyframes[int(k)].center for k in flat.keyframe_ids])
         words = (np.zeros((0, 4), np.uint64) if flat.descriptors is None
                  else flat.descriptors.view(np.uint64).reshape(-1, 4))
         normals, max_distance, best = _point_summaries(
-            flat.counts, flat_slot.astype(np.int64), flat.keyframe, flat.octave, words, centers,
+            flat.counts, flat.slot, flat.keyframe, flat.octave, words, centers,
             self.positions[ids], self.first_kf[ids], levels, flat.descriptors is not None)
         self.normals[ids] = normals
         self.max_distance[ids] = max_distance

@@ -280,7 +280,7 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
     pts = m.points_of(local)
     flat = m.flat_observations(pts)
     owner = np.repeat(np.arange(len(pts)), flat.counts)  # index into pts of each observation
-    bad_ids = [k for k in np.unique(flat.keyframe) if m.keyframes[int(k)].bad]
+    bad_ids = [k for k in flat.keyframe_ids if m.keyframes[int(k)].bad]
     outside = ~np.isin(flat.keyframe, list(local_ids)) & ~np.isin(flat.keyframe, bad_ids)
     ids, counts = np.unique(flat.keyframe[outside], return_counts=True)
     fixed_ids = [int(k) for _, k in sorted(zip(-counts, ids, strict=True))[: config.local_ba_fixed_keyframes]]
@@ -292,14 +292,11 @@ def local_bundle_adjustment(m: SparseMap, kf: KeyFrame, intrinsics: np.ndarray, 
     used = np.isin(flat.keyframe, cam_ids)
     if not used.any():
         return LocalBAStats(len(local), len(fixed_ids), len(pts), 0, 0, 0.0, 0.0)
-    okf_a, okp_a, oct_a = flat.keyframe[used], flat.keypoint[used], flat.octave[used]
+    okf_a, oct_a = flat.keyframe[used], flat.octave[used]
     order = np.argsort(cam_ids)
     oc_a = order[np.searchsorted(cam_ids[order], okf_a)]
     op_a = owner[used]
-    ouv_a = np.empty((len(oc_a), 2))
-    for k in np.unique(okf_a):
-        sel = okf_a == k
-        ouv_a[sel] = m.keyframes[int(k)].features.uv[okp_a[sel]]
+    ouv_a = flat.uv[used]
     osig_a = level_inv_sigma(oct_a, config.scale_factor)
     T0 = np.stack([k.T_cam_world for k in cams])
     X0 = m.positions[pts]
