@@ -42,6 +42,7 @@ Deviations from the paper, all deliberate:
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
@@ -49,6 +50,7 @@ from typing import Any, Literal
 import torch
 import torch.nn.functional as F
 from torch import nn
+from torch.nn.utils.fusion import fuse_conv_bn_eval, fuse_conv_bn_weights
 
 from cnnslam.errors import CnnSlamError
 from sim_envs.frames import NUM_CLASSES
@@ -375,3 +377,49 @@ def normalize_rgb(rgb: torch.Tensor) -> torch.Tensor:
 def count_parameters(model: nn.Module) -> int:
     """Number of trainable parameters."""
     return sum(p.numel() for p in model.parameters() if p.requires_grad)
+
+
+def _fold_into_upconv(up: UpConv, bn: nn.BatchNorm2d) -> None:
+    """Fold the eval-mode ``bn`` that follows ``up`` into ``up``'s convolution (in place). In "fast" mode conv
+    channel ``4 * o + k`` becomes output channel ``o`` through the pixel shuffle, so each BN statistic is repeated
+    4 times along the conv's output channels."""
+    if up.mode != "fast":
+        up.conv = fuse_conv_bn_eval(up.conv, bn)
+        return
+    assert bn.running_mean is not None and bn.running_var is not None
+    rep = 4  # pixel_shuffle(2): 2 * 2 conv channels per output channel
+    weight, bias = fuse_conv_bn_weights(
+        up.conv.weight, None, bn.running_mean.repeat_interleave(rep), bn.running_var.repeat_interleave(rep), bn.eps,
+        bn.weight.repeat_interleave(rep), bn.bias.repeat_interleave(rep),
+    )
+    conv = nn.Conv2d(up.conv.in_channels, up.conv.out_channels, up.conv.kernel_size, padding=up.conv.padding)
+    conv.weight, conv.bias = weight, bias
+    up.conv = conv
+
+
+def fold_batch_norms(model: DepthSemanticNet) -> DepthSemanticNet:
+    """An inference copy of ``model`` in which every batch norm is folded into the convolution before it.
+
+    An eval-mode BN is the affine map ``y = (x - mean) * g / sqrt(var + eps) + b`` per channel; after a convolution
+    it is the same convolution with weights scaled by ``g / sqrt(var + eps)`` per output channel and a bias
+    ``b - mean * g / sqrt(var + eps)`` (torch.nn.utils.fusion). The copy computes the same function (to float32
+    rounding: a few ulps) with one pass over each feature map fewer; the BN modules become identities. ``model`` is
+    left as it is; the copy is in eval mode and holds its own parameters (a snapshot: later training of ``model``
+    does not reach it).
+    """
+    folded = copy.deepcopy(model).eval()
+    for seq in list(folded.modules()):
+        if not isinstance(seq, nn.Sequential):
+            continue
+        for i in range(len(seq) - 1):
+            first, bn = seq[i], seq[i + 1]
+            if not isinstance(bn, nn.BatchNorm2d):
+                continue
+            if isinstance(first, nn.Conv2d):
+                seq[i] = fuse_conv_bn_eval(first, bn)
+            elif isinstance(first, UpConv):
+                _fold_into_upconv(first, bn)
+            else:
+                continue
+            seq[i + 1] = nn.Identity()
+    return folded

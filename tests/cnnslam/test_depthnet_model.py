@@ -5,12 +5,14 @@ from __future__ import annotations
 import pytest
 import torch
 import torch.nn.functional as F
+from torch import nn
 
 from cnnslam.depthnet.model import (
     DepthSemanticNet,
     ModelConfig,
     UpConv,
     count_parameters,
+    fold_batch_norms,
     normalize_rgb,
     unpool2x,
     unpool_conv5_as_phases,
@@ -137,3 +139,30 @@ def test_config_round_trip_and_unknown_key() -> None:
 def test_bad_input_shape() -> None:
     with pytest.raises(CnnSlamError):
         DepthSemanticNet(TINY)(torch.randn(1, 4, 32, 32))
+
+
+@pytest.mark.parametrize("upsample", ["fast", "unpool"])
+def test_folded_batch_norms_compute_the_same_function(upsample: str) -> None:
+    """Every BN (trained statistics, not the identity of a fresh net) folded away: same outputs to float32 rounding,
+    no BN left, the original untouched."""
+    torch.manual_seed(3)
+    net = DepthSemanticNet(ModelConfig(trunk_depth=18, base_width=8, decoder_min_channels=8, dropout=0.0,
+                                       upsample=upsample)).eval()  # fmt: skip
+    with torch.no_grad():
+        for m in net.modules():
+            if isinstance(m, nn.BatchNorm2d):
+                m.running_mean.uniform_(-0.5, 0.5)
+                m.running_var.uniform_(0.2, 3.0)
+                m.weight.uniform_(0.5, 1.5)
+                m.bias.uniform_(-0.3, 0.3)
+    before = {k: v.clone() for k, v in net.state_dict().items()}
+    folded = fold_batch_norms(net)
+    assert not any(isinstance(m, nn.BatchNorm2d) for m in folded.modules())
+    assert sum(isinstance(m, nn.BatchNorm2d) for m in net.modules()) > 20
+    x = torch.randn(2, 3, 64, 96)
+    with torch.inference_mode():
+        (d0, l0), (d1, l1) = net(x), folded(x)
+    torch.testing.assert_close(d1, d0, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(l1, l0, rtol=1e-5, atol=1e-5)
+    for k, v in net.state_dict().items():
+        assert torch.equal(v, before[k]), k

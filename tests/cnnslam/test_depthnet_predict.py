@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig
+from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, normalize_rgb
 from cnnslam.depthnet.predict import DepthNetPredictor, Prediction, load_predictor
 from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS, load_weights, save_weights
 from cnnslam.errors import CnnSlamError
@@ -183,3 +183,15 @@ def test_onednn_and_threads_are_the_predictors_own(tmp_path: Path) -> None:
     assert torch.get_num_threads() == threads and torch.backends.mkldnn.enabled == mkldnn
     on = load_predictor(path).predict_raw(rgb).depth
     np.testing.assert_allclose(off, on, rtol=1e-5)  # another math back-end: the last bits at most
+
+
+def test_predictor_runs_the_folded_network_to_the_models_rounding() -> None:
+    """The predictor's folded, channels-last network gives the shipped model's outputs within float32 rounding."""
+    predictor = load_predictor()
+    rgb = _image(*predictor.train_size[::-1], seed=4)
+    x = normalize_rgb(torch.from_numpy(rgb).permute(2, 0, 1)[None])
+    with torch.inference_mode():
+        depth, logits = predictor.model(x)
+    got = predictor.predict_raw(rgb)
+    np.testing.assert_allclose(got.depth, depth[0, 0].numpy(), rtol=2e-6)
+    np.testing.assert_allclose(got.label_probs, torch.softmax(logits, 1)[0].permute(1, 2, 0).numpy(), atol=2e-6)
