@@ -406,20 +406,23 @@ class GlobalModel:
                 self._append(_take(meas, new), ukeys[new], frame, anchor)
                 created = int(new.sum())
 
-        # 5. surfels in view that this frame did not confirm: seen through, or a duplicate layer
+        # 5. surfels in view that this frame did not confirm: seen through, or a duplicate layer. Only a miss makes a
+        # surfel removable (a merge raises n_obs, a re-hash keeps the fewest misses and the most n_obs of the surfels
+        # it combines), so the missed surfels are the only candidates: no surfel elsewhere meets the test
         removed = 0
         confirmed = np.zeros(len(self.store), bool)
         confirmed[seen] = True
         missed = in_view[~confirmed[in_view]]  # in view, not confirmed (unsorted: the update below is per surfel)
         if missed.size:
             misses_column = self.store.columns["misses"]
-            misses_column[missed] = np.minimum(misses_column[missed].astype(np.int64) + 1, 65535)
-            misses = self._col("misses").astype(np.int64)
-            drop = (misses >= cfg.max_misses) & (misses > self._col("n_obs"))
-            removed = int(drop.sum())
+            misses = np.minimum(misses_column[missed].astype(np.int64) + 1, 65535)
+            misses_column[missed] = misses
+            drop = missed[(misses >= cfg.max_misses) & (misses > self.store.columns["n_obs"][missed])]
+            removed = int(drop.size)
             if removed:
-                self.store.compact(np.flatnonzero(~drop))
-                self._rebuild_index(merge=False)
+                keep = np.ones(len(self.store), bool)
+                keep[drop] = False
+                self._remove_rows(np.flatnonzero(keep))
         return IntegrationStats(frame, m, associated, voxel_merged, created, removed, len(self.store))
 
     def _measure(self, depth: np.ndarray, intr: np.ndarray, variance: np.ndarray | None) -> _PixelMeasurements:
@@ -593,9 +596,14 @@ class GlobalModel:
         drop = (self._col("confidence") < min_confidence) & (self._frames - self._col("first_seen") >= min_age)
         n = int(drop.sum())
         if n:
-            self.store.compact(np.flatnonzero(~drop))
-            self._rebuild_index(merge=False)
+            self._remove_rows(np.flatnonzero(~drop))
         return n
+
+    def _remove_rows(self, keep: np.ndarray) -> None:
+        """Keep the surfels ``keep`` (increasing ids) and drop the others, with the key index the re-sort of
+        :meth:`_rebuild_index` would give (kept by :meth:`SurfelStore.remove_rows` where the keys are distinct)."""
+        if not self.store.remove_rows(keep):
+            self._rebuild_index(merge=False)
 
     def _rebuild_index(self, merge: bool) -> None:
         """Sort the keys again; with ``merge``, surfels sharing a key are combined into one (weights add)."""

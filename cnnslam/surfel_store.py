@@ -117,6 +117,28 @@ class SurfelStore:
                 (compact_1d if arr.ndim == 1 else compact_2d)(arr, keep)
         self._size = keep.size
 
+    def remove_rows(self, keep: np.ndarray) -> bool:
+        """:meth:`compact` for a removal (``keep`` increasing ids) that also keeps the key index: the removed rows'
+        entries are dropped from it and the others renumbered, instead of sorting the keys again. Returns False, with
+        the index dropped for the caller to rebuild, where it cannot be kept: the index was not complete, ``keep`` is
+        not increasing, or a key is held by several kept rows (their order in the index is the caller's:
+        ``GlobalModel`` orders them by anchor weight)."""
+        keep = np.asarray(keep, dtype=np.int64)
+        n_old = self._size
+        keepable = self._sorted_keys.size == n_old and (keep.size < 2 or bool(np.all(keep[1:] > keep[:-1])))
+        self.compact(keep)
+        if keepable:
+            renumber = np.full(n_old, -1, np.int64)
+            renumber[keep] = np.arange(keep.size, dtype=np.int64)
+            ids = renumber[self._sorted_ids]
+            live = ids >= 0
+            keys = self._sorted_keys[live]
+            if not bool(np.any(keys[1:] == keys[:-1])):
+                self._sorted_keys, self._sorted_ids = keys, ids[live]
+                return True
+        self.drop_index()
+        return False
+
     def gather(self, ids: np.ndarray, overrides: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
         """Make live row j the current row ``ids[j]`` (j < len(ids)) and drop the rest, one column at a time (so the
         transient memory is one column, not the store); ``overrides[name] = (js, values)`` then sets rows ``js`` of

@@ -63,3 +63,31 @@ def test_drop_index_forgets_the_keys_until_reindex_and_gather_copies_by_componen
     assert store.ids_of_keys(np.array([4, 9, 8])).tolist() == [1, 0, -1]
     assert store.column("position").tolist() == [[6, 7, 8], [0, 1, 2]]
     assert store.live_evidence().tolist() == [[16, 17, 18], [7, 8, 9]]
+
+
+def test_remove_rows_keeps_the_index_a_re_sort_would_build():
+    """After appends in random key order and removals, the kept index equals the one sorted again from the keys (the
+    renumbered ids included); where the kept keys repeat, or the index was dropped, it is dropped for a rebuild."""
+    rng = np.random.default_rng(5)
+    store = SurfelStore(num_classes=2)
+    for _ in range(30):
+        fresh = np.setdiff1d(rng.choice(5000, size=40, replace=False), store.column("key"))
+        store.append(fresh)  # sorted, unique, none held
+        keep = np.flatnonzero(rng.random(len(store)) > 0.1)
+        old_keys = store.column("key").copy()
+        assert store.remove_rows(keep)
+        assert np.array_equal(store.column("key"), old_keys[keep])
+        kept_keys, kept_ids = store._sorted_keys.copy(), store._sorted_ids.copy()
+        store.reindex()
+        assert np.array_equal(kept_keys, store._sorted_keys) and np.array_equal(kept_ids, store._sorted_ids)
+        probe = rng.choice(5000, size=100)
+        expected = [int(np.flatnonzero(store.column("key") == k)[0]) if k in store.column("key") else -1
+                    for k in probe]
+        assert store.ids_of_keys(probe).tolist() == expected
+    store.columns["key"][1] = store.columns["key"][0]  # two rows share a key (as after a re-placement)
+    store.reindex()
+    assert not store.remove_rows(np.arange(len(store) - 1))  # their order is the caller's: rebuild
+    assert store.ids_of_keys(store.column("key")[:3]).tolist() == [-1, -1, -1]
+    store.reindex()
+    store.drop_index()
+    assert not store.remove_rows(np.arange(len(store) - 1))  # no complete index to keep
