@@ -334,16 +334,34 @@ def _params(cfg: RefinementConfig) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------- eq. 10 and 11
 
 
+@njit(cache=True, nogil=True)
+def _eq10(depth_kf, uncertainty_kf, depth_obs, uncertainty_obs):  # pragma: no cover - compiled
+    """CNN-SLAM eq. 10 for numbers or arrays (see :func:`fuse_observation_depth`)."""
+    return (uncertainty_obs * depth_kf + uncertainty_kf * depth_obs) / (uncertainty_kf + uncertainty_obs)
+
+
+@njit(cache=True, nogil=True)
+def _eq11(uncertainty_kf, uncertainty_obs):  # pragma: no cover - compiled
+    """CNN-SLAM eq. 11 for numbers or arrays (see :func:`fuse_observation_uncertainty`)."""
+    return uncertainty_obs * uncertainty_kf / (uncertainty_kf + uncertainty_obs)
+
+
+@njit(cache=True, nogil=True)
+def _outlier(depth_kf, uncertainty_kf, depth_obs, uncertainty_obs, factor):  # pragma: no cover - compiled
+    """LSD-SLAM's consistency gate for numbers or arrays (see :func:`observation_outliers`)."""
+    diff = depth_obs - depth_kf
+    return factor * diff * diff > uncertainty_kf + uncertainty_obs
+
+
 def fuse_observation_depth(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
                            uncertainty_obs: np.ndarray) -> np.ndarray:
-    """CNN-SLAM eq. 10: D_ki = (U_t D_ki + U_ki D_t) / (U_ki + U_t), element-wise (metres).
+    """CNN-SLAM eq. 10: D_ki = (U_t D_ki + U_ki D_t) / (U_ki + U_t), element-wise (metres), in float64.
 
     depth_kf, uncertainty_kf: the key-frame's D_ki (m) and U_ki (m^2); depth_obs, uncertainty_obs: the frame's
     observation D_t (m) and U_t (m^2). Callers pass only pixels with a finite U_t (U_t = inf leaves D_ki unchanged).
     """
-    u_kf = np.asarray(uncertainty_kf, dtype=np.float64)
-    u_obs = np.asarray(uncertainty_obs, dtype=np.float64)
-    return (u_obs * depth_kf + u_kf * depth_obs) / (u_kf + u_obs)
+    return _eq10(*(np.atleast_1d(np.asarray(a, np.float64))
+                   for a in (depth_kf, uncertainty_kf, depth_obs, uncertainty_obs)))
 
 
 def observation_outliers(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
@@ -352,15 +370,58 @@ def observation_outliers(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth
     factor * (D_t - D_ki)^2 > U_t + U_ki, i.e. the observation and the key-frame disagree by more than their
     combined standard deviation allows (a wrong stereo match, or another surface). factor = 0 flags nothing.
     """
-    diff = np.asarray(depth_obs, dtype=np.float64) - np.asarray(depth_kf, dtype=np.float64)
-    return factor * diff * diff > np.asarray(uncertainty_kf, np.float64) + np.asarray(uncertainty_obs, np.float64)
+    return _outlier(*(np.atleast_1d(np.asarray(a, np.float64))
+                      for a in (depth_kf, uncertainty_kf, depth_obs, uncertainty_obs)), float(factor))
 
 
 def fuse_observation_uncertainty(uncertainty_kf: np.ndarray, uncertainty_obs: np.ndarray) -> np.ndarray:
-    """CNN-SLAM eq. 11: U_ki = U_t U_ki / (U_ki + U_t), element-wise (m^2)."""
-    u_kf = np.asarray(uncertainty_kf, dtype=np.float64)
-    u_obs = np.asarray(uncertainty_obs, dtype=np.float64)
-    return u_obs * u_kf / (u_kf + u_obs)
+    """CNN-SLAM eq. 11: U_ki = U_t U_ki / (U_ki + U_t), element-wise (m^2), in float64."""
+    return _eq11(np.atleast_1d(np.asarray(uncertainty_kf, np.float64)),
+                 np.atleast_1d(np.asarray(uncertainty_obs, np.float64)))
+
+
+@njit(cache=True, nogil=True)
+def _refine_kernel(d, u, d_obs, u_obs, outlier_factor, inflation, keep_without_observation,
+                   max_id_var):  # pragma: no cover - compiled
+    """:func:`refine_keyframe`'s pixel loop: (new depth, new variance, fused-or-created mask, [observed, fused,
+    created, rejected, dropped]). Every pixel's arithmetic is the function's, in the same order (float64 for eq.
+    10-11 and the gate, float32 for the inverse-depth variance test)."""
+    h, w = d.shape
+    new_d = d.copy()
+    new_u = u.copy()
+    mask = np.zeros((h, w), np.bool_)
+    counts = np.zeros(5, np.int64)
+    for y in range(h):
+        for x in range(w):
+            do, uo = d_obs[y, x], u_obs[y, x]
+            if np.isfinite(uo) and do > 0:
+                counts[0] += 1
+                dk = d[y, x]
+                if dk > 0:
+                    uk = np.float64(u[y, x])
+                    if outlier_factor > 0 and _outlier(np.float64(dk), uk, np.float64(do), np.float64(uo),
+                                                       outlier_factor):
+                        counts[3] += 1
+                    else:
+                        u_prior = uk * inflation
+                        new_d[y, x] = _eq10(np.float64(dk), u_prior, np.float64(do), np.float64(uo))
+                        new_u[y, x] = _eq11(u_prior, np.float64(uo))
+                        mask[y, x] = True
+                        counts[1] += 1
+                else:
+                    new_d[y, x] = do
+                    new_u[y, x] = uo
+                    mask[y, x] = True
+                    counts[2] += 1
+            if not keep_without_observation:
+                nd = new_d[y, x]
+                if nd > 0:
+                    sq = nd * nd
+                    if new_u[y, x] / sq / sq > max_id_var:
+                        new_d[y, x] = 0.0
+                        new_u[y, x] = np.inf
+                        counts[4] += 1
+    return new_d, new_u, mask, counts
 
 
 # --------------------------------------------------------------------------------------------------- the stage
@@ -447,35 +508,13 @@ def refine_keyframe(
     hypotheses whose inverse-depth variance exceeds ``max_inverse_depth_variance`` are dropped.
     Returns (depth (H, W) float32, variance (H, W) float32, stats).
     """
-    d = np.asarray(depth, dtype=np.float32)
-    u = np.asarray(variance, dtype=np.float32)
-    obs = np.isfinite(observation.variance) & (observation.depth > 0)
-    prior = d > 0
-    fuse = obs & prior
-    create = obs & ~prior
-    rejected = 0
-    if config.outlier_factor > 0 and fuse.any():
-        idx = np.nonzero(fuse)
-        bad = observation_outliers(d[idx], u[idx], observation.depth[idx], observation.variance[idx],
-                                   config.outlier_factor)
-        fuse[idx[0][bad], idx[1][bad]] = False
-        rejected = int(bad.sum())
-    new_d = d.copy()
-    new_u = u.copy()
-    u_prior = u[fuse].astype(np.float64) * config.prior_variance_inflation
-    new_d[fuse] = fuse_observation_depth(d[fuse], u_prior, observation.depth[fuse], observation.variance[fuse])
-    new_u[fuse] = fuse_observation_uncertainty(u_prior, observation.variance[fuse])
-    new_d[create] = observation.depth[create]
-    new_u[create] = observation.variance[create]
-    dropped = 0
-    if not keep_without_observation:
-        has = new_d > 0
-        id_var = np.full(new_d.shape, np.inf, np.float32)
-        id_var[has] = new_u[has] / new_d[has] ** 2 / new_d[has] ** 2
-        drop = has & (id_var > config.max_inverse_depth_variance)
-        dropped = int(drop.sum())
-        new_d[drop] = 0.0
-        new_u[drop] = np.inf
-    stats = RefinementStats(int(obs.sum()), int(fuse.sum()), int(create.sum()), dropped, observation.counts(),
-                            rejected, fuse | create)
+    d = np.ascontiguousarray(depth, dtype=np.float32)
+    u = np.ascontiguousarray(variance, dtype=np.float32)
+    new_d, new_u, mask, counts = _refine_kernel(
+        d, u, np.ascontiguousarray(observation.depth, dtype=np.float32),
+        np.ascontiguousarray(observation.variance, dtype=np.float32), float(config.outlier_factor),
+        float(config.prior_variance_inflation), bool(keep_without_observation),
+        np.float32(config.max_inverse_depth_variance))
+    observed, fused, created, rejected, dropped = (int(c) for c in counts)
+    stats = RefinementStats(observed, fused, created, dropped, observation.counts(), rejected, mask)
     return new_d, new_u, stats

@@ -140,3 +140,20 @@ def test_refine_keyframe_does_not_fuse_an_inconsistent_observation() -> None:
     assert d[0, 1] == 2.0 and u[0, 1] == pytest.approx(0.01)  # the outlier left the key-frame unchanged
     d0, _, stats0 = refine_keyframe(depth, variance, obs, RefinementConfig(outlier_factor=0.0))
     assert stats0.fused == 2 and d0[0, 1] > 2.4
+
+
+def test_semi_dense_drops_hypotheses_beyond_the_inverse_depth_variance_limit() -> None:
+    """keep_without_observation=False (LSD-SLAM): a hypothesis whose inverse-depth variance U / D^4 exceeds the
+    limit is dropped (depth 0, variance inf), observed or not; the others are kept or fused as usual."""
+    d = np.array([[2.0, 1.0, 0.0, 0.5]], np.float32)
+    u = np.array([[0.04, 0.5, np.inf, 0.001]], np.float32)  # U / D^4: 0.0025, 0.5, -, 0.016
+    obs = StereoObservation(np.array([[0.0, 0.0, 4.0, 0.0]], np.float32),
+                            np.array([[np.inf, np.inf, 0.32, np.inf]], np.float32),  # created: 0.32 / 256 = 0.00125
+                            np.array([[2, 2, OK, 2]], np.int8))
+    cfg = RefinementConfig(max_inverse_depth_variance=0.01)
+    new_d, new_u, stats = refine_keyframe(d, u, obs, cfg, keep_without_observation=False)
+    np.testing.assert_array_equal(new_d, [[2.0, 0.0, 4.0, 0.0]])
+    np.testing.assert_array_equal(new_u, np.array([[0.04, np.inf, 0.32, np.inf]], np.float32))
+    assert (stats.observed, stats.fused, stats.created, stats.dropped) == (1, 0, 1, 2)
+    kept, _, kept_stats = refine_keyframe(d, u, obs, cfg, keep_without_observation=True)
+    assert kept_stats.dropped == 0 and kept[0, 1] == 1.0
