@@ -23,7 +23,6 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sim_envs.surface_sampling import sample_scene_surface
 from slamcommon.alignment import align
@@ -31,6 +30,7 @@ from slamcommon.labels import NO_LABEL
 from slamcommon.reconstruction_metrics import (
     DEFAULT_LABEL_DISTANCE,
     DEFAULT_THRESHOLD,
+    nearest_tree,
     reconstruction_metrics,
     visible_in_views,
 )
@@ -58,7 +58,7 @@ def map_metrics(model: Any, T_world_cam_gt: np.ndarray, T_world_cam_est: np.ndar
     if not seen.any():
         return {}
     # each model point's nearest surface sample, found once: the accuracy's distances and the labels' samples
-    distances, nearest = cKDTree(surface.points).query(points, k=1)
+    distances, nearest = nearest_tree(surface.points).query(points, k=1)
     recon = reconstruction_metrics(points, surface.points, surface.normals, surface.spacing, threshold, seen=seen,
                                    nearest=(distances, nearest))
     out = {

@@ -11,6 +11,7 @@ from slamcommon.reconstruction_metrics import (
     label_fusion_metrics,
     measurement_label_metrics,
     nearest_labels,
+    nearest_tree,
     reconstruction_metrics,
     visible_in_views,
 )
@@ -156,3 +157,16 @@ def test_measurement_label_metrics_score_each_fused_measurement_with_its_element
     with pytest.raises(ReconstructionMetricsError, match="one fused label"):
         measurement_label_metrics(fused[:2], evidence, right)
     assert math.isnan(measurement_label_metrics(fused, np.zeros((4, 4)), np.zeros(4)).fused_accuracy)
+
+
+def test_nearest_tree_finds_the_exact_nearest_sample() -> None:
+    """The sliding-midpoint tree answers exact nearest neighbours: distances equal to a brute-force search, on a
+    2 cm grid of samples (a sampled wall) and points scattered off it."""
+    g = np.arange(0.0, 1.0, 0.02)
+    xs, ys = np.meshgrid(g, g)
+    samples = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
+    points = np.random.default_rng(3).uniform([-0.1, -0.1, -0.2], [1.1, 1.1, 0.2], (500, 3))
+    d, idx = nearest_tree(samples).query(points, k=1)
+    brute = np.linalg.norm(points[:, None, :] - samples[None, :, :], axis=2)
+    np.testing.assert_array_equal(d, brute.min(axis=1))
+    np.testing.assert_array_equal(brute[np.arange(points.shape[0]), idx], brute.min(axis=1))
