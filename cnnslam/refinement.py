@@ -353,6 +353,11 @@ def _outlier(depth_kf, uncertainty_kf, depth_obs, uncertainty_obs, factor):  # p
     return factor * diff * diff > uncertainty_kf + uncertainty_obs
 
 
+def _float64_arrays(*values: np.ndarray) -> list[np.ndarray]:
+    """The compiled equations' arguments: float64 arrays of at least one dimension."""
+    return [np.atleast_1d(np.asarray(v, np.float64)) for v in values]
+
+
 def fuse_observation_depth(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
                            uncertainty_obs: np.ndarray) -> np.ndarray:
     """CNN-SLAM eq. 10: D_ki = (U_t D_ki + U_ki D_t) / (U_ki + U_t), element-wise (metres), in float64.
@@ -360,8 +365,7 @@ def fuse_observation_depth(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, dep
     depth_kf, uncertainty_kf: the key-frame's D_ki (m) and U_ki (m^2); depth_obs, uncertainty_obs: the frame's
     observation D_t (m) and U_t (m^2). Callers pass only pixels with a finite U_t (U_t = inf leaves D_ki unchanged).
     """
-    return _eq10(*(np.atleast_1d(np.asarray(a, np.float64))
-                   for a in (depth_kf, uncertainty_kf, depth_obs, uncertainty_obs)))
+    return _eq10(*_float64_arrays(depth_kf, uncertainty_kf, depth_obs, uncertainty_obs))
 
 
 def observation_outliers(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth_obs: np.ndarray,
@@ -370,14 +374,12 @@ def observation_outliers(depth_kf: np.ndarray, uncertainty_kf: np.ndarray, depth
     factor * (D_t - D_ki)^2 > U_t + U_ki, i.e. the observation and the key-frame disagree by more than their
     combined standard deviation allows (a wrong stereo match, or another surface). factor = 0 flags nothing.
     """
-    return _outlier(*(np.atleast_1d(np.asarray(a, np.float64))
-                      for a in (depth_kf, uncertainty_kf, depth_obs, uncertainty_obs)), float(factor))
+    return _outlier(*_float64_arrays(depth_kf, uncertainty_kf, depth_obs, uncertainty_obs), float(factor))
 
 
 def fuse_observation_uncertainty(uncertainty_kf: np.ndarray, uncertainty_obs: np.ndarray) -> np.ndarray:
     """CNN-SLAM eq. 11: U_ki = U_t U_ki / (U_ki + U_t), element-wise (m^2), in float64."""
-    return _eq11(np.atleast_1d(np.asarray(uncertainty_kf, np.float64)),
-                 np.atleast_1d(np.asarray(uncertainty_obs, np.float64)))
+    return _eq11(*_float64_arrays(uncertainty_kf, uncertainty_obs))
 
 
 @njit(cache=True, nogil=True)

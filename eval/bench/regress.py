@@ -373,6 +373,11 @@ def save_baseline(baseline: Baseline, path: str | Path) -> Path:
     return path
 
 
+def _list_in(calibration: dict[str, Any], key: str, names: Iterable[str]) -> None:
+    """Add ``names`` to the calibration record's sorted list ``key`` (figures written after the calibration)."""
+    calibration[key] = sorted({*calibration.get(key, []), *names})
+
+
 def update_baseline(
     path: str | Path, run_metrics: Mapping[str, float], tolerances: Sequence[Tolerance] | None = None,
     description: str | None = None, only_new: bool = False, replace_all: bool = False, merge: bool = False,
@@ -411,16 +416,16 @@ def update_baseline(
         rules = (*old.tolerances, *(t for t in DEFAULT_TOLERANCES if t.pattern not in patterns))
         # the calibration record says which figures came after it (and so are in no machine record made before)
         calibration = dict(old.calibration)
-        calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
+        _list_in(calibration, ADDED_KEY, added)
         new = replace(old, metrics={**old.metrics, **added}, tolerances=rules, calibration=calibration)
     elif merge:
         calibration = dict(old.calibration)
         added = [k for k in run_metrics if k not in old.metrics]
         changed = [k for k, v in run_metrics.items() if k in old.metrics and old.metrics[k] != v]
         if added:
-            calibration[ADDED_KEY] = sorted({*calibration.get(ADDED_KEY, []), *added})
+            _list_in(calibration, ADDED_KEY, added)
         if changed:
-            calibration[REWRITTEN_KEY] = sorted({*calibration.get(REWRITTEN_KEY, []), *changed})
+            _list_in(calibration, REWRITTEN_KEY, changed)
         new = replace(old, metrics={**old.metrics, **run_metrics}, calibration=calibration)
     else:
         new = replace(old, metrics=dict(run_metrics))
