@@ -465,7 +465,7 @@ class GlobalModel:
             np.ascontiguousarray(px.n_cam), np.ascontiguousarray(px.z), np.ascontiguousarray(px.sigma2),
             bool(find_misses), float(cfg.miss_margin), float(cfg.association_sigmas),
             float(cfg.min_association_distance), float(cfg.max_association_distance),
-            math.cos(math.radians(cfg.max_normal_angle_deg)))
+            math.cos(math.radians(cfg.max_normal_angle_deg)), int(cfg.pixel_stride))
 
     def associate(self, depth: np.ndarray, T_world_cam: np.ndarray, intrinsics: np.ndarray,
                   variance: np.ndarray | None = None) -> np.ndarray:

@@ -78,20 +78,25 @@ def normal_map_kernel(V, tol):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _splat_one(index, best, i, u, v, z, r, observed, closest):  # pragma: no cover - compiled
-    """:func:`_splat` for the one point i at (u, v), depth z, radius r pixels, into ``index`` and ``best``."""
+def _splat_one(index, best, i, u, v, z, r, observed, closest, grid=1):  # pragma: no cover - compiled
+    """:func:`_splat` for the one point i at (u, v), depth z, radius r pixels, into ``index`` and ``best``; with
+    ``grid`` > 1 only the pixels whose row and column are multiples of ``grid`` (where ``closest`` has all its
+    observations, when they were sampled on that grid)."""
     h, w = best.shape
     uc = int(math.floor(u + 0.5))
     vc = int(math.floor(v + 0.5))
     ri = int(math.ceil(r))
     r2 = r * r
-    for dv in range(-ri, ri + 1):
-        y = vc + dv
-        if y < 0 or y >= h:
-            continue
-        for du in range(-ri, ri + 1):
-            x = uc + du
-            if x < 0 or x >= w or (closest and observed[y, x] <= 0):
+    y_lo = max(vc - ri, 0)
+    x_lo = max(uc - ri, 0)
+    if grid > 1:
+        y_lo = (y_lo + grid - 1) // grid * grid
+        x_lo = (x_lo + grid - 1) // grid * grid
+    for y in range(y_lo, min(vc + ri, h - 1) + 1, grid):
+        dv = y - vc
+        for x in range(x_lo, min(uc + ri, w - 1) + 1, grid):
+            du = x - uc
+            if closest and observed[y, x] <= 0:
                 continue
             if (du != 0 or dv != 0) and (x - u) ** 2 + (y - v) ** 2 > r2:
                 continue
@@ -376,14 +381,18 @@ def merge_kernel(ids, position, normal, colour, radius, weight, confidence, n_ob
 @njit(cache=True, nogil=True)
 def associate_kernel(pos, radius, nrm, conf, weight, R32, t32, R, fx, fy, cx, cy, cap, min_radius, depth,
                       vs, us, x_cam, n_cam, z_m, sigma2, find_misses, miss_margin, assoc_sigmas, min_tol, max_tol,
-                      min_cos):  # pragma: no cover - compiled
+                      min_cos, grid=1):  # pragma: no cover - compiled
     """Step 2, Keller's projective data association, and step 5's free-space test: (target surfel per measurement,
-    -1 = none; ids of the surfels in view that the frame sees through, when ``find_misses``)."""
+    -1 = none; ids of the surfels in view that the frame sees through, when ``find_misses``). ``grid``: the
+    measurements' pixel stride (every row and column a multiple of it: the splat visits those pixels only, the same
+    association; checked, 1 when they are not)."""
     h, w = depth.shape
     m = vs.size
     observed = np.zeros((h, w), np.float32)
     for k in range(m):
         observed[vs[k], us[k]] = z_m[k]
+        if grid > 1 and (vs[k] % grid != 0 or us[k] % grid != 0):
+            grid = 1
     index = np.full((h, w), -1, np.int32)
     best = np.full((h, w), np.inf, np.float32)
     in_view = np.empty(pos.shape[0], np.int64)
@@ -404,7 +413,7 @@ def associate_kernel(pos, radius, nrm, conf, weight, R32, t32, R, fx, fy, cx, cy
                     in_view[n_view] = i
                     n_view += 1
         r_px = min(f_mean * max(radius[i], min_radius) / z, cap)
-        _splat_one(index, best, i, u, v, z, r_px, observed, True)
+        _splat_one(index, best, i, u, v, z, r_px, observed, True, grid)
     target = np.full(m, -1, np.int64)
     for k in range(m):
         i = index[vs[k], us[k]]

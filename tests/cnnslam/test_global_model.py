@@ -240,3 +240,41 @@ def test_bad_inputs_are_rejected_with_the_value_named():
         GlobalModelConfig(voxel_size=0.0)
     with pytest.raises(CnnSlamError, match="label_weighting"):
         GlobalModelConfig(label_weighting="votes")  # type: ignore[arg-type]
+
+
+def test_association_on_the_measurement_grid_equals_the_full_splat():
+    """associate_kernel(grid=2) visits only the even rows and columns, where stride-2 measurements lie: the same
+    targets and misses as the full splat; measurements off that grid fall back to the full splat."""
+    from cnnslam.surfel_kernels import associate_kernel
+
+    rng = np.random.default_rng(3)
+    h, w = 60, 80
+    n = 4000
+    pos = np.column_stack([rng.uniform(-1.5, 1.5, n), rng.uniform(-1.2, 1.2, n), rng.uniform(1.5, 2.5, n)])
+    nrm = np.tile([0.0, 0.0, -1.0], (n, 1)) + rng.normal(0, 0.1, (n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    radius = rng.uniform(0.01, 0.06, n).astype(np.float32)
+    conf = rng.uniform(0.1, 1.0, n).astype(np.float32)
+    weight = rng.uniform(0.5, 2.0, n).astype(np.float32)
+    depth = rng.uniform(1.5, 2.5, (h, w)).astype(np.float32)
+    R, t = np.eye(3), np.zeros(3)
+
+    def run(vs, us, grid):
+        z = depth[vs, us].astype(np.float64)
+        rays = np.column_stack([(us - K[2]) / K[0], (vs - K[3]) / K[1], np.ones(vs.size)])
+        x_cam = rays * z[:, None]
+        n_cam = np.tile([0.0, 0.0, -1.0], (vs.size, 1))
+        return associate_kernel(pos.astype(np.float32), radius, nrm.astype(np.float32), conf, weight,
+                                R.astype(np.float32), t.astype(np.float32), R, K[0], K[1], K[2], K[3], 3.0,
+                                np.float32(0.01), depth, vs, us, x_cam, n_cam, z, np.full(vs.size, 1e-3), True, 0.05,
+                                3.0, 0.01, 0.3, 0.5, grid)
+
+    vs, us = (a.ravel().astype(np.int64) for a in np.mgrid[0:h:2, 0:w:2])
+    full = run(vs, us, 1)
+    assert (full[0] >= 0).sum() > 100 and full[1].size > 100  # a test that associates and misses
+    for got, want in zip(run(vs, us, 2), full, strict=True):
+        np.testing.assert_array_equal(got, want)
+    keep = vs + 1 < h  # rows off the grid: grid=2 would skip their pixels, so the kernel falls back
+    odd_vs, odd_us = vs[keep] + 1, us[keep]
+    for got, want in zip(run(odd_vs, odd_us, 2), run(odd_vs, odd_us, 1), strict=True):
+        np.testing.assert_array_equal(got, want)
