@@ -6,12 +6,18 @@ integers; poses are (4, 4) float64 and named by their frames: ``T_a_b`` maps b-c
 ``[v (translation), w (rotation vector)]`` (Sophus' order, as in LSD-SLAM) and act by left multiplication:
 ``T_new = se3_exp(xi) @ T``. Depth is metric planar z (metres, float32), 0 = no estimate.
 
-Rotations go through :class:`scipy.spatial.transform.Rotation` (rotation vector <-> matrix); the rest is numpy.
+Rotations go through :class:`scipy.spatial.transform.Rotation` (rotation vector <-> matrix); the rest is numpy. One
+twist at a time (the tracking loops' case), :func:`se3_exp` runs a compiled copy of the same arithmetic.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 from scipy.spatial.transform import Rotation
 
 from slamcommon.se3 import relative_pose, se3_inverse  # noqa: F401 - the shared definitions, re-exported
@@ -56,12 +62,71 @@ def _v_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
+@intrinsic
+def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
+    """a * b + c rounded once (LLVM's fma), as the BLAS kernels behind numpy's 3x3 matmul compute their sums."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _se3_exp_one(xi):  # pragma: no cover - compiled
+    """:func:`se3_exp` of one twist (6,) with a rotation below ``_SMALL_ANGLE`` (V's series: numpy's power, whose
+    last bit is its own, is not needed), the same operations in the same order as the numpy path and scipy's
+    from_rotvec / as_matrix (W^2 as BLAS sums it, fused; V v as einsum sums it), so the same bits where numpy's
+    kernels are those (tests: within an ulp anywhere)."""
+    w0, w1, w2 = xi[3], xi[4], xi[5]
+    theta = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if theta > 0:  # _v_coefficients
+        s = math.sin(0.5 * theta)
+        a = 2.0 * (s * s) / (theta * theta)
+    else:
+        a = 0.5
+    t2 = theta * theta
+    b = 1.0 / 6.0 - t2 / 120.0 + (t2 * t2) / 5040.0  # the series: callers pass theta < _SMALL_ANGLE only
+    W = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
+    T = np.zeros((4, 4))
+    for i in range(3):
+        Vv = np.empty(3)
+        for j in range(3):
+            ww = _fma(W[i, 2], W[2, j], _fma(W[i, 1], W[1, j], W[i, 0] * W[0, j]))
+            Vv[j] = (((1.0 if i == j else 0.0) + a * W[i, j]) + b * ww) * xi[j]
+        T[i, 3] = (Vv[0] + Vv[2]) + Vv[1]
+    if theta <= 1e-3:  # scipy's from_rotvec: the quaternion
+        ang2 = theta * theta
+        scale = 0.5 - ang2 / 48.0 + ang2 * ang2 / 3840.0
+    else:
+        scale = math.sin(theta / 2.0) / theta
+    x, y, z, w = scale * w0, scale * w1, scale * w2, math.cos(theta / 2.0)
+    x2, y2, z2, ww2 = x * x, y * y, z * z, w * w  # scipy's as_matrix
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    T[0, 0] = x2 - y2 - z2 + ww2
+    T[1, 0] = 2.0 * (xy + zw)
+    T[2, 0] = 2.0 * (xz - yw)
+    T[0, 1] = 2.0 * (xy - zw)
+    T[1, 1] = -x2 + y2 - z2 + ww2
+    T[2, 1] = 2.0 * (yz + xw)
+    T[0, 2] = 2.0 * (xz + yw)
+    T[1, 2] = 2.0 * (yz - xw)
+    T[2, 2] = -x2 - y2 + z2 + ww2
+    T[3, 3] = 1.0
+    return T
+
+
 def se3_exp(xi: np.ndarray) -> np.ndarray:
     """SE(3) exponential: (..., 6) twists ``[v, w]`` -> (..., 4, 4) float64 rigid transforms.
 
     R = exp(hat(w)) (scipy Rotation.from_rotvec), t = V v with V = I + (1 - cos t)/t^2 W + (t - sin t)/t^3 W^2.
     """
     xi = np.asarray(xi, dtype=np.float64)
+    if xi.shape == (6,) and math.sqrt(xi[3] * xi[3] + xi[4] * xi[4] + xi[5] * xi[5]) < _SMALL_ANGLE:
+        return _se3_exp_one(xi)  # |w| as np.linalg.norm sums it
     batch = xi.shape[:-1]
     flat = xi.reshape(-1, 6)
     w = flat[:, 3:]

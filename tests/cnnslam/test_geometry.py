@@ -114,3 +114,18 @@ def test_orthonormalize_repairs_drift() -> None:
     fixed = orthonormalize(drifted)
     np.testing.assert_allclose(fixed[:3, :3].T @ fixed[:3, :3], np.eye(3), atol=1e-12)
     np.testing.assert_allclose(fixed, T, atol=1e-9)
+
+
+def test_se3_exp_of_one_small_twist_is_the_batched_arithmetic():
+    """One twist with |w| < 1e-2 goes through the compiled copy of the numpy path: the same transform to the last
+    bits (within 2 ulp here, as numpy's own kernels may round differently on another machine), at every scale of
+    small rotation, and a larger rotation still goes the numpy way."""
+    rng = np.random.default_rng(7)
+    mags = rng.choice([0.0, 1e-8, 1e-6, 1e-4, 1e-3, 3e-3, 6e-3], 3000)
+    xis = rng.normal(size=(3000, 6)) * mags[:, None]
+    xis = xis[np.linalg.norm(xis[:, 3:], axis=1) < 1e-2]
+    for xi in xis:
+        one, batched = se3_exp(xi), se3_exp(xi[None])[0]
+        np.testing.assert_allclose(one, batched, rtol=0, atol=4.5e-16 * max(1.0, np.abs(xi[:3]).max()))
+    xi = np.array([0.5, -0.2, 0.1, 0.3, -0.4, 0.2])
+    np.testing.assert_array_equal(se3_exp(xi), se3_exp(xi[None])[0])
