@@ -377,6 +377,21 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
 # ------------------------------------------------------------------------------------------------ TV smoothing
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _tv_dual_px(px: np.ndarray, py: np.ndarray, y: int, x: int, gx: float, gy: float, gg: float, den: float,
+                sig: float) -> None:
+    """The dual step at one pixel: ascent with the Huber prox (``den`` = 1 + sig eps / gg), then the projection
+    onto |p| <= gg."""
+    qx = (px[y, x] + sig * gx) / den
+    qy = (py[y, x] + sig * gy) / den
+    n = math.sqrt(qx * qx + qy * qy) / gg
+    if n > 1.0:
+        qx /= n
+        qy /= n
+    px[y, x] = qx
+    py[y, x] = qy
+
+
 @njit(cache=True, nogil=True)
 def _tv_primal_dual(f: np.ndarray, data_weight: np.ndarray, g: np.ndarray, lam: float, eps: float,
                     iterations: int) -> np.ndarray:
@@ -387,22 +402,29 @@ def _tv_primal_dual(f: np.ndarray, data_weight: np.ndarray, g: np.ndarray, lam: 
     py = np.zeros((h, w))
     tau = 1.0 / math.sqrt(8.0)
     sig = 1.0 / math.sqrt(8.0)
+    # per-pixel constants of the iterations (the same expressions, computed once)
+    gg = np.empty((h, w))
+    den = np.empty((h, w))
+    data = np.empty((h, w))
+    den_u = np.empty((h, w))
+    for y in range(h):
+        for x in range(w):
+            gg[y, x] = max(g[y, x], 1e-9)
+            den[y, x] = 1.0 + sig * eps / gg[y, x]
+            tau_lw = tau * (lam * data_weight[y, x])
+            data[y, x] = tau_lw * f[y, x]
+            den_u[y, x] = 1.0 + tau_lw
     for _ in range(iterations):
-        # dual ascent with the Huber prox and the projection onto |p| <= g
+        # dual ascent with the Huber prox and the projection onto |p| <= g (forward differences; 0 past the edge)
         for y in range(h):
-            for x in range(w):
-                gx = u_bar[y, x + 1] - u_bar[y, x] if x + 1 < w else 0.0
-                gy = u_bar[y + 1, x] - u_bar[y, x] if y + 1 < h else 0.0
-                gg = max(g[y, x], 1e-9)
-                qx = (px[y, x] + sig * gx) / (1.0 + sig * eps / gg)
-                qy = (py[y, x] + sig * gy) / (1.0 + sig * eps / gg)
-                n = math.sqrt(qx * qx + qy * qy) / gg
-                if n > 1.0:
-                    qx /= n
-                    qy /= n
-                px[y, x] = qx
-                py[y, x] = qy
-        # primal descent with the weighted quadratic data term, then over-relaxation
+            last_row = y + 1 >= h
+            for x in range(w - 1):
+                gy = 0.0 if last_row else u_bar[y + 1, x] - u_bar[y, x]
+                _tv_dual_px(px, py, y, x, u_bar[y, x + 1] - u_bar[y, x], gy, gg[y, x], den[y, x], sig)
+            x = w - 1
+            gy = 0.0 if last_row else u_bar[y + 1, x] - u_bar[y, x]
+            _tv_dual_px(px, py, y, x, 0.0, gy, gg[y, x], den[y, x], sig)
+        # primal descent with the weighted quadratic data term, then over-relaxation (backward differences)
         for y in range(h):
             for x in range(w):
                 div = px[y, x] - (px[y, x - 1] if x > 0 else 0.0)
@@ -412,8 +434,7 @@ def _tv_primal_dual(f: np.ndarray, data_weight: np.ndarray, g: np.ndarray, lam: 
                 if y == h - 1:
                     div -= py[y, x]
                 old = u[y, x]
-                lw = lam * data_weight[y, x]
-                new = (old + tau * div + tau * lw * f[y, x]) / (1.0 + tau * lw)
+                new = (old + tau * div + data[y, x]) / den_u[y, x]
                 u[y, x] = new
                 u_bar[y, x] = 2.0 * new - old
     return u
