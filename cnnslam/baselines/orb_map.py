@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from itertools import chain
 
 import numpy as np
 from numba import njit
@@ -286,11 +287,12 @@ class SparseMap:
 
     def flat_observations(self, ids: np.ndarray, descriptors: bool = False) -> FlatObservations:
         """Every observation of points ``ids`` (in that order, each point's in its dict order) as flat arrays."""
-        obs = [self.observations[int(pid)] for pid in ids]
-        counts = np.fromiter((len(o) for o in obs), np.int64, len(obs))
+        observations = self.observations
+        obs = [observations[pid] for pid in np.asarray(ids, dtype=np.int64).tolist()]
+        counts = np.fromiter(map(len, obs), np.int64, len(obs))
         total = int(counts.sum())
-        flat_kf = np.fromiter((k for o in obs for k in o), np.int64, total)
-        flat_kp = np.fromiter((i for o in obs for i in o.values()), np.int64, total)
+        flat_kf = np.fromiter(chain.from_iterable(obs), np.int64, total)  # the dicts' keys, in dict order
+        flat_kp = np.fromiter(chain.from_iterable(map(dict.values, obs)), np.int64, total)
         flat_octave = np.empty(total, np.int64)
         flat_uv = np.empty((total, 2))
         flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
