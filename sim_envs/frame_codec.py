@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 import zstandard
+from numba import njit
 
 from sim_envs.errors import SimEnvError
 
@@ -65,12 +66,25 @@ def _u8_left(a: np.ndarray) -> bytes:
     return out.tobytes()
 
 
+@njit(cache=True, nogil=True)
+def _u8_left_undo(planes: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """(C, H, W) uint8 left differences -> (H, W, C) uint8 running sums along each row, mod 256."""
+    c, h, w = planes.shape
+    out = np.empty((h, w, c), np.uint8)
+    for y in range(h):
+        for k in range(c):
+            acc = 0
+            for x in range(w):
+                acc = (acc + planes[k, y, x]) & 0xFF
+                out[y, x, k] = acc
+    return out
+
+
 def _u8_left_inverse(raw: bytes, shape: tuple[int, ...]) -> np.ndarray:
     h, w = shape[0], shape[1]
     c = int(np.prod(shape[2:], dtype=np.int64))
     planes = np.frombuffer(raw, np.uint8).reshape(c, h, w)
-    summed = np.cumsum(planes, axis=2, dtype=np.uint8)  # wraps mod 256: undoes the differences exactly
-    return np.ascontiguousarray(summed.transpose(1, 2, 0)).reshape(shape)
+    return _u8_left_undo(planes).reshape(shape)  # the running sums wrap mod 256: the differences undone exactly
 
 
 def _b32_delta2(a: np.ndarray) -> bytes:
@@ -85,13 +99,28 @@ def _b32_delta2(a: np.ndarray) -> bytes:
     return np.ascontiguousarray(e.view(np.uint8).reshape(-1, 4).T).tobytes()  # byte planes
 
 
+@njit(cache=True, nogil=True)
+def _b32_delta2_undo(planes: np.ndarray, rows: int) -> np.ndarray:  # pragma: no cover - compiled
+    """(4, N) little-endian byte planes of the twice-differenced 32-bit patterns -> (rows, N / rows) uint32
+    patterns: running sums down each column, then along each row, mod 2^32 (the encoder's wrapping int32)."""
+    cols = planes.shape[1] // rows
+    out = np.empty((rows, cols), np.uint32)
+    column = np.zeros(cols, np.int64)
+    for r in range(rows):
+        acc = 0
+        for j in range(cols):
+            i = r * cols + j
+            e = (np.int64(planes[0, i]) | (np.int64(planes[1, i]) << 8) | (np.int64(planes[2, i]) << 16)
+                 | (np.int64(planes[3, i]) << 24))
+            column[j] = (column[j] + e) & 0xFFFFFFFF
+            acc = (acc + column[j]) & 0xFFFFFFFF
+            out[r, j] = acc
+    return out
+
+
 def _b32_delta2_inverse(raw: bytes, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
-    rows = shape[0]
     planes = np.frombuffer(raw, np.uint8).reshape(4, -1)
-    e = np.ascontiguousarray(planes.T).view(np.int32).reshape(rows, -1)
-    with np.errstate(over="ignore"):
-        bits = np.cumsum(np.cumsum(e, axis=0, dtype=np.int32), axis=1, dtype=np.int32)  # int32 wraps like the encoder
-    return bits.view(dtype).reshape(shape)
+    return _b32_delta2_undo(planes, int(shape[0])).view(dtype).reshape(shape)
 
 
 def _palette(a: np.ndarray) -> tuple[bytes, int] | None:
