@@ -233,7 +233,8 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
                   params: np.ndarray) -> np.ndarray:
     """One REMODE update of every seed in state UPDATE (epipolar ZNCC search, triangulation, VH update, check).
 
-    ref, cur: (H, W) float32 intensities; tmpl_mean, tmpl_std: the reference patches' mean and standard deviation;
+    ref: (H, W) float32, cur: (H, W) float64 intensities; tmpl_mean, tmpl_std: the reference patches' mean and
+    standard deviation;
     mu, sigma2, a, b: (H, W) float64 seed parameters, updated in place; state: (H, W) uint8, updated in place;
     R_cr, t_cr: T_cur_ref; t_rc: the current camera's centre in reference coordinates; intr: [fx, fy, cx, cy];
     params: [half patch, step, max extent, min ZNCC, px error angle, eta_in, eta_out, sigma ratio, min template std].
@@ -529,8 +530,11 @@ class DepthFilter:
         params = np.array([cfg.patch_size // 2, cfg.search_step_px, cfg.max_search_px, cfg.min_zncc,
                            self.px_error_angle, cfg.eta_inlier, cfg.eta_outlier, cfg.convergence_sigma_ratio,
                            cfg.min_template_std])
-        outcome = _update_seeds(self.reference, cur, self.template_mean, self.template_std, self.mu, self.sigma2,
-                                self.a, self.b, self.state, np.ascontiguousarray(T_cur_ref[:3, :3]),
+        # the current image in float64 (the same values: every use in the kernel is float64 arithmetic) spares the
+        # search a conversion per tap
+        outcome = _update_seeds(self.reference, cur.astype(np.float64), self.template_mean, self.template_std,
+                                self.mu, self.sigma2, self.a, self.b, self.state,
+                                np.ascontiguousarray(T_cur_ref[:3, :3]),
                                 np.ascontiguousarray(T_cur_ref[:3, 3]), np.ascontiguousarray(T_ref_cur[:3, 3]),
                                 self.intrinsics, self.depth_range, params)
         self.n_updates += 1
