@@ -121,6 +121,54 @@ class FlatObservations:
     slot: np.ndarray
 
 
+class _KeypointStore:
+    """The keypoints of every key-frame in creation order, in arrays grown by doubling: key-frame ``k``'s keypoint
+    ``i`` is row ``start[k] + i`` of ``octave`` (int64), ``uv`` ((.., 2) float64 pixels) and ``descriptors`` ((.., 32)
+    uint8). The views it hands out cover only the filled rows."""
+
+    def __init__(self) -> None:
+        self._start = np.zeros(16, np.int64)
+        self._octave = np.zeros(1024, np.int64)
+        self._uv = np.zeros((1024, 2))
+        self._descriptors = np.zeros((1024, 32), np.uint8)
+        self._n_keyframes = 0
+        self._rows = 0
+
+    def append(self, features: Features) -> None:
+        """Add the next key-frame's keypoints (key-frame ids are consecutive from 0)."""
+        n = len(features)
+        if self._n_keyframes == self._start.shape[0]:
+            self._start = np.concatenate([self._start, np.zeros_like(self._start)])
+        if self._rows + n > self._octave.shape[0]:
+            grow = max(self._octave.shape[0], n)
+            self._octave = np.concatenate([self._octave, np.zeros(grow, np.int64)])
+            self._uv = np.concatenate([self._uv, np.zeros((grow, 2))])
+            self._descriptors = np.concatenate([self._descriptors, np.zeros((grow, 32), np.uint8)])
+        self._start[self._n_keyframes] = self._rows
+        self._octave[self._rows:self._rows + n] = features.octave
+        self._uv[self._rows:self._rows + n] = features.uv
+        self._descriptors[self._rows:self._rows + n] = features.descriptors
+        self._n_keyframes += 1
+        self._rows += n
+
+    @property
+    def start(self) -> np.ndarray:
+        """(K,) int64 first row of each key-frame."""
+        return self._start[:self._n_keyframes]
+
+    @property
+    def octave(self) -> np.ndarray:
+        return self._octave[:self._rows]
+
+    @property
+    def uv(self) -> np.ndarray:
+        return self._uv[:self._rows]
+
+    @property
+    def descriptors(self) -> np.ndarray:
+        return self._descriptors[:self._rows]
+
+
 @dataclass
 class SparseMap:
     """Key-frames and map points (see the module docstring). Point attributes are arrays indexed by point id."""
@@ -144,6 +192,9 @@ class SparseMap:
     _shared: dict[int, dict[int, int]] = field(default_factory=dict, repr=False)
     # best_covisible's ranking per key-frame, dropped when one of its counts changes
     _ranked: dict[int, list[tuple[int, int]]] = field(default_factory=dict, repr=False)
+    # every key-frame's keypoints one after another (key-frame id k's at rows _kp_start[k] ..): their octaves, pixels
+    # and descriptors, so that flat_observations gathers by row instead of looping over key-frames
+    _kp_store: _KeypointStore = field(default_factory=lambda: _KeypointStore(), repr=False)
 
     # ----------------------------------------------------------------------------------------------- key-frames
 
@@ -152,6 +203,7 @@ class SparseMap:
         kf = KeyFrame(self.next_kf_id, int(frame_index), float(timestamp), np.array(T_cam_world, dtype=np.float64),
                       features, np.full(len(features), -1, dtype=np.int64))
         self.keyframes[kf.id] = kf
+        self._kp_store.append(features)
         self.next_kf_id += 1
         return kf
 
@@ -293,21 +345,15 @@ class SparseMap:
         total = int(counts.sum())
         flat_kf = np.fromiter(chain.from_iterable(obs), np.int64, total)  # the dicts' keys, in dict order
         flat_kp = np.fromiter(chain.from_iterable(map(dict.values, obs)), np.int64, total)
-        flat_octave = np.empty(total, np.int64)
-        flat_uv = np.empty((total, 2))
-        flat_desc = np.empty((total, 32), np.uint8) if descriptors else None
-        kf_ids, slot = np.unique(flat_kf, return_inverse=True)
-        by_kf = np.argsort(slot, kind="stable")
-        bounds = np.searchsorted(slot[by_kf], np.arange(len(kf_ids) + 1))
-        for i, k in enumerate(kf_ids):
-            rows = by_kf[bounds[i]:bounds[i + 1]]
-            feats = self.keyframes[int(k)].features
-            flat_octave[rows] = feats.octave[flat_kp[rows]]
-            flat_uv[rows] = feats.uv[flat_kp[rows]]
-            if flat_desc is not None:
-                flat_desc[rows] = feats.descriptors[flat_kp[rows]]
-        return FlatObservations(counts, flat_kf, flat_kp, flat_octave, flat_uv, flat_desc, kf_ids,
-                                slot.astype(np.int64))
+        present = np.zeros(self.next_kf_id, bool)  # key-frame ids are 0 .. next_kf_id - 1
+        present[flat_kf] = True
+        kf_ids = np.flatnonzero(present)
+        slot = (np.cumsum(present) - 1)[flat_kf]
+        rows = self._kp_store.start[flat_kf] + flat_kp  # np.take: ~8x numpy's fancy indexing of rows of 2-D arrays
+        flat_octave = np.take(self._kp_store.octave, rows)
+        flat_uv = np.take(self._kp_store.uv, rows, axis=0)
+        flat_desc = np.take(self._kp_store.descriptors, rows, axis=0) if descriptors else None
+        return FlatObservations(counts, flat_kf, flat_kp, flat_octave, flat_uv, flat_desc, kf_ids, slot)
 
     def update_points(self, ids: np.ndarray, descriptors: bool = True) -> None:
         """Recompute the viewing direction, distance range and (``descriptors=True``) representative descriptor of

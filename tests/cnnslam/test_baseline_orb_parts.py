@@ -240,6 +240,37 @@ def test_update_points_summaries_have_known_answers() -> None:
     assert m.max_distance[pid] == pytest.approx(np.hypot(1.0, 4.0) * 1.2**2)
 
 
+def test_flat_observations_gathers_each_observing_keypoint() -> None:
+    # 40 key-frames of 30 .. 199 keypoints (the keypoint store grows past its first capacities), random octaves;
+    # every flat row must be the observing key-frame's own keypoint, read back from its Features
+    rng = np.random.default_rng(5)
+    m = SparseMap(1.2, 8)
+    kfs = []
+    for i in range(40):
+        f = _features(int(rng.integers(30, 200)), i)
+        kfs.append(m.new_keyframe(i, i / 30, np.eye(4), Features(f.uv, rng.integers(0, 8, len(f)), f.descriptors,
+                                                                 f.response)))
+    for _ in range(200):  # at most 4 observations a key-frame on average: each keeps free keypoints
+        a, b = (kfs[i] for i in rng.choice(40, 2, replace=False))
+        fa, fb = np.flatnonzero(a.point_ids < 0), np.flatnonzero(b.point_ids < 0)
+        pid = int(m.add_points(rng.normal(0, 1, (1, 3)) + [0, 0, 3], a, fa[:1], b, fb[:1])[0])
+        for c in rng.choice(40, 2, replace=False):
+            if c not in (a.id, b.id):
+                m.add_observation(pid, kfs[c], int(np.flatnonzero(kfs[c].point_ids < 0)[0]))
+    ids = rng.permutation(m.good_point_ids())[:150]
+    flat = m.flat_observations(ids, descriptors=True)
+    rows = [(k, kp) for pid in ids.tolist() for k, kp in m.observations[pid].items()]
+    assert flat.counts.tolist() == [len(m.observations[pid]) for pid in ids.tolist()]
+    assert flat.keyframe.tolist() == [k for k, _ in rows] and flat.keypoint.tolist() == [kp for _, kp in rows]
+    np.testing.assert_array_equal(flat.octave, [kfs[k].features.octave[kp] for k, kp in rows])
+    np.testing.assert_array_equal(flat.uv, [kfs[k].features.uv[kp] for k, kp in rows])
+    np.testing.assert_array_equal(flat.descriptors, [kfs[k].features.descriptors[kp] for k, kp in rows])
+    assert flat.keyframe_ids.tolist() == sorted({k for k, _ in rows})
+    np.testing.assert_array_equal(flat.keyframe_ids[flat.slot], flat.keyframe)
+    assert flat.octave.dtype == np.int64 and flat.slot.dtype == np.int64 and flat.uv.dtype == np.float64
+    assert m.flat_observations(np.zeros(0, np.int64)).counts.size == 0
+
+
 def test_covisibility_kept_by_every_change_equals_a_recount() -> None:
     # random additions, fusions, erasures, bad points and a bad key-frame; after each, the maintained counts must
     # equal a count from scratch over the key-frames' good points
