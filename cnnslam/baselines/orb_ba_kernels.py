@@ -197,7 +197,7 @@ def schur_step(Hcc, gc, Hpp, gp, W, o_cam, free_col, by_point, point_start, lam)
         S[i, i] += lam
     r = -gc
     Vinv = np.empty((P, 3, 3))
-    Y = np.zeros((W.shape[0], 6, 3))
+    Y = np.empty((6, 3))  # H_cp V_p^-1 of the observation in hand
     for p in range(P):
         inv, ok = _inverse_3x3(Hpp[p], lam)
         if not ok:
@@ -210,19 +210,39 @@ def schur_step(Hcc, gc, Hpp, gp, W, o_cam, free_col, by_point, point_start, lam)
                 continue
             for i in range(6):
                 for j in range(3):
-                    Y[a, i, j] = W[a, i, 0] * inv[0, j] + W[a, i, 1] * inv[1, j] + W[a, i, 2] * inv[2, j]
-                r[6 * ca + i] += Y[a, i, 0] * gp[p, 0] + Y[a, i, 1] * gp[p, 1] + Y[a, i, 2] * gp[p, 2]
-            for ib in range(point_start[p], ia + 1):  # the pairs (b, a) with b up to a; (a, b) is its transpose
+                    Y[i, j] = W[a, i, 0] * inv[0, j] + W[a, i, 1] * inv[1, j] + W[a, i, 2] * inv[2, j]
+                r[6 * ca + i] += Y[i, 0] * gp[p, 0] + Y[i, 1] * gp[p, 1] + Y[i, 2] * gp[p, 2]
+            # the pairs (b, a) with b up to a; (a, b) adds the same values to the transposed entries. Off the
+            # diagonal blocks each value goes to the block below the diagonal only (mirrored after the loop: the
+            # same values in the same order as writing both); a point's own pair fills its diagonal block in full
+            for ib in range(point_start[p], ia + 1):
                 b = by_point[ib]
                 cb = free_col[o_cam[b]]
                 if cb < 0:
                     continue
-                for i in range(6):
-                    for j in range(6):
-                        v = Y[a, i, 0] * W[b, j, 0] + Y[a, i, 1] * W[b, j, 1] + Y[a, i, 2] * W[b, j, 2]
-                        S[6 * ca + i, 6 * cb + j] -= v
-                        if ib != ia:
-                            S[6 * cb + j, 6 * ca + i] -= v
+                if ib == ia or ca == cb:
+                    for i in range(6):
+                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                        for j in range(6):
+                            v = y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+                            S[6 * ca + i, 6 * cb + j] -= v
+                            if ib != ia:
+                                S[6 * cb + j, 6 * ca + i] -= v
+                elif ca > cb:
+                    for i in range(6):
+                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                        for j in range(6):
+                            S[6 * ca + i, 6 * cb + j] -= y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+                else:
+                    for i in range(6):
+                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                        for j in range(6):
+                            S[6 * cb + j, 6 * ca + i] -= y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+    for ca in range(nc // 6):
+        for cb in range(ca):
+            for i in range(6):
+                for j in range(6):
+                    S[6 * cb + j, 6 * ca + i] = S[6 * ca + i, 6 * cb + j]
     if nc:
         dc, ok = _cholesky_solve(S, r)
         if not ok:

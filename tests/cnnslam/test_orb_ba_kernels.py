@@ -4,6 +4,7 @@ Jacobian of the residuals, and the Schur-complement step against the dense solve
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from cnnslam.baselines.orb_ba import HUBER_DELTA, MIN_DEPTH, huber_weights, project
 from cnnslam.baselines.orb_ba_kernels import _left_update, normal_equations, robust_cost, schur_step
@@ -84,9 +85,12 @@ def test_normal_equations_match_a_finite_difference_jacobian() -> None:
     np.testing.assert_allclose(chi2, (e.reshape(-1, 2) ** 2).sum(axis=1), rtol=1e-12)
 
 
-def test_schur_step_solves_the_damped_dense_system() -> None:
+@pytest.mark.parametrize("free_col", [[-1, 0, 1, 2], [-1, 2, 1, 0]])
+def test_schur_step_solves_the_damped_dense_system(free_col: list[int]) -> None:
+    # the second order puts each point's later observation in an earlier block column: the kernel's off-diagonal
+    # blocks are then filled from the other side of the diagonal
     T, X, oc, op, uv, inv_sigma = _problem(1)
-    free_col = np.array([-1, 0, 1, 2])
+    free_col = np.array(free_col)
     Hcc, gc, Hpp, gp, W = normal_equations(T[:, :3, :3], T[:, :3, 3], X, oc, op, uv, inv_sigma, INTR, free_col, 3,
                                            HUBER_DELTA, MIN_DEPTH)
     n = 18 + 3 * len(X)
