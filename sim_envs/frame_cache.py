@@ -25,9 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from sim_envs.errors import SimEnvError
+from sim_envs.errors import RendererUnavailableError, SimEnvError
 from sim_envs.frame_codec import FRAME_FORMAT, FrameCodecError, decode_frame, encode_frame
 from sim_envs.frames import Frame
+from sim_envs.render.gl import gl_platform
 
 _ARRAYS = ("rgb", "depth", "T_world_cam", "labels", "instances", "sensor_depth")
 CACHE_FORMAT = f"frames/2+{FRAME_FORMAT}"  # 1: one uncompressed .npz per frame; 2: sim_envs.frame_codec files
@@ -50,12 +51,22 @@ def world_source_hash() -> str:
 _NUMERIC_ENV_PREFIXES = ("OPENBLAS", "NPY_", "OPENCV", "NUMBA", "ATEN", "ONEDNN", "MKL", "OMP_", "PYOPENGL", "MUJOCO")
 
 
+# the GL platform's variables: in the key as the platform rendering uses (sim_envs.render.gl.gl_platform), which
+# is the same before and after the renderer exported it (a process that has rendered kept another key before)
+_GL_ENV = ("MUJOCO_GL", "PYOPENGL_PLATFORM")
+
+
 def cache_key(description: Any, renderer: str) -> str:
     """The cache folder's name for a source described by ``description`` (JSON-ready) rendered by ``renderer``,
-    under this world's code and this process's numeric-library environment."""
-    env = {k: v for k, v in sorted(os.environ.items()) if k.startswith(_NUMERIC_ENV_PREFIXES)}
+    under this world's code, this process's numeric-library environment and the offscreen GL platform rendering
+    uses (``"none"`` where there is none)."""
+    env = {k: v for k, v in sorted(os.environ.items()) if k.startswith(_NUMERIC_ENV_PREFIXES) and k not in _GL_ENV}
+    try:
+        gl = gl_platform()
+    except RendererUnavailableError:
+        gl = "none"
     text = json.dumps({"source": description, "renderer": renderer, "world": world_source_hash(), "env": env,
-                       "format": CACHE_FORMAT}, sort_keys=True, default=str)
+                       "gl": gl, "format": CACHE_FORMAT}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 

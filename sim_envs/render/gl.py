@@ -44,13 +44,12 @@ def missing_library_message(platforms: tuple[str, ...] = GL_PLATFORMS) -> str:
     )
 
 
-def configure_gl(probe: Callable[[str], bool] = library_loadable) -> str:
-    """Choose the offscreen platform, export it to MuJoCo and PyOpenGL, and return it (``"egl"`` or ``"osmesa"``).
+def gl_platform(probe: Callable[[str], bool] = library_loadable) -> str:
+    """The offscreen platform :func:`configure_gl` chooses (``"egl"`` or ``"osmesa"``), without exporting it.
 
-    A platform already named by ``MUJOCO_GL`` or ``PYOPENGL_PLATFORM`` wins (the other variable is set to match when
-    unset). Otherwise EGL is used when ``libEGL.so.1`` loads, else OSMesa when ``libOSMesa.so`` loads, else
-    :class:`RendererUnavailableError` names both libraries. ``probe(library_name) -> bool`` tells whether a library
-    loads (injected by tests).
+    A platform already named by ``MUJOCO_GL`` or ``PYOPENGL_PLATFORM`` wins. Otherwise EGL is used when
+    ``libEGL.so.1`` loads, else OSMesa when ``libOSMesa.so`` loads, else :class:`RendererUnavailableError` names
+    both libraries. ``probe(library_name) -> bool`` tells whether a library loads (injected by tests).
     """
     mujoco_gl = os.environ.get("MUJOCO_GL", "").strip().lower()
     pyopengl = os.environ.get("PYOPENGL_PLATFORM", "").strip().lower()
@@ -64,13 +63,17 @@ def configure_gl(probe: Callable[[str], bool] = library_loadable) -> str:
             raise RendererUnavailableError(
                 f"MUJOCO_GL={mujoco_gl!r} and PYOPENGL_PLATFORM={pyopengl!r} disagree; set both to 'egl' or 'osmesa'"
             )
-    else:
-        for platform in GL_PLATFORMS:
-            if any(probe(lib) for lib in _LIBRARIES[platform][0]):
-                chosen = platform
-                break
-        else:
-            raise RendererUnavailableError(missing_library_message())
+        return chosen
+    for platform in GL_PLATFORMS:
+        if any(probe(lib) for lib in _LIBRARIES[platform][0]):
+            return platform
+    raise RendererUnavailableError(missing_library_message())
+
+
+def configure_gl(probe: Callable[[str], bool] = library_loadable) -> str:
+    """Choose the offscreen platform (:func:`gl_platform`), export it to MuJoCo and PyOpenGL (``MUJOCO_GL`` and
+    ``PYOPENGL_PLATFORM``, each where unset), and return it (``"egl"`` or ``"osmesa"``)."""
+    chosen = gl_platform(probe)
     os.environ.setdefault("MUJOCO_GL", chosen)
     os.environ.setdefault("PYOPENGL_PLATFORM", chosen)
     _check_pyopengl_platform(chosen)

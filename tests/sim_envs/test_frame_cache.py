@@ -7,6 +7,7 @@ import numpy as np
 
 from sim_envs import frame_cache
 from sim_envs.frame_cache import CachedFrames, cache_key, world_source_hash
+from sim_envs.render.gl import gl_platform
 from sim_envs.sequences import get_sequence, with_camera
 from sim_envs.simsource import SimulatedSequence
 
@@ -58,6 +59,22 @@ def test_the_key_follows_source_renderer_and_environment(monkeypatch) -> None:
     monkeypatch.delenv("NPY_DISABLE_CPU_FEATURES")
     monkeypatch.setattr(frame_cache, "CACHE_FORMAT", "frames/1")  # a cache of another format is another folder
     assert cache_key({"name": "office0"}, "mujoco") != a
+
+
+def test_the_key_is_the_same_before_and_after_the_renderer_exports_its_gl_platform(monkeypatch) -> None:
+    # rendering exports MUJOCO_GL / PYOPENGL_PLATFORM (configure_gl): a run after a rendering in the same process
+    # must find the frames that rendering stored; another platform is another key
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    monkeypatch.delenv("PYOPENGL_PLATFORM", raising=False)
+    before = cache_key({"name": "office0"}, "mujoco")
+    chosen = gl_platform()
+    monkeypatch.setenv("MUJOCO_GL", chosen)
+    monkeypatch.setenv("PYOPENGL_PLATFORM", chosen)
+    assert cache_key({"name": "office0"}, "mujoco") == before
+    other = "osmesa" if chosen == "egl" else "egl"
+    monkeypatch.setenv("MUJOCO_GL", other)
+    monkeypatch.setenv("PYOPENGL_PLATFORM", other)
+    assert cache_key({"name": "office0"}, "mujoco") != before
 
 
 def test_timestamps_and_poses_are_kept_beside_the_frames(tmp_path) -> None:
