@@ -112,8 +112,10 @@ def normal_equations(R, t, X, o_cam, o_pt, uv, inv_sigma, intr, free_col, n_free
         for j in range(3):
             Jp[0, j] = a00 * R[c, 0, j] + a02 * R[c, 2, j]
             Jp[1, j] = a11 * R[c, 1, j] + a12 * R[c, 2, j]
+        # the blocks are symmetric entry by entry (the same products, commuted): the upper triangles are summed
+        # here and mirrored at the end
         for i in range(3):
-            for j in range(3):
+            for j in range(i, 3):
                 Hpp[p, i, j] += w * (Jp[0, i] * Jp[0, j] + Jp[1, i] * Jp[1, j])
             gp[p, i] += w * (Jp[0, i] * e0 + Jp[1, i] * e1)
         col = free_col[c]
@@ -121,11 +123,20 @@ def normal_equations(R, t, X, o_cam, o_pt, uv, inv_sigma, intr, free_col, n_free
             continue
         b = 6 * col
         for i in range(6):
-            for j in range(6):
+            for j in range(i, 6):
                 Hcc[b + i, b + j] += w * (Jc[0, i] * Jc[0, j] + Jc[1, i] * Jc[1, j])
             gc[b + i] += w * (Jc[0, i] * e0 + Jc[1, i] * e1)
             for j in range(3):
                 W[k, i, j] = w * (Jc[0, i] * Jp[0, j] + Jc[1, i] * Jp[1, j])
+    for p in range(P):
+        for i in range(3):
+            for j in range(i):
+                Hpp[p, i, j] = Hpp[p, j, i]
+    for col in range(n_free):
+        b = 6 * col
+        for i in range(6):
+            for j in range(i):
+                Hcc[b + i, b + j] = Hcc[b + j, b + i]
     return Hcc, gc, Hpp, gp, W
 
 
