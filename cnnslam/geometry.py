@@ -15,11 +15,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
 from scipy.spatial.transform import Rotation
 
+from slamcommon.fused import fma as _fma  # a * b + c rounded once, as the BLAS kernels behind numpy's 3x3 matmul sum
 from slamcommon.se3 import relative_pose, se3_inverse  # noqa: F401 - the shared definitions, re-exported
 
 _SMALL_ANGLE = 1e-2  # rad; below this the series of V and V^-1 are used (error < 1e-17 there) (ours)
@@ -60,19 +59,6 @@ def _v_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.where(theta > 0, 2.0 * np.sin(0.5 * t) ** 2 / t**2, 0.5)
     b = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2**2 / 5040.0, (t - np.sin(t)) / t**3)
     return a, b
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
-    """a * b + c rounded once (LLVM's fma), as the BLAS kernels behind numpy's 3x3 matmul compute their sums."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):
-        d = ir.DoubleType()
-        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
-        return builder.call(fn, args)
-
-    return sig, codegen
 
 
 @njit(cache=True, nogil=True, inline="always")
