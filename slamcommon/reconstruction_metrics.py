@@ -41,9 +41,11 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial import cKDTree
 
 from slamcommon.errors import MetricError
+from slamcommon.fused import fma
 from slamcommon.labels import NO_LABEL, NUM_CLASSES
 from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
 
@@ -257,24 +259,38 @@ def visible_in_views(points: np.ndarray, T_world_cam: np.ndarray, depths: np.nda
     fx, fy, cx, cy = np.asarray(intrinsics, dtype=np.float64).reshape(4)
     seen = np.zeros(p.shape[0], dtype=bool)
     for T, depth in zip(poses, depths, strict=True):
-        d = np.asarray(depth, dtype=np.float32)
+        d = np.ascontiguousarray(depth, dtype=np.float32)
         if d.ndim != 2:
             raise ReconstructionMetricsError(f"depth maps must be (H, W), got {d.shape}")
-        h, w = d.shape
-        R, t = T[:3, :3], T[:3, 3]
-        todo = np.flatnonzero(~seen)
-        q = (p[todo] - t) @ R  # camera coordinates: R^T (p - t)
-        z = q[:, 2]
-        front = z > 1e-6
-        todo, q, z = todo[front], q[front], z[front]
-        u = np.rint(fx * q[:, 0] / z + cx)
-        v = np.rint(fy * q[:, 1] / z + cy)
-        inside = (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
-        todo, z = todo[inside], z[inside]
-        dz = d[v[inside].astype(np.intp), u[inside].astype(np.intp)]
-        ok = (dz > 0) & (np.abs(z - dz) < abs_tolerance + rel_tolerance * z)
-        seen[todo[ok]] = True
+        _mark_seen(p, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), d, fx, fy, cx, cy,
+                   float(abs_tolerance), float(rel_tolerance), seen)
     return seen
+
+
+@njit(cache=True, nogil=True)
+def _mark_seen(p, R, t, d, fx, fy, cx, cy, abs_tolerance, rel_tolerance, seen):  # pragma: no cover - compiled
+    """Set ``seen`` for the points not yet seen that the view (R, t: camera-to-world; d: its float32 depth map) sees.
+
+    One pass in the operations and order of the numpy formulation (camera coordinates (p - t) @ R as BLAS sums
+    them, fused; then z > 1e-6, u = rint(fx x / z + cx), v likewise, inside [0, W - 1] x [0, H - 1], depth > 0 and
+    |z - depth| < abs + rel z), so the same points (tests: against that formulation)."""
+    h, w = d.shape
+    for i in range(p.shape[0]):
+        if seen[i]:
+            continue
+        a0, a1, a2 = p[i, 0] - t[0], p[i, 1] - t[1], p[i, 2] - t[2]
+        z = fma(a2, R[2, 2], fma(a1, R[1, 2], a0 * R[0, 2]))
+        if not z > 1e-6:
+            continue
+        x = fma(a2, R[2, 0], fma(a1, R[1, 0], a0 * R[0, 0]))
+        y = fma(a2, R[2, 1], fma(a1, R[1, 1], a0 * R[0, 1]))
+        u = np.rint(fx * x / z + cx)
+        v = np.rint(fy * y / z + cy)
+        if not (u >= 0 and u <= w - 1 and v >= 0 and v <= h - 1):
+            continue
+        dz = d[int(v), int(u)]
+        if dz > 0 and abs(z - dz) < abs_tolerance + rel_tolerance * z:
+            seen[i] = True
 
 
 def nearest_labels(points: np.ndarray, gt_points: np.ndarray, gt_labels: np.ndarray,

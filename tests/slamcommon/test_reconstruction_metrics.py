@@ -2,9 +2,12 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from sim_envs.frames import NO_LABEL
 from slamcommon.reconstruction_metrics import (
+    VISIBILITY_ABS_TOLERANCE,
+    VISIBILITY_REL_TOLERANCE,
     ReconstructionMetricsError,
     distance_to_surface,
     image_label_accuracy,
@@ -100,6 +103,54 @@ def test_visibility_keeps_points_seen_and_not_occluded():
     assert seen2.tolist() == [True, True, True, False, False]
     with pytest.raises(ReconstructionMetricsError, match="depth maps"):
         visible_in_views(pts, np.stack([T, T2]), [depth], K)
+
+
+def _visible_numpy(points, poses, depths, intrinsics, abs_tol, rel_tol):
+    """visible_in_views as whole-array numpy (its formulation before the compiled kernel): the reference."""
+    fx, fy, cx, cy = intrinsics
+    seen = np.zeros(len(points), dtype=bool)
+    for T, d in zip(poses, depths, strict=True):
+        h, w = d.shape
+        todo = np.flatnonzero(~seen)
+        q = (points[todo] - T[:3, 3]) @ T[:3, :3]
+        z = q[:, 2]
+        front = z > 1e-6
+        todo, q, z = todo[front], q[front], z[front]
+        u, v = np.rint(fx * q[:, 0] / z + cx), np.rint(fy * q[:, 1] / z + cy)
+        inside = (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
+        todo, z = todo[inside], z[inside]
+        dz = d[v[inside].astype(np.intp), u[inside].astype(np.intp)]
+        seen[todo[(dz > 0) & (np.abs(z - dz) < abs_tol + rel_tol * z)]] = True
+    return seen
+
+
+def test_visibility_kernel_sees_the_points_the_numpy_formulation_sees():
+    # a room of random points, 12 random views with depth maps of a noisy wall and holes, maps of two sizes; the
+    # points are placed on the maps' surfaces so that many sit at the tolerance's and the pixels' borders
+    rng = np.random.default_rng(7)
+    K = np.array([240.6, 240.0, 159.5, 119.5])
+    poses, depths = [], []
+    for k in range(12):
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_rotvec(rng.normal(0, 0.3, 3)).as_matrix()
+        T[:3, 3] = rng.normal(0, 0.5, 3)
+        h, w = (240, 320) if k % 2 else (120, 160)
+        d = (2.0 + rng.normal(0, 0.05, (h, w))).astype(np.float32)
+        d[rng.random((h, w)) < 0.1] = 0.0
+        poses.append(T)
+        depths.append(d)
+    on_wall = []
+    for T, d in zip(poses[:4], depths[:4], strict=True):  # back-projected pixels, jittered around the tolerance
+        h, w = d.shape
+        u, v = rng.uniform(-0.5, w - 0.5, 3000), rng.uniform(-0.5, h - 0.5, 3000)
+        z = 2.0 * (1 + rng.normal(0, 0.02, 3000)) + rng.choice([-0.07, -0.03, 0.0, 0.03, 0.07], 3000)
+        x, y = (u - K[2]) / K[0] * z, (v - K[3]) / K[1] * z
+        on_wall.append(np.c_[x, y, z] @ T[:3, :3].T + T[:3, 3])
+    pts = np.concatenate([rng.uniform(-4, 4, (20000, 3)), *on_wall])
+    seen = visible_in_views(pts, np.stack(poses), depths, K)
+    expected = _visible_numpy(pts, np.stack(poses), depths, K, VISIBILITY_ABS_TOLERANCE, VISIBILITY_REL_TOLERANCE)
+    assert 1000 < expected.sum() < len(pts) - 1000
+    np.testing.assert_array_equal(seen, expected)
 
 
 def test_label_fusion_metrics_count_the_same_points_for_both():
