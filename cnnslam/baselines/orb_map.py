@@ -158,14 +158,17 @@ class _KeypointStore:
 
     @property
     def octave(self) -> np.ndarray:
+        """(R,) int64 pyramid level of every stored keypoint."""
         return self._octave[:self._rows]
 
     @property
     def uv(self) -> np.ndarray:
+        """(R, 2) float64 pixel of every stored keypoint."""
         return self._uv[:self._rows]
 
     @property
     def descriptors(self) -> np.ndarray:
+        """(R, 32) uint8 descriptor of every stored keypoint."""
         return self._descriptors[:self._rows]
 
 
@@ -192,9 +195,9 @@ class SparseMap:
     _shared: dict[int, dict[int, int]] = field(default_factory=dict, repr=False)
     # best_covisible's ranking per key-frame, dropped when one of its counts changes
     _ranked: dict[int, list[tuple[int, int]]] = field(default_factory=dict, repr=False)
-    # every key-frame's keypoints one after another (key-frame id k's at rows _kp_start[k] ..): their octaves, pixels
-    # and descriptors, so that flat_observations gathers by row instead of looping over key-frames
-    _kp_store: _KeypointStore = field(default_factory=lambda: _KeypointStore(), repr=False)
+    # every key-frame's keypoints one after another (key-frame k's from row _kp_store.start[k]): their octaves,
+    # pixels and descriptors, so that flat_observations gathers by row instead of looping over key-frames
+    _kp_store: _KeypointStore = field(default_factory=_KeypointStore, repr=False)
 
     # ----------------------------------------------------------------------------------------------- key-frames
 
