@@ -4,7 +4,10 @@ without the others.
 
 Each array goes through a reversible transform that leaves small numbers where neighbouring pixels agree, then
 Zstandard (level :data:`ZSTD_LEVEL`). The encoder tries every transform that applies to the array's dtype and keeps
-the shortest result (the choice is stored):
+the shortest result (the choice is stored). For an array of :data:`SAMPLE_MIN_BYTES` or more it compresses a sample
+of each transform's bytes first (:func:`estimated_sizes`: evenly spaced chunks, 1/8 of them) and compresses in full
+only the transforms within :data:`SAMPLE_MARGIN` of the best estimate, so that a frame is not compressed four times
+over (a kinect frame: 6.8 -> 3.3 ms of Zstandard). The choice never changes what comes back, only how short it is:
 
 - ``u8-left``: uint8 images, channel planes, each pixel minus its left neighbour (mod 256). Camera images with sensor
   noise compress to about 55 % (a 320x240 RGB frame of the ``kinect`` camera: 230 -> 125 KB).
@@ -40,6 +43,10 @@ ZSTD_LEVEL = 3  # Zstandard's default: 1.7 ms to compress a kinect RGB frame, 0.
 PALETTE_MAX = 65536  # distinct values a palette may hold (uint16 indices)
 PALETTE_SAMPLE_STEP = 16  # the palette is tried only when every 16th element has at most ...
 PALETTE_SAMPLE_MAX = 2048  # ... this many distinct values (rendered depth has thousands: 0.4 ms to find out)
+SAMPLE_MIN_BYTES = 65536  # arrays this large choose their transform from compressed samples ...
+SAMPLE_CHUNKS = 8  # ... of this many evenly spaced chunks of a transform's bytes, ...
+SAMPLE_SHARE = 8  # ... 1/8 of the bytes in all; ...
+SAMPLE_MARGIN = 1.1  # ... every transform whose estimate is within 10 % of the best is compressed in full
 _HEADER_LEN = struct.Struct("<I")
 
 
@@ -159,6 +166,21 @@ def _candidates(a: np.ndarray) -> Iterable[tuple[str, bytes, int]]:
     yield "raw", np.ascontiguousarray(a).tobytes(), 0
 
 
+def estimated_sizes(compressor: zstandard.ZstdCompressor, candidates: list[bytes]) -> list[int]:
+    """For each of ``candidates`` (transformed bytes of one array), the compressed length of a sample of it:
+    :data:`SAMPLE_CHUNKS` evenly spaced chunks, 1 / :data:`SAMPLE_SHARE` of its bytes in all, compressed as one
+    (about that share of the full length; used to rank the transforms, never stored)."""
+    sizes = []
+    for raw in candidates:
+        n = len(raw)
+        chunk = max(n // (SAMPLE_CHUNKS * SAMPLE_SHARE), 1)
+        starts = np.linspace(0, max(n - chunk, 0), SAMPLE_CHUNKS).astype(np.int64)
+        view = memoryview(raw)
+        sizes.append(len(compressor.compress(b"".join(view[int(s): int(s) + chunk] for s in starts))) * n
+                     // max(SAMPLE_CHUNKS * chunk, 1))
+    return sizes
+
+
 # ------------------------------------------------------------------------------------------------- a whole frame
 def encode_frame(index: int, timestamp: float, arrays: Mapping[str, np.ndarray]) -> bytes:
     """The bytes of one frame: ``index``, ``timestamp`` (seconds) and ``arrays`` (name -> array of any numeric
@@ -169,8 +191,13 @@ def encode_frame(index: int, timestamp: float, arrays: Mapping[str, np.ndarray])
         a = np.asarray(value)
         if a.dtype.hasobject:
             raise FrameCodecError(f"array {name!r}: dtype {a.dtype} cannot be stored")
+        candidates = list(_candidates(a))
+        if a.nbytes >= SAMPLE_MIN_BYTES and len(candidates) > 1:
+            estimates = estimated_sizes(compressor, [raw for _, raw, _ in candidates])
+            bound = SAMPLE_MARGIN * min(estimates)
+            candidates = [c for c, e in zip(candidates, estimates, strict=True) if e <= bound]
         best: tuple[str, bytes, int] | None = None
-        for transform, raw, n_values in _candidates(a):
+        for transform, raw, n_values in candidates:
             packed = compressor.compress(raw)
             if best is None or len(packed) < len(best[1]):
                 best = (transform, packed, n_values)

@@ -91,3 +91,47 @@ def test_each_transform_is_exact_on_its_own(name: str) -> None:
     if pal is not None:
         back = fc._palette_inverse(pal[0], a.shape, a.dtype, pal[1])
         assert back.dtype == a.dtype and back.tobytes() == a.tobytes()
+
+
+def _large_arrays(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Frame-sized arrays (320x240) as a camera gives them (noise in the images and the depth), each above the
+    sampling threshold, each with a clear best transform."""
+    h, w = 240, 320
+    yy, xx = np.mgrid[0:h, 0:w]
+    depth = (1.0 / (0.2 + 0.001 * xx + 0.002 * yy) * (1 + 1e-4 * rng.normal(size=(h, w)))).astype(np.float32)
+    return {
+        "rgb": np.clip((xx + yy)[..., None] // 2 + rng.integers(0, 9, (h, w, 3)), 0, 255).astype(np.uint8),
+        "depth": depth,
+        "sensor_depth": (np.round(depth * (1 + 0.01 * rng.normal(size=(h, w)))* 50) / 50).astype(np.float32),
+        "instances": np.where(xx < 150, 3, np.where(yy < 100, 8, -1)).astype(np.int32),
+    }
+
+
+def test_sampled_choice_is_lossless_and_picks_what_full_compression_picks(monkeypatch: pytest.MonkeyPatch) -> None:
+    arrays = _large_arrays(np.random.default_rng(3))
+    assert all(a.nbytes >= fc.SAMPLE_MIN_BYTES for a in arrays.values())
+    sampled = encode_frame(1, 0.5, arrays)
+    monkeypatch.setattr(fc, "SAMPLE_MIN_BYTES", 1 << 62)  # every transform compressed in full
+    full = encode_frame(1, 0.5, arrays)
+    assert _transforms(sampled) == _transforms(full)
+    assert _transforms(sampled) == {"rgb": "u8-left", "depth": "b32-delta2", "sensor_depth": "palette",
+                                    "instances": "b32-delta2"}
+    assert sampled == full  # the same choices give the same bytes
+    back = decode_frame(sampled)
+    assert all(back.arrays[k].tobytes() == a.tobytes() for k, a in arrays.items())
+
+
+def test_estimated_sizes_follow_the_full_compressed_lengths() -> None:
+    import zstandard
+
+    compressor = zstandard.ZstdCompressor(level=fc.ZSTD_LEVEL)
+    arrays = _large_arrays(np.random.default_rng(4))
+    raws = [raw for _, raw, _ in fc._candidates(arrays["depth"])] + [
+        raw for _, raw, _ in fc._candidates(arrays["rgb"])]
+    estimates = fc.estimated_sizes(compressor, raws)
+    lengths = [len(compressor.compress(r)) for r in raws]
+    ratio = np.asarray(estimates, float) / np.asarray(lengths, float)
+    assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
+    assert np.argmin(estimates[:-2]) == np.argmin(lengths[:-2])  # the depth's best transform
+    assert np.argmin(estimates[-2:]) == np.argmin(lengths[-2:])  # the image's
+    assert fc.estimated_sizes(compressor, [b""]) == [0]
