@@ -30,6 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
+from numba import njit
 
 from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
 from cnnslam.depthnet.model import DepthSemanticNet, fold_batch_norms, normalize_rgb
@@ -52,6 +53,30 @@ class Prediction:
     def labels(self) -> np.ndarray:
         """(H, W) uint8 most probable class per pixel."""
         return np.argmax(self.label_probs, axis=-1).astype(np.uint8)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _normalised_short_rows(p: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """``p / p.sum(axis=-1, keepdims=True)`` of an (H, W, C) float32 array with C < 8, in one pass: each sum in the
+    order NumPy adds a row that short (left to right, from 0), so the same bits."""
+    h, w, c = p.shape
+    out = np.empty((h, w, c), np.float32)
+    for y in range(h):
+        for x in range(w):
+            s = np.float32(0.0)
+            for k in range(c):
+                s += p[y, x, k]
+            for k in range(c):
+                out[y, x, k] = p[y, x, k] / s
+    return out
+
+
+def normalised_rows(p: np.ndarray) -> np.ndarray:
+    """(H, W, C) float32 ``p / p.sum(axis=-1, keepdims=True)``: class scores made distributions per pixel (a
+    compiled pass for the network's few classes, NumPy otherwise; the same bits either way)."""
+    if p.dtype == np.float32 and p.ndim == 3 and p.shape[2] < 8:
+        return _normalised_short_rows(np.ascontiguousarray(p))
+    return (p / p.sum(axis=-1, keepdims=True)).astype(np.float32)
 
 
 def _check_rgb(rgb: np.ndarray) -> np.ndarray:
@@ -145,8 +170,7 @@ class DepthNetPredictor:
         depth, probs = self._forward(small)
         depth = cv2.resize(depth, (w, h), interpolation=cv2.INTER_LINEAR)
         probs = cv2.resize(probs, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
-        probs = probs / probs.sum(axis=-1, keepdims=True)
-        return Prediction(depth.astype(np.float32), probs.astype(np.float32))
+        return Prediction(depth.astype(np.float32), normalised_rows(probs))
 
     def current_focal(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
         """f_cur of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy] (pixels), brought to the

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, normalize_rgb
-from cnnslam.depthnet.predict import DepthNetPredictor, Prediction, load_predictor
+from cnnslam.depthnet.predict import DepthNetPredictor, Prediction, load_predictor, normalised_rows
 from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS, load_weights, save_weights
 from cnnslam.errors import CnnSlamError
 
@@ -195,3 +195,16 @@ def test_predictor_runs_the_folded_network_to_the_models_rounding() -> None:
     got = predictor.predict_raw(rgb)
     np.testing.assert_allclose(got.depth, depth[0, 0].numpy(), rtol=2e-6)
     np.testing.assert_allclose(got.label_probs, torch.softmax(logits, 1)[0].permute(1, 2, 0).numpy(), atol=2e-6)
+
+
+@pytest.mark.parametrize("classes", [1, 2, 4, 7, 9])
+def test_normalised_rows_has_numpys_bits(classes: int) -> None:
+    rng = np.random.default_rng(classes)
+    p = (rng.random((37, 53, classes)) ** 3).astype(np.float32)
+    p[0, 0] = 0.0  # a row of zeros: NaN, as NumPy gives it
+    p[1, 1, 0] = 1e-30
+    with np.errstate(invalid="ignore"):
+        expected = (p / p.sum(axis=-1, keepdims=True)).astype(np.float32)
+        got = normalised_rows(p)
+    assert got.dtype == np.float32 and got.shape == p.shape
+    assert got.tobytes() == expected.tobytes()
