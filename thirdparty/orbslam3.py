@@ -180,9 +180,10 @@ class OrbSlam3Agent:
         except (BrokenPipeError, OSError):
             line = b""
         if not line:
+            code = proc.poll()  # before the kill below, whose -9 would hide a hang
+            why = f"no answer in {self.timeout_s:g} s" if code is None else f"exit code {code}"
             self._stop(kill=True)
-            raise RuntimeError(f"the ORB-SLAM3 program gave no answer to {header['cmd']!r} "
-                               f"({'timed out' if proc.poll() is None else f'exit code {proc.poll()}'}); "
+            raise RuntimeError(f"the ORB-SLAM3 program gave no answer to {header['cmd']!r} ({why}); "
                                f"its last output: {self._log_tail()}")
         answer = json.loads(line)
         if "error" in answer:

@@ -71,3 +71,23 @@ def test_missing_package_is_a_clear_import_error(monkeypatch):
     finally:
         monkeypatch.undo()
         sys.modules["thirdparty.orbslam3"] = importlib.reload(module)
+
+
+@pytest.mark.parametrize(("program", "why"), [("import time; time.sleep(60)", "no answer in 0.5 s"),
+                                              ("import sys; sys.exit(3)", "exit code 3")])
+def test_a_hung_or_dead_program_is_named_as_such(program: str, why: str) -> None:
+    """A program that hangs is reported as hanging (it used to read as 'exit code -9': the kill that ends it), one
+    that died with its exit code; either way it is stopped."""
+    import subprocess
+
+    from thirdparty.orbslam3 import OrbSlam3Agent
+
+    agent = OrbSlam3Agent(timeout_s=0.5)
+    proc = subprocess.Popen([sys.executable, "-c", program], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    if why.startswith("exit"):
+        proc.wait(timeout=30)
+    agent._proc = proc
+    with pytest.raises(RuntimeError, match=f"gave no answer to 'track' \\({why}\\)"):
+        agent._request({"cmd": "track"}, b"x")
+    assert proc.poll() is not None and agent._proc is None
+    agent.close()
