@@ -80,7 +80,14 @@ from cnnslam.config import LABEL_WEIGHTINGS, GlobalModelConfig, LabelWeighting  
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import pixel_rays, se3_inverse
 from cnnslam.icp import ADAPTIVE_NORMAL_CONSISTENCY, SurfaceMaps, smooth_depth
-from cnnslam.label_fusion import class_probability_map, fuse_labels, fused_labels, label_distribution, label_weights
+from cnnslam.label_fusion import (
+    checked_class_scores,
+    class_probabilities_at,
+    fuse_labels,
+    fused_labels,
+    label_distribution,
+    label_weights,
+)
 from cnnslam.surfel_kernels import (
     associate_kernel,
     group_kernel,
@@ -349,7 +356,7 @@ class GlobalModel:
         h, w = depth.shape
         if rgb is not None and np.shape(rgb) != (h, w, 3):
             raise CnnSlamError(f"rgb must be (H, W, 3) = {(h, w, 3)}, got {np.shape(rgb)}")
-        probs_map = class_probability_map(label_probs, (h, w), cfg.num_classes)
+        scores = checked_class_scores(label_probs, (h, w), cfg.num_classes)  # (checked before any change)
         if anchor is not None:
             anchor = int(anchor)
             if anchor < 0:
@@ -370,7 +377,7 @@ class GlobalModel:
         n_world = n_cam @ R.T
         colour = (np.full((vs.size, 3), 128.0, np.float32) if rgb is None
                   else np.asarray(rgb)[vs, us].astype(np.float32))
-        probs = None if probs_map is None else probs_map[vs, us]
+        probs = None if scores is None else class_probabilities_at(scores, vs, us, cfg.num_classes)
         label_weight = label_weights(alpha, sigma2, cfg.label_weighting, cfg.min_depth_sigma)
         m = vs.size
 

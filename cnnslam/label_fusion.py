@@ -20,12 +20,12 @@ from cnnslam.surfel_kernels import probability_kernel
 from slamcommon.labels import NO_LABEL
 
 
-def class_probability_map(label_probs: np.ndarray | None, size: tuple[int, int],
-                          num_classes: int) -> np.ndarray | None:
-    """The per-pixel class distributions P that label fusion takes, (H, W, C) float32 rows summing to 1 (0 where a
-    pixel has no evidence), from ``label_probs``: (H, W, C) non-negative scores (NaN = 0; normalised per pixel) or
-    (H, W) integer labels (one-hot; a value outside 0..C-1, e.g. ``NO_LABEL``, = no evidence); None gives None.
-    ``size`` is (H, W)."""
+def checked_class_scores(label_probs: np.ndarray | None, size: tuple[int, int], num_classes: int
+                         ) -> np.ndarray | None:
+    """``label_probs`` checked as label fusion takes it: (H, W, C) non-negative class scores (NaN = 0; returned as
+    C-contiguous float32) or (H, W) integer labels (a value outside 0..C-1, e.g. ``NO_LABEL``, = no evidence;
+    returned as given); None gives None. ``size`` is (H, W). :class:`CnnSlamError` for another shape or a negative
+    score, before anything is computed from it."""
     if label_probs is None:
         return None
     C = int(num_classes)
@@ -33,16 +33,40 @@ def class_probability_map(label_probs: np.ndarray | None, size: tuple[int, int],
     if p.ndim == 2:
         if p.shape != tuple(size):
             raise CnnSlamError(f"a label map must be (H, W) = {tuple(size)}, got {p.shape}")
-        out = np.zeros((*size, C), np.float32)
-        ok = (p >= 0) & (p < C)
-        out[ok, p[ok].astype(np.intp)] = 1.0
-        return out
+        return p
     if p.shape != (*size, C):
         raise CnnSlamError(f"label probabilities must be (H, W, C) = {(*size, C)}, got {p.shape}")
-    out, negative = probability_kernel(np.ascontiguousarray(p, dtype=np.float32))
-    if negative:
+    p = np.ascontiguousarray(p, dtype=np.float32)
+    if (p < 0).any():  # -inf included, NaN not
         raise CnnSlamError("label probabilities must be >= 0")
-    return out
+    return p
+
+
+def class_probabilities_at(scores: np.ndarray, vs: np.ndarray, us: np.ndarray, num_classes: int) -> np.ndarray:
+    """The per-pixel class distributions P that label fusion takes, at the pixels (``vs[k]``, ``us[k]``): (M, C)
+    float32 rows summing to 1 (0 where a pixel has no evidence), from :func:`checked_class_scores`' array: scores
+    normalised per pixel (+-inf as +-float32 max), labels one-hot."""
+    C = int(num_classes)
+    vs, us = np.asarray(vs, dtype=np.int64), np.asarray(us, dtype=np.int64)
+    if scores.ndim == 2:
+        out = np.zeros((vs.size, C), np.float32)
+        labels = scores[vs, us]
+        ok = (labels >= 0) & (labels < C)
+        out[np.flatnonzero(ok), labels[ok].astype(np.intp)] = 1.0
+        return out
+    return probability_kernel(scores, vs, us)
+
+
+def class_probability_map(label_probs: np.ndarray | None, size: tuple[int, int],
+                          num_classes: int) -> np.ndarray | None:
+    """:func:`class_probabilities_at` every pixel: (H, W, C) float32 distributions from ``label_probs`` as
+    :func:`checked_class_scores` takes it; None gives None."""
+    scores = checked_class_scores(label_probs, size, num_classes)
+    if scores is None:
+        return None
+    h, w = size
+    vs, us = np.divmod(np.arange(h * w, dtype=np.int64), w)
+    return class_probabilities_at(scores, vs, us, num_classes).reshape(h, w, int(num_classes))
 
 
 def label_weights(alpha: np.ndarray, sigma2: np.ndarray, weighting: LabelWeighting, min_sigma: float) -> np.ndarray:

@@ -439,33 +439,31 @@ def associate_kernel(pos, radius, nrm, conf, weight, R32, t32, R, fx, fy, cx, cy
 
 
 @njit(cache=True, nogil=True)
-def probability_kernel(p):  # pragma: no cover - compiled
-    """Class probabilities (H, W, C) made valid: NaN -> 0, +-inf -> +-float32 max, each pixel divided
-    by its sum (0 where the sum is not positive); the second value says whether any entry is negative."""
-    h, w, c = p.shape
-    out = np.zeros((h, w, c), np.float32)
+def probability_kernel(p, vs, us):  # pragma: no cover - compiled
+    """Class probabilities (H, W, C) made valid at the pixels (vs[k], us[k]): NaN -> 0, +-inf -> +-float32 max,
+    each pixel divided by its sum (0 where the sum is not positive); (M, C) float32 rows, one per pixel."""
+    m = vs.shape[0]
+    c = p.shape[2]
+    out = np.zeros((m, c), np.float32)
     big = np.float32(3.4028235e38)
-    negative = False
-    for y in range(h):
-        for x in range(w):
-            s = np.float32(0.0)
+    for i in range(m):
+        y, x = vs[i], us[i]
+        s = np.float32(0.0)
+        for k in range(c):
+            v = np.float32(p[y, x, k])
+            if math.isnan(v):
+                v = np.float32(0.0)
+            elif math.isinf(v):
+                v = big if v > 0 else -big
+            out[i, k] = v
+            s += v
+        if s > 0:
             for k in range(c):
-                v = np.float32(p[y, x, k])
-                if math.isnan(v):
-                    v = np.float32(0.0)
-                elif math.isinf(v):
-                    v = big if v > 0 else -big
-                if v < 0:
-                    negative = True
-                out[y, x, k] = v
-                s += v
-            if s > 0:
-                for k in range(c):
-                    out[y, x, k] = out[y, x, k] / s
-            else:
-                for k in range(c):
-                    out[y, x, k] = 0.0
-    return out, negative
+                out[i, k] = out[i, k] / s
+        else:
+            for k in range(c):
+                out[i, k] = 0.0
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 
 from cnnslam.errors import CnnSlamError
-from cnnslam.label_fusion import class_probability_map, fuse_labels, fused_labels, label_distribution, label_weights
+from cnnslam.label_fusion import (
+    checked_class_scores,
+    class_probabilities_at,
+    class_probability_map,
+    fuse_labels,
+    fused_labels,
+    label_distribution,
+    label_weights,
+)
 from slamcommon.labels import NO_LABEL
 
 
@@ -33,6 +41,32 @@ def test_class_probability_map_normalises_scores_and_reads_label_maps():
         class_probability_map(-p, (1, 3), 4)
     with pytest.raises(CnnSlamError, match=r"\(H, W, C\)"):
         class_probability_map(p, (1, 3), 5)
+    q = p.copy()
+    q[0, 2, 1] = -np.inf  # -inf is a negative score; NaN is none
+    with pytest.raises(CnnSlamError, match=">= 0"):
+        checked_class_scores(q, (1, 3), 4)
+
+
+def test_class_probabilities_at_sampled_pixels_are_the_maps_rows():
+    rng = np.random.default_rng(5)
+    p = rng.random((30, 40, 4)).astype(np.float32)
+    p[3, 4] = [np.nan, 1.0, np.inf, 2.0]
+    p[5, 6] = 0.0
+    p[7, 8] = [np.nan, np.nan, np.nan, np.nan]
+    scores = checked_class_scores(p, (30, 40), 4)
+    vs, us = np.mgrid[0:30:2, 0:40:2].reshape(2, -1)
+    vs, us = np.r_[vs, 3, 5, 7], np.r_[us, 4, 6, 8]
+    rows = class_probabilities_at(scores, vs, us, 4)
+    full = class_probability_map(p, (30, 40), 4)
+    assert rows.dtype == np.float32 and rows.tobytes() == full[vs, us].tobytes()
+    assert np.allclose(rows.sum(axis=1)[:-3], 1.0, atol=1e-6) and np.array_equal(rows[-2:], np.zeros((2, 4)))
+    assert np.allclose(rows[-3], [0.0, 0.0, 1.0, 0.0], atol=1e-30)  # +inf as the float32 maximum dominates
+    expected = p[vs[:5], us[:5]] / p[vs[:5], us[:5]].sum(axis=1, keepdims=True)
+    assert np.allclose(rows[:5], expected, rtol=1e-6)
+    labels = rng.integers(0, 6, (30, 40)).astype(np.uint8)  # 4 and 5: no evidence
+    one_hot = class_probabilities_at(checked_class_scores(labels, (30, 40), 4), vs, us, 4)
+    assert np.array_equal(one_hot.argmax(axis=1)[one_hot.sum(axis=1) > 0], labels[vs, us][labels[vs, us] < 4])
+    assert np.array_equal(one_hot.sum(axis=1), (labels[vs, us] < 4).astype(np.float32))
 
 
 def test_label_weights_confidence_or_precision():
