@@ -10,10 +10,10 @@ STAMP  := $(VENV)/.installed-stamp
 JOBS   ?= 2
 # the main job: the Table-1 suite on whole sequences (the paper's protocol; the length sweep, results/lengths.md, found
 # no shorter length that ranks the methods as whole sequences do) x 8 methods, BENCH_RUNS runs per cell (seeds
-# 0 .. BENCH_RUNS-1; the oracle runs once), JOBS runs at a time -> results/bench/. One run per cell: 21 min 6 s end to
-# end in a fresh clone on a 2-core AMD EPYC (round 43, make venv and rendering included, 3 min 2 s); BENCH_RUNS=3 is
-# the committed results/table1.md's protocol (1 h 26 min in a fresh clone, round 39: cnnslam bench table1, 180 of 198
-# runs run).
+# 0 .. BENCH_RUNS-1; the oracle runs once), JOBS runs at a time -> results/bench/. One run per cell: 20 min 1 s end to
+# end in a fresh clone on a 2-core AMD EPYC (round 44, make venv and rendering included, 2 min 45 s); BENCH_RUNS=3 is
+# the committed results/table1.md's protocol (52 min 56 s in a fresh clone, round 44, 198 runs; 1 h 26 min in round
+# 39).
 # BENCH_FRAMES=N scores the first N frames instead (not the whole sequences' verdict). Finished runs under runs/ are
 # reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= all
