@@ -223,32 +223,22 @@ def schur_step(Hcc, gc, Hpp, gp, W, o_cam, free_col, by_point, point_start, lam)
                 for j in range(3):
                     Y[i, j] = W[a, i, 0] * inv[0, j] + W[a, i, 1] * inv[1, j] + W[a, i, 2] * inv[2, j]
                 r[6 * ca + i] += Y[i, 0] * gp[p, 0] + Y[i, 1] * gp[p, 1] + Y[i, 2] * gp[p, 2]
-            # the pairs (b, a) with b up to a; (a, b) adds the same values to the transposed entries. Off the
-            # diagonal blocks each value goes to the block below the diagonal only (mirrored after the loop: the
-            # same values in the same order as writing both); a point's own pair fills its diagonal block in full
+            # the pairs (b, a) with b up to a; (a, b) adds the same values to the transposed entries. A value goes to
+            # the block at or below the diagonal (mirrored after the loop: the same values in the same order as
+            # writing both) and, in a diagonal block, to its transposed entry too; a point's own pair (b = a) once
             for ib in range(point_start[p], ia + 1):
                 b = by_point[ib]
                 cb = free_col[o_cam[b]]
                 if cb < 0:
                     continue
-                if ib == ia or ca == cb:
-                    for i in range(6):
-                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
-                        for j in range(6):
-                            v = y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+                for i in range(6):
+                    y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
+                    for j in range(6):
+                        v = y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+                        if ca >= cb:
                             S[6 * ca + i, 6 * cb + j] -= v
-                            if ib != ia:
-                                S[6 * cb + j, 6 * ca + i] -= v
-                elif ca > cb:
-                    for i in range(6):
-                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
-                        for j in range(6):
-                            S[6 * ca + i, 6 * cb + j] -= y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
-                else:
-                    for i in range(6):
-                        y0, y1, y2 = Y[i, 0], Y[i, 1], Y[i, 2]
-                        for j in range(6):
-                            S[6 * cb + j, 6 * ca + i] -= y0 * W[b, j, 0] + y1 * W[b, j, 1] + y2 * W[b, j, 2]
+                        if ca <= cb and ib != ia:
+                            S[6 * cb + j, 6 * ca + i] -= v
     for ca in range(nc // 6):
         for cb in range(ca):
             for i in range(6):
