@@ -36,7 +36,12 @@ the key-frame's current (pose-graph optimised) pose. ``finish()`` returns LSD-BS
 The trajectory it answers is LSD-BS's; Table 1 shows '-' for REMODE's ATE (the suite's choice, not the agent's).
 
 Hot loops (the per-pixel epipolar search and update, the TV iterations) are serial numba kernels (on two shared cores
-a parallel kernel measured 3x slower than a serial one).
+a parallel kernel measured 3x slower than a serial one). The search reads each sampled patch's sum of I and I^2 from
+tables made once a frame (:func:`search_tables`: box sums of the image and of its neighbour products) and its sum of
+I T from the template's correlation at the sample's integer corners, which consecutive samples share
+(:func:`_best_match`): the ZNCC of its definition with the additions in another order (tests: against the
+pixel-by-pixel definition). A filter update took 18.6 ms with the sums tap by tap and 15.8 ms now (120 updates captured
+on office0, the same outcomes and seeds, bit for bit), plus 0.7 ms a frame for the tables.
 """
 
 from __future__ import annotations
@@ -204,37 +209,177 @@ def triangulation_uncertainty(bearing_ref: np.ndarray, depth: float, t_ref_cur: 
 # ------------------------------------------------------------------------------------------------ the filter kernel
 
 
+@dataclass(frozen=True)
+class SearchImage:
+    """A current image as the epipolar search reads it (:func:`search_image`): ``gray`` (H, W) float64 intensities
+    and ``tables`` (H, W, 6) their patch sums (:func:`search_tables`). Made once a frame and shared by every
+    reference frame the frame updates."""
+
+    gray: np.ndarray
+    tables: np.ndarray
+
+
+def search_tables(gray: np.ndarray, patch_size: int) -> np.ndarray:
+    """The sums of the ZNCC search that do not depend on the template: at every pixel (r, c), the sums over the
+    ``patch_size`` x ``patch_size`` window centred on it of I, I^2, I(p) I(p + (0, 1)), I(p) I(p + (1, 0)),
+    I(p) I(p + (1, 1)) and I(p) I(p + (1, -1)) ((row, column) offsets; pixels outside the image count as 0, and a
+    product whose neighbour is outside as 0: such windows are never read). Returns (H, W, 6).
+
+    With them, the sums of I and I^2 over a patch sampled bilinearly at a sub-pixel position (every tap sharing the
+    position's weights w00, w01, w10, w11 at its 2x2 integer corners) are 4 and 10 weighted entries: sum I = sum_c
+    w_c B[q + c]; sum I^2 = sum_c w_c^2 S0[q + c] + 2 (w00 w01 SR[q] + w00 w10 SD[q] + w00 w11 SDR[q] + w01 w10
+    SDL[q + (0, 1)] + w01 w11 SD[q + (0, 1)] + w10 w11 SR[q + (1, 0)]). float32 when the intensities are integers in
+    [0, 255] (camera grey levels: every sum is an integer below 2^24, exact in float32 whatever the order of the
+    additions), float64 otherwise.
+    """
+    img = np.asarray(gray)
+    if img.ndim != 2:
+        raise CnnSlamError(f"expected an (H, W) grey image, got shape {img.shape}")
+    exact32 = img.size > 0 and bool(np.array_equal(img, np.clip(np.rint(img), 0, 255)))
+    i = img.astype(np.float32 if exact32 else np.float64)
+    h, w = i.shape
+    products = np.zeros((h, w, 6), i.dtype)
+    products[..., 0] = i
+    products[..., 1] = i * i
+    products[:, :-1, 2] = i[:, :-1] * i[:, 1:]
+    products[:-1, :, 3] = i[:-1] * i[1:]
+    products[:-1, :-1, 4] = i[:-1, :-1] * i[1:, 1:]
+    products[:-1, 1:, 5] = i[:-1, 1:] * i[1:, :-1]
+    k = int(patch_size)
+    return cv2.boxFilter(products, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
+
+
+def search_image(image: np.ndarray, patch_size: int) -> SearchImage:
+    """The :class:`SearchImage` of an (H, W) grey or (H, W, 3) uint8 RGB image."""
+    gray = _gray(image)
+    return SearchImage(gray.astype(np.float64), search_tables(gray, patch_size))
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _patch_sums(cur: np.ndarray, iu: int, iv0: int, w00: float, w01: float, w10: float, w11: float,
-                tmpl: np.ndarray, half: int) -> tuple[float, float, float]:
-    """Sums of I, I^2 and I T over a (2 half + 1)^2 patch of ``cur`` bilinearly sampled with the shared weights
-    w00..w11 at the integer corner (iu, iv0), T the template (row-major): the three sums of a ZNCC score. Inlined;
-    called with a literal ``half`` the compiler unrolls it."""
+def _correlation(cur: np.ndarray, r: int, c: int, tmpl: np.ndarray, half: int) -> float:
+    """sum_d T_d I[(r, c) + d] over the (2 half + 1)^2 offsets d, T the template (row-major): the template's
+    correlation with ``cur`` at the integer pixel (r, c), one partial sum per template row. Inlined; called with a
+    literal ``half`` the compiler unrolls it."""
     side = 2 * half + 1
-    s_i = 0.0
-    s_ii = 0.0
-    s_it = 0.0
+    s = 0.0
     for oy in range(side):
-        r0 = iv0 + oy - half
-        for ox in range(side):
-            c0 = iu + ox - half
-            iv = w00 * cur[r0, c0] + w01 * cur[r0, c0 + 1] + w10 * cur[r0 + 1, c0] + w11 * cur[r0 + 1, c0 + 1]
-            tv = tmpl[oy * side + ox]
-            s_i += iv
-            s_ii += iv * iv
-            s_it += iv * tv
-    return s_i, s_ii, s_it
+        row = r + oy - half
+        t = tmpl[oy * side] * cur[row, c - half]
+        for ox in range(1, side):
+            t += tmpl[oy * side + ox] * cur[row, c - half + ox]
+        s += t
+    return s
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _best_match(cur: np.ndarray, tab: np.ndarray, tmpl: np.ndarray, u_mean: float, v_mean: float, du: float,
+                dv: float, half_len: float, step: float, h: int, w: int, half: int, n_patch: int, t_mean: float,
+                t_std: float) -> tuple[float, float, float]:
+    """REMODE's epipolar search of one seed: the best ZNCC (and its position (u, v)) of the template ``tmpl`` (mean
+    ``t_mean``, standard deviation ``t_std``) against the patch of ``cur`` ((h, w) intensities) sampled bilinearly
+    every ``step`` px along the segment (u_mean, v_mean) + l (du, dv), |l| <= half_len, skipping positions whose
+    patch leaves the image or is flat. ZNCC = (sum I T / n - mean_I t_mean) / (std_I t_std), n = ``n_patch`` =
+    (2 half + 1)^2. Sum I and sum I^2 come from the tables ``tab`` (:func:`search_tables`); sum I T is the bilinear
+    mix of the template's correlation at the position's four integer corners (:func:`_correlation`), each corner
+    computed once while consecutive positions share it. Returns (-1, 0, 0) when no position was scored."""
+    inv_n = 1.0 / n_patch
+    best = -1.0
+    best_u = 0.0
+    best_v = 0.0
+    n_steps = int(2.0 * half_len / step) + 1
+    qr = -10  # the corner block (qr, qc) whose correlations c00..c11 are held
+    qc = -10
+    c00 = c01 = c10 = c11 = 0.0
+    for k in range(n_steps):
+        l_ = -half_len + k * step
+        uc = u_mean + l_ * du
+        vc = v_mean + l_ * dv
+        if uc < half or vc < half or uc >= w - 1 - half or vc >= h - 1 - half:
+            continue
+        iu = int(uc)
+        iv = int(vc)
+        fu = uc - iu
+        fv = vc - iv
+        w00 = (1.0 - fu) * (1.0 - fv)
+        w01 = fu * (1.0 - fv)
+        w10 = (1.0 - fu) * fv
+        w11 = fu * fv
+        if iv != qr or iu != qc:  # a new corner block: keep the corners it shares with the last one
+            dr = iv - qr
+            dc = iu - qc
+            # the new corner (iv + i, iu + j) is the held corner (i + dr, j + dc) when both are 0 or 1
+            n00, n01, n10, n11 = c00, c01, c10, c11
+            if dr == 0 and dc == 1:
+                n00, n10 = c01, c11
+                n01 = _correlation(cur, iv, iu + 1, tmpl, half)
+                n11 = _correlation(cur, iv + 1, iu + 1, tmpl, half)
+            elif dr == 0 and dc == -1:
+                n01, n11 = c00, c10
+                n00 = _correlation(cur, iv, iu, tmpl, half)
+                n10 = _correlation(cur, iv + 1, iu, tmpl, half)
+            elif dr == 1 and dc == 0:
+                n00, n01 = c10, c11
+                n10 = _correlation(cur, iv + 1, iu, tmpl, half)
+                n11 = _correlation(cur, iv + 1, iu + 1, tmpl, half)
+            elif dr == -1 and dc == 0:
+                n10, n11 = c00, c01
+                n00 = _correlation(cur, iv, iu, tmpl, half)
+                n01 = _correlation(cur, iv, iu + 1, tmpl, half)
+            else:  # a diagonal move keeps one corner (computed, then taken from the block: the same value; this
+                # form compiled 10 % faster than skipping it), a jump none
+                n00 = _correlation(cur, iv, iu, tmpl, half)
+                n01 = _correlation(cur, iv, iu + 1, tmpl, half)
+                n10 = _correlation(cur, iv + 1, iu, tmpl, half)
+                n11 = _correlation(cur, iv + 1, iu + 1, tmpl, half)
+                if dr == 1 and dc == 1:
+                    n00 = c11
+                elif dr == 1 and dc == -1:
+                    n01 = c10
+                elif dr == -1 and dc == 1:
+                    n10 = c01
+                elif dr == -1 and dc == -1:
+                    n11 = c00
+            c00, c01, c10, c11 = n00, n01, n10, n11
+            qr = iv
+            qc = iu
+        s_i = (w00 * tab[iv, iu, 0] + w01 * tab[iv, iu + 1, 0] + w10 * tab[iv + 1, iu, 0]
+               + w11 * tab[iv + 1, iu + 1, 0])
+        s_ii = (w00 * w00 * tab[iv, iu, 1] + w01 * w01 * tab[iv, iu + 1, 1] + w10 * w10 * tab[iv + 1, iu, 1]
+                + w11 * w11 * tab[iv + 1, iu + 1, 1]
+                + 2.0 * (w00 * w01 * tab[iv, iu, 2] + w00 * w10 * tab[iv, iu, 3] + w00 * w11 * tab[iv, iu, 4]
+                         + w01 * w10 * tab[iv, iu + 1, 5] + w01 * w11 * tab[iv, iu + 1, 3]
+                         + w10 * w11 * tab[iv + 1, iu, 2]))
+        s_it = w00 * c00 + w01 * c01 + w10 * c10 + w11 * c11
+        mean_i = s_i * inv_n
+        var_i = s_ii * inv_n - mean_i * mean_i
+        if var_i <= 1e-12:
+            continue
+        ncc = (s_it * inv_n - mean_i * t_mean) / (math.sqrt(var_i) * t_std)
+        if ncc > best:
+            best = ncc
+            best_u = uc
+            best_v = vc
+    return best, best_u, best_v
+
+
+@njit(cache=True, nogil=True)
+def best_match(cur: np.ndarray, tab: np.ndarray, tmpl: np.ndarray, u_mean: float, v_mean: float, du: float,
+               dv: float, half_len: float, step: float, half: int, t_mean: float,
+               t_std: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
+    """:func:`_best_match` callable on its own (tests; the kernel inlines it)."""
+    return _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, cur.shape[0], cur.shape[1], half,
+                       (2 * half + 1) * (2 * half + 1), t_mean, t_std)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_std: np.ndarray,
+def _update_seeds(ref: np.ndarray, cur: np.ndarray, tab: np.ndarray, tmpl_mean: np.ndarray, tmpl_std: np.ndarray,
                   mu: np.ndarray, sigma2: np.ndarray, a: np.ndarray, b: np.ndarray, state: np.ndarray,
                   R_cr: np.ndarray, t_cr: np.ndarray, t_rc: np.ndarray, intr: np.ndarray, depth_range: float,
                   params: np.ndarray) -> np.ndarray:
     """One REMODE update of every seed in state UPDATE (epipolar ZNCC search, triangulation, VH update, check).
 
-    ref: (H, W) float32, cur: (H, W) float64 intensities; tmpl_mean, tmpl_std: the reference patches' mean and
-    standard deviation;
+    ref: (H, W) float32, cur: (H, W) float64 intensities; tab: cur's :func:`search_tables`; tmpl_mean, tmpl_std:
+    the reference patches' mean and standard deviation;
     mu, sigma2, a, b: (H, W) float64 seed parameters, updated in place; state: (H, W) uint8, updated in place;
     R_cr, t_cr: T_cur_ref; t_rc: the current camera's centre in reference coordinates; intr: [fx, fy, cx, cy];
     params: [half patch, step, max extent, min ZNCC, px error angle, eta_in, eta_out, sigma ratio, min template std].
@@ -300,38 +445,12 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tmpl_mean: np.ndarray, tmpl_
             for oy in range(side):
                 for ox in range(side):
                     tmpl[oy * side + ox] = ref[y + oy - half, x + ox - half]
-            best = -1.0
-            best_u = 0.0
-            best_v = 0.0
-            n_steps = int(2.0 * half_len / step) + 1
-            for k in range(n_steps):
-                l_ = -half_len + k * step
-                uc = u_mean + l_ * du
-                vc = v_mean + l_ * dv
-                if uc < half or vc < half or uc >= w - 1 - half or vc >= h - 1 - half:
-                    continue
-                # every tap of the patch shares the sample's sub-pixel offset: one set of bilinear weights
-                iu = int(uc)
-                iv0 = int(vc)
-                fu = uc - iu
-                fv = vc - iv0
-                w00 = (1.0 - fu) * (1.0 - fv)
-                w01 = fu * (1.0 - fv)
-                w10 = (1.0 - fu) * fv
-                w11 = fu * fv
-                if half == 2:  # REMODE's 5x5 patch: constant bounds, unrolled (the same arithmetic, the same bits)
-                    s_i, s_ii, s_it = _patch_sums(cur, iu, iv0, w00, w01, w10, w11, tmpl, 2)
-                else:
-                    s_i, s_ii, s_it = _patch_sums(cur, iu, iv0, w00, w01, w10, w11, tmpl, half)
-                mean_i = s_i / n_patch
-                var_i = s_ii / n_patch - mean_i * mean_i
-                if var_i <= 1e-12:
-                    continue
-                ncc = (s_it / n_patch - mean_i * t_mean) / (math.sqrt(var_i) * t_std)
-                if ncc > best:
-                    best = ncc
-                    best_u = uc
-                    best_v = vc
+            if half == 2:  # REMODE's 5x5 patch: constant bounds, the correlations unrolled
+                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, h, w,
+                                                   2, n_patch, t_mean, t_std)
+            else:
+                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, h, w,
+                                                   half, n_patch, t_mean, t_std)
             if best < min_ncc:
                 outcome[y, x] = NO_MATCH
                 b[y, x] += 1.0
@@ -518,21 +637,23 @@ class DepthFilter:
         self.n_updates = 0
         self.milliseconds = 0.0
 
-    def update(self, image: np.ndarray, T_world_cur: np.ndarray) -> FilterUpdate:
-        """Update the seeds with one more image (H, W grey or RGB) taken at ``T_world_cur`` ((4, 4))."""
+    def update(self, image: np.ndarray | SearchImage, T_world_cur: np.ndarray) -> FilterUpdate:
+        """Update the seeds with one more image taken at ``T_world_cur`` ((4, 4)): (H, W) grey or (H, W, 3) uint8 RGB,
+        or its :func:`search_image` (made once a frame when several reference frames use it)."""
         t0 = time.perf_counter()
-        cur = _gray(image)
-        if cur.shape != self.reference.shape:
-            raise CnnSlamError(f"image of size {cur.shape} for a reference of size {self.reference.shape}")
+        cur = image if isinstance(image, SearchImage) else search_image(image, self.config.patch_size)
+        if cur.gray.shape != self.reference.shape:
+            raise CnnSlamError(f"image of size {cur.gray.shape} for a reference of size {self.reference.shape}")
+        if cur.tables.shape != (*cur.gray.shape, 6):
+            raise CnnSlamError(f"search tables of shape {cur.tables.shape} for an image of size {cur.gray.shape}: "
+                               "make them with search_image(image, patch_size)")
         T_cur_ref = se3_inverse(np.asarray(T_world_cur, dtype=np.float64)) @ self.T_world_ref
         T_ref_cur = se3_inverse(T_cur_ref)
         cfg = self.config
         params = np.array([cfg.patch_size // 2, cfg.search_step_px, cfg.max_search_px, cfg.min_zncc,
                            self.px_error_angle, cfg.eta_inlier, cfg.eta_outlier, cfg.convergence_sigma_ratio,
                            cfg.min_template_std])
-        # the current image in float64 (the same values: every use in the kernel is float64 arithmetic) spares the
-        # search a conversion per tap
-        outcome = _update_seeds(self.reference, cur.astype(np.float64), self.template_mean, self.template_std,
+        outcome = _update_seeds(self.reference, cur.gray, cur.tables, self.template_mean, self.template_std,
                                 self.mu, self.sigma2, self.a, self.b, self.state,
                                 np.ascontiguousarray(T_cur_ref[:3, :3]),
                                 np.ascontiguousarray(T_cur_ref[:3, 3]), np.ascontiguousarray(T_ref_cur[:3, 3]),
@@ -658,14 +779,16 @@ class RemodeAgent:
         t0 = time.perf_counter()
         if out.tracked:
             keyframes = {k.index: k for k in self._system.keyframes}
-            for ref in list(self._active):
-                kf = keyframes[ref.keyframe]
-                # the frame's pose relative to the key-frame as LSD-BS holds it now, in the filter's frame
-                T_kf_cur = se3_inverse(kf.T_world_kf) @ out.T_world_cam
-                ref.filter.update(gray, ref.filter.T_world_ref @ T_kf_cur)
-                ref.updates += 1
-                if ref.updates >= self.config.max_updates:
-                    self._retire(ref)
+            if self._active:  # the frame's search tables, once for every reference frame it updates
+                current = search_image(gray, self.config.patch_size)
+                for ref in list(self._active):
+                    kf = keyframes[ref.keyframe]
+                    # the frame's pose relative to the key-frame as LSD-BS holds it now, in the filter's frame
+                    T_kf_cur = se3_inverse(kf.T_world_kf) @ out.T_world_cam
+                    ref.filter.update(current, ref.filter.T_world_ref @ T_kf_cur)
+                    ref.updates += 1
+                    if ref.updates >= self.config.max_updates:
+                        self._retire(ref)
             if out.new_keyframe:
                 kf = keyframes[out.keyframe]
                 rng = depth_range_of(kf.maps.depth, self.config)

@@ -1,6 +1,6 @@
-"""The REMODE baseline: the depth filter's equations against hand-computed cases, the TV smoothing, the filter on a
-rendered sequence with ground-truth poses (textured surfaces converge to the right depth, a plain wall does not), and
-the agent on the LSD-BS trajectory."""
+"""The REMODE baseline: the depth filter's equations against hand-computed cases, the epipolar search against ZNCC
+computed by its definition, the TV smoothing, the filter on a rendered sequence with ground-truth poses (textured
+surfaces converge to the right depth, a plain wall does not), and the agent on the LSD-BS trajectory."""
 
 from __future__ import annotations
 
@@ -16,7 +16,10 @@ from cnnslam.baselines.remode import (
     DepthFilter,
     RemodeAgent,
     RemodeConfig,
+    best_match,
     depth_range_of,
+    search_image,
+    search_tables,
     triangulation_uncertainty,
     tv_smooth,
     vogiatzis_update,
@@ -65,6 +68,92 @@ def test_triangulation_uncertainty_hand_computed() -> None:
     # a longer baseline makes the measurement more precise; no baseline makes it useless
     assert triangulation_uncertainty(np.array([0.0, 0.0, 1.0]), 2.0, np.array([0.4, 0.0, 0.0]), px_angle) < 0.05
     assert triangulation_uncertainty(np.array([0.0, 0.0, 1.0]), 2.0, np.zeros(3), px_angle) == math.inf
+
+
+def _box_sums(p: np.ndarray, half: int) -> np.ndarray:
+    """sum of p over the (2 half + 1)^2 window centred on each pixel at least ``half`` from the border (0 elsewhere)."""
+    h, w = p.shape
+    out = np.zeros((h, w))
+    for oy in range(-half, half + 1):
+        for ox in range(-half, half + 1):
+            out[half:h - half, half:w - half] += p[half + oy:h - half + oy, half + ox:w - half + ox]
+    return out
+
+
+def test_search_tables_are_the_patch_sums() -> None:
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (30, 41)).astype(np.float32)  # camera grey levels
+    i = img.astype(np.float64)
+    right, down, down_right, down_left = (np.zeros_like(i) for _ in range(4))
+    right[:, :-1] = i[:, :-1] * i[:, 1:]
+    down[:-1] = i[:-1] * i[1:]
+    down_right[:-1, :-1] = i[:-1, :-1] * i[1:, 1:]
+    down_left[:-1, 1:] = i[:-1, 1:] * i[1:, :-1]
+    inner = (slice(2, -2), slice(2, -2))
+    for half, size in ((2, 5), (1, 3)):
+        tab = search_tables(img, size)
+        assert tab.shape == (30, 41, 6) and tab.dtype == np.float32  # integers below 2^24: exact in float32
+        for k, p in enumerate((i, i * i, right, down, down_right, down_left)):
+            assert np.array_equal(tab[..., k][inner].astype(np.float64), _box_sums(p, half)[inner])
+    noninteger = search_tables(img + 0.25, 5)
+    assert noninteger.dtype == np.float64
+    assert np.allclose(noninteger[..., 1][inner], _box_sums((i + 0.25) ** 2, 2)[inner], rtol=1e-12)
+    with pytest.raises(CnnSlamError, match="grey image"):
+        search_tables(np.zeros((4, 4, 3)), 5)
+
+
+def _zncc_by_definition(cur: np.ndarray, tmpl: np.ndarray, u: float, v: float, half: int) -> float | None:
+    """The ZNCC of the template (side x side, row-major) against the patch of ``cur`` bilinearly sampled around
+    (u, v), pixel by pixel; None where the patch is flat."""
+    side = 2 * half + 1
+    iu, iv = int(u), int(v)
+    fu, fv = u - iu, v - iv
+    patch = np.empty((side, side))
+    for oy in range(side):
+        for ox in range(side):
+            r, c = iv + oy - half, iu + ox - half
+            patch[oy, ox] = ((1 - fu) * (1 - fv) * cur[r, c] + fu * (1 - fv) * cur[r, c + 1]
+                             + (1 - fu) * fv * cur[r + 1, c] + fu * fv * cur[r + 1, c + 1])
+    t = tmpl.reshape(side, side)
+    if patch.var() <= 1e-12:
+        return None
+    return float(np.mean((patch - patch.mean()) * (t - t.mean())) / (patch.std() * t.std()))
+
+
+def test_best_match_is_the_zncc_maximum_along_the_segment() -> None:
+    """Every direction of segment (so that the corner block moves along a row, a column, diagonally and, with long
+    steps, jumps) and both patch sizes: the search's best ZNCC and position are those of ZNCC by its definition."""
+    rng = np.random.default_rng(7)
+    cur_u8 = cv2.GaussianBlur(rng.integers(0, 256, (60, 80)).astype(np.uint8), (3, 3), 0)
+    cur = cur_u8.astype(np.float64)
+    image = search_image(cur_u8, 5)
+    assert np.array_equal(image.gray, cur)
+    cases = 0
+    for half in (2, 1):
+        tab = search_tables(cur_u8.astype(np.float32), 2 * half + 1)
+        for angle in np.linspace(0.0, 2 * np.pi, 13):
+            for step in (0.7, 2.3):
+                y0, x0 = (int(x) for x in rng.integers(10, 50, 2))
+                noise = rng.normal(0, 4.0, (2 * half + 1) ** 2)
+                tmpl = cur[y0 - half:y0 + half + 1, x0 - half:x0 + half + 1].ravel() + noise
+                u_mean, v_mean = x0 + rng.uniform(-3, 3), y0 + rng.uniform(-3, 3)
+                du, dv = math.cos(angle), math.sin(angle)
+                half_len = 25.0
+                got = best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, half,
+                                 float(tmpl.mean()), float(tmpl.std()))
+                scores = []
+                for k in range(int(2.0 * half_len / step) + 1):
+                    u, v = u_mean + (-half_len + k * step) * du, v_mean + (-half_len + k * step) * dv
+                    if u < half or v < half or u >= 80 - 1 - half or v >= 60 - 1 - half:
+                        continue
+                    score = _zncc_by_definition(cur, tmpl, u, v, half)
+                    if score is not None:
+                        scores.append((score, u, v))
+                best = max(scores, key=lambda x: x[0])
+                assert got[0] == pytest.approx(best[0], abs=1e-9)
+                assert (got[1], got[2]) == (best[1], best[2])
+                cases += 1
+    assert cases == 52
 
 
 def test_tv_smooth_denoises_keeps_edges_and_inpaints() -> None:
