@@ -92,11 +92,10 @@ def test_search_tables_are_the_patch_sums() -> None:
     inner = (slice(2, -2), slice(2, -2))
     for half, size in ((2, 5), (1, 3)):
         tab = search_tables(img, size)
-        assert tab.shape == (30, 41, 6) and tab.dtype == np.float32  # integers below 2^24: exact in float32
+        assert tab.shape == (30, 41, 6) and tab.dtype == np.float64  # summed in float32: integers below 2^24, exact
         for k, p in enumerate((i, i * i, right, down, down_right, down_left)):
             assert np.array_equal(tab[..., k][inner].astype(np.float64), _box_sums(p, half)[inner])
-    noninteger = search_tables(img + 0.25, 5)
-    assert noninteger.dtype == np.float64
+    noninteger = search_tables(img + 0.25, 5)  # summed in float64
     assert np.allclose(noninteger[..., 1][inner], _box_sums((i + 0.25) ** 2, 2)[inner], rtol=1e-12)
     with pytest.raises(CnnSlamError, match="grey image"):
         search_tables(np.zeros((4, 4, 3)), 5)
