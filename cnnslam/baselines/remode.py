@@ -212,11 +212,12 @@ def triangulation_uncertainty(bearing_ref: np.ndarray, depth: float, t_ref_cur: 
 @dataclass(frozen=True)
 class SearchImage:
     """A current image as the epipolar search reads it (:func:`search_image`): ``gray`` (H, W) float64 intensities
-    and ``tables`` (H, W, 6) their patch sums (:func:`search_tables`). Made once a frame and shared by every
-    reference frame the frame updates."""
+    and ``tables`` (H, W, 6) their sums over patches of ``patch_size`` (:func:`search_tables`). Made once a frame and
+    shared by every reference frame the frame updates."""
 
     gray: np.ndarray
     tables: np.ndarray
+    patch_size: int
 
 
 def search_tables(gray: np.ndarray, patch_size: int) -> np.ndarray:
@@ -253,7 +254,7 @@ def search_tables(gray: np.ndarray, patch_size: int) -> np.ndarray:
 def search_image(image: np.ndarray, patch_size: int) -> SearchImage:
     """The :class:`SearchImage` of an (H, W) grey or (H, W, 3) uint8 RGB image."""
     gray = _gray(image)
-    return SearchImage(gray.astype(np.float64), search_tables(gray, patch_size))
+    return SearchImage(gray.astype(np.float64), search_tables(gray, patch_size), int(patch_size))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -645,9 +646,10 @@ class DepthFilter:
         cur = image if isinstance(image, SearchImage) else search_image(image, self.config.patch_size)
         if cur.gray.shape != self.reference.shape:
             raise CnnSlamError(f"image of size {cur.gray.shape} for a reference of size {self.reference.shape}")
-        if cur.tables.shape != (*cur.gray.shape, 6):
-            raise CnnSlamError(f"search tables of shape {cur.tables.shape} for an image of size {cur.gray.shape}: "
-                               "make them with search_image(image, patch_size)")
+        if cur.patch_size != self.config.patch_size or cur.tables.shape != (*cur.gray.shape, 6):
+            raise CnnSlamError(f"search tables of shape {cur.tables.shape} for {cur.patch_size}-pixel patches, but "
+                               f"this filter matches {self.config.patch_size}-pixel patches on {cur.gray.shape} "
+                               f"images: make them with search_image(image, {self.config.patch_size})")
         T_cur_ref = se3_inverse(np.asarray(T_world_cur, dtype=np.float64)) @ self.T_world_ref
         T_ref_cur = se3_inverse(T_cur_ref)
         cfg = self.config

@@ -126,7 +126,11 @@ def test_best_match_is_the_zncc_maximum_along_the_segment() -> None:
     cur_u8 = cv2.GaussianBlur(rng.integers(0, 256, (60, 80)).astype(np.uint8), (3, 3), 0)
     cur = cur_u8.astype(np.float64)
     image = search_image(cur_u8, 5)
-    assert np.array_equal(image.gray, cur)
+    assert np.array_equal(image.gray, cur) and image.patch_size == 5
+    filt = DepthFilter(cur_u8, np.eye(4), np.array([60.0, 60.0, 40.0, 30.0]), (0.5, 5.0), RemodeConfig(patch_size=3))
+    with pytest.raises(CnnSlamError, match="3-pixel patches"):
+        filt.update(image, np.eye(4))
+    assert filt.update(search_image(cur_u8, 3), np.eye(4)).milliseconds > 0  # the filter's own patch size
     cases = 0
     for half in (2, 1):
         tab = search_tables(cur_u8.astype(np.float32), 2 * half + 1)
