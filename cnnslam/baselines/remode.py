@@ -275,16 +275,17 @@ def _correlation(cur: np.ndarray, r: int, c: int, tmpl: np.ndarray, half: int) -
 
 @njit(cache=True, nogil=True, inline="always")
 def _best_match(cur: np.ndarray, tab: np.ndarray, tmpl: np.ndarray, u_mean: float, v_mean: float, du: float,
-                dv: float, half_len: float, step: float, h: int, w: int, half: int, n_patch: int, t_mean: float,
+                dv: float, half_len: float, step: float, half: int, t_mean: float,
                 t_std: float) -> tuple[float, float, float]:
     """REMODE's epipolar search of one seed: the best ZNCC (and its position (u, v)) of the template ``tmpl`` (mean
-    ``t_mean``, standard deviation ``t_std``) against the patch of ``cur`` ((h, w) intensities) sampled bilinearly
+    ``t_mean``, standard deviation ``t_std``) against the patch of ``cur`` ((H, W) intensities) sampled bilinearly
     every ``step`` px along the segment (u_mean, v_mean) + l (du, dv), |l| <= half_len, skipping positions whose
-    patch leaves the image or is flat. ZNCC = (sum I T / n - mean_I t_mean) / (std_I t_std), n = ``n_patch`` =
-    (2 half + 1)^2. Sum I and sum I^2 come from the tables ``tab`` (:func:`search_tables`); sum I T is the bilinear
+    patch leaves the image or is flat. ZNCC = (sum I T / n - mean_I t_mean) / (std_I t_std), n = (2 half + 1)^2.
+    Sum I and sum I^2 come from the tables ``tab`` (:func:`search_tables`); sum I T is the bilinear
     mix of the template's correlation at the position's four integer corners (:func:`_correlation`), each corner
     computed once while consecutive positions share it. Returns (-1, 0, 0) when no position was scored."""
-    inv_n = 1.0 / n_patch
+    h, w = cur.shape
+    inv_n = 1.0 / ((2 * half + 1) * (2 * half + 1))
     best = -1.0
     best_u = 0.0
     best_v = 0.0
@@ -369,8 +370,7 @@ def best_match(cur: np.ndarray, tab: np.ndarray, tmpl: np.ndarray, u_mean: float
                dv: float, half_len: float, step: float, half: int, t_mean: float,
                t_std: float) -> tuple[float, float, float]:  # pragma: no cover - compiled
     """:func:`_best_match` callable on its own (tests; the kernel inlines it)."""
-    return _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, cur.shape[0], cur.shape[1], half,
-                       (2 * half + 1) * (2 * half + 1), t_mean, t_std)
+    return _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, half, t_mean, t_std)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -392,7 +392,6 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tab: np.ndarray, tmpl_mean: 
     half = int(params[0])
     step, max_extent, min_ncc, px_angle = params[1], params[2], params[3], params[4]
     eta_in, eta_out, sig_ratio, min_std = params[5], params[6], params[7], params[8]
-    n_patch = (2 * half + 1) * (2 * half + 1)
     outcome = np.zeros((h, w), np.uint8)
     side = 2 * half + 1
     tmpl = np.empty(side * side)
@@ -448,11 +447,11 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tab: np.ndarray, tmpl_mean: 
                 for ox in range(side):
                     tmpl[oy * side + ox] = ref[y + oy - half, x + ox - half]
             if half == 2:  # REMODE's 5x5 patch: constant bounds, the correlations unrolled
-                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, h, w,
-                                                   2, n_patch, t_mean, t_std)
+                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, 2,
+                                                   t_mean, t_std)
             else:
-                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, h, w,
-                                                   half, n_patch, t_mean, t_std)
+                best, best_u, best_v = _best_match(cur, tab, tmpl, u_mean, v_mean, du, dv, half_len, step, half,
+                                                   t_mean, t_std)
             if best < min_ncc:
                 outcome[y, x] = NO_MATCH
                 b[y, x] += 1.0
