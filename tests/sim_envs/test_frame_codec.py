@@ -135,3 +135,38 @@ def test_estimated_sizes_follow_the_full_compressed_lengths() -> None:
     assert np.argmin(estimates[:-2]) == np.argmin(lengths[:-2])  # the depth's best transform
     assert np.argmin(estimates[-2:]) == np.argmin(lengths[-2:])  # the image's
     assert fc.estimated_sizes(compressor, [b""]) == [0]
+
+
+def _palette_by_definition(a: np.ndarray) -> tuple[bytes, int] | None:
+    """The palette as its definition reads: ``np.unique`` of the bit patterns and ``np.searchsorted`` in them."""
+    flat = a.reshape(-1)
+    key = flat.view(f"u{a.dtype.itemsize}") if a.dtype.kind == "f" else flat
+    if np.unique(key[:: fc.PALETTE_SAMPLE_STEP]).size > fc.PALETTE_SAMPLE_MAX:
+        return None
+    values = np.unique(key)
+    if values.size > fc.PALETTE_MAX:
+        return None
+    index = np.searchsorted(values, key).astype(np.uint8 if values.size <= 256 else np.uint16)
+    return values.tobytes() + index.tobytes(), int(values.size)
+
+
+def test_the_hashed_palette_gives_the_bytes_of_unique_and_searchsorted() -> None:
+    rng = np.random.default_rng(4)
+    over = np.arange(200_000, dtype=np.int32)
+    over[:: fc.PALETTE_SAMPLE_STEP] = 0  # a sample with one value, the whole with 187 500: no palette
+    full = np.arange(100_000, dtype=np.int32) % fc.PALETTE_MAX  # 61 441 values: uint16 indices
+    full[:: fc.PALETTE_SAMPLE_STEP] = 0
+    cases = {
+        "signed": rng.integers(-5, 5, 5000).astype(np.int32),  # negative values sort first, as np.unique sorts
+        "wide": rng.integers(0, 1000, 20000).astype(np.uint32) * 4099,
+        "quantised depth": (np.round(rng.random(76800) * 400) / 50).astype(np.float32),
+        "float64": -np.round(rng.random(9000) * 30) - 0.5,  # bit patterns above 2^63
+        "NaN and -0.0": np.array([np.nan, -0.0, 0.0, 1.0] * 1000, np.float32),
+        "uint16": rng.integers(0, 300, 5000).astype(np.uint16),
+        "one value": np.zeros(2000, np.int32),
+        "full": full,
+        "over": over,
+    }
+    for name, a in cases.items():
+        assert fc._palette(a) == _palette_by_definition(a), name
+    assert fc._palette(over) is None and fc._palette(full)[1] == 61441
