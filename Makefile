@@ -23,7 +23,11 @@ BENCH_RUNS ?= 1
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -c constraints.txt -e '.[dev]'
+	# the .pyc files pip would write (one process; about 60 of its 115 s on 2 cores) made on $(JOBS) cores, and ours
+	# too (editable sources, which Python compiles at every import where PYTHONDONTWRITEBYTECODE is set); status 1 is
+	# torch's Python-3.12-only test file, which pip skips the same way
+	$(BIN)/python -m compileall -qq -j $(JOBS) $(VENV)/lib cnnslam eval sim_envs slamcommon || true
 	# numba's kernels compiled once into its cache (a run that compiles keeps the JIT's ~95 MiB; cnnslam/warmup.py)
 	$(BIN)/python -m cnnslam.warmup || echo "numba warm-up skipped: the first run compiles the kernels"
 	touch $(STAMP)
