@@ -28,8 +28,9 @@ $(STAMP): pyproject.toml constraints.txt
 	# too (editable sources, which Python compiles at every import where PYTHONDONTWRITEBYTECODE is set); status 1 is
 	# torch's Python-3.12-only test file, which pip skips the same way
 	$(BIN)/python -m compileall -qq -j $(JOBS) $(VENV)/lib cnnslam eval sim_envs slamcommon || true
-	# numba's kernels compiled once into its cache (a run that compiles keeps the JIT's ~95 MiB; cnnslam/warmup.py)
-	$(BIN)/python -m cnnslam.warmup || echo "numba warm-up skipped: the first run compiles the kernels"
+	# numba's kernels compiled once into its cache (a run that compiles keeps the JIT's ~95 MiB; cnnslam/warmup.py):
+	# the system's and the baselines' side by side
+	$(BIN)/python -m cnnslam.warmup --jobs $(JOBS) || echo "numba warm-up skipped: the first runs compile the kernels"
 	touch $(STAMP)
 
 venv: $(STAMP)
