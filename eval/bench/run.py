@@ -45,7 +45,7 @@ import math
 import tempfile
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -171,12 +171,13 @@ def render_frames(job: FramesJob) -> int:
     source = job.sequence.make_source(job.renderer, job.cache)
     rendered = 0
     try:
-        n = len(source) if job.frames is None else min(len(source), int(job.frames))
-        source.timestamps  # noqa: B018 - kept in the cache beside the frames
-        for i in range(n):
-            if not source.has(i):
-                source.frame(i)
-                rendered += 1
+        with source.filling():  # the runs of this sequence that start meanwhile wait for it, not render beside it
+            n = len(source) if job.frames is None else min(len(source), int(job.frames))
+            source.timestamps  # noqa: B018 - kept in the cache beside the frames
+            for i in range(n):
+                if not source.has(i):
+                    source.frame(i)
+                    rendered += 1
     finally:
         source.close()
     return rendered
@@ -203,6 +204,7 @@ class ExternalEpisode:
 
 def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
     """Run, score and package one run; never raises for a failing run (it comes back ``failed`` with the error)."""
+    _wait_for_rendering(spec)  # a sequence still rendering (another task of the suite) is not the run's time
     units = [machine_unit_seconds(time.thread_time) for _ in range(UNIT_REPEATS)]  # before the run's clocks start
     start = time.perf_counter()
     try:
@@ -216,6 +218,24 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
             wall_s=time.perf_counter() - start,
         )
     return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
+
+
+def _wait_for_rendering(spec: RunSpec) -> None:
+    """Wait until no process is filling the frame cache of ``spec``'s sequence (``CachedFrames.filling``, a suite's
+    rendering job); nothing to wait for without a frame cache or for a folder sequence. Never raises: a sequence
+    that cannot even be made fails in the run, with its error."""
+    if spec.frame_cache is None or spec.sequence.folder is not None:
+        return
+    try:
+        source = replace(spec.sequence, start=0).make_source(spec.renderer, spec.frame_cache)
+        try:
+            wait = getattr(source, "wait_for_writer", None)
+            if wait is not None:
+                wait()
+        finally:
+            source.close()
+    except Exception:  # noqa: BLE001, S110 - the run reports it
+        pass
 
 
 def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[float] | None = None,

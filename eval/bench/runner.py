@@ -139,8 +139,9 @@ def run_order(specs: Sequence[RunSpec]) -> list[RunSpec]:
 
 def frames_jobs(specs: Sequence[RunSpec], cache: str | Path) -> list[FramesJob]:
     """One job per simulated sequence the runs read (the most frames any of them reads), longest first: rendered
-    before the runs (:func:`eval.bench.run.render_frames`), each sequence once, where the first run of each
-    sequence used to render it while the others waited for nothing (and the last sequences' first runs ran long)."""
+    ahead of the runs (:func:`eval.bench.run.render_frames`, queued before them: :func:`suite_task`), each sequence
+    once, where the first run of each sequence used to render it while the others waited for nothing (and the last
+    sequences' first runs ran long)."""
     longest: dict[Any, tuple[SequenceRef, int | None]] = {}
     for spec in specs:
         ref = spec.sequence
@@ -184,8 +185,9 @@ def run_suite(
     trajectory figures (:func:`eval.bench.run_store.complete_run`: aligned trajectories, relative errors). Ctrl-C
     (KeyboardInterrupt) stops the executor and propagates;
     the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence, on the
-    executor before the runs (:func:`frames_jobs`), and read back by every run, under ``out_root/.frames``
-    (:mod:`sim_envs.frame_cache`; the same bytes). The runs start longest first (:func:`run_order`).
+    executor ahead of the runs (:func:`frames_jobs`; one queue with the runs, :func:`suite_task`), and read back by
+    every run, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes). The runs start longest
+    first (:func:`run_order`).
     """
     unknown = [m for m in suite.methods if m not in methods]
     if unknown:
@@ -211,13 +213,20 @@ def run_suite(
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
             todo.append(replace(spec, frame_cache=str(out_root / FRAME_CACHE_DIR)) if frame_cache else spec)
-    if frame_cache and todo:
-        _render_ahead(executor, frames_jobs(todo, out_root / FRAME_CACHE_DIR), progress)
+    renders = frames_jobs(todo, out_root / FRAME_CACHE_DIR) if frame_cache and todo else []
     todo = run_order(todo)
     serial = isinstance(executor, SerialExecutor)
-    fn = partial(execute_run, progress=progress and serial)
-    with tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar:
-        for spec, result in executor.map(fn, todo):
+    fn = partial(suite_task, progress=progress and serial)
+    with (tqdm(total=len(renders), desc="rendering", unit="sequence", disable=not progress or not renders) as drawn,
+          tqdm(total=len(todo), desc=f"{suite.name} runs", unit="run", disable=not progress) as bar):
+        for item, result in executor.map(fn, [*renders, *todo]):
+            if isinstance(item, FramesJob):
+                if isinstance(result, BaseException):
+                    logger.warning("rendering %s ahead of its runs failed (%s: %s); its runs render it themselves",
+                                   item.key, type(result).__name__, result)
+                drawn.update(1)
+                continue
+            spec = item
             if isinstance(result, BaseException):
                 result = RunResult(spec, "failed", error=f"{type(result).__name__}: {result}")
             folder = store_result(out_root, result)
@@ -242,17 +251,17 @@ def run_suite(
     return SuiteRun(suite, out_root, tuple(specs), ordered, checked.skipped, records, timings, checked.available)
 
 
-def _render_ahead(executor: Executor, jobs: Sequence[FramesJob], progress: bool) -> None:
-    """Render the sequences of ``jobs`` into the frame cache on ``executor`` (longest first). A job that fails is
-    logged and left to the runs, which render what they miss themselves (and fail with the error)."""
-    if not jobs:
-        return
-    with tqdm(total=len(jobs), desc="rendering", unit="sequence", disable=not progress) as bar:
-        for job, result in executor.map(render_frames, jobs):
-            if isinstance(result, BaseException):
-                logger.warning("rendering %s ahead of its runs failed (%s: %s); its runs render it themselves",
-                               job.key, type(result).__name__, result)
-            bar.update(1)
+def suite_task(item: FramesJob | RunSpec, progress: bool = False) -> int | RunResult:
+    """One task of a suite on its executor: a sequence rendered into the frame cache (a :class:`FramesJob`:
+    :func:`eval.bench.run.render_frames`, frames rendered) or a run (:func:`eval.bench.run.execute_run`).
+
+    :func:`run_suite` hands the executor the rendering jobs (longest first) and then the runs (longest first) as one
+    queue, so that a core that has no sequence left to render starts a run of a sequence already rendered instead of
+    waiting for the last one (a run of a sequence still rendering waits for it: ``CachedFrames.filling``). A failed
+    rendering job is logged and left to its runs, which render what they miss themselves (and fail with the error)."""
+    if isinstance(item, FramesJob):
+        return render_frames(item)
+    return execute_run(item, progress=progress)
 
 
 def suite_records_json(records: Sequence[RunRecord]) -> str:

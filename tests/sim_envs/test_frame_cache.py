@@ -104,3 +104,46 @@ def test_timestamps_and_poses_are_kept_beside_the_frames(tmp_path) -> None:
     assert second.timestamps.tobytes() == stamps.tobytes() and second.poses.tobytes() == poses.tobytes()
     (tmp_path / "trajectory.npz").write_bytes(b"broken")  # made again from the source
     assert np.array_equal(CachedFrames(SimulatedSequence(spec), tmp_path).poses, poses)
+
+
+def test_a_reader_waits_for_the_process_filling_the_folder(tmp_path) -> None:
+    """A second CachedFrames of a folder that a writer is filling (here a thread: flock locks open files, so two of
+    one process exclude each other like two processes) waits at its first access and then reads the writer's
+    frames instead of rendering them beside it; the writer itself never waits."""
+    import threading
+    import time
+
+    spec = with_camera(get_sequence("office0"), "clean")
+    folder = tmp_path / "office0"
+    idle = CachedFrames(SimulatedSequence(spec), tmp_path / "never-filled")
+    idle.wait_for_writer()  # no writer ever: nothing to wait for
+    assert idle.wait_seconds == 0.0
+    writer = CachedFrames(SimulatedSequence(spec), folder)
+    reader = CachedFrames(SimulatedSequence(spec), folder)
+    holding = threading.Event()
+
+    def fill() -> None:
+        with writer.filling():
+            holding.set()
+            for i in range(3):
+                if not writer.has(i):
+                    writer.frame(i)
+            time.sleep(0.5)
+
+    thread = threading.Thread(target=fill)
+    try:
+        thread.start()
+        assert holding.wait(30)
+        start = time.perf_counter()
+        first = reader.frame(2)  # waits for the writer, then reads its file
+        assert time.perf_counter() - start >= 0.4 and reader.wait_seconds >= 0.4
+        thread.join()
+        assert (writer.renders, reader.renders, reader.reads) == (3, 0, 1)
+        assert first.index == 2 and (folder / frame_cache.WRITER_LOCK).is_file()
+        again = time.perf_counter()
+        reader.frame(1)  # waited once: no second wait
+        assert time.perf_counter() - again < 0.4
+    finally:
+        thread.join()
+        for source in (idle, writer, reader):
+            source.close()

@@ -319,3 +319,61 @@ def test_runs_start_longest_first_and_frames_are_rendered_once_before_them(tmp_p
         assert set(timing["stages"]) >= {"setup", "frames", "agent", "finish", "env_driver", "trajectory_metrics",
                                          "keyframe_metrics", "files", "other"}
         assert sum(timing["stages"].values()) == pytest.approx(timing["wall_s"], rel=1e-6)
+
+
+def test_rendering_and_runs_go_to_the_executor_as_one_queue(tmp_path):
+    """The rendering jobs (longest first) and then the runs (longest first) are one queue on the executor, so that a
+    core with no sequence left to render starts a run of a rendered one instead of waiting for the last."""
+    from eval.bench.executors import SerialExecutor
+
+    seen = []
+
+    class Recording(SerialExecutor):
+        def map(self, fn, items):
+            items = list(items)
+            seen.append([type(item).__name__ for item in items])
+            yield from super().map(fn, items)
+
+    suite = get_suite("table1").select(["office0@kinect"], ["oracle", "constant-pose"], frames=4, runs=1)
+    done = run_suite(suite, METHODS, tmp_path, executor=Recording(), plots=False, progress=False, check=False,
+                     revision="r")
+    assert done.counts() == {"done": 2}
+    assert seen == [["FramesJob", "RunSpec", "RunSpec"]]
+    assert all(timing["frame_renders"] == 0 for timing in done.timings.values())
+
+
+def test_a_run_waits_for_its_sequence_rendering_outside_its_clocks(tmp_path):
+    """A run whose sequence another task is still rendering (the writer lock of its frame cache folder) waits for
+    it before its clocks start: the wait is neither in its wall time nor in its frames per second."""
+    import threading
+    import time
+
+    from sim_envs.frame_cache import CachedFrames
+
+    ref = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
+    spec = replace(spec_of(ORACLE, 4, sequence=ref), frame_cache=str(tmp_path / ".frames"))
+    writer = replace(ref, start=0).make_source(spec.renderer, spec.frame_cache)
+    assert isinstance(writer, CachedFrames)
+    holding = threading.Event()
+
+    def fill():
+        with writer.filling():
+            holding.set()
+            for i in range(4):
+                writer.frame(i)
+            time.sleep(1.0)
+
+    thread = threading.Thread(target=fill)
+    thread.start()
+    try:
+        assert holding.wait(30)
+        start = time.perf_counter()
+        result = execute_run(spec)
+        elapsed = time.perf_counter() - start
+    finally:
+        thread.join()
+        writer.close()
+    assert result.status == "done", result.error
+    timing = json.loads(result.files["timing.json"])
+    assert timing["frame_renders"] == 0  # it read the writer's frames
+    assert elapsed >= 0.9 and result.wall_s < elapsed - 0.5
