@@ -6,18 +6,16 @@ A process that compiles the kernels keeps the JIT's memory: about 95 MiB on a 2-
 warm; a 10 000-frame episode 1 522 MiB against 1 336 MiB). Numba keeps compiled kernels beside the sources
 (``cnnslam/__pycache__``) and recompiles one whose source changed, so a stale cache costs time, never results.
 
-Its parts (``--parts``; all by default), split between ``--jobs`` processes of one math thread each by their usual
-time (:func:`split_parts`: with 2, the system and Laina in one, ORB then REMODE in the other, so that the LSD-BS
-tracking inside REMODE loads the kernels the system's part has compiled meanwhile):
+Two parts, run side by side with ``--jobs 2`` (each in its own process, one math thread each):
 
-- ``system`` (:func:`warm_up`) runs the whole two-thread system, global model and ``finish`` included, over the
-  first frames of office0 through the default camera: the kernels of tracking, refinement, key-frames, the pose graph
-  and the model's fusion and re-placement are all called with the signatures a run uses (38 s with a cold cache on a
-  2-core Intel Xeon);
-- ``orb``, ``remode``, ``laina`` (:func:`warm_up_baselines`) run the baselines with kernels of their own (ORB's
-  features, map and bundle adjustment; REMODE's depth filter and smoothing; Laina's ICP) through ``sim_envs``'
-  driver over the first frames of office0, as a suite runs them. Without them the first suite run of each compiled
-  them: 22, 21 and 6 s there (a 30-frame run of each in a fresh clone, against the same run again).
+- :func:`warm_up` runs the whole two-thread system, global model and ``finish`` included, over the first frames of
+  office0 through the default camera: the kernels of tracking, refinement, key-frames, the pose graph and the model's
+  fusion and re-placement are all called with the signatures a run uses (34 s with a cold cache on a 2-core Intel
+  Xeon);
+- :func:`warm_up_baselines` runs the baselines with kernels of their own (:data:`BASELINE_AGENTS`: ORB's features,
+  map and bundle adjustment; REMODE's depth filter and smoothing; Laina's ICP) through ``sim_envs``' driver over the
+  first frames of office0, as a suite runs them. Without it the first suite run of each compiled them: 22, 21 and
+  6 s there (a 30-frame run of each in a fresh clone, against the same run again).
 """
 
 from __future__ import annotations
@@ -30,16 +28,14 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 WARMUP_FRAMES = 150  # enough for several key-frames, pose-graph edges and a re-placement at finish
-# the baselines whose kernels the system's warm-up does not call: part name -> (entry point, keyword arguments)
-BASELINE_AGENTS: dict[str, tuple[str, dict[str, Any]]] = {
-    "orb": ("cnnslam.baselines.orb:OrbSlamAgent", {}),
-    "remode": ("cnnslam.baselines.remode:RemodeAgent", {"threads": False}),
-    "laina": ("cnnslam.baselines.laina:LainaAgent", {}),
-}
+# (entry point, keyword arguments) of the baselines whose kernels the system's warm-up does not call; ORB first:
+# the LSD-BS tracking inside REMODE then loads what the system's warm-up, beside it, has compiled meanwhile
+BASELINE_AGENTS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("cnnslam.baselines.orb:OrbSlamAgent", {}),
+    ("cnnslam.baselines.remode:RemodeAgent", {"threads": False}),
+    ("cnnslam.baselines.laina:LainaAgent", {}),
+)
 BASELINE_FRAMES = 40  # ORB's map and bundle adjustment, REMODE's updates and (at finish) its smoothing
-PARTS = ("system", *BASELINE_AGENTS)
-# about how long each part takes with a cold cache (s, 2-core Intel Xeon, one part a process): how --jobs splits them
-PART_SECONDS = {"system": 38.0, "orb": 27.0, "remode": 27.0, "laina": 10.0}
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
@@ -52,8 +48,7 @@ def warm_up(frames: int = WARMUP_FRAMES, sequence: str = "office0") -> dict[str,
 
 
 def warm_up_baselines(frames: int = BASELINE_FRAMES, sequence: str = "office0", camera: str = "kinect",
-                      agents: tuple[tuple[str, dict[str, Any]], ...] = tuple(BASELINE_AGENTS.values()),
-                      ) -> dict[str, Any]:
+                      agents: tuple[tuple[str, dict[str, Any]], ...] = BASELINE_AGENTS) -> dict[str, Any]:
     """Run each of ``agents`` ("module:Class", keyword arguments) over the first ``frames`` frames of ``sequence``
     through ``camera``, as a suite runs an agent (``sim_envs.driver.run_episode`` on a ``ReplayEnv``; the frames
     rendered once, into a temporary frame cache), so that numba compiles (or loads) their kernels. Returns the
@@ -82,35 +77,18 @@ def warm_up_baselines(frames: int = BASELINE_FRAMES, sequence: str = "office0", 
     return figures
 
 
-def split_parts(parts: list[str] | tuple[str, ...], jobs: int) -> list[list[str]]:
-    """``parts`` in at most ``jobs`` groups of about equal time (:data:`PART_SECONDS`; the longest first, each to
-    the group with the least so far), each group's parts in :data:`PARTS` order."""
-    groups: list[list[str]] = [[] for _ in range(max(1, min(int(jobs), len(parts))))]
-    totals = [0.0] * len(groups)
-    for part in sorted(parts, key=lambda p: -PART_SECONDS.get(p, 0.0)):
-        k = totals.index(min(totals))
-        groups[k].append(part)
-        totals[k] += PART_SECONDS.get(part, 0.0)
-    return [sorted(g, key=PARTS.index) for g in groups if g]
+def _line(label: str, figures: dict[str, Any], seconds: float) -> str:
+    return (f"numba warm-up ({label}): {figures['numba_signatures_compiled']} kernel signature(s) compiled, "
+            f"{figures['numba_signatures_from_cache']} loaded from the cache, {seconds:.0f} s")
 
 
-def _run_group(group: list[str], frames: int | None) -> str:
-    """Warm up the parts of ``group`` in this process; one line saying what was compiled, loaded and how long."""
+def _timed(part: str, frames: int | None) -> tuple[dict[str, Any], float]:
     start = time.perf_counter()
-    seconds: dict[str, float] = {}
-    figures: dict[str, Any] = {}
-    if "system" in group:
+    if part == "system":
         figures = warm_up(WARMUP_FRAMES if frames is None else frames)
-        seconds["system"] = time.perf_counter() - start
-    agents = [BASELINE_AGENTS[p] for p in group if p != "system"]
-    if agents:
-        figures = warm_up_baselines(BASELINE_FRAMES if frames is None else frames, agents=tuple(agents))
-        for part in group:
-            if part != "system":
-                seconds[part] = figures[f"seconds_{BASELINE_AGENTS[part][0].partition(':')[2]}"]
-    each = ", ".join(f"{p} {seconds[p]:.0f} s" for p in group)
-    return (f"numba warm-up ({each}): {figures['numba_signatures_compiled']} kernel signature(s) compiled, "
-            f"{figures['numba_signatures_from_cache']} loaded from the cache, {time.perf_counter() - start:.0f} s")
+    else:
+        figures = warm_up_baselines(BASELINE_FRAMES if frames is None else frames)
+    return figures, time.perf_counter() - start
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -118,23 +96,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=None,
                         help=f"frames to run (default {WARMUP_FRAMES} for the system, {BASELINE_FRAMES} for the "
                              "baselines)")
-    parser.add_argument("--jobs", type=int, default=1,
-                        help="processes: the parts split between them by their usual time (default 1)")
-    parser.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS),
-                        help="what to warm up (default all: the system and each baseline)")
+    parser.add_argument("--jobs", type=int, default=1, help="processes: 2 runs the two parts side by side")
+    parser.add_argument("--parts", nargs="+", choices=("system", "baselines"), default=["system", "baselines"],
+                        help="what to warm up (default both)")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
-    groups = split_parts(list(dict.fromkeys(args.parts)), args.jobs)
-    if len(groups) == 1:
-        print(_run_group(groups[0], args.frames), flush=True)
+    if args.jobs == 1 or len(args.parts) == 1:
+        for part in args.parts:
+            figures, seconds = _timed(part, args.frames)
+            print(_line(part, figures, seconds), flush=True)
         return 0
     saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
     os.environ.update({name: "1" for name in _THREAD_VARIABLES})  # the spawned children's math libraries
     try:
-        with ProcessPoolExecutor(len(groups), mp_context=multiprocessing.get_context("spawn")) as pool:
-            for line in pool.map(_run_group, groups, [args.frames] * len(groups)):
-                print(line, flush=True)
+        with ProcessPoolExecutor(min(args.jobs, len(args.parts)),
+                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = [(part, pool.submit(_timed, part, args.frames)) for part in args.parts]
+            for part, future in futures:
+                figures, seconds = future.result()
+                print(_line(part, figures, seconds), flush=True)
     finally:
         for name, value in saved.items():
             if value is None:
