@@ -225,6 +225,8 @@ def run_suite(
                     logger.warning("rendering %s ahead of its runs failed (%s: %s); its runs render it themselves",
                                    item.key, type(result).__name__, result)
                 drawn.update(1)
+                if drawn.n == len(renders):
+                    drawn.close()  # its time is the rendering's, not the runs' that go on beside it
                 continue
             spec = item
             if isinstance(result, BaseException):
