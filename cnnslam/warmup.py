@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
+
+from slamcommon.threads import limit_threads
 
 WARMUP_FRAMES = 150  # enough for several key-frames, pose-graph edges and a re-placement at finish
 # (entry point, keyword arguments) of the baselines whose kernels the system's warm-up does not call; ORB first:
@@ -36,7 +37,6 @@ BASELINE_AGENTS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("cnnslam.baselines.laina:LainaAgent", {}),
 )
 BASELINE_FRAMES = 40  # ORB's map and bundle adjustment, REMODE's updates and (at finish) its smoothing
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 def warm_up(frames: int = WARMUP_FRAMES, sequence: str = "office0") -> dict[str, Any]:
@@ -107,21 +107,12 @@ def main(argv: list[str] | None = None) -> int:
             figures, seconds = _timed(part, args.frames)
             print(_line(part, figures, seconds), flush=True)
         return 0
-    saved = {name: os.environ.get(name) for name in _THREAD_VARIABLES}
-    os.environ.update({name: "1" for name in _THREAD_VARIABLES})  # the spawned children's math libraries
-    try:
-        with ProcessPoolExecutor(min(args.jobs, len(args.parts)),
-                                 mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = [(part, pool.submit(_timed, part, args.frames)) for part in args.parts]
-            for part, future in futures:
-                figures, seconds = future.result()
-                print(_line(part, figures, seconds), flush=True)
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
+    with ProcessPoolExecutor(min(args.jobs, len(args.parts)), mp_context=multiprocessing.get_context("spawn"),
+                             initializer=limit_threads, initargs=(1,)) as pool:  # one math thread a process
+        futures = [(part, pool.submit(_timed, part, args.frames)) for part in args.parts]
+        for part, future in futures:
+            figures, seconds = future.result()
+            print(_line(part, figures, seconds), flush=True)
     return 0
 
 

@@ -55,17 +55,11 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Literal, Protocol, TypeVar, get_args
 
 from eval.errors import EvalError
+from slamcommon.threads import THREAD_VARIABLES, limit_threads  # noqa: F401 - names of this module too
 
 ExecutorName = Literal["local", "serial", "ray"]
 EXECUTORS: tuple[str, ...] = get_args(ExecutorName)
 MAX_POOL_BREAKS = 2  # broken pools a run may be unfinished in before it is reported failed (ours)
-THREAD_VARIABLES: tuple[str, ...] = (
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "NUMBA_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-)
 RAY_INSTALL_HINT = "pip install -c constraints.txt -e '.[ray]'"
 PARENT_POLL_S = 0.5  # how often a worker's watchdog thread checks that its parent still lives
 KILL_WAIT_S = 1.0  # how long stopping a pool waits for its manager thread and each killed worker
@@ -113,19 +107,6 @@ def available_cores() -> int:
 def threads_per_job(jobs: int) -> int:
     """Math-library threads per worker so that ``jobs`` workers fill the cores without oversubscribing them."""
     return max(1, available_cores() // max(1, int(jobs)))
-
-
-def limit_threads(threads: int) -> None:
-    """Limit this process's math libraries to ``threads`` threads (call before they are imported: a pool's
-    initializer). OpenCV, when already imported, is limited directly."""
-    for name in THREAD_VARIABLES:
-        os.environ[name] = str(int(threads))
-    try:
-        import cv2
-
-        cv2.setNumThreads(int(threads))
-    except ImportError:  # OpenCV is a dependency; without it there is nothing to limit
-        pass
 
 
 def die_with_parent(parent: int, kernel: bool = True, poll_s: float = PARENT_POLL_S) -> None:
