@@ -74,7 +74,7 @@ class RemodeConfig(Configurable):
     patch_size: int = 5
     search_step_px: float = 0.7
     # REMODE caps the searched segment (MAX_EXTENT_EPIPOLAR_SEARCH); ours: 35 px at 320x240. It was 50 until round
-    # 48: at 35 the 27 runs of the 3-run table (whole sequences, seeds 0-2) took 16 % less time and their correct
+    # 48: at 35 the 27 runs of the 3-run table (whole sequences, seeds 0-2) took 17 % less time and their correct
     # depth moved by at most 0.07 points per seed (results/perf_history.md, "Round 48").
     max_search_px: float = 35.0
     # REMODE: a match needs ZNCC >= 0.5, else NO_MATCH.
