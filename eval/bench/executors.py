@@ -55,7 +55,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Literal, Protocol, TypeVar, get_args
 
 from eval.errors import EvalError
-from slamcommon.threads import THREAD_VARIABLES, limit_threads  # noqa: F401 - names of this module too
+from slamcommon.threads import THREAD_VARIABLES, limit_threads
 
 ExecutorName = Literal["local", "serial", "ray"]
 EXECUTORS: tuple[str, ...] = get_args(ExecutorName)
