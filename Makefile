@@ -13,7 +13,8 @@ JOBS   ?= 2
 # 0 .. BENCH_RUNS-1; the oracle runs once), JOBS runs at a time -> results/bench/. One run per cell: 20 min 1 s end to
 # end in a fresh clone on a 2-core AMD EPYC (round 44, make venv and rendering included, 2 min 45 s); BENCH_RUNS=3 is
 # the committed results/table1.md's protocol (52 min 56 s in a fresh clone, round 44, 198 runs; 1 h 26 min in round
-# 39).
+# 39). On a 2-core Intel Xeon (AVX-512, rounds 46-49), make venv included: one run per cell 35 min 52 s (round 47),
+# BENCH_RUNS=3 80 min 44 s (round 49).
 # BENCH_FRAMES=N scores the first N frames instead (not the whole sequences' verdict). Finished runs under runs/ are
 # reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= all
