@@ -5,13 +5,10 @@ from __future__ import annotations
 
 import os
 
-THREAD_VARIABLES: tuple[str, ...] = (
-    "OMP_NUM_THREADS",
-    "MKL_NUM_THREADS",
-    "OPENBLAS_NUM_THREADS",
-    "NUMBA_NUM_THREADS",
-    "VECLIB_MAXIMUM_THREADS",
-)
+# the BLAS libraries' thread counts (numpy's linear algebra; read once, when numpy loads its BLAS) ...
+BLAS_THREAD_VARIABLES: tuple[str, ...] = ("MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
+# ... and every math library's: OpenMP (torch) and numba's too
+THREAD_VARIABLES: tuple[str, ...] = ("OMP_NUM_THREADS", *BLAS_THREAD_VARIABLES, "NUMBA_NUM_THREADS")
 
 
 def limit_threads(threads: int) -> None:

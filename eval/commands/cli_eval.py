@@ -37,9 +37,11 @@ import sys
 # that imported numpy first keeps its own setting) and only where the caller set nothing: every product here is 3x3
 # or (N, 3) x (3, 3), where BLAS threads only wait on each other (on a busy 2-core machine an (N, 3) x (3, 3)
 # product took 36 ms of CPU threaded and 1 ms on one thread, with the same bits). The pool's workers do the same
-# (:data:`slamcommon.threads.THREAD_VARIABLES`).
+# (:data:`slamcommon.threads.THREAD_VARIABLES`, of which these are the BLAS ones).
+from slamcommon.threads import BLAS_THREAD_VARIABLES  # imports no numpy
+
 if "numpy" not in sys.modules:
-    for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS"):
+    for _name in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(_name, "1")
 
 from eval.errors import EvalError
