@@ -4,6 +4,7 @@ surfaces converge to the right depth, a plain wall does not), and the agent on t
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -19,6 +20,7 @@ from cnnslam.baselines.remode import (
     best_match,
     depth_range_of,
     search_image,
+    search_pairs,
     search_tables,
     triangulation_uncertainty,
     tv_smooth,
@@ -157,6 +159,72 @@ def test_best_match_is_the_zncc_maximum_along_the_segment() -> None:
                 assert (got[1], got[2]) == (best[1], best[2])
                 cases += 1
     assert cases == 52
+
+
+def test_search_pairs_pack_each_pixel_with_its_neighbours() -> None:
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (7, 9)).astype(np.float32)
+    pairs = search_pairs(img)
+    i = img.astype(np.int64)
+    assert pairs.shape == (2, 7, 9) and pairs.dtype == np.int64
+    assert np.array_equal(pairs[0] & 0xFFFFFFFF, i) and np.array_equal(pairs[1] & 0xFFFFFFFF, i)
+    assert np.array_equal(pairs[0, :-1] >> 32, i[1:]) and np.array_equal(pairs[0, -1] >> 32, np.zeros(9))
+    assert np.array_equal(pairs[1, :, :-1] >> 32, i[:, 1:]) and np.array_equal(pairs[1, :, -1] >> 32, np.zeros(7))
+    for bad in (img + 0.5, img + 256, -img - 1, np.zeros((0, 4)), np.zeros((4, 4, 3))):
+        with pytest.raises(CnnSlamError, match="integer grey levels"):
+            search_pairs(bad)
+    # a search image carries them for grey levels only
+    assert np.array_equal(search_image(img.astype(np.uint8), 5).pairs, pairs)
+    assert search_image(img + 0.5, 5).pairs is None
+
+
+def test_best_match_two_corners_at_a_time_is_the_same_search() -> None:
+    """Grey levels in the image and the template: the packed sums give the same best ZNCC and position, bit for
+    bit, as the corner-by-corner search, in every direction (row, column, diagonal moves and jumps), with both patch
+    sizes; a template that is not grey levels is searched corner by corner."""
+    rng = np.random.default_rng(11)
+    cur_u8 = cv2.GaussianBlur(rng.integers(0, 256, (60, 80)).astype(np.uint8), (3, 3), 0)
+    cur = cur_u8.astype(np.float64)
+    pairs = search_pairs(cur_u8)
+    scored = 0
+    for half in (2, 1):
+        tab = search_tables(cur_u8.astype(np.float32), 2 * half + 1)
+        for angle in np.linspace(0.0, 2 * np.pi, 17):
+            for step in (0.7, 1.3, 2.3):
+                y0, x0 = (int(x) for x in rng.integers(10, 50, 2))
+                tmpl = np.clip(cur[y0 - half:y0 + half + 1, x0 - half:x0 + half + 1].ravel()
+                               + rng.integers(-9, 10, (2 * half + 1) ** 2), 0, 255)
+                args = (x0 + rng.uniform(-3, 3), y0 + rng.uniform(-3, 3), math.cos(angle), math.sin(angle), 25.0,
+                        step, half, float(tmpl.mean()), float(tmpl.std()))
+                one = best_match(cur, tab, tmpl, *args)
+                two = best_match(cur, tab, tmpl, *args, pairs=pairs)
+                assert one == two
+                scored += one[0] > -1.0
+                noisy = tmpl + 0.25  # not grey levels: the corner-by-corner sums
+                assert best_match(cur, tab, noisy, *args, pairs=pairs) == best_match(cur, tab, noisy, *args)
+    assert scored == 102
+
+
+def test_filter_update_is_the_same_with_and_without_pairs() -> None:
+    """Every seed after three updates (the packed sums against the corner-by-corner ones): equal, bit for bit."""
+    rng = np.random.default_rng(5)
+    ref = cv2.GaussianBlur(rng.integers(0, 256, (48, 64)).astype(np.uint8), (3, 3), 0)
+    intr = np.array([60.0, 60.0, 32.0, 24.0])
+    filters = [DepthFilter(ref, np.eye(4), intr, (0.5, 4.0)) for _ in range(2)]
+    for k, axes in ((2, (1,)), (3, (0,)), (2, (0, 1))):  # the image moved k px left, up, diagonally: 1.5 m away
+        pose = np.eye(4)
+        shifted = ref
+        for axis in axes:
+            pose[1 - axis, 3] = 0.025 * k
+            shifted = np.roll(shifted, -k, axis=axis)
+        with_pairs = search_image(shifted, 5)
+        without = dataclasses.replace(with_pairs, pairs=None)
+        outcomes = [f.update(image, pose) for f, image in zip(filters, (with_pairs, without), strict=True)]
+        assert outcomes[0].updated == outcomes[1].updated and outcomes[0].updated > 0
+    for name in ("mu", "sigma2", "a", "b", "state"):
+        assert np.array_equal(getattr(filters[0], name), getattr(filters[1], name))
+    with pytest.raises(CnnSlamError, match="search_pairs"):
+        filters[0].update(dataclasses.replace(with_pairs, pairs=with_pairs.pairs[:, :10]), np.eye(4))
 
 
 def test_tv_smooth_denoises_keeps_edges_and_inpaints() -> None:
