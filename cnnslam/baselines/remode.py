@@ -276,6 +276,11 @@ def search_pairs(gray: np.ndarray) -> np.ndarray:
     img = np.asarray(gray)
     if img.ndim != 2 or not grey_levels(img):
         raise CnnSlamError("search_pairs needs an (H, W) image of integer grey levels in [0, 255]")
+    return _packed_pairs(img)
+
+
+def _packed_pairs(img: np.ndarray) -> np.ndarray:
+    """:func:`search_pairs` of an (H, W) image already known to be grey levels."""
     i = img.astype(np.int64)
     pairs = np.stack([i, i])
     pairs[0, :-1] += i[1:] << 32
@@ -287,7 +292,7 @@ def search_image(image: np.ndarray, patch_size: int) -> SearchImage:
     """The :class:`SearchImage` of an (H, W) grey or (H, W, 3) uint8 RGB image (with :func:`search_pairs` when its
     intensities are grey levels)."""
     gray = _gray(image)
-    pairs = search_pairs(gray) if grey_levels(gray) else None
+    pairs = _packed_pairs(gray) if grey_levels(gray) else None
     return SearchImage(gray.astype(np.float64), search_tables(gray, patch_size), int(patch_size), pairs)
 
 
