@@ -14,6 +14,7 @@ import pytest
 
 from cnnslam.baselines.remode import (
     CONVERGED,
+    UPDATE,
     DepthFilter,
     RemodeAgent,
     RemodeConfig,
@@ -203,6 +204,35 @@ def test_best_match_two_corners_at_a_time_is_the_same_search() -> None:
                 noisy = tmpl + 0.25  # not grey levels: the corner-by-corner sums
                 assert best_match(cur, tab, noisy, *args, pairs=pairs) == best_match(cur, tab, noisy, *args)
     assert scored == 102
+
+
+def test_best_match_refuses_tables_pairs_or_template_of_another_size() -> None:
+    """The search reads its tables, pairs and template without bounds checks: best_match checks their shapes."""
+    cur = np.random.default_rng(2).integers(0, 256, (30, 40)).astype(np.uint8)
+    tab = search_tables(cur.astype(np.float32), 5)
+    args = (20.0, 15.0, 1.0, 0.0, 10.0, 0.7, 2, 100.0, 20.0)
+    tmpl = np.full(25, 100.0)
+    for bad_tab, bad_tmpl, bad_pairs, message in ((tab[:20], tmpl, None, "search_tables"),
+                                                  (tab, tmpl[:9], None, "5x5"),
+                                                  (tab, tmpl, search_pairs(cur[:, :30]), "search_pairs")):
+        with pytest.raises(CnnSlamError, match=message):
+            best_match(cur, bad_tab, bad_tmpl, *args, pairs=bad_pairs)
+
+
+def test_a_seed_whose_patch_leaves_the_image_is_never_searched() -> None:
+    """Seeds in the ring where a patch would leave the image stay as they were, even when set to UPDATE by hand
+    (DepthFilter marks a wider ring BORDER); the others are updated as usual."""
+    rng = np.random.default_rng(8)
+    ref = cv2.GaussianBlur(rng.integers(0, 256, (40, 56)).astype(np.uint8), (3, 3), 0)
+    f = DepthFilter(ref, np.eye(4), np.array([50.0, 50.0, 28.0, 20.0]), (0.5, 4.0))
+    f.state[:] = UPDATE
+    before = f.b.copy()
+    pose = np.eye(4)
+    pose[0, 3] = 0.05
+    assert f.update(np.roll(ref, -2, axis=1), pose).updated > 0
+    ring = np.ones(ref.shape, bool)
+    ring[2:-2, 2:-2] = False
+    assert np.array_equal(f.b[ring], before[ring]) and np.array_equal(f.mu[ring], np.full(ring.sum(), f.mu[0, 0]))
 
 
 def test_filter_update_is_the_same_with_and_without_pairs() -> None:
