@@ -14,8 +14,9 @@ JOBS   ?= 2
 # end in a fresh clone on a 2-core AMD EPYC (round 44, make venv and rendering included, 2 min 45 s); BENCH_RUNS=3 is
 # the committed results/table1.md's protocol (52 min 56 s in a fresh clone, round 44, 198 runs; 1 h 26 min in round
 # 39). On a 2-core Intel Xeon (AVX-512, rounds 46-49), make venv included: one run per cell 35 min 52 s (round 47),
-# BENCH_RUNS=3 80 min 44 s (round 49). On a 2-core AMD EPYC with AVX-512 (round 50), make venv included: one run per
-# cell 14 min 1 s and 15 min 13 s (two runs), BENCH_RUNS=3 35 min 11 s.
+# BENCH_RUNS=3 80 min 44 s (round 49). On a 2-core AMD EPYC with AVX-512 (rounds 50-51), make venv included: one run
+# per cell 14 min 1 s to 15 min 13 s (four runs; 14 min 37 s in round 51), BENCH_RUNS=3 35 min 11 s (round 50) and
+# 35 min 54 s (round 51).
 # BENCH_FRAMES=N scores the first N frames instead (not the whole sequences' verdict). Finished runs under runs/ are
 # reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= all
