@@ -247,7 +247,11 @@ def search_tables(gray: np.ndarray, patch_size: int) -> np.ndarray:
     img = np.asarray(gray)
     if img.ndim != 2:
         raise CnnSlamError(f"expected an (H, W) grey image, got shape {img.shape}")
-    exact32 = grey_levels(img)
+    return _search_tables(img, patch_size, grey_levels(img))
+
+
+def _search_tables(img: np.ndarray, patch_size: int, exact32: bool) -> np.ndarray:
+    """:func:`search_tables` of an (H, W) image whose grey-level test (:func:`grey_levels`) is ``exact32``."""
     i = img.astype(np.float32 if exact32 else np.float64)
     h, w = i.shape
     products = np.zeros((h, w, 6), i.dtype)
@@ -295,8 +299,17 @@ def search_image(image: np.ndarray, patch_size: int) -> SearchImage:
     """The :class:`SearchImage` of an (H, W) grey or (H, W, 3) uint8 RGB image (with :func:`search_pairs` when its
     intensities are grey levels)."""
     gray = _gray(image)
-    pairs = _packed_pairs(gray) if grey_levels(gray) else None
-    return SearchImage(gray.astype(np.float64), search_tables(gray, patch_size), int(patch_size), pairs)
+    grey = grey_levels(gray)
+    return SearchImage(gray.astype(np.float64), _search_tables(gray, patch_size, grey), int(patch_size),
+                       _packed_pairs(gray) if grey else None)
+
+
+def _check_pairs(pairs: np.ndarray, shape: tuple[int, ...], who: str) -> None:
+    """Raise unless ``pairs`` is the (2, H, W) :func:`search_pairs` of an image of ``shape`` (H, W); ``who`` names the
+    caller in the message."""
+    if pairs.shape != (2, *shape):
+        raise CnnSlamError(f"{who}: search pairs of shape {pairs.shape} for an image of shape {shape}: make them with "
+                           f"search_pairs(image), shape (2, H, W)")
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -475,9 +488,8 @@ def best_match(cur: np.ndarray, tab: np.ndarray, tmpl: np.ndarray, u_mean: float
     if cur.ndim != 2 or tab.shape != (*cur.shape, 6) or tmpl.size != side * side:
         raise CnnSlamError(f"best_match: cur (H, W), its search_tables (H, W, 6) and a template of {side}x{side} "
                            f"values, got {cur.shape}, {tab.shape} and {tmpl.size} values")
-    if pairs is not None and pairs.shape != (2, *cur.shape):
-        raise CnnSlamError(f"best_match: pairs of shape {pairs.shape} for an image of shape {cur.shape}: make them "
-                           f"with search_pairs(image), shape (2, H, W)")
+    if pairs is not None:
+        _check_pairs(pairs, cur.shape, "best_match")
     packed = pairs is not None and grey_levels(tmpl) and side <= _MAX_PACKED_SIDE
     return _best_match_alone(cur, tab, tmpl,
                              pairs if packed else _NO_PAIRS, tmpl.astype(np.int64), packed, float(u_mean),
@@ -770,9 +782,8 @@ class DepthFilter:
         cur = image if isinstance(image, SearchImage) else search_image(image, self.config.patch_size)
         if cur.gray.shape != self.reference.shape:
             raise CnnSlamError(f"image of size {cur.gray.shape} for a reference of size {self.reference.shape}")
-        if cur.pairs is not None and cur.pairs.shape != (2, *cur.gray.shape):
-            raise CnnSlamError(f"search pairs of shape {cur.pairs.shape} for an image of shape {cur.gray.shape}: "
-                               f"make them with search_pairs(image), shape (2, H, W)")
+        if cur.pairs is not None:
+            _check_pairs(cur.pairs, cur.gray.shape, "DepthFilter.update")
         if cur.patch_size != self.config.patch_size or cur.tables.shape != (*cur.gray.shape, 6):
             raise CnnSlamError(f"search tables of shape {cur.tables.shape} for {cur.patch_size}-pixel patches, but "
                                f"this filter matches {self.config.patch_size}-pixel patches on {cur.gray.shape} "
