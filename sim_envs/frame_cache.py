@@ -38,7 +38,7 @@ except ImportError:  # not POSIX: no writer lock; a reader then renders what is 
 import numpy as np
 
 from sim_envs.errors import RendererUnavailableError, SimEnvError
-from sim_envs.frame_codec import FRAME_FORMAT, FrameCodecError, decode_frame, encode_frame
+from sim_envs.frame_codec import FRAME_FORMAT, FrameCodecError, FrameEncoder, decode_frame
 from sim_envs.frames import Frame
 from sim_envs.render.gl import gl_platform
 
@@ -101,6 +101,7 @@ class CachedFrames:
         self.render_seconds = 0.0
         self.wait_seconds = 0.0
         self._waited = False
+        self._encoder = FrameEncoder()  # the sequence's frames are stored in order: its choices carry over
 
     @contextmanager
     def filling(self) -> Iterator[None]:
@@ -235,7 +236,7 @@ class CachedFrames:
 
     def _store(self, path: Path, frame: Frame) -> None:
         arrays = {k: getattr(frame, k) for k in _ARRAYS if getattr(frame, k) is not None}
-        data = encode_frame(frame.index, frame.timestamp, arrays)
+        data = self._encoder.encode(frame.index, frame.timestamp, arrays)
         self._write(path, lambda out: out.write(data), f"frame {frame.index}")
 
     def _write(self, path: Path, write: Any, what: str) -> None:

@@ -170,3 +170,51 @@ def test_the_hashed_palette_gives_the_bytes_of_unique_and_searchsorted() -> None
     for name, a in cases.items():
         assert fc._palette(a) == _palette_by_definition(a), name
     assert fc._palette(over) is None and fc._palette(full)[1] == 61441
+
+
+def _back(data: bytes, arrays: dict[str, np.ndarray]) -> bool:
+    back = decode_frame(data).arrays
+    return all(back[k].dtype == a.dtype and back[k].shape == a.shape and back[k].tobytes() == a.tobytes()
+               for k, a in arrays.items())
+
+
+def test_an_encoder_keeps_its_choices_between_rechoices_and_loses_nothing() -> None:
+    rng = np.random.default_rng(5)
+    quantised = (np.round(rng.random((48, 64)) * 20) / 10).astype(np.float32)  # a palette's array
+    smooth = (1.0 + 0.001 * np.arange(48 * 64)).astype(np.float32).reshape(48, 64)  # b32-delta2's
+    frames = [{"d": quantised, "rgb": _arrays(rng)["rgb"]}, {"d": smooth}, {"d": smooth}, {"d": smooth}]
+    encoder = fc.FrameEncoder(rechoose_every=3)
+    data = [encoder.encode(i, 0.1 * i, arrays) for i, arrays in enumerate(frames)]
+    assert [_transforms(b)["d"] for b in data] == ["palette", "palette", "palette", "b32-delta2"]
+    assert _transforms(encode_frame(1, 0.1, frames[1]))["d"] == "b32-delta2"  # what frame 1 alone would choose
+    assert all(_back(b, arrays) for b, arrays in zip(data, frames, strict=True))
+    # choosing on every frame gives encode_frame's bytes
+    every = fc.FrameEncoder(rechoose_every=1)
+    assert [every.encode(i, 0.1 * i, a) for i, a in enumerate(frames)] == [
+        encode_frame(i, 0.1 * i, a) for i, a in enumerate(frames)]
+
+
+def test_a_choice_that_no_longer_applies_is_made_again() -> None:
+    rng = np.random.default_rng(6)
+    encoder = fc.FrameEncoder(rechoose_every=100)
+    few = rng.integers(0, 5, (256, 256)).astype(np.int32)  # a palette ...
+    many = rng.integers(0, 2**31 - 1, (256, 256)).astype(np.int32)  # ... which this one outgrows (its sample too)
+    other = rng.integers(0, 5, (64, 64)).astype(np.int16)  # the same name, another dtype
+    shorter = rng.integers(0, 5, (32, 64)).astype(np.int32)  # ... another shape: chosen again
+    data = [encoder.encode(i, 0.0, {"ids": a}) for i, a in enumerate((few, many, other, shorter))]
+    assert _transforms(data[0])["ids"] == "palette" and _transforms(data[1])["ids"] != "palette"
+    assert all(_back(b, {"ids": a}) for b, a in zip(data, (few, many, other, shorter), strict=True))
+
+
+def test_an_encoder_pickles_with_its_choices_and_checks_its_interval() -> None:
+    import pickle
+
+    encoder = fc.FrameEncoder(rechoose_every=10)
+    arrays = {"d": np.round(np.random.default_rng(7).random((40, 40)) * 4).astype(np.float32)}
+    first = encoder.encode(0, 0.0, arrays)
+    copy = pickle.loads(pickle.dumps(encoder))  # (a frame cache sent to a worker process)
+    assert copy.encode(1, 0.0, arrays)[len(MAGIC):] == encoder.encode(1, 0.0, arrays)[len(MAGIC):]
+    assert _back(first, arrays)
+    for bad in (0, -1, 1.5):
+        with pytest.raises(FrameCodecError, match="rechoose_every"):
+            fc.FrameEncoder(rechoose_every=bad)
