@@ -2,7 +2,7 @@
 
 import pytest
 
-from cnnslam.warmup import BASELINE_AGENTS, main, warm_up, warm_up_baselines
+from cnnslam.warmup import BASELINE_AGENTS, SYSTEM_SIDE_BASELINES, main, warm_up, warm_up_baselines
 
 
 def test_the_warm_up_runs_the_system_and_counts_the_kernels(capsys):
@@ -26,7 +26,9 @@ def test_the_baselines_warm_up_runs_each_agent_through_the_driver():
 def test_the_two_parts_run_side_by_side_in_their_own_processes(capsys):
     assert main(["--jobs", "2", "--frames", "6"]) == 0
     out = capsys.readouterr().out
-    assert "numba warm-up (system):" in out and "numba warm-up (baselines):" in out
+    # Laina (whose global model is the system's) runs in the system's process, after it; each baseline once
+    assert "numba warm-up (system, then LainaAgent):" in out and "numba warm-up (baselines):" in out
+    assert set(SYSTEM_SIDE_BASELINES) < {entry for entry, _ in BASELINE_AGENTS}
 
 
 def test_a_bad_jobs_count_is_refused(capsys):
