@@ -87,18 +87,24 @@ def _line(label: str, figures: dict[str, Any], seconds: float) -> str:
             f"{figures['numba_signatures_from_cache']} loaded from the cache, {seconds:.0f} s")
 
 
-def _timed(part: str, frames: int | None, agents: tuple[tuple[str, dict[str, Any]], ...] = BASELINE_AGENTS
+def _baselines_of(side_by_side: bool) -> dict[str, tuple[tuple[str, dict[str, Any]], ...]]:
+    """The baselines each part warms up: one after another, all of them in the baselines' part; side by side, those
+    of :data:`SYSTEM_SIDE_BASELINES` in the system's part, after it (module docstring), the others in the baselines'."""
+    if not side_by_side:
+        return {"system": (), "baselines": BASELINE_AGENTS}
+    return {"system": tuple(a for a in BASELINE_AGENTS if a[0] in SYSTEM_SIDE_BASELINES),
+            "baselines": tuple(a for a in BASELINE_AGENTS if a[0] not in SYSTEM_SIDE_BASELINES)}
+
+
+def _timed(part: str, frames: int | None, agents: tuple[tuple[str, dict[str, Any]], ...]
            ) -> tuple[dict[str, Any], float]:
     """Run ``part`` ("system": the system, then the baselines ``agents`` if any; "baselines": ``agents``); returns
     the figures of its last call (the kernel counts are the process's) and the seconds it took."""
     start = time.perf_counter()
-    baseline_frames = BASELINE_FRAMES if frames is None else frames
     if part == "system":
         figures = warm_up(WARMUP_FRAMES if frames is None else frames)
-        if agents:
-            figures = warm_up_baselines(baseline_frames, agents=agents)
-    else:
-        figures = warm_up_baselines(baseline_frames, agents=agents)
+    if part == "baselines" or agents:
+        figures = warm_up_baselines(BASELINE_FRAMES if frames is None else frames, agents=agents)
     return figures, time.perf_counter() - start
 
 
@@ -119,20 +125,19 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
-    if args.jobs == 1 or len(args.parts) == 1:
+    side_by_side = args.jobs > 1 and len(args.parts) > 1
+    agents = _baselines_of(side_by_side)
+    if not side_by_side:
         for part in args.parts:
-            figures, seconds = _timed(part, args.frames, BASELINE_AGENTS if part == "baselines" else ())
-            print(_line(part, figures, seconds), flush=True)
+            figures, seconds = _timed(part, args.frames, agents[part])
+            print(_line(_label(part, agents[part]), figures, seconds), flush=True)
         return 0
-    # side by side: the system's process also warms up the baselines that share its kernels
-    tasks = {"system": tuple(a for a in BASELINE_AGENTS if a[0] in SYSTEM_SIDE_BASELINES),
-             "baselines": tuple(a for a in BASELINE_AGENTS if a[0] not in SYSTEM_SIDE_BASELINES)}
     with ProcessPoolExecutor(min(args.jobs, len(args.parts)), mp_context=multiprocessing.get_context("spawn"),
                              initializer=limit_threads, initargs=(1,)) as pool:  # one math thread a process
-        futures = [(part, pool.submit(_timed, part, args.frames, tasks[part])) for part in args.parts]
+        futures = [(part, pool.submit(_timed, part, args.frames, agents[part])) for part in args.parts]
         for part, future in futures:
             figures, seconds = future.result()
-            print(_line(_label(part, tasks[part]), figures, seconds), flush=True)
+            print(_line(_label(part, agents[part]), figures, seconds), flush=True)
     return 0
 
 

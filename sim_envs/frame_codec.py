@@ -169,15 +169,15 @@ def _palette_inverse(raw: bytes, shape: tuple[int, ...], dtype: np.dtype, n_valu
     return values[index].view(dtype).reshape(shape)
 
 
+_TRANSFORMS = ("u8-left", "b32-delta2", "palette", "raw")  # in the order they are tried (a tie keeps the first)
+
+
 def _candidates(a: np.ndarray) -> Iterable[tuple[str, bytes, int]]:
     """(transform, transformed bytes, palette length) of every transform that applies to ``a``."""
     for transform in _TRANSFORMS:
         applied = _apply(a, transform)
         if applied is not None:
             yield transform, applied[0], applied[1]
-
-
-_TRANSFORMS = ("u8-left", "b32-delta2", "palette", "raw")  # in the order they are tried (a tie keeps the first)
 
 
 def _apply(a: np.ndarray, transform: str) -> tuple[bytes, int] | None:
