@@ -55,7 +55,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Literal, Protocol, TypeVar, get_args
 
 from eval.errors import EvalError
-from slamcommon.threads import THREAD_VARIABLES, limit_threads
+from slamcommon.threads import limit_threads, thread_environment
 
 ExecutorName = Literal["local", "serial", "ray"]
 EXECUTORS: tuple[str, ...] = get_args(ExecutorName)
@@ -174,7 +174,7 @@ def ensure_fork_server(threads: int, preload: Iterable[str]) -> None:
     from multiprocessing import forkserver
 
     env = dict(os.environ)
-    env.update({name: str(int(threads)) for name in THREAD_VARIABLES})
+    env.update(thread_environment(threads))
     state = (int(threads), tuple(dict.fromkeys(preload)), env)
     server = forkserver._forkserver
     if _FORK_SERVER_STATE[0] == state and server._forkserver_pid is not None:
@@ -406,9 +406,9 @@ class RayExecutor:
         waiting = deque(items)
         started = False
         if not ray.is_initialized():
-            threads = str(max(1, int(self.cpus_per_task)))
+            threads = max(1, int(self.cpus_per_task))
             options: dict[str, Any] = {
-                "runtime_env": {"env_vars": dict.fromkeys(THREAD_VARIABLES, threads)},
+                "runtime_env": {"env_vars": thread_environment(threads)},
                 "include_dashboard": False,
                 "log_to_driver": False,
             }
