@@ -13,8 +13,9 @@ process that died, a Ray task error). Executors never raise for one bad item: th
   (``tests/eval/bench/test_executors.py`` compares a CNN-SLAM run both ways). The server starts with the environment
   the pool's workers get (the thread limits below, and whatever else the caller set): a pool whose environment or
   preload differs from the running server's restarts it. ``start_method="spawn"`` starts each worker from scratch.
-  Each worker limits its math libraries (OpenMP, MKL, OpenBLAS, numba, OpenCV, torch through ``OMP_NUM_THREADS``) to
-  ``threads`` threads, so ``jobs`` workers share the cores instead of oversubscribing them. By default every run
+  Each worker limits its math libraries (OpenMP, MKL, OpenBLAS, numba, OpenCV, torch through ``OMP_NUM_THREADS``) and
+  the software rasteriser (Mesa's llvmpipe) to ``threads`` threads (:func:`slamcommon.threads.thread_environment`), so
+  ``jobs`` workers share the cores instead of oversubscribing them. By default every run
   gets a fresh worker process (``fresh_workers``): a run's result then never depends on which runs its worker did
   before (some agents' floating-point results do, slightly, through process-wide state), at the price of a
   process start and imports per run. When a worker dies (a crash in native code), the pool is rebuilt for the runs
