@@ -257,6 +257,8 @@ class LocalExecutor:
         if int(jobs) < 1:
             raise ExecutorError(f"jobs must be >= 1, got {jobs}")
         self.jobs = int(jobs)
+        if threads is not None and int(threads) < 1:
+            raise ExecutorError(f"threads must be >= 1 (math threads per worker) or None, got {threads}")
         self.threads = int(threads) if threads is not None else threads_per_job(self.jobs)
         if start_method is None:
             start_method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"

@@ -270,6 +270,8 @@ def test_choosing_an_executor():
         make_executor("local", address="auto")
     with pytest.raises(ExecutorError, match="jobs must be >= 1"):
         LocalExecutor(jobs=0)
+    with pytest.raises(ExecutorError, match="threads must be >= 1"):
+        LocalExecutor(jobs=1, threads=0)
 
 
 def test_ray_missing_is_a_clear_error(monkeypatch):
