@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, LainaConfig
+from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, LainaConfig, area_downsample_depth
 from cnnslam.baselines.laina_kernels import depth_surface_pyramid, evaluate_icp
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import rotation_angle_deg, se3_inverse
@@ -65,10 +65,13 @@ def _worst_errors(poses: np.ndarray, frames) -> tuple[float, float]:
 
 
 @pytest.mark.slow  # > 5 s: the full lane only
-def test_frame_to_model_icp_tracks_exact_depth_and_keyframes_carry_the_adjusted_prediction(room, room_sequence):
+@pytest.mark.parametrize("icp_downsample", [1, 2])  # the camera's pixels (the default); the network's
+def test_frame_to_model_icp_tracks_exact_depth_and_keyframes_carry_the_adjusted_prediction(room, room_sequence,
+                                                                                          icp_downsample):
     f_cur = float(np.mean(room.intrinsics[:2]))
     predictor = TablePredictor(room_sequence, f_cur)
-    agent = LainaAgent(config={"keyframe_every": 10, "model.normal_smoothing_px": 0.0}, predictor=predictor)
+    agent = LainaAgent(config={"keyframe_every": 10, "model.normal_smoothing_px": 0.0,
+                               "icp_downsample": icp_downsample}, predictor=predictor)
     poses, tracked, out = _run(agent, room_sequence, room.intrinsics)
     assert tracked.all() and predictor.calls == len(room_sequence)  # the CNN on every frame
     t_err, r_err = _worst_errors(poses, room_sequence)
@@ -117,8 +120,26 @@ def test_config_overrides_are_validated():
         LainaConfig().with_overrides({"icp.distance": 0.3})
     with pytest.raises(CnnSlamError, match="cnn_every"):
         LainaConfig(cnn_every=0)
+    with pytest.raises(CnnSlamError, match="icp_downsample must be 1, 2, 4 or 8, got 3"):
+        LainaConfig(icp_downsample=3)
+    with pytest.raises(CnnSlamError, match="divisible"):
+        LainaAgent(config={"icp_downsample": 4}).reset(np.array([100.0, 100.0, 20.0, 15.0]), (30, 40))
     with pytest.raises(CnnSlamError, match="reset"):
         LainaAgent().step({"rgb": np.zeros((8, 8, 3), np.uint8), "timestamp": np.zeros(1)})
+
+
+def test_area_downsample_depth_known_answers():
+    depth = np.arange(1, 17, dtype=np.float32).reshape(4, 4)
+    assert np.array_equal(area_downsample_depth(depth, 2), np.array([[3.5, 5.5], [11.5, 13.5]], np.float32))
+    assert np.array_equal(area_downsample_depth(depth, 1), depth)
+    holes = depth.copy()
+    holes[0, 0], holes[0, 1] = 0.0, np.nan  # a block with two valid depths: their mean
+    holes[2:, 2:] = 0.0  # a block with none: 0 (no depth)
+    out = area_downsample_depth(holes, 2)
+    assert out.dtype == np.float32
+    assert np.array_equal(out, np.array([[5.5, 5.5], [11.5, 0.0]], np.float32))  # (5 + 6) / 2
+    with pytest.raises(CnnSlamError, match="cannot be shrunk by 2"):
+        area_downsample_depth(np.ones((3, 4), np.float32), 2)
 
 
 # ------------------------------------------------------------------------------------------ the numba kernels
