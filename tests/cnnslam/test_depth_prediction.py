@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnnslam.depth_prediction import focal_length_adjustment
+from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
 from cnnslam.errors import CnnSlamError
 
 
@@ -110,3 +110,21 @@ def test_ground_truth_hint_prefers_the_depth_sensor_for_the_lsd_bs_bootstrap() -
     hint = GroundTruthHint.from_info({"gt_depth": exact, "sensor_depth": sensor})
     np.testing.assert_array_equal(hint.measured_depth, sensor)
     np.testing.assert_array_equal(hint.depth, exact)
+
+
+@pytest.mark.parametrize("shape,dtype", [((12, 16), np.float32), ((12, 16, 4), np.float32), ((7,), np.float64)])
+def test_perturb_last_bits_is_numpys_definition_bit_for_bit(shape, dtype):
+    """The compiled pass equals (v * (1 + N(0, (2 ulp)^2))).astype(float32) with the same draws, and leaves the
+    generator where NumPy's draws would (the next frame's draws stay the same)."""
+    values = np.random.default_rng(3).uniform(0.1, 9.0, shape).astype(dtype)
+    ours, ref = np.random.default_rng(11), np.random.default_rng(11)
+    ulp = float(np.finfo(np.float32).eps)
+    for _ in range(3):
+        out = perturb_last_bits(values, ours)
+        noise = ref.standard_normal(shape) * (JITTER_STD_ULPS * ulp)
+        expected = (np.asarray(values, np.float32) * (1.0 + noise)).astype(np.float32)
+        assert out.dtype == np.float32 and out.shape == shape
+        assert np.array_equal(out, expected)
+    assert ours.standard_normal() == ref.standard_normal()
+    rel = np.abs(out.astype(np.float64) / np.asarray(values, np.float32) - 1.0)
+    assert 0 < rel.max() < 20 * ulp  # the last bits only
