@@ -14,10 +14,11 @@ JOBS   ?= 2
 # end in a fresh clone on a 2-core AMD EPYC (round 44, make venv and rendering included, 2 min 45 s); BENCH_RUNS=3 is
 # the committed results/table1.md's protocol (52 min 56 s in a fresh clone, round 44, 198 runs; 1 h 26 min in round
 # 39). On a 2-core Intel Xeon (AVX-512, rounds 46-49), make venv included: one run per cell 35 min 52 s (round 47),
-# BENCH_RUNS=3 80 min 44 s (round 49). On a 2-core AMD EPYC with AVX-512 (rounds 50-53), make venv included: one run
+# BENCH_RUNS=3 80 min 44 s (round 49). On a 2-core AMD EPYC with AVX-512 (rounds 50-54), make venv included: one run
 # per cell 14 min 1 s to 15 min 13 s (four runs, rounds 50-51), 13 min 16 s to 14 min 3 s (three runs, round 52), 13 min
 # 8 s and 13 min 32 s (two runs, round 53); BENCH_RUNS=3 35 min 11 s (round 50), 35 min 54 s (round 51), 34 min 27 s
-# (round 52), 33 min 57 s (round 53).
+# (round 52), 33 min 57 s (round 53); round 54, a slower day (the same seed-0 runs 8 % longer): one run per cell 14 min
+# 19 s, BENCH_RUNS=3 37 min 27 s.
 # BENCH_FRAMES=N scores the first N frames instead (not the whole sequences' verdict). Finished runs under runs/ are
 # reused, and so are rendered frames (runs/.frames/).
 BENCH_FRAMES ?= all
