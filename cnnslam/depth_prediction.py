@@ -38,9 +38,11 @@ def perturb_last_bits(values: np.ndarray, rng: np.random.Generator, std_ulps: fl
     The draws are ``rng.standard_normal(values.shape)``'s (the same numbers, in C order, leaving ``rng`` in the same
     state) and each product is float32(float64(v) (1 + e)), as NumPy's ``(v * (1 + e)).astype(float32)``; one compiled
     pass without the float64 temporaries (160x120 depth and 4 class scores: 1.37 -> 0.28 ms a frame, equal bits)."""
-    v = np.ascontiguousarray(values, dtype=np.float32)
+    v = np.asarray(values, dtype=np.float32)
     scale = float(std_ulps) * float(np.finfo(np.float32).eps)
-    return _perturbed(v.reshape(-1), rng, scale).reshape(v.shape)
+    if not isinstance(rng, np.random.Generator):  # e.g. a legacy RandomState: NumPy's expression, the same definition
+        return (v * (1.0 + rng.standard_normal(v.shape) * scale)).astype(np.float32)
+    return _perturbed(np.ascontiguousarray(v).reshape(-1), rng, scale).reshape(v.shape)
 
 
 @njit(cache=True, nogil=True)

@@ -25,6 +25,10 @@ depth, so ICP cannot track them; they are tracked photometrically (:func:`cnnsla
 direct alignment) against the last predicted frame: its image with its CNN depth ("the last prediction's model"),
 and they are not fused.
 
+Option ``icp_downsample = 2`` (ours, to save CPU): ICP at the network's own 160x120 for 320x240 frames (the CNN depth
+area-averaged back to it, the model rendered at it): 30.1 -> 35.7 fps in the Table-1 suite, but its ATE leaves the
+seed spread of the default (``LainaConfig.icp_downsample``), so the Table-1 column keeps 1.
+
 Speed (one core): the per-pixel work of every frame (the model rendered for ICP, the surface pyramids, the ICP
 normal equations, and the measurements, association and merging of the fusion) runs in numba kernels: ICP's in
 :mod:`cnnslam.baselines.laina_kernels` (they compute what :mod:`cnnslam.icp` computes; the tests compare them), the

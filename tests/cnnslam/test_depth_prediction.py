@@ -128,3 +128,7 @@ def test_perturb_last_bits_is_numpys_definition_bit_for_bit(shape, dtype):
     assert ours.standard_normal() == ref.standard_normal()
     rel = np.abs(out.astype(np.float64) / np.asarray(values, np.float32) - 1.0)
     assert 0 < rel.max() < 20 * ulp  # the last bits only
+    legacy, ref = np.random.RandomState(5), np.random.RandomState(5)  # not a Generator: NumPy's expression
+    expected = (np.asarray(values, np.float32) * (1.0 + ref.standard_normal(shape) * (JITTER_STD_ULPS * ulp)))
+    assert np.array_equal(perturb_last_bits(values, legacy), expected.astype(np.float32))
+    assert perturb_last_bits(np.float32(2.0), np.random.default_rng(1)).shape == ()  # a scalar stays 0-d
