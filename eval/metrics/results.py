@@ -183,6 +183,62 @@ class RunRecord:
         )
 
 
+# ------------------------------------------------------------------------------------------------- failures
+MIN_TRACKED_SHARE: float = 0.9
+"""The least share (0..1) of its frames a run must track not to be a failure: a run tracking less was lost for a
+significant part of its sequence. Source: the convention of the SLAM papers whose tables we compare with, which print
+"X" instead of a figure where tracking was "lost at some point or a significant portion of the sequence is not
+processed by the system" (Mur-Artal, Montiel, Tardós, "ORB-SLAM: a Versatile and Accurate Monocular SLAM System",
+IEEE T-RO 31(5) 2015, Table III; DROID-SLAM's TUM RGB-D table, Teed and Deng, NeurIPS 2021, marks failed methods the
+same way). Those papers give no number; we read "a significant portion" as more than one frame in ten, so 0.9, fixed
+here and not from where our own methods fall. The TUM RGB-D benchmark's ATE (Sturm et al., IROS 2012) is computed over
+the poses a run returns, so a figure of a run that lost a tenth of its sequence or more is no figure for the sequence.
+"""
+FAILURE_MARK = "X"  # the mark every table, plot and report shows for a failure, with its tracked share: "X (22 %)"
+FAILURE_RULE = (
+    f"A run is a failure ({FAILURE_MARK}, with its tracked share) when it never initialises (0 % of its frames "
+    f"tracked, or no pose scored) or tracks less than {round(100 * MIN_TRACKED_SHARE)} % of its frames (the 'X' "
+    "of ORB-SLAM's tables: tracking lost for a significant portion of the sequence); a cell over seeds is a "
+    "failure when at least half of its runs fail, otherwise the median over the runs that did not fail ('k/n "
+    "failed'); an average covers the sequences that are not failures and says how many ('(7/9)'); a share below "
+    "100 % is shown next to its figure."
+)  # the one line every report states
+
+
+def share_text(share: float) -> str:
+    """A tracked share (0..1) as whole percent rounded down, so a share below a threshold never prints as it
+    ("0.896" -> "89 %"); "?" when not finite."""
+    if share is None or not math.isfinite(share):
+        return "?"
+    return f"{math.floor(round(100.0 * float(share), 6)):d} %"
+
+
+def failure_text(share: float) -> str:
+    """What a table shows for a failure in place of its figure: the mark and its tracked share, ``"X (22 %)"``."""
+    return f"{FAILURE_MARK} ({share_text(share)})"
+
+
+def failure_of(metrics: Mapping[str, float]) -> str | None:
+    """Whether a run's record is a failure, and why: ``"never initialised"`` when it tracked none of its frames
+    (``tracked_share`` 0) or scored no pose (``ate_pairs`` 0, e.g. an SfM run registering none of its images),
+    ``"tracked 22 % < 90 %"`` when its ``tracked_share`` is below :data:`MIN_TRACKED_SHARE`; None for a run that is
+    not a failure, or whose record has neither figure (a method scored without a trajectory)."""
+    share = metrics.get("tracked_share")
+    pairs = metrics.get("ate_pairs")
+    share_known = share is not None and math.isfinite(float(share))
+    if (share_known and float(share) <= 0.0) or (pairs is not None and math.isfinite(float(pairs))
+                                                 and float(pairs) <= 0.0):  # fmt: skip
+        return "never initialised"
+    if share_known and float(share) < MIN_TRACKED_SHARE:
+        return f"tracked {share_text(float(share))} < {share_text(MIN_TRACKED_SHARE)}"
+    return None
+
+
+def is_failure(metrics: Mapping[str, float]) -> bool:
+    """True when :func:`failure_of` finds the run a failure."""
+    return failure_of(metrics) is not None
+
+
 def resources_of(timing: Mapping[str, Any], frames: float | None = None) -> dict[str, float]:
     """A run's :data:`RESOURCE_FIGURES` from its ``timing.json`` content (those it has, as floats); a record from
     before ``fps_end_to_end`` was written gets it as ``frames`` / ``wall_s`` where both are known."""

@@ -167,3 +167,49 @@ def test_a_run_folders_record_holds_what_the_run_used_and_metrics_json_stays_the
     assert frame.loc[frame.metric == "peak_rss_mib", "value"].tolist() == [812.5]
     assert resources_of({"wall_s": True, "fps_end_to_end": 9.0}) == {"fps_end_to_end": 9.0}  # no bools
     assert load_run(tmp_path / "run" / "metrics.json").resources["peak_rss_mib"] == 812.5
+
+
+# ------------------------------------------------------------------------------------------------- failures
+def test_the_failure_threshold_is_a_share_and_the_rule_states_it():
+    from eval.metrics.results import FAILURE_MARK, FAILURE_RULE, MIN_TRACKED_SHARE
+
+    assert 0.0 < MIN_TRACKED_SHARE < 1.0
+    assert f"{round(100 * MIN_TRACKED_SHARE)} %" in FAILURE_RULE and FAILURE_MARK in FAILURE_RULE
+
+
+def test_a_run_that_tracked_nothing_or_scored_no_pose_is_a_failure():
+    from eval.metrics.results import failure_of, is_failure
+
+    assert failure_of({"tracked_share": 0.0, "ate_rmse": 0.003}) == "never initialised"
+    assert failure_of({"tracked_share": 1.0, "ate_pairs": 0.0}) == "never initialised"
+    assert is_failure({"tracked_share": 0.0}) and not is_failure({"tracked_share": 1.0, "ate_pairs": 40.0})
+    assert failure_of({"depth_percent_correct": 12.0}) is None  # a record with no trajectory figures is no failure
+    assert failure_of({"tracked_share": math.nan}) is None
+
+
+def test_the_threshold_is_exact_just_below_is_a_failure_just_above_is_not():
+    from eval.metrics.results import MIN_TRACKED_SHARE, failure_of, failure_text, share_text
+
+    below = failure_of({"tracked_share": MIN_TRACKED_SHARE - 1e-4})
+    threshold = f"{round(100 * MIN_TRACKED_SHARE)} %"
+    assert below is not None and below.startswith("tracked ") and below.endswith(f"< {threshold}")
+    assert failure_of({"tracked_share": MIN_TRACKED_SHARE}) is None
+    assert failure_of({"tracked_share": MIN_TRACKED_SHARE + 1e-4}) is None
+    assert failure_of({"tracked_share": 0.22}) == f"tracked 22 % < {threshold}"
+    assert share_text(0.896) == "89 %" and share_text(1.0) == "100 %" and share_text(0.07) == "7 %"
+    assert failure_text(0.22) == "X (22 %)"
+
+
+def test_an_sfm_run_registering_no_image_is_a_failure_not_its_identity_poses():
+    """COLMAP registering 0 of N images hands back identity poses, none tracked (thirdparty.colmap_sfm): its record
+    scores a small ATE over identity poses, and the rule makes it a failure (tracked share 0)."""
+    from eval.metrics.results import failure_of
+
+    ep = episode()
+    n = len(ep.timestamps)
+    ep.T_world_cam_est = np.tile(np.eye(4), (n, 1, 1))
+    ep.tracked = np.zeros(n, dtype=bool)
+    rec = evaluate_episode(ep, method="COLMAP")
+    assert rec.metrics["tracked_share"] == 0.0 and math.isfinite(rec.metrics["ate_rmse"])
+    assert failure_of(rec.metrics) == "never initialised"
+    assert failure_of(evaluate_episode(episode()).metrics) == "tracked 75 % < 90 %"  # 3 of 4 frames tracked
