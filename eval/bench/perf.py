@@ -266,8 +266,8 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
                 lines.append(f"| {key} | {row['value']:.4f} | {row['baseline']:.4f} | {row['slowdown']:.2f} | "
                              f"{gate['max_slowdown']:g} |")
             lines.append("\n" + ("**failed**: " + "; ".join(gate["failures"]) if gate["failures"] else "passed") + "\n")
-    if PERF_HISTORY.is_file():  # measured side by side at the revisions it names, not by this run
-        lines.append(PERF_HISTORY.read_text().rstrip("\n") + "\n")
+    if PERF_HISTORY.is_file():  # measured side by side at the revisions it names: linked, not copied
+        lines.append(f"Earlier measurements, side by side at the revisions they name: `{_shown_path(PERF_HISTORY)}`.\n")
     return "\n".join(lines) + "\n"
 
 
