@@ -206,15 +206,22 @@ class Method:
         return {name: _file_sha256(resolve_input(name, self.name)) for name in self.inputs}
 
     def source_hashes(self) -> dict[str, str]:
-        """``{top-level module: sha256 hex}`` of the agent's own source: the ``.py`` files of the package its entry
-        point lives in (or the module's file when it is a single file), and likewise of every ``"module:Class"``
-        string among its keyword arguments (a wrapping agent names the agent it wraps). Editing an agent's code
-        thus redoes its runs. External methods: none (their output files are read afresh every run)."""
-        if self.kind != "agent":
-            return {}
-        modules = [self.entry_point or "", *(v for _, v in self.kwargs if isinstance(v, str) and _ENTRY.match(v))]
-        tops = dict.fromkeys(m.partition(":")[0].split(".")[0] for m in modules)
-        return {top: digest for top in tops if (digest := source_sha256(top)) is not None}
+        """``{top-level package: sha256 hex}`` of the agent's own source: for each module the agent is built from
+        (its entry point's, and that of every ``"module:Class"`` string among its keyword arguments: a wrapping agent
+        names the agent it wraps), the files of its import closure (:func:`source_sha256`), keyed by the module's
+        top-level package. Editing a file the agent imports thus redoes its runs; editing another method's files does
+        not. External methods: none (their output files are read afresh every run)."""
+        from eval.bench.fingerprint import agent_modules
+
+        tops: dict[str, list[str]] = {}
+        for module in agent_modules(self):
+            tops.setdefault(module.split(".")[0], []).append(module)
+        out = {}
+        for top, modules in tops.items():
+            digests = [d for m in modules if (d := source_sha256(m)) is not None]
+            if digests:
+                out[top] = digests[0] if len(digests) == 1 else hashlib.sha256("".join(digests).encode()).hexdigest()
+        return out
 
     def keeps(self, metric: str) -> bool:
         """Whether the metric (a flat name of :mod:`eval.metrics.results`) belongs to one of the method's groups."""
@@ -264,13 +271,20 @@ def resolve_input(name: str, method: str = "?") -> Path:
 
 
 _HASHES: dict[tuple[str, int, int], str] = {}
-_ENTRY = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 
 
 def source_sha256(module: str) -> str | None:
-    """SHA-256 over the ``.py`` files of top-level ``module`` (a package: every file below its folder, by relative
-    path and content, in sorted order; a single-file module: its file), found with :func:`importlib.util.find_spec`
-    without importing it; None when it cannot be found."""
+    """SHA-256 of the source ``module`` runs: for a module of the project's packages
+    (:data:`eval.bench.fingerprint.PROJECT_PACKAGES`), the files of its import closure
+    (:func:`eval.bench.fingerprint.closure_sha256`); for a module of any other package (a user's agent), the ``.py``
+    files of its top-level package (every file below its folder, by relative path and content, in sorted order) or
+    its single file, found with :func:`importlib.util.find_spec` without importing it. None when it cannot be
+    found."""
+    from eval.bench.fingerprint import closure_sha256, project_packages
+
+    if module.split(".")[0] in project_packages():
+        return closure_sha256(module)
+    module = module.split(".")[0]
     try:
         spec = importlib.util.find_spec(module)
     except (ImportError, ValueError):

@@ -33,13 +33,12 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
 
 A failed run's folder holds only ``failed.json`` (error, traceback, wall time). The run's fingerprint
 (:meth:`RunSpec.fingerprint`: method, sequence definition, seed, frames, alignment, renderer, the SHA-256 of the
-method's ``inputs`` files such as network weights, and the agent's source) decides whether a finished run is reused
-(:mod:`eval.bench.runner`); writes are atomic (:mod:`eval.bench.run_store`).
+method's ``inputs`` files such as network weights, the agent's import closure, the world's and the judge's code)
+decides whether a finished run is reused (:mod:`eval.bench.runner`); writes are atomic (:mod:`eval.bench.run_store`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import tempfile
@@ -118,22 +117,14 @@ class RunSpec:
         return self.relpath.as_posix()
 
     def fingerprint(self) -> str:
-        """Hash of what determines the run's result (method, sequence definition, seed, frames, alignment,
-        renderer, the contents of the method's input files such as network weights, and the agent's own source
-        files, :meth:`eval.bench.methods.Method.source_hashes`); not the git revision, so a commit that leaves an
-        agent's package alone does not invalidate its finished runs, but new weights or an edited agent do."""
-        data = {
-            "sequence": self.sequence.describe(),
-            "method": self.method.describe(),
-            "inputs": self.method.input_hashes(),
-            "source": self.method.source_hashes(),
-            "seed": self.seed,
-            "frames": self.frames,
-            "alignment": self.alignment,
-            "renderer": self.renderer,
-        }
-        text = json.dumps(json_ready(data), sort_keys=True)
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
+        """Hash of what determines the run's result (:func:`eval.bench.fingerprint.run_parts`): the files of the
+        agent's import closure, the world's code its frames come through, the judge's metric code, the contents of
+        the method's input files such as network weights, and its configuration (method, sequence definition,
+        seed, frames, alignment, renderer); not the git revision, so a commit that leaves what a run executes alone
+        does not invalidate its finished runs, but new weights or an edited file the agent imports do."""
+        from eval.bench.fingerprint import run_parts
+
+        return run_parts(self).fingerprint
 
 
 @dataclass(frozen=True)
