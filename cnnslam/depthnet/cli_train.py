@@ -9,7 +9,8 @@
     cnnslam train export [--run data/depthnet/run]
 
 ``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
-copies the run's weights and manifest to ``cnnslam/depthnet/weights/default.{pt,json}``, the shipped default.
+copies the run's weights and manifest to ``cnnslam/depthnet/weights/default.{pt,json}``, the shipped default, the
+manifest recording the weights' SHA-256 (checked whenever they are loaded).
 ``validate`` writes ``results/depthnet.md``, ``results/depthnet.json`` and ``results/depthnet_samples.png``.
 
 The shipped weights were made in two stages. First the defaults: ``generate-data --val-scenes 20`` (11 min on 2
@@ -44,7 +45,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 import time
 from dataclasses import asdict, replace
@@ -54,7 +54,8 @@ from typing import Any
 from cnnslam.depthnet.data import AugmentConfig, GenerationConfig, generate_dataset
 from cnnslam.depthnet.model import ModelConfig
 from cnnslam.depthnet.train import TrainConfig, train
-from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS
+from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS, export_weights
+from cnnslam.errors import CnnSlamError
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 
 
@@ -200,12 +201,12 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _export(run: Path) -> None:
-    for src, dst in ((run / "weights.pt", DEFAULT_WEIGHTS), (run / "manifest.json", DEFAULT_MANIFEST)):
-        if not src.is_file():
-            raise SystemExit(f"{src} does not exist: finish 'cnnslam train fit --out {run}' first")
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(src, dst)
-    print(f"exported {run / 'weights.pt'} -> {DEFAULT_WEIGHTS} ({DEFAULT_WEIGHTS.stat().st_size / 1e6:.1f} MB)")
+    try:
+        doc = export_weights(run / "weights.pt", run / "manifest.json", DEFAULT_WEIGHTS, DEFAULT_MANIFEST)
+    except CnnSlamError as exc:
+        raise SystemExit(f"cnnslam train export: error: {exc}") from exc
+    print(f"exported {run / 'weights.pt'} -> {DEFAULT_WEIGHTS} ({doc['weights_bytes'] / 1e6:.1f} MB, "
+          f"sha256 {doc['weights_sha256']})")
 
 
 def _fit(args: argparse.Namespace) -> int:
@@ -286,11 +287,11 @@ def _validate(args: argparse.Namespace) -> int:
     manifest = json.loads(manifest_path.read_text()) if manifest_path.is_file() else None
     report = validate_sequences(predictor, frames_per_sequence=args.frames, sample_every=2,
                                 progress=_progress("validate"), camera_effects=args.camera)
-    bench = asdict(benchmark(predictor, weights_label=str(args.weights)))
-    try:
+    try:  # the repository-relative name where it has one, so the manifest names no machine's folder
         weights_label = str(args.weights.resolve().relative_to(Path.cwd()))
     except ValueError:
         weights_label = str(args.weights)
+    bench = asdict(benchmark(predictor, weights_label=weights_label))
     args.results.mkdir(parents=True, exist_ok=True)
     doc = report_document(report, manifest, bench, weights_label)
     (args.results / "depthnet.json").write_text(json.dumps(doc, indent=2) + "\n")

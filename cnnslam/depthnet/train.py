@@ -31,7 +31,7 @@ import torch
 from cnnslam.depthnet.data import AugmentConfig, RenderedDataset, collate, training_batch
 from cnnslam.depthnet.loss import total_loss
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, count_parameters, normalize_rgb
-from cnnslam.depthnet.weights_io import load_weights, save_weights
+from cnnslam.depthnet.weights_io import MANIFEST_FORMAT, file_sha256, load_weights, save_weights
 from cnnslam.errors import CnnSlamError
 from slamcommon.depth_metrics import aggregate_depth_metrics, depth_metrics
 from slamcommon.semantic_metrics import confusion_matrix, metrics_from_confusion
@@ -394,10 +394,11 @@ def build_manifest(
     """The manifest shipped beside the weights: what was trained on what, for how long, and how well."""
     gen = Path(cfg.data_root) / "generation.json"
     return {
-        "format": "cnnslam-depthnet-manifest-v1",
+        "format": MANIFEST_FORMAT,
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "weights_file": weights.name,
         "weights_bytes": weights.stat().st_size,
+        "weights_sha256": file_sha256(weights),  # load_weights checks the file against it
         "architecture": model.config.to_dict(),
         "parameters": count_parameters(model),
         "train_focal": train_set.train_focal,

@@ -3,6 +3,7 @@ manifest and resumes from its checkpoint. No rendering: shards are written direc
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -116,6 +117,7 @@ def test_train_writes_weights_manifest_log_and_resumes(fake_data: Path, tmp_path
     assert manifest["train_size"] == [32, 24]  # the network works at half the stored resolution
     assert manifest["train_focal"] == pytest.approx((NYU_64[0] + NYU_64[1]) / 4)
     assert ModelConfig.from_dict(manifest["architecture"]) == TINY
+    assert manifest["weights_sha256"] == hashlib.sha256(result.weights.read_bytes()).hexdigest()
     for key in ("abs_rel", "rmse", "delta_1_25", "within_10pct", "pixel_accuracy", "mean_iou"):
         assert np.isfinite(manifest["validation_heldout_train_split"][key])
 
