@@ -43,7 +43,7 @@ from typing import Any, Literal
 
 from eval.bench.executors import EXECUTORS, Executor, make_executor
 from eval.bench.methods import Method, apply_settings, load_methods, parse_setting
-from eval.bench.regress import GateAction, GateOutcome, apply_gate
+from eval.bench.regress import GateAction, GateOutcome, apply_gate, check_gate
 from eval.bench.runner import RunOutcome, SuiteRun, git_revision, run_suite
 from eval.bench.sequence_ref import dataset_list_file, parse_image_size
 from eval.bench.suites import (
@@ -444,6 +444,7 @@ def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
     :class:`~eval.errors.InputError` before any run for bad input; KeyboardInterrupt after storing the runs finished
     so far."""
     plan = prepare(suite, methods, options, table)
+    _check_gate(plan, options)
     if plan.suite.kind is SuiteKind.PERF:
         return _perf(plan, options)
     if options.gate is GateAction.CALIBRATE:
@@ -471,6 +472,24 @@ def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
                           gated=plan.suite.gated or options.baseline is not None,
                           description=baseline_description(plan.suite), incomplete=incomplete)  # fmt: skip
     return _outcome(plan, options, done, reports, gate, notes)
+
+
+def _check_gate(plan: BenchPlan, options: BenchOptions) -> None:
+    """The gate's baseline, checked before any run so that the gate fails closed
+    (:func:`eval.bench.regress.check_gate`: COMPARE needs a readable baseline of this selection; an update, a
+    readable one or none); a ``baseline`` named for a suite that has no gate of runs is refused too."""
+    kind = plan.suite.kind
+    if kind is not SuiteKind.RUNS:
+        if options.baseline is not None and options.gate is GateAction.COMPARE:
+            raise SuiteError(f"--baseline {options.baseline}: suite {plan.suite.name} ({kind.value}) has no gate of "
+                             "runs to compare; the gate compares suites of runs such as quick")  # fmt: skip
+        return
+    if options.gate is GateAction.CALIBRATE:  # writes the baseline
+        return
+    check_gate(options.gate, options.baseline or plan.suite.baseline_path,
+               gated=plan.suite.gated or options.baseline is not None,
+               cells=[(s.name, m) for s in plan.suite.sequences for m in plan.methods],
+               frames=plan.suite.frames)  # fmt: skip
 
 
 def _run_part(suite: Suite, plan: BenchPlan, options: BenchOptions) -> SuiteRun:

@@ -37,12 +37,26 @@ Rules: ``tolerances`` is optional (then :data:`DEFAULT_TOLERANCES` apply); the f
 :data:`FALLBACK_TOLERANCE`. ``direction``: ``lower`` (lower is better), ``higher`` (higher is better) or ``match``
 (any change beyond the tolerance fails, for counts). The allowed change is max(abs, rel * |baseline|).
 
+A gate that cannot fail is refused when the baseline is loaded (:func:`check_tolerances`, :class:`GateError`): a
+rule that can never match (an earlier rule matches every name it does), a baseline of another schema or with no
+figures, and a figure whose allowed change reaches its metric's bound (:data:`METRIC_BOUNDS`: degrees 0..180,
+shares 0..1, percent 0..100, metres and counts >= 0), e.g. a rotation error of 51.9 deg +- 182 deg. The writers of a
+baseline (calibration, updates) cap such an allowance to :data:`CROSSABLE_SHARE` of the figure's room to fail
+(:func:`cap_to_cross`, listed in the calibration record's ``capped_to_cross``).
+
 Run file: a JSON object with a ``metrics`` object (a run record of :mod:`eval.metrics.results`, or anything shaped
 so), a flat object of numbers, or a JSON list of run records (reduced to the gated figures by :func:`gate_metrics`).
 
 Statuses: ``equal`` (within tolerance), ``improved``, ``regressed``, ``missing`` (in the baseline, not in the run,
 or NaN in the run where the baseline has a number), ``new`` (in the run only; reported, not a failure). The gate
-passes when nothing is ``regressed`` or ``missing``.
+passes when nothing is ``regressed`` or ``missing``. Tracked -> lost is ``regressed`` whatever the tolerance: a
+tracked share that was no failure in the baseline and is one in the run (:func:`lost`, by the one failure rule of
+:func:`eval.metrics.results.failure_of`: never initialised, or below ``MIN_TRACKED_SHARE``).
+
+The gate fails closed: before any run (:func:`check_gate`, called by ``cnnslam bench``) a missing, unreadable or
+malformed baseline, or one of another suite or selection (:func:`check_selection`), is a :class:`GateError` (an
+:class:`~eval.errors.InputError`: exit 2), unless the baseline is being made (``--update-baseline``,
+``--calibrate``); a baseline that goes missing during the runs fails the gate (:func:`apply_gate`).
 
 Updating a baseline (after an intended change): ``cnnslam regress BASELINE.json RUN.json --update`` rewrites the
 baseline's metrics with the run's, keeping its tolerances (writing the defaults out when it had none), then the
@@ -63,10 +77,11 @@ from typing import Any, Literal
 
 import pandas as pd
 
-from eval.errors import EvalError
-from eval.metrics.results import ResultsError, RunRecord, json_ready
+from eval.errors import InputError
+from eval.metrics.results import ResultsError, RunRecord, failure_of, json_ready, share_text
 
 BASELINE_SCHEMA = "cnnslam-baseline/2"
+BASELINE_SCHEMAS: tuple[str, ...] = ("cnnslam-baseline/1", BASELINE_SCHEMA)  # what load_baseline reads
 # rotation twice: after the SE(3) fit (catches an error in the camera frame, which an orientation-only fit absorbs
 # on short runs) and after the orientation-only fit (which no ill-posed position fit can decide)
 GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", "rot_deg_rmse", "rot_deg_orient_rmse",
@@ -84,8 +99,9 @@ POLICIES: tuple[str, ...] = ("one-sided", "two-sided")
 DIRECTIONS: tuple[str, ...] = ("lower", "higher", "match")
 
 
-class GateError(EvalError):
-    """A baseline or run file that cannot be used."""
+class GateError(InputError):
+    """A baseline or run file that cannot be used (missing, unreadable, malformed, of another suite or selection, a
+    tolerance that cannot fail), or an update that is refused: bad input, one line naming it."""
 
 
 @dataclass(frozen=True)
@@ -115,13 +131,13 @@ class Tolerance:
 # and a margin for configurations the matrix did not try); uncalibrated metrics get them as their tolerance.
 DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
     Tolerance("*pairs", "match"),
+    Tolerance("*keyframes", "match", abs=2.0),  # before "*frames", which matches every name it matches
     Tolerance("*frames", "match"),
     Tolerance("*ate_rmse", "lower", abs=0.0005, rel=0.03),
     Tolerance("*rot_deg_rmse", "lower", abs=0.02, rel=0.03),
     Tolerance("*rot_deg_orient_rmse", "lower", abs=0.02, rel=0.03),
     Tolerance("*depth_percent_correct", "higher", abs=0.3, rel=0.0),
     Tolerance("*tracked_share", "higher", abs=0.005),
-    Tolerance("*keyframes", "match", abs=2.0),
     Tolerance("*ate_*", "lower", abs=0.002, rel=0.10),
     Tolerance("*rpe_*", "lower", abs=0.002, rel=0.10),
     Tolerance("*rot_deg_*", "lower", abs=0.1, rel=0.10),
@@ -133,7 +149,6 @@ DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
     Tolerance("*delta_1_25", "higher", abs=1.0, rel=0.05),
     Tolerance("*abs_rel", "lower", abs=0.005, rel=0.05),
     Tolerance("*depth_rmse", "lower", abs=0.005, rel=0.05),
-    Tolerance("*tracked_share", "higher", abs=0.02),
     Tolerance("*semantic_*", "higher", abs=0.01, rel=0.02),
     Tolerance("*map_points", "match", rel=0.10),
     Tolerance("*map_accuracy_median", "lower", abs=0.005, rel=0.05),
@@ -144,6 +159,77 @@ DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
     Tolerance("*fps", "higher", rel=0.33),
 )
 FALLBACK_TOLERANCE = Tolerance("*", "lower", rel=0.05)
+
+# The range each metric can take (first matching pattern wins; a metric no pattern matches is unbounded): a
+# tolerance must leave the figure room to fail inside it (:func:`uncrossable`).
+METRIC_BOUNDS: tuple[tuple[str, float, float], ...] = (
+    ("*rot_deg*", 0.0, 180.0),  # degrees: an angle between two orientations
+    ("*percent_correct*", 0.0, 100.0),  # percent of pixels
+    ("*density", 0.0, 100.0),
+    ("*delta_1_25", 0.0, 100.0),
+    ("*tracked_share", 0.0, 1.0),  # shares of frames, pixels, points
+    ("*map_*_within", 0.0, 1.0),
+    ("*map_label_accuracy", 0.0, 1.0),
+    ("*semantic_*", 0.0, 1.0),
+    ("*ate_alignment_*", 0.0, 1.0),  # 0/1 flags
+    ("*ate_*", 0.0, math.inf),  # metres, counts, rates, times: never negative
+    ("*rpe_*", 0.0, math.inf),
+    ("*scale*", 0.0, math.inf),
+    ("*length_*", 0.0, math.inf),
+    ("*abs_rel", 0.0, math.inf),
+    ("*depth_rmse", 0.0, math.inf),
+    ("*map_*", 0.0, math.inf),
+    ("*frames", 0.0, math.inf),
+    ("*pairs", 0.0, math.inf),
+    ("*keyframes", 0.0, math.inf),
+    ("*step_ms_*", 0.0, math.inf),
+    ("*fps", 0.0, math.inf),
+)
+# A tolerance that cannot be crossed is capped to this share of the room between the figure and its worst value
+# (ours: the worst tenth of that room still fails), by the writers of a baseline (calibration, --update-baseline);
+# a file read with one is refused.
+CROSSABLE_SHARE = 0.9
+CAPPED_KEY = "capped_to_cross"  # the calibration record's list of the figures whose allowed change was capped
+
+
+def metric_bounds(metric: str) -> tuple[float, float]:
+    """The range ``(low, high)`` of a gated figure by its name (:data:`METRIC_BOUNDS`; ``(-inf, inf)`` when none
+    matches)."""
+    for pattern, low, high in METRIC_BOUNDS:
+        if fnmatchcase(metric, pattern):
+            return low, high
+    return -math.inf, math.inf
+
+
+def room_to_fail(metric: str, value: float, direction: str) -> float:
+    """How far ``value`` can move the worse way inside the metric's bounds (``match``: the larger of the two
+    ways); inf when unbounded that way, 0 when the figure already sits at its worst value."""
+    low, high = metric_bounds(metric)
+    up, down = max(high - value, 0.0), max(value - low, 0.0)
+    return up if direction == "lower" else down if direction == "higher" else max(up, down)
+
+
+def uncrossable(metric: str, value: float, direction: str, allowed: float) -> bool:
+    """True when a figure ``value`` with an allowed change ``allowed`` can never fail the gate: the change the
+    worse way that the tolerance allows reaches the metric's bound. A figure already at its worst value (a share of
+    0, a rotation error of 180 deg) cannot get worse under any tolerance, so its tolerance is not judged."""
+    if not math.isfinite(value):
+        return False
+    room = room_to_fail(metric, value, direction)
+    return 0.0 < room <= allowed
+
+
+def dead_rules(tolerances: Sequence[Tolerance]) -> list[tuple[Tolerance, Tolerance]]:
+    """``(dead, earlier)`` pairs: rules that can never match because an earlier rule matches every name they match
+    (the first matching rule wins). Found when the earlier pattern's only wildcard is ``*`` and it matches the later
+    pattern's text: then every name the later one matches, the earlier one does too."""
+    out = []
+    for n, rule in enumerate(tolerances):
+        for earlier in tolerances[:n]:
+            if not any(c in earlier.pattern for c in "?[") and fnmatchcase(rule.pattern, earlier.pattern):
+                out.append((rule, earlier))
+                break
+    return out
 
 
 @dataclass(frozen=True)
@@ -172,6 +258,50 @@ class Baseline:
         """The calibrated allowed change of ``metric``, None when it was not calibrated."""
         entry = self.calibrated.get(metric)
         return None if entry is None else float(entry["allowed"])
+
+    def allowed_change(self, metric: str) -> float:
+        """The change of ``metric`` the gate allows: its calibrated one, else its rule's for its figure."""
+        calibrated = self.allowed(metric)
+        return self.tolerance_for(metric).allowed(self.metrics[metric]) if calibrated is None else calibrated
+
+
+def check_tolerances(baseline: Baseline, source: str = "baseline", crossable: bool = True) -> None:
+    """Refuse a baseline whose gate cannot fail somewhere: a rule that can never match (:func:`dead_rules`), or
+    (``crossable``) a figure whose allowed change reaches its metric's bound (:func:`uncrossable`).
+    :class:`GateError` names the rule, the figure and the bounds."""
+    for rule, earlier in dead_rules(baseline.tolerances):
+        raise GateError(f"{source}: tolerance rule {rule.pattern!r} can never match: the earlier rule "
+                        f"{earlier.pattern!r} matches every name it does (the first matching rule wins); remove it")
+    for metric, value in baseline.metrics.items() if crossable else ():
+        rule = baseline.tolerance_for(metric)
+        allowed = baseline.allowed_change(metric)
+        if uncrossable(metric, value, rule.direction, allowed):
+            low, high = metric_bounds(metric)
+            how = "its calibrated allowed change" if baseline.allowed(metric) is not None else f"rule {rule.pattern!r}"
+            raise GateError(f"{source}: {metric} = {value:.6g} +- {allowed:.6g} ({how}, {rule.direction} is better) "
+                            f"can never fail inside the metric's bounds {low:g}..{high:g}; allow less than "
+                            f"{room_to_fail(metric, value, rule.direction):.6g}")  # fmt: skip
+
+
+def cap_to_cross(baseline: Baseline) -> Baseline:
+    """``baseline`` with every allowed change that cannot be crossed (:func:`uncrossable`) capped to
+    :data:`CROSSABLE_SHARE` of the figure's room to fail, as a calibrated entry (``capped_from``: the allowance it
+    replaced); the calibration record lists those figures (:data:`CAPPED_KEY`). Nothing else changes."""
+    calibrated = dict(baseline.calibrated)
+    capped = []
+    for metric, value in baseline.metrics.items():
+        direction = baseline.tolerance_for(metric).direction
+        allowed = baseline.allowed_change(metric)
+        if uncrossable(metric, value, direction, allowed):
+            entry = dict(calibrated.get(metric, {}))
+            entry.update(allowed=CROSSABLE_SHARE * room_to_fail(metric, value, direction), capped_from=allowed)
+            calibrated[metric] = entry
+            capped.append(metric)
+    if not capped:
+        return baseline
+    calibration = dict(baseline.calibration)
+    _list_in(calibration, CAPPED_KEY, capped)
+    return replace(baseline, calibrated=calibrated, calibration=calibration)
 
 
 @dataclass(frozen=True)
@@ -218,12 +348,27 @@ def compare_metric(name: str, baseline: float, run: float | None, rule: Toleranc
         status = "equal" if math.isnan(run) else "improved"
         return GateRow(name, baseline, run, math.nan, allowed, rule.direction, status)
     delta = run - baseline
+    if lost(name, baseline, run):
+        return GateRow(name, baseline, run, delta, allowed, rule.direction, "regressed")
     if rule.direction == "match":
         status = "regressed" if abs(delta) > allowed else "equal"
     else:
         worse = delta if rule.direction == "lower" else -delta
         status = "regressed" if worse > allowed else ("improved" if worse < -allowed else "equal")
     return GateRow(name, baseline, run, delta, allowed, rule.direction, status)
+
+
+def lost(name: str, baseline: float, run: float) -> str | None:
+    """Why a tracked share went from tracking to a failure (:func:`eval.metrics.results.failure_of`: never
+    initialised, or below :data:`eval.metrics.results.MIN_TRACKED_SHARE`), e.g. ``"tracked 100 % -> never
+    initialised"``; None when ``name`` is no tracked share, the baseline was a failure already, or the run is none.
+    Such a change is a regression whatever the tolerance."""
+    if name.rsplit("/", 1)[-1] != "tracked_share" or not (math.isfinite(baseline) and math.isfinite(run)):
+        return None
+    if failure_of({"tracked_share": baseline}) is not None:
+        return None
+    why = failure_of({"tracked_share": run})
+    return None if why is None else f"tracked {share_text(baseline)} -> {why}"
 
 
 def compare(baseline: Baseline, run_metrics: Mapping[str, float]) -> GateReport:
@@ -257,6 +402,10 @@ def format_report(report: GateReport, only_changes: bool = False) -> str:
         for col in ("baseline", "run", "delta", "allowed"):
             shown[col] = shown[col].map(lambda v: "-" if pd.isna(v) else f"{v:.6g}")
         lines.append(shown.to_string(index=False))
+    for row in report.rows:
+        why = lost(row.metric, row.baseline, row.run)
+        if why:
+            lines.append(f"tracked -> lost: {row.metric}: {why} (a regression whatever the tolerance)")
     counts = ", ".join(f"{n} {status}" for status, n in sorted(report.counts().items()))
     lines.append(f"{'PASS' if report.passed else 'FAIL'}: {len(report.rows)} metrics ({counts or 'none'})")
     if not report.passed and "improved" in report.failing and any(r.status == "improved" for r in report.rows):
@@ -329,27 +478,46 @@ def load_run_metrics(path: str | Path) -> dict[str, float]:
     return metrics_from_json(_read_json(path), str(path))
 
 
-def load_baseline(path: str | Path) -> Baseline:
-    """Read a baseline file; raises :class:`GateError` naming the file and the problem."""
+def load_baseline(path: str | Path, crossable: bool = True) -> Baseline:
+    """Read a baseline file; raises :class:`GateError` naming the file and the problem: unreadable, not JSON, of
+    another schema, no figures, malformed tolerances or calibration, or a gate that cannot fail
+    (:func:`check_tolerances`)."""
     data = _read_json(path)
     if not isinstance(data, dict) or not isinstance(data.get("metrics"), dict):
         raise GateError(f"{path}: a baseline is a JSON object with a 'metrics' object (schema {BASELINE_SCHEMA})")
+    schema = data.get("schema", BASELINE_SCHEMA)
+    if schema not in BASELINE_SCHEMAS:
+        raise GateError(f"{path}: schema {schema!r} is not a baseline's; valid: {', '.join(BASELINE_SCHEMAS)}")
+    if not data["metrics"]:
+        raise GateError(f"{path}: the baseline holds no figures, so it gates nothing; make it with "
+                        "--update-baseline (cnnslam bench) or --update (cnnslam regress)")
     rules = data.get("tolerances")
     if rules is None:
         tolerances = DEFAULT_TOLERANCES
     else:
         try:
+            if not isinstance(rules, list):
+                raise TypeError(f"'tolerances' is a list, got {type(rules).__name__}")
             tolerances = tuple(Tolerance(**rule) for rule in rules)
         except TypeError as exc:
             raise GateError(f"{path}: each tolerance is {{'pattern', 'direction', 'abs', 'rel'}}; {exc}") from exc
+        if any(not isinstance(t.pattern, str) for t in tolerances):
+            raise GateError(f"{path}: a tolerance's pattern is a text (fnmatch), e.g. '*ate_rmse'")
     calibrated = data.get("calibrated") or {}
     if not isinstance(calibrated, dict) or not all(
-        isinstance(v, dict) and isinstance(v.get("allowed"), int | float) for v in calibrated.values()
+        isinstance(v, dict) and isinstance(v.get("allowed"), int | float) and not isinstance(v["allowed"], bool)
+        and math.isfinite(v["allowed"]) and v["allowed"] >= 0 for v in calibrated.values()
     ):
-        raise GateError(f"{path}: 'calibrated' maps metric names to {{'spread', 'allowed'}} objects")
-    return Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")),
-                    {k: dict(v) for k, v in calibrated.items()}, dict(data.get("calibration") or {}),
-                    data.get("policy", "one-sided"))  # fmt: skip
+        raise GateError(f"{path}: 'calibrated' maps metric names to {{'spread', 'allowed'}} objects (allowed: a "
+                        "finite number >= 0)")
+    calibration = data.get("calibration") or {}
+    if not isinstance(calibration, dict):
+        raise GateError(f"{path}: 'calibration' is an object (how the tolerances were measured)")
+    baseline = Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")),
+                        {k: dict(v) for k, v in calibrated.items()}, dict(calibration),
+                        data.get("policy", "one-sided"))  # fmt: skip
+    check_tolerances(baseline, str(path), crossable)
+    return baseline
 
 
 def baseline_to_json(baseline: Baseline) -> dict[str, Any]:
@@ -389,7 +557,7 @@ def update_baseline(
 
     ``only_new``: add the run's figures the baseline does not hold yet (a newly gated metric) and keep every figure
     it holds as it is (their calibration was measured around them, on the machines of its record); the default
-    tolerance rules whose patterns the baseline lacks are appended to its rules, so the new figures get theirs.
+    tolerance rules that its rules leave reachable are appended to them, so the new figures get theirs.
 
     ``merge``: replace the figures the run holds and keep those it lacks (a run of one changed method: its figures
     are rewritten, the other methods' stay as measured, with their calibration); the calibration record lists the
@@ -403,7 +571,7 @@ def update_baseline(
     if sum((only_new, replace_all, merge)) > 1:
         raise GateError("only one of only_new (--only-new), replace_all (--replace) and merge (--merge) at a time")
     path = Path(path)
-    old = load_baseline(path) if path.exists() else Baseline({})
+    old = load_baseline(path, crossable=False) if path.exists() else Baseline({})
     dropped = sorted(set(old.metrics) - set(run_metrics))
     if dropped and not (only_new or replace_all or merge):
         raise GateError(f"not updating {path}: the run lacks {len(dropped)} of its {len(old.metrics)} gated figures "
@@ -412,8 +580,10 @@ def update_baseline(
                         "new figures only")  # fmt: skip
     if only_new:
         added = {k: v for k, v in run_metrics.items() if k not in old.metrics}
-        patterns = {t.pattern for t in old.tolerances}
-        rules = (*old.tolerances, *(t for t in DEFAULT_TOLERANCES if t.pattern not in patterns))
+        rules = old.tolerances
+        for default in DEFAULT_TOLERANCES:  # those an earlier rule leaves reachable (never a rule that cannot match)
+            if not dead_rules((*rules, default)):
+                rules = (*rules, default)
         # the calibration record says which figures came after it (and so are in no machine record made before)
         calibration = dict(old.calibration)
         _list_in(calibration, ADDED_KEY, added)
@@ -433,6 +603,7 @@ def update_baseline(
         new = replace(new, tolerances=tuple(tolerances))
     if description is not None:
         new = replace(new, description=description)
+    new = cap_to_cross(new)  # a figure now near its bound keeps a tolerance it can still cross
     save_baseline(new, path)
     return new
 
@@ -482,10 +653,62 @@ def apply_gate(records: Sequence[RunRecord], action: GateAction, baseline: str |
                            "spread)")  # fmt: skip
     if action is not GateAction.COMPARE or not gated:
         return None
-    if not path.exists():
-        return GateOutcome(action, path, True, f"no baseline at {path}; create it with --update-baseline")
-    report = compare(load_baseline(path), metrics)
+    try:  # checked before the runs (check_gate); a file that went away or changed since fails the gate, closed
+        baseline_file = load_baseline(path)
+    except GateError as exc:
+        return GateOutcome(action, path, False, f"gate not passed: {exc}")
+    report = compare(baseline_file, metrics)
     return GateOutcome(action, path, report.passed, format_report(report, only_changes=True), report)
+
+
+def check_selection(baseline: Baseline, cells: Iterable[tuple[str, str]], frames: int | None = None,
+                    source: str = "baseline") -> None:
+    """Refuse a baseline made of another selection than the runs about to be compared with it: the ``(sequence,
+    method)`` ``cells`` the runs make must be the cells its figures hold (a cell it lacks would pass ungated as
+    ``new``; one it holds and the runs lack would only fail after every run), and its ``frames`` figures must not
+    exceed the ``frames`` asked for. :class:`GateError` naming an example and what to do."""
+    planned = {f"{sequence}/{method}" for sequence, method in cells}
+    methods = {method for _, method in cells}
+    held, averaged = set(), set()
+    for name in baseline.metrics:
+        cell, _, _ = name.rpartition("/")
+        if cell.startswith(f"{AVERAGE_PREFIX}/"):
+            averaged.add(cell.partition("/")[2])
+        else:
+            held.add(cell)
+    extra = sorted(held - planned) + sorted(f"{AVERAGE_PREFIX}/{m}" for m in averaged - methods)
+    lacking = sorted(planned - held)
+    if extra or lacking:
+        what = (f"holds figures of {len(extra)} sequence/method cell(s) these runs do not make (e.g. {extra[0]})"
+                if extra else f"lacks {len(lacking)} sequence/method cell(s) these runs make (e.g. {lacking[0]}), "
+                "which would pass ungated")  # fmt: skip
+        raise GateError(f"{source}: the baseline is of another suite or selection: it {what}; run the selection it "
+                        "was made of, name your own --baseline, or make one with --update-baseline")
+    if frames is not None:
+        longer = sorted(n for n, v in baseline.metrics.items() if n.endswith("/frames") and math.isfinite(v)
+                        and v > frames)  # fmt: skip
+        if longer:
+            raise GateError(f"{source}: the baseline's runs scored {baseline.metrics[longer[0]]:g} frames "
+                            f"({longer[0]}), these runs ask for {frames}: a baseline of another --frames")
+
+
+def check_gate(action: GateAction, baseline: str | Path, *, gated: bool, cells: Iterable[tuple[str, str]],
+               frames: int | None = None) -> None:
+    """What :func:`apply_gate` will need, checked before any run, so that a gate fails closed: COMPARE (when
+    ``gated``) needs a readable baseline of these runs' selection (:func:`load_baseline`,
+    :func:`check_selection`); UPDATE and REPLACE need an existing baseline to be readable (a missing one is
+    created). :class:`GateError` (an :class:`~eval.errors.InputError`) with one line otherwise."""
+    path = Path(baseline)
+    if action in (GateAction.UPDATE, GateAction.REPLACE):
+        if path.exists():
+            load_baseline(path, crossable=False)
+        return
+    if action is not GateAction.COMPARE or not gated:
+        return
+    if not path.is_file():
+        raise GateError(f"no baseline at {path}" + (" (a folder)" if path.exists() else "") + "; make it with "
+                        "--update-baseline (or --calibrate), name another with --baseline, or --no-gate")
+    check_selection(load_baseline(path), cells, frames, str(path))
 
 
 # -------------------------------------------------------------------------------------------------- calibration
@@ -554,7 +777,7 @@ def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], referenc
         calibrated[name] = {"spread": spread, "allowed": max(k * spread, rule.allowed(value))}
         if runs:
             calibrated[name].update(median_spread=median_spread, run_spread=run_spread)
-    return replace(base, calibrated=calibrated)
+    return cap_to_cross(replace(base, calibrated=calibrated))
 
 
 def _alarms(baseline: Baseline, figures: Mapping[str, float]) -> int:

@@ -123,7 +123,9 @@ SWEEP_AXES: dict[str, str] = {
 
 # the report layouts a suite may name (eval.reports.suite_reports writes each); "generic" is the plain per-metric table
 REPORT_LAYOUTS: tuple[str, ...] = ("generic", "table1", "rotation", "ablation", "sweep", "quick", "depth_quality")
-BASELINE_DIR: Path = Path("results") / "baselines"  # relative to the working directory, as --results is
+# the built-in suites' baselines, in the project's own results/ (found from the package, never from the working
+# directory: a gate run from another folder compares with the same file)
+BASELINE_DIR: Path = Path(__file__).resolve().parents[2] / "results" / "baselines"
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,8 @@ class Suite:
 
     @property
     def baseline_path(self) -> Path:
-        """The gate's baseline file of this suite (``baseline``, or ``results/baselines/<name>.json``)."""
+        """The gate's baseline file of this suite (``baseline``, or ``results/baselines/<name>.json`` of the project,
+        :data:`BASELINE_DIR`; a suite of one's own names its baseline, ``--baseline``)."""
         return Path(self.baseline) if self.baseline is not None else BASELINE_DIR / f"{self.name}.json"
 
     def select(

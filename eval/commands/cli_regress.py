@@ -1,11 +1,13 @@
 """``cnnslam regress BASELINE.json RUN.json``: the regression gate (see :mod:`eval.bench.regress` for the file formats).
 
 Prints the diff table and PASS/FAIL. Exit status: 0 when nothing regressed or went missing (improvements pass), 1 on
-a regression or a missing metric, 2 when a file cannot be read or an update is refused. ``--update`` rewrites
-BASELINE with the run's metrics (keeping its tolerances) and exits 0: review the diff and commit it like code. An
-update that would drop gated figures (the run lacks some the baseline holds) is refused in one line: ``--replace``
-to mean it, ``--merge`` to rewrite only the run's figures (a run of the one method that changed), ``--only-new``
-to add the run's new figures only.
+a regression (a tracked share that became a failure is one whatever the tolerance) or a missing metric, 2 in one line
+when a file is missing, unreadable or malformed (a baseline of another schema, with no figures, with a tolerance rule
+that can never match or a tolerance that can never fail inside its metric's bounds) or an update is refused.
+``--update`` rewrites BASELINE with the run's metrics (keeping its tolerances) and exits 0: review the diff and commit
+it like code. An update that would drop gated figures (the run lacks some the baseline holds) is refused in one
+line: ``--replace`` to mean it, ``--merge`` to rewrite only the run's figures (a run of the one method that changed),
+``--only-new`` to add the run's new figures only.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from eval.bench.regress import GateError, compare, format_report, load_baseline, load_run_metrics, update_baseline
+from eval.bench.regress import compare, format_report, load_baseline, load_run_metrics, update_baseline
+from eval.errors import InputError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"updated {args.baseline}: {len(new.metrics)} metrics, {len(new.tolerances)} tolerance rules")
             return 0
         report = compare(load_baseline(args.baseline), metrics)
-    except GateError as exc:
+    except InputError as exc:  # the gate's own errors (GateError) are input errors too
         print(f"cnnslam regress: error: {exc}", file=sys.stderr)
         return 2
     print(format_report(report, only_changes=args.changes_only))

@@ -292,7 +292,8 @@ def test_a_suite_carries_its_report_gate_and_baseline_and_nothing_switches_on_it
 
     assert set(REPORTS) == set(REPORT_LAYOUTS)
     assert [s.name for s in SUITES.values() if s.gated] == ["quick"]
-    assert SUITES["quick"].baseline_path == Path("results/baselines/quick.json")
+    root = Path(__file__).resolve().parents[3]  # the repository, not the working directory
+    assert SUITES["quick"].baseline_path == root / "results" / "baselines" / "quick.json"
     assert {s.name for s in SUITES.values() if s.real_folders} == {"real", "transfer", "preprocessing"}
     with pytest.raises(SuiteError, match="report must be one of"):
         Suite("x", "a suite with a report nobody writes", report="table2")
