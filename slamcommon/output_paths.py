@@ -62,7 +62,7 @@ def check_output_file(path: str | Path, flag: str) -> Path:
     folder at the path, a file where one of its folders goes, no permission). Leaves nothing behind."""
     path = Path(path)
     if path.is_dir():
-        raise OutputPathError(f"{flag} {path}: a folder, not a file; name a file (e.g. {path / 'out.txt'})")
+        raise OutputPathError(f"{flag} {path}: a folder, not a file; name a file to write")
     if path.name in ("", ".", ".."):
         raise OutputPathError(f"{flag} {str(path)!r}: not a file name; name a file")
     if path.exists():

@@ -23,15 +23,19 @@ level (``rmse`` is now
 ``metrics.ate_rmse``, ``rotation_deg.rmse`` is ``metrics.rot_deg_rmse``, ``rpe.translation.rmse`` is
 ``metrics.rpe_trans_rmse``).
 
-Exit status: 0 on success, 1 when the files cannot be scored (the message says why), 2 on bad arguments.
+Exit status: 0 on success; 2 on bad input, found before anything is computed (an option out of its range, a file
+that is missing or malformed, an output path that cannot be written), with one line naming the value and what is
+valid; 1 when two readable files cannot be scored together (too few matching timestamps: the message says why).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
+from pathlib import Path
 
 # Set before numpy loads its BLAS, so only where this module brings numpy in (the ``cnnslam eval`` process; a process
 # that imported numpy first keeps its own setting) and only where the caller set nothing: every product here is 3x3
@@ -44,7 +48,7 @@ if "numpy" not in sys.modules:
     for _name in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(_name, "1")
 
-from eval.errors import EvalError
+from eval.errors import EvalError, InputError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import (
@@ -57,7 +61,8 @@ from eval.metrics.trajectory_metrics import (
 )
 from eval.metrics.tum_reader import DUPLICATE_POLICIES
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
-from slamcommon.errors import MetricError
+from slamcommon.errors import MetricError, ProjectError
+from slamcommon.output_paths import check_output_file
 from slamcommon.strict_json import json_ready
 
 EVAL_SCHEMA = "cnnslam-eval/1"
@@ -107,17 +112,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "poses, in the ground truth's frame) as a TUM file, e.g. for evo_traj")
 
 
-def run(args: argparse.Namespace) -> int:
-    if args.plot:  # a figure that cannot be written is refused before anything is computed
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse, before any file is read, an option out of its range (``--max-diff`` and ``--rpe-delta`` positive and
+    finite, a whole number of frames with ``--rpe-unit frames``; ``--offset`` finite) and an output path that cannot
+    be written (``--plot``, ``--save-aligned``): :class:`~eval.errors.InputError` or
+    :class:`~slamcommon.output_paths.OutputPathError`, one line naming the option, its value and what is valid."""
+    if not (math.isfinite(args.max_diff) and args.max_diff > 0):
+        raise InputError(f"--max-diff {args.max_diff:g}: must be a positive number of seconds (default "
+                         f"{DEFAULT_MAX_DIFFERENCE:g})")
+    if not math.isfinite(args.offset):
+        raise InputError(f"--offset {args.offset:g}: must be a finite number of seconds")
+    if not (math.isfinite(args.rpe_delta) and args.rpe_delta > 0):
+        unit = {"frames": "frames", "s": "seconds", "m": "metres"}[args.rpe_unit]
+        raise InputError(f"--rpe-delta {args.rpe_delta:g}: must be a positive number of {unit} (default 1)")
+    if args.rpe_unit == RpeUnit.FRAMES.value and args.rpe_delta != int(args.rpe_delta):
+        raise InputError(f"--rpe-delta {args.rpe_delta:g}: with --rpe-unit frames it must be a whole number of "
+                         "frames >= 1")
+    if args.plot:
         from eval.reports.plots import check_figure_path
 
         try:
             check_figure_path(args.plot)
         except EvalError as exc:
-            print(f"cnnslam eval: error: --plot: {exc}", file=sys.stderr)
-            return 2
-    try:
+            raise InputError(f"--plot: {exc}") from None
+        check_output_file(args.plot, "--plot")
+    if args.save_aligned:
+        check_output_file(args.save_aligned, "--save-aligned")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:  # bad options, unreadable or malformed files and unwritable outputs: refused before anything is computed
+        check_arguments(args)
         gt, est = _load(args.groundtruth, args), _load(args.estimate, args)
+    except ProjectError as exc:
+        print(f"cnnslam eval: error: {exc}", file=sys.stderr)
+        return 2
+    try:
         metrics = evaluate_trajectory(
             gt,
             est,
@@ -143,10 +173,9 @@ def run(args: argparse.Namespace) -> int:
             title=f"{args.estimate}: ATE RMSE {metrics.ate.rmse:.4f} m ({metrics.alignment.used})",
         )
     if args.save_aligned:
-        from pathlib import Path
-
         from eval.metrics.aligned import aligned_tum_text
 
+        Path(args.save_aligned).parent.mkdir(parents=True, exist_ok=True)
         Path(args.save_aligned).write_text(aligned_tum_text(metrics, args.align, f"estimate: {args.estimate}"))
     if args.json:
         out = {"schema": EVAL_SCHEMA, "files": {"groundtruth": args.groundtruth, "estimate": args.estimate}}
@@ -164,6 +193,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _load(path: str, args: argparse.Namespace) -> PoseTrajectory:
+    """The trajectory file at ``path``; a path that is no readable file is refused in one line naming it (the
+    readers' own errors name the line of a malformed file)."""
+    if not Path(path).is_file():
+        what = "a folder" if Path(path).is_dir() else "no such file"
+        raise InputError(f"{path}: {what}; give a {args.format.upper()} trajectory file")
     if args.format == "kitti":
         return PoseTrajectory.from_kitti_file(path)
     return PoseTrajectory.from_tum_file(path, duplicate_timestamps=args.duplicates, on_duplicates=_warn)

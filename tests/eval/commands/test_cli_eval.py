@@ -9,7 +9,7 @@ import pytest
 
 from cnnslam.cli import main
 
-TUM = Path("/work/shared/data/tum")
+TUM = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "tum"  # ../shared beside the repository
 FR2_GT, FR2_ORB = str(TUM / "fr2_desk_groundtruth.txt"), str(TUM / "fr2_desk_ORB.txt")
 FR1_GT, FR1_EST = str(TUM / "freiburg1_xyz-groundtruth.txt"), str(TUM / "freiburg1_xyz-rgbdslam.txt")
 
@@ -56,7 +56,7 @@ def test_official_fr2_desk_ground_truth_keeps_the_last_of_a_repeated_timestamp(c
     assert f"{json.loads(captured.out)['metrics']['ate_rmse']:.6f}" == "0.008144"
     first = run_json(capsys, FR2_GT, FR2_ORB, "--duplicates", "first")
     assert first["metrics"]["ate_pairs"] == 2223
-    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 1
+    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 2  # a file refused as read: bad input
     err = capsys.readouterr().err
     assert f"{FR2_GT}:10863:" in err and "repeats" in err
 
@@ -110,7 +110,7 @@ def test_text_report_and_plot(capsys, tmp_path):
 
 
 def test_errors_name_the_file_and_line(capsys, tmp_path):
-    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 1
+    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 2
     err = capsys.readouterr().err
     assert f"{FR2_GT}:10863:" in err and "--duplicates last" in err
     shifted = tmp_path / "shifted.txt"
@@ -194,3 +194,54 @@ def test_save_aligned_writes_what_evo_reads_and_scores_as_we_do(tmp_path, capsys
         assert "786 poses" in evo("evo_traj", "tum", str(aligned))["stdout"]
         stats = evo("evo_ape", "tum", FR1_GT, str(aligned), "--t_max_diff", "0.02")["stats"]
         assert stats["rmse"] == pytest.approx(rmse, abs=5e-7)
+
+
+THREE_POSES = "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 0 0 0 0 0 1\n"
+
+
+@pytest.mark.parametrize(("estimate", "options", "named", "valid"), [
+    ("gt.txt", ["--max-diff", "-1"], "--max-diff -1", "positive number of seconds"),
+    ("gt.txt", ["--max-diff", "nan"], "--max-diff nan", "positive number of seconds"),
+    ("gt.txt", ["--rpe-delta", "0"], "--rpe-delta 0", "positive number of seconds"),
+    ("gt.txt", ["--rpe-delta", "-2", "--rpe-unit", "m"], "--rpe-delta -2", "positive number of metres"),
+    ("gt.txt", ["--rpe-delta", "0.5", "--rpe-unit", "frames"], "--rpe-delta 0.5", "whole number of frames"),
+    ("gt.txt", ["--offset", "inf"], "--offset inf", "finite number of seconds"),
+    ("malformed.txt", [], "{tmp}/malformed.txt:2: expected 8 columns", "timestamp tx ty tz qx qy qz qw"),
+    ("binary.txt", [], "{tmp}/binary.txt", "not a text file"),
+    ("missing.txt", [], "{tmp}/missing.txt: no such file", "give a TUM trajectory file"),
+    ("folder", [], "{tmp}/folder: a folder", "give a TUM trajectory file"),
+    ("gt.txt", ["--save-aligned", "{tmp}/folder"], "--save-aligned {tmp}/folder: a folder, not a file", "name a file"),
+    ("gt.txt", ["--save-aligned", "{tmp}/file/a.tum"], "--save-aligned {tmp}/file/a.tum", "is a file, not a folder"),
+    ("gt.txt", ["--plot", "{tmp}/file/figure.png"], "--plot {tmp}/file/figure.png", "is a file, not a folder"),
+    ("gt.txt", ["--plot", "{tmp}/folder.png"], "--plot {tmp}/folder.png: a folder, not a file", "name a file"),
+])
+def test_bad_input_exits_2_with_one_line_before_anything_is_computed(tmp_path, capsys, estimate, options, named,
+                                                                    valid):
+    """An option out of its range, a missing, malformed or non-text file, an output that cannot be written: exit 2
+    and one line naming the value and what is valid; nothing is printed to stdout, nothing is written."""
+    (tmp_path / "gt.txt").write_text(THREE_POSES)
+    (tmp_path / "malformed.txt").write_text("0 0 0 0 0 0 0 1\n1 1 0 0\n")
+    (tmp_path / "binary.txt").write_bytes(bytes(range(256)))
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "folder.png").mkdir()
+    (tmp_path / "file").write_text("")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    options = [o.format(tmp=tmp_path) for o in options]
+    assert main(["eval", str(tmp_path / "gt.txt"), str(tmp_path / estimate), *options]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cnnslam eval: error: "), captured.err
+    assert named.format(tmp=tmp_path) in lines[0] and valid in lines[0]
+    assert captured.out == "" and sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_files_that_cannot_be_matched_are_exit_1_and_the_aligned_file_goes_into_a_new_folder(tmp_path, capsys):
+    """Two readable files whose timestamps do not meet cannot be scored (exit 1: not a bad argument); a
+    --save-aligned path in a folder that does not exist yet is written, the folder made."""
+    gt = tmp_path / "gt.txt"
+    gt.write_text(THREE_POSES)
+    assert main(["eval", str(gt), str(gt), "--offset", "100"]) == 1
+    assert "found 0 matching timestamps" in capsys.readouterr().err
+    aligned = tmp_path / "new" / "deeper" / "aligned.tum"
+    assert main(["eval", str(gt), str(gt), "--save-aligned", str(aligned)]) == 0
+    assert len(np.loadtxt(aligned)) == 3
