@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -32,18 +34,72 @@ def test_the_quick_start_runs_as_written(capsys):
     assert re.fullmatch(r"ATE \d+\.\d{3} m, correct depth \d+\.\d %", line), line
 
 
+MAIN_GUARD = 'if __name__ == "__main__":'
+
+
+def library_call_script() -> str:
+    """The README's run_bench block as written, the oracle alone on 6 frames of office0 (its runs and report land
+    in ``runs/`` of the working folder)."""
+    code = block_with("python", "run_bench")
+    assert '["CNN-SLAM", "LSD"]' in code and "frames=300" in code
+    return code.replace('["CNN-SLAM", "LSD"]', '["oracle"]').replace("frames=300", "frames=6, progress=False")
+
+
 @pytest.mark.slow
 def test_the_library_call_runs_as_written(tmp_path, monkeypatch, capsys):
     """The benchmark as a library call (run_bench), beside its command: here the oracle alone on 6 frames, so the
     runs and the subset's report land under tmp_path/runs/."""
-    code = block_with("python", "run_bench")
-    assert '["CNN-SLAM", "LSD"]' in code and "frames=300" in code
     monkeypatch.chdir(tmp_path)
-    code = code.replace('["CNN-SLAM", "LSD"]', '["oracle"]').replace("frames=300", "frames=6, progress=False")
-    exec(compile(code, "README library call", "exec"), {})
+    exec(compile(library_call_script(), "README library call", "exec"), {"__name__": "__main__"})  # as a script
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[0].startswith("table1/office0@kinect/oracle/seed0-frames6 done")
     assert lines[-1].startswith("exit status 0 report runs/reports/table1-") and lines[-1].endswith("table1.md")
+
+
+def without_guard(code: str) -> str:
+    """``code`` with the block of its ``if __name__ == "__main__":`` (the last lines) moved to the top level."""
+    lines = code.splitlines()
+    at = [i for i, line in enumerate(lines) if line.startswith(MAIN_GUARD)]
+    assert len(at) == 1, f"one {MAIN_GUARD!r} in {code!r}"
+    body = lines[at[0] + 1:]
+    assert all(not line.strip() or line.startswith("    ") for line in body), "the guard's block ends the code"
+    return "\n".join([*lines[:at[0]], *(line[4:] for line in body)]) + "\n"
+
+
+def run_script(path: Path) -> subprocess.CompletedProcess[str]:
+    """``python path`` in its folder with this interpreter, as a user runs a saved snippet."""
+    return subprocess.run([sys.executable, path.name], cwd=path.parent, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.slow
+def test_the_library_call_runs_as_a_saved_script(tmp_path):
+    """The README's run_bench block saved as a file and run with ``python FILE``, as written: its runs' worker
+    processes import the file again, and the block's guard keeps them from starting the runs again (without it,
+    every run failed as WorkerDied, "a crash in native code, or killed for memory?")."""
+    script = tmp_path / "snippet.py"
+    script.write_text(library_call_script())
+    assert MAIN_GUARD in script.read_text(), "the README's block puts its calls under the main guard"
+    done = run_script(script)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.strip().splitlines()
+    assert lines[0].startswith("table1/office0@kinect/oracle/seed0-frames6 done"), done.stdout
+    assert lines[-1].startswith("exit status 0 report runs/reports/table1-"), done.stdout
+    assert "WorkerDied" not in done.stdout + done.stderr
+
+
+def test_the_library_call_without_its_guard_is_refused_before_any_run(tmp_path):
+    """The same block with its calls at the top level of the script: refused at once (InputError, one line naming
+    the script's line and the fix), before any run or folder, never the workers' death reported per run."""
+    script = tmp_path / "snippet.py"
+    script.write_text(without_guard(library_call_script()))
+    assert MAIN_GUARD not in script.read_text()
+    done = run_script(script)
+    assert done.returncode != 0
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("eval.bench.executors.MainModuleError: snippet.py line 3 starts worker processes"), last
+    assert last.endswith(f"put the call under `{MAIN_GUARD}` (or use the serial executor)"), last
+    assert "WorkerDied" not in done.stdout + done.stderr and done.stdout == ""
+    assert not (tmp_path / "runs").exists()  # nothing rendered, run or reported
 
 
 def test_the_dataset_list_format_is_the_one_the_code_reads(tmp_path):

@@ -25,6 +25,11 @@ process that died, a Ray task error). Executors never raise for one bad item: th
   (:func:`die_with_parent`), so a ``kill -9`` of the parent leaves no orphan holding memory. When the consumer stops
   early (Ctrl-C, an exception while it handles a result, ``close()``), the workers are killed at once, unfinished
   runs are dropped and the exception goes on to the caller: nothing waits for runs whose results nobody takes.
+  Workers of both start methods import the caller's main module again (a script run as ``python FILE`` or
+  ``python -m MODULE``) before their first item: a pool started from its top-level code outside
+  ``if __name__ == "__main__":`` would be started again in every worker, which then dies. Such a call is refused
+  before any worker starts (:class:`MainModuleError`, with the fix), as is a main module read from standard input,
+  which no worker can import; ``python -c``, an interactive session and a Jupyter kernel have no file to import.
 - ``ray``: the same runs as Ray tasks, on the cluster at ``address`` (``"auto"``, ``"ray://host:10001"``,
   ``"local"`` for a new local one) or, without an address, on the Ray instance already initialised in this process,
   else on a new local one with ``jobs`` CPUs. Ray is an optional dependency (``pip install -e '.[ray]'``), imported
@@ -40,8 +45,10 @@ stop work in its own process and refuses a limit (use ``local`` with one job).
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import ctypes
+import linecache
 import math
 import multiprocessing
 import os
@@ -53,9 +60,9 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Literal, Protocol, TypeVar, get_args
+from typing import Any, Literal, NamedTuple, Protocol, TypeVar, get_args
 
-from eval.errors import EvalError
+from eval.errors import EvalError, InputError
 from slamcommon.threads import limit_threads, thread_environment
 
 ExecutorName = Literal["local", "serial", "ray"]
@@ -76,6 +83,12 @@ class ExecutorError(EvalError):
 
 class WorkerDied(ExecutorError, RuntimeError):
     """The process running an item died (or its pool broke too often) before returning a result."""
+
+
+class MainModuleError(ExecutorError, InputError):
+    """Worker processes that would die before their first item, for the main module that each of them imports again:
+    its top-level code starts them without ``if __name__ == "__main__":`` around the call (each worker would start
+    the runs again instead of its own), or it is no file (standard input)."""
 
 
 class RunTimedOut(ExecutorError):
@@ -155,6 +168,107 @@ def init_worker(threads: int, parent: int | None) -> None:
         parent = os.getppid()
     die_with_parent(parent)
     limit_threads(threads)
+
+
+GUARD_FIX = 'put the call under `if __name__ == "__main__":`'
+
+
+def _reimported_main() -> tuple[dict[str, Any], str] | None:
+    """The main module's namespace and source file when ``spawn`` and ``forkserver`` workers run it again as
+    ``__mp_main__`` before their first item (CPython's ``multiprocessing.spawn`` rules: a script or a ``-m`` module;
+    not a package's ``__main__``, an IPython shell, ``python -c``, standard input or a Jupyter kernel, which have no
+    file to import); None when they do not."""
+    main = sys.modules.get("__main__")
+    if main is None:
+        return None
+    name = getattr(getattr(main, "__spec__", None), "name", None)
+    if name is not None:
+        if name == "__main__" or name.endswith(".__main__"):
+            return None
+        path = getattr(main.__spec__, "origin", None)
+    else:
+        path = getattr(main, "__file__", None)
+        if path is not None and os.path.splitext(os.path.basename(path))[0] == "ipython":
+            return None
+    return (vars(main), str(path)) if path else None
+
+
+def _main_top_level_frame(namespace: dict[str, Any]) -> Any:
+    """The outermost frame on this thread's stack that runs the main module's top-level code (namespace
+    ``namespace``), or None: then the main module has finished importing, or this thread did not start from it."""
+    frame, found = sys._getframe(1), None
+    while frame is not None:
+        if frame.f_globals is namespace and frame.f_code.co_name == "<module>":
+            found = frame
+        frame = frame.f_back
+    return found
+
+
+def _guarded(source: str, line: int) -> bool | None:
+    """Whether line ``line`` of module ``source`` lies in the body of an ``if`` whose test reads ``__name__`` (the
+    ``if __name__ == "__main__":`` idiom), outside any function or class; None when the source does not parse."""
+    try:
+        tree = ast.parse(source)
+    except (SyntaxError, ValueError):
+        return None
+    todo: list[ast.AST] = [tree]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef | ast.Lambda):
+            continue  # another scope: never the main module's top-level code
+        if (isinstance(node, ast.If)
+                and any(st.lineno <= line <= (st.end_lineno or st.lineno) for st in (*node.body, *node.orelse))
+                and any(isinstance(n, ast.Name) and n.id == "__name__" for n in ast.walk(node.test))):
+            return True
+        todo.extend(ast.iter_child_nodes(node))
+    return False
+
+
+class MainCall(NamedTuple):
+    """A call that runs in the top-level code of a main module which new workers import again: its ``file`` (base
+    name), the ``line`` of the top-level code running, and whether that line is under an ``if __name__`` test
+    (``guarded``; None: the source cannot be read)."""
+
+    file: str
+    line: int
+    guarded: bool | None
+
+
+def main_module_call() -> MainCall | None:
+    """Where this call comes from when it runs in the top-level code of a main module that new workers import again
+    (see :func:`_reimported_main`); None when workers would not run this call again: the main module has no file,
+    has finished importing, or this call does not come from its top-level code."""
+    main = _reimported_main()
+    if main is None:
+        return None
+    namespace, path = main
+    frame = _main_top_level_frame(namespace)
+    if frame is None:
+        return None
+    filename, line = frame.f_code.co_filename, frame.f_lineno
+    lines = linecache.getlines(filename, namespace)
+    guarded = _guarded("".join(lines), line) if lines else None
+    return MainCall(os.path.basename(filename) or path, line, guarded)
+
+
+def check_main_guarded() -> MainCall | None:
+    """Refuse to start worker processes from the unguarded top-level code of a main module that they import again,
+    or when the main module is no file they can import (:class:`MainModuleError`, one line with the fix): each
+    worker would die before its own item. Returns :func:`main_module_call`'s answer otherwise (a ``WorkerDied``
+    message names it where it cannot tell)."""
+    main = _reimported_main()
+    if main is not None and not os.path.isfile(os.path.join(multiprocessing.process.ORIGINAL_DIR or "", main[1])):
+        raise MainModuleError(
+            f"the main module {main[1]} is no file that worker processes can import, as each of them does before "
+            "its first item: save the code as a file, run it with python -c, or use the serial executor"
+        )
+    call = main_module_call()
+    if call is not None and call.guarded is False:
+        raise MainModuleError(
+            f"{call.file} line {call.line} starts worker processes in the top-level code of the main module, "
+            f"which each worker runs again when it imports it: {GUARD_FIX} (or use the serial executor)"
+        )
+    return call
 
 
 _FORK_SERVER_STATE: list[Any] = [None]  # (thread limit, preload, environment) the running fork server started with
@@ -268,6 +382,7 @@ class LocalExecutor:
         self.preload = tuple(preload)
         self.fresh_workers = bool(fresh_workers)
         self.timeout_s = check_timeout(timeout_s)
+        self._main_call: MainCall | None = None  # where map was last called from (check_main_guarded)
 
     def _pool(self, fn: Callable[..., Any] | None = None) -> ProcessPoolExecutor:
         if self.start_method == "forkserver":
@@ -281,6 +396,10 @@ class LocalExecutor:
         )
 
     def map(self, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[tuple[T, R | BaseException]]:
+        """``fn`` over ``items`` in worker processes; :class:`MainModuleError` before any worker starts when this is
+        called from the unguarded top-level code of a main module the workers import again
+        (:func:`check_main_guarded`)."""
+        self._main_call = check_main_guarded()
         todo = list(items)
         breaks = [0] * len(todo)
         waiting = deque(range(len(todo)))  # runs not handed to a pool yet, by index, in order
@@ -359,11 +478,20 @@ class LocalExecutor:
                 if breaks[k] < MAX_POOL_BREAKS:
                     again.append(k)
                     continue
-                yield todo[k], WorkerDied(
-                    f"the worker process died {breaks[k]} times while this run was unfinished (a crash in "
-                    "native code, or killed for memory?); rerun with --executor serial to see the crash"
-                )
+                yield todo[k], WorkerDied(died_message(breaks[k], self._main_call))
         waiting.extendleft(reversed(again))
+
+
+def died_message(times: int, main_call: MainCall | None = None) -> str:
+    """What a run whose worker died ``times`` times failed of; ``main_call``: the pool was started from the top-level
+    code of a main module that the workers import again (:func:`main_module_call`), where any line that starts
+    workers outside ``if __name__ == "__main__":`` kills every worker before its run."""
+    cause = "a crash in native code, or killed for memory?"
+    if main_call is not None:
+        cause = (f"a crash in native code, killed for memory, or top-level code of the main module {main_call.file} "
+                 f"that starts worker processes, which each worker runs again when it imports it: {GUARD_FIX}?")
+    return (f"the worker process died {times} times while this run was unfinished ({cause}); "
+            "rerun with --executor serial to see the crash")
 
 
 def import_ray() -> Any:
@@ -484,6 +612,7 @@ def make_executor(
             )
         return SerialExecutor()
     if name == "local":
+        check_main_guarded()  # now, before the suite is planned further, rather than at its first run
         return LocalExecutor(jobs, threads, fresh_workers=fresh_workers, timeout_s=timeout_s, preload=preload)
     import_ray()  # fail now, with the install hint, not after the suite is planned
     return RayExecutor(address, jobs, timeout_s=timeout_s)
