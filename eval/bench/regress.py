@@ -503,14 +503,14 @@ def load_baseline(path: str | Path, crossable: bool = True) -> Baseline:
             raise GateError(f"{path}: each tolerance is {{'pattern', 'direction', 'abs', 'rel'}}; {exc}") from exc
         if any(not isinstance(t.pattern, str) for t in tolerances):
             raise GateError(f"{path}: a tolerance's pattern is a text (fnmatch), e.g. '*ate_rmse'")
-    calibrated = data.get("calibrated") or {}
+    calibrated = {} if data.get("calibrated") is None else data["calibrated"]
     if not isinstance(calibrated, dict) or not all(
         isinstance(v, dict) and isinstance(v.get("allowed"), int | float) and not isinstance(v["allowed"], bool)
         and math.isfinite(v["allowed"]) and v["allowed"] >= 0 for v in calibrated.values()
     ):
         raise GateError(f"{path}: 'calibrated' maps metric names to {{'spread', 'allowed'}} objects (allowed: a "
                         "finite number >= 0)")
-    calibration = data.get("calibration") or {}
+    calibration = {} if data.get("calibration") is None else data["calibration"]
     if not isinstance(calibration, dict):
         raise GateError(f"{path}: 'calibration' is an object (how the tolerances were measured)")
     baseline = Baseline(metrics_from_json(data["metrics"], str(path)), tolerances, str(data.get("description", "")),
