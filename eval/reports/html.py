@@ -39,7 +39,7 @@ table.sortable th[data-dir=desc]::after{content:'\\2193';color:#333}
 tfoot td{border-top:2px solid #999;font-weight:600}
 td a.cell{color:inherit;text-decoration:none;display:block}
 td a.cell:hover{background:#eef4ff}
-.range{color:#777;font-size:.85em}.paper{color:#1a5fb4;font-size:.85em}.na{color:#999}
+.range{color:#777;font-size:.85em}.paper{color:#1a5fb4;font-size:.85em}.na{color:#999}.failure{color:#c01c28;font-weight:bold}
 .best{font-weight:700}
 img{max-width:100%}figure{margin:.8em 0}figcaption{font-size:.85em;color:#555}
 details{border:1px solid #ddd;border-radius:4px;margin:.4em 0;padding:.2em .6em}

@@ -2,11 +2,12 @@
 :mod:`eval.reports.html`). It holds, in this order:
 
 - **Provenance**: the command, the git revision(s) and machine(s) of the runs, the camera, frames, seeds, how the
-  runs ended, the alignment, where the run folders are;
+  runs ended, the alignment, where the run folders are, the failure rule (:data:`eval.metrics.results.FAILURE_RULE`);
 - **Results**: the suite's main tables (the blocks of its Markdown's main table), one sortable table per metric:
   rows the sequences (the Avg. row kept last), columns the methods; each cell the median of its runs with their range,
   the paper's value beside ours where the suite quotes the paper (``table1``), the best value of each row in bold
-  among the methods that receive no ground truth, ``n/a`` with the reason (on hover) where a method has no value;
+  among the methods that receive no ground truth, ``n/a`` with the reason (on hover) where a method has no value,
+  ``X (22 %)`` (the reason on hover) where a cell is a failure (:mod:`eval.reports.tables`), never a figure;
   **each cell opens the runs behind it**;
 - **Report**: the Markdown report rendered, every table sortable, its figures inline (a PDF figure through its PNG
   twin);
@@ -31,13 +32,13 @@ import pandas as pd
 from eval.bench.run import FAILED_FILE, RunSpec
 from eval.bench.runner import SuiteRun
 from eval.metrics.aligned import ALIGNED_FILES
-from eval.metrics.results import RunRecord
+from eval.metrics.results import FAILURE_RULE, RunRecord, failure_of
 from eval.reports.html import Cell, image_data_uri, markdown_to_html, page, sortable_table, svg_track, text_cell
 from eval.reports.paper_figures import file_slug
 from eval.reports.paper_table1 import covers_paper_sequences, paper_value
 from eval.reports.run_data import RunTrack, missing_reasons
 from eval.reports.style import method_style
-from eval.reports.tables import AVG_LABEL, best_cells, cell_text, spread_of, table1
+from eval.reports.tables import AVG_LABEL, avg_coverage, best_cells, cell_text, spread_of, table1
 
 DEPTH_THUMBNAIL_WIDTH = 320  # px: a run's depth.png shrunk for the page (JPEG, quality below: about 17 kB)
 DEPTH_THUMBNAIL_QUALITY = 70
@@ -75,6 +76,7 @@ def provenance_html(run: SuiteRun, command: str, machines: str, camera: str, fig
         ("ATE alignment", html.escape(f"{suite.alignment.upper()} unless a method says otherwise")),
         ("run folders", f"<code>{html.escape(str(run.out_root / suite.name))}</code>"),
         ("figure format", html.escape(figure_format)),
+        ("failures", html.escape(FAILURE_RULE)),
     ])  # fmt: skip
 
 
@@ -86,9 +88,9 @@ def results_table_html(run: SuiteRun, frame: pd.DataFrame, title: str, metric: s
     sequences = [s.name for s in run.suite.sequences]
     shape = {"methods": methods, "sequences": sequences, "blocks": [(title, metric)]}
     table = table1(frame, **shape)
-    if table.empty or table.isna().all().all():
-        return ""
     spread = spread_of(frame, **shape)
+    if table.empty or (table.isna().all().all() and not any(f.is_failure for f in spread.failures.values())):
+        return ""
     fed = sorted({r.method for r in run.records if r.uses_ground_truth})
     bold = best_cells(table, [(title, metric)], digits, fed)
     all_nine = covers_paper_sequences(sequences)
@@ -96,6 +98,16 @@ def results_table_html(run: SuiteRun, frame: pd.DataFrame, title: str, metric: s
 
     def cell(label: object, method: str) -> Cell:
         value = table.at[label, (title, method)]
+        failure = spread.failures.get((str(label), method))
+        covers = avg_coverage(spread, method) if label == AVG_LABEL else None
+        if (failure is not None and failure.is_failure) or (pd.isna(value) and covers is not None and not covers[0]):
+            text = cell_text(value, label, (title, method), spread, digits)
+            why = (f"a failure: {failure.failed} of {failure.runs} run(s) failed (never initialised, or tracked too "
+                   "little of the sequence)" if failure is not None else "every sequence a failure")
+            inner = f'<span class="failure">{html.escape(text)}</span>'
+            if label != AVG_LABEL:
+                inner = f'<a class="cell" href="#{cell_anchor(str(label), method)}">{inner}</a>'
+            return Cell(inner, None, True, why)
         if pd.isna(value):
             why = (missing_reasons(run, metric, [method], sequence=str(label)).get(method)
                    if label != AVG_LABEL else missing_any.get(method))  # fmt: skip
@@ -106,7 +118,7 @@ def results_table_html(run: SuiteRun, frame: pd.DataFrame, title: str, metric: s
         inner = f'<span class="{"best" if (label, (title, method)) in bold else ""}">{html.escape(median)}</span>'
         if rest:
             inner += f' <span class="range">{html.escape(rest)}</span>'
-        quoted = paper_value(label, method, metric, all_nine) if paper else math.nan
+        quoted = paper_value(label, method, metric, all_nine) if paper and covers is None else math.nan
         if not math.isnan(quoted):
             inner += f' <span class="paper" title="the paper\'s Table 1">({quoted:.{digits}f})</span>'
         if label != AVG_LABEL:
@@ -117,7 +129,9 @@ def results_table_html(run: SuiteRun, frame: pd.DataFrame, title: str, metric: s
     footer = [[text_cell(AVG_LABEL), *(cell(AVG_LABEL, m) for m in methods)]]
     legend = ("bold: the best of the row among the methods that receive no ground truth"
               + (f" ({', '.join(fed)} do)" if fed else "") + "; [min, max]: the range of the cell's runs"
-              + ("; (x): the paper's Table 1" if paper else "") + "; n/a: hover for why; a cell opens its runs")
+              + ("; (x): the paper's Table 1" if paper else "") + "; n/a: hover for why; X (22 %): a failure "
+              "(its tracked share), no figure; (7/9): an average over the sequences that are not failures; "
+              "a cell opens its runs")
     return (f"<h3>{html.escape(title)}</h3>\n" + sortable_table(["sequence", *methods], rows, footer)
             + f'\n<p class="range">{html.escape(legend)}</p>')
 
@@ -163,6 +177,9 @@ def run_html(spec: RunSpec, run: SuiteRun, record: RunRecord | None, track: RunT
             body += f"<pre>{html.escape(str(info.get('error') or ''))}\n\n{html.escape(tail)}</pre>"
         return f'<div class="run"><div class="facts">{head}{body}</div></div>'
     values = {**record.metrics, **record.resources}
+    failure = failure_of(record.metrics)
+    if failure is not None:
+        head += f' &middot; <strong class="failure">failure: {html.escape(failure)}</strong>'
     facts = [f"<tr><td>{html.escape(label)}</td><td class='num'>{_fmt(values.get(key), d, unit)}</td></tr>"
              for label, key, d, unit in RUN_FACTS if key in values]  # fmt: skip
     for share in (10, 30, 50):

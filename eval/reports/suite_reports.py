@@ -14,9 +14,11 @@ keyword arguments, git revision, wall time).
 Every cell is the median of the cell's runs (seeds) with their range, ``median [min, max]``
 (:mod:`eval.reports.tables`); every suite also writes ``<suite>_stats.csv`` (per sequence, method and metric: runs,
 median, quartiles, min, max) and ``<suite>_runs.png`` (every run as a dot, per method and sequence). Every Markdown
-file starts with how it was made (command, frames, seeds, revision) and ends with the state of the runs: the failure
-rate per method (runs that crashed or timed out, and runs that lost track: tracked share below
-:data:`LOST_BELOW_TRACKED_SHARE`), methods skipped (and why), runs that failed (and their errors).
+file starts with how it was made (command, frames, seeds, revision) and the failure rule in one line
+(:data:`eval.metrics.results.FAILURE_RULE`: a run that never initialised or tracked less than
+:data:`eval.metrics.results.MIN_TRACKED_SHARE` of its frames is a failure, shown ``X (22 %)`` in every table, plot
+and average, never as a figure), and ends with the state of the runs: the failure rate per method (runs that crashed
+or timed out, and runs that failed by the rule), methods skipped (and why), runs that failed (and their errors).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import pandas as pd
 from eval.bench.environment import machine_label
 from eval.bench.runner import SuiteRun, suite_records_json
 from eval.bench.suites import SWEEP_AXES
-from eval.metrics.results import RunRecord, runs_frame
+from eval.metrics.results import FAILURE_RULE, MIN_TRACKED_SHARE, RunRecord, failure_of, failure_text, runs_frame
 from eval.reports.html_report import write_html_report
 from eval.reports.paper_figures import figures_dir, resources_figure, sequence_figures
 from eval.reports.paper_table1 import PAPER_NAMES, covers_paper_sequences, paper_name, paper_value  # noqa: F401
@@ -46,6 +48,7 @@ from eval.reports.tables import (
     AVG_LABEL,
     TABLE1_BLOCKS,
     Spread,
+    avg_coverage,
     cell_text,
     spread_of,
     statistics_frame,
@@ -53,6 +56,7 @@ from eval.reports.tables import (
     table_to_csv,
     table_to_latex,
     table_to_markdown,
+    without_failures,
 )
 from sim_envs.driver import match_timestamp
 
@@ -79,9 +83,9 @@ DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
 )
 # The SLAM issue's targets on the office and living sequences: absolute-scale ATE (SE(3) alignment) at most 2 % of
 # the path length, scale error at most 5 %, key-frame correct depth above the raw CNN's.
-# A run that reports fewer than 90 % of its frames tracked counts as lost in the failure rate (ours: "lost" in the
-# sense of ORB-SLAM's evaluations, where a sequence on which tracking is lost for a good part of it is a failure).
-LOST_BELOW_TRACKED_SHARE = 0.9
+# A run that tracked less than this share of its frames is lost: a failure (the one rule,
+# eval.metrics.results.failure_of; the threshold and its source: eval.metrics.results.MIN_TRACKED_SHARE)
+LOST_BELOW_TRACKED_SHARE = MIN_TRACKED_SHARE
 RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = (
     ("ate_rmse", "ATE RMSE, SE(3) [m]"),
     ("depth_percent_correct", "correct depth [%]"),
@@ -137,7 +141,7 @@ def header_markdown(run: SuiteRun, title: str, command: str) -> str:
         "takes no seed is exact given its inputs and runs once), ATE after "
         f"{suite.alignment.upper()} alignment unless a method says otherwise, git revision {', '.join(revisions)}. "
         f"{camera_sentence(suite)}Each cell: the **median** of its runs and their range **[min, max]** where the "
-        "runs differ. Per-run "
+        f"runs differ. **Failures**: {FAILURE_RULE} Per-run "
         "artifacts (trajectories, "
         f"key-frame depths, metrics, plots) under `{run.out_root}/{suite.name}/`; every run's figures in long form "
         f"in `{suite.name}_long.csv`, the statistics per cell in `{suite.name}_stats.csv`, every run as a dot in "
@@ -174,8 +178,8 @@ def status_markdown(run: SuiteRun) -> str:
     else:
         per_method = failures.groupby("method", sort=False)[["runs", "crashed", "lost"]].sum()
         lines += [
-            f"\nFailure rate per method (crashed or timed out, or lost: tracked share below "
-            f"{LOST_BELOW_TRACKED_SHARE:.0%}; lost runs still count in the medians):\n",
+            f"\nFailure rate per method (crashed or timed out, or failed by the rule: never initialised or tracked "
+            f"less than {round(100 * MIN_TRACKED_SHARE)} % of its frames; a failed run counts in no median):\n",
             "| method | runs | crashed | lost | failure rate |",
             "|---|---:|---:|---:|---:|",
         ]
@@ -240,9 +244,10 @@ def alignment_markdown(run: SuiteRun, frame: pd.DataFrame) -> str:
 
 
 def failure_frame(run: SuiteRun) -> pd.DataFrame:
-    """Per (sequence, method) planned: ``runs``, ``crashed`` (failed or timed out: no record), ``lost`` (finished,
-    trajectory metrics, tracked share below :data:`LOST_BELOW_TRACKED_SHARE`), ``failure_rate``."""
-    tracked = {rec.run: rec.metrics.get("tracked_share") for rec in run.records}
+    """Per (sequence, method) planned: ``runs``, ``crashed`` (failed or timed out: no record), ``lost`` (finished, a
+    failure by :func:`eval.metrics.results.failure_of`: never initialised, or tracked share below
+    :data:`LOST_BELOW_TRACKED_SHARE`), ``failure_rate``."""
+    lost = {rec.run for rec in run.records if failure_of(rec.metrics) is not None}
     rows: dict[tuple[str, str], dict[str, int]] = {}
     for spec in run.specs:
         outcome = run.outcomes.get(spec.key)
@@ -252,7 +257,7 @@ def failure_frame(run: SuiteRun) -> pd.DataFrame:
         row["runs"] += 1
         if outcome is None or outcome.status == "failed":
             row["crashed"] += 1
-        elif (share := tracked.get(spec.key)) is not None and share < LOST_BELOW_TRACKED_SHARE:
+        elif spec.key in lost:
             row["lost"] += 1
     frame = pd.DataFrame([{"sequence": k[0], "method": k[1], **v} for k, v in rows.items()],
                          columns=["sequence", "method", "runs", "crashed", "lost"])  # fmt: skip
@@ -300,7 +305,7 @@ def _write_tables(table: pd.DataFrame, stem: Path, caption: str, digits: int = 3
     methods of ``run`` that receive no ground truth (:func:`eval.reports.tables.best_cells`)."""
     stem.parent.mkdir(parents=True, exist_ok=True)
     csv, tex = stem.with_suffix(".csv"), stem.with_suffix(".tex")
-    csv.write_text(table_to_csv(table))
+    csv.write_text(table_to_csv(table, spread))
     fed = sorted({r.method for r in run.records if r.uses_ground_truth}) if run is not None else []
     if blocks:
         caption = (caption or "") + (" Bold: the best of each row" + (f" (not counting {', '.join(fed)}, which "
@@ -324,7 +329,8 @@ def ours_beside_paper(ours: pd.DataFrame, metric_block: str, metric: str, digits
         cells = []
         for method, value in row.items():
             text = cell_text(value, label, (metric_block, method), spread, digits)
-            quoted = paper_value(label, str(method), metric, all_nine)
+            fewer = label == AVG_LABEL and spread is not None and avg_coverage(spread, method) is not None
+            quoted = math.nan if fewer else paper_value(label, str(method), metric, all_nine)
             if not math.isnan(quoted):
                 text += f" ({quoted:.{digits}f})"
             cells.append(text)
@@ -349,10 +355,12 @@ def report_table1(run: SuiteRun, results_dir: str | Path, command: str,
         "analogues of the paper's "
         "(ICL-NUIM office/living room, TUM fr3 sequences), not the same images: compare shapes (which method is "
         "best, by how much), not values. `oracle` is the ground truth fed through the same pipeline (a sanity "
-        "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a failed run). "
-        "The Avg. row is shown only where a method has every sequence, each run covering its whole sequence (a run "
-        "that scored part of it says so in its cell, `(10/60 frames)`); the paper's Avg. is quoted only beside ours "
-        "over its nine sequences.\n",
+        "row: 0 m, 100 %). `-`: no value (REMODE has no trajectory of its own; a skipped method; a run that "
+        "crashed). `X (22 %)`: a failure (never initialised, or tracked less than "
+        f"{round(100 * MIN_TRACKED_SHARE)} % of its frames), no figure. The Avg. row is shown only where a method "
+        "has every sequence, each run covering its whole sequence (a run that scored part of it says so in its "
+        "cell, `(10/60 frames)`); a failed sequence is left out of its method's Avg., which says how many it covers, "
+        "`(7/9)`; the paper's Avg. is quoted only beside ours over its nine sequences.\n",
         f"## {ate_title}\n",
         ours_beside_paper(table, ate_title, ate_metric, 3, spread),
         f"## {depth_title}\n",
@@ -378,7 +386,7 @@ def _map_section(run: SuiteRun) -> list[str]:
     table = table.dropna(axis=1, how="all")
     if table.empty or table.shape[1] == 0:
         return []
-    spread = Spread(spread.lo[table.columns], spread.hi[table.columns], spread.partial)
+    spread = Spread(spread.lo[table.columns], spread.hi[table.columns], spread.partial, spread.failures)
     return [
         "## Global model (Sec. 3.5, Fig. 1c)\n",
         "The key-frames fused live into the agent's surfel model, moved onto the ground truth with the run's ATE "
@@ -596,19 +604,52 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
         sub = points[points["axis"] == axis]
         if sub.empty:
             continue
-        wide = sub.pivot_table(index=["setting", "x"], columns="method", values=["ate_rmse", "depth_percent_correct"],
-                               aggfunc="median")
-        text.append(f"### {title}\n\n" + _pivot_markdown(wide))
+        text.append(f"### {title}\n\n" + sweep_markdown(sub))
     return _write_report(run, results_dir, "sweep", text, [csv, figure],
                          blocks=(*TABLE1_BLOCKS, ("Tracked share", "tracked_share")), figure_format=figure_format)
 
 
-def _pivot_markdown(wide: pd.DataFrame) -> str:
-    header = ["setting", "x", *(f"{metric}: {method}" for metric, method in wide.columns)]
+SWEEP_TABLE_METRICS: tuple[str, ...] = ("ate_rmse", "depth_percent_correct")
+
+
+def sweep_cells(points: pd.DataFrame) -> dict[tuple[Any, Any, str, str], str]:
+    """(setting, x, method, metric) -> the cell of one axis's sweep table (:func:`sweep_points` rows of one axis):
+    ``X (22 %)`` when at least half of its runs fail (:func:`eval.metrics.results.failure_of`; the median tracked
+    share of the failed runs), else the median over the runs that did not fail, with ``k/n failed`` and the tracked
+    share where below 100 %; ``-`` without a value."""
+    out: dict[tuple[Any, Any, str, str], str] = {}
+    for (setting, x, method), cell in points.groupby(["setting", "x", "method"], sort=True, dropna=False):
+        shares = cell["tracked_share"].to_numpy(dtype=float)
+        failed = np.array([failure_of({"tracked_share": v}) is not None for v in shares])
+        n, k = len(cell), int(failed.sum())
+        for metric in SWEEP_TABLE_METRICS:
+            if k and 2 * k >= n:
+                out[(setting, x, method, metric)] = failure_text(float(np.median(shares[failed])))
+                continue
+            values = cell[metric].to_numpy(dtype=float)[~failed]
+            values = values[np.isfinite(values)]
+            if not values.size:
+                out[(setting, x, method, metric)] = "-"
+                continue
+            kept = shares[~failed]
+            share = float(np.median(kept[np.isfinite(kept)])) if np.isfinite(kept).any() else math.nan
+            notes = ([f"{math.floor(round(100 * share, 6))} %"] if share < 1.0 else []) + (
+                [f"{k}/{n} failed"] if k else [])  # fmt: skip
+            out[(setting, x, method, metric)] = f"{np.median(values):.3f}" + (f" ({', '.join(notes)})" if notes
+                                                                                else "")  # fmt: skip
+    return out
+
+
+def sweep_markdown(points: pd.DataFrame) -> str:
+    """One axis's sweep table: rows (setting, x), columns (metric, method) of :data:`SWEEP_TABLE_METRICS`, cells of
+    :func:`sweep_cells`."""
+    cells = sweep_cells(points)
+    methods = list(dict.fromkeys(points["method"]))
+    header = ["setting", "x", *(f"{metric}: {method}" for metric in SWEEP_TABLE_METRICS for method in methods)]
     lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
-    for (setting, x), row in wide.iterrows():
-        cells = ["-" if pd.isna(v) else f"{v:.3f}" for v in row.to_numpy()]
-        lines.append("| " + " | ".join([f"{setting:g}", f"{x:.3f}", *cells]) + " |")
+    for setting, x in sorted({(s, v) for s, v, _, _ in cells}, key=lambda k: (k[0], k[1])):
+        row = [cells.get((setting, x, method, metric), "-") for metric in SWEEP_TABLE_METRICS for method in methods]
+        lines.append("| " + " | ".join([f"{setting:g}", f"{x:.3f}", *row]) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -638,7 +679,8 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str,
     table, spread = _suite_table(run, DEPTH_QUALITY_BLOCKS, frame)
     paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth.",
                           spread=spread, blocks=DEPTH_QUALITY_BLOCKS, run=run)  # fmt: skip
-    points = (frame[frame["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
+    scored = without_failures(frame)  # a failed run is no point of the scatter
+    points = (scored[scored["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
               .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
     figure = save_accuracy_scatter(points, results_dir / f"depth_quality.{figure_format}", list(run.suite.methods),
                                    TARGET_ATE_PERCENT_LENGTH)  # fmt: skip

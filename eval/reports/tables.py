@@ -18,10 +18,20 @@ best of the compared systems.
 A run that covers less than its sequence (an external trajectory with frames missing:
 :func:`eval.metrics.results.coverage`) shows it in its cell, ``0.012 (10/60 frames)`` (the cell's least covered
 run), and its column gets no Avg.: an average over part of a sequence is no average over the sequences.
+
+Failures (:func:`eval.metrics.results.failure_of`: a run that never initialised or tracked less than
+:data:`eval.metrics.results.MIN_TRACKED_SHARE` of its frames) are no figures (the rule every report states:
+:data:`eval.metrics.results.FAILURE_RULE`): a cell is a failure when at least half of its runs fail, written
+``X (22 %)`` (the mark and the median tracked share of its failed runs) in every table (Markdown, CSV, LaTeX, HTML)
+and NaN in the numeric table; otherwise its figure is the median over the runs that did not fail, with
+``1/3 failed`` beside it. A cell whose runs tracked less than all their frames shows its share, ``0.117 (99 %)``.
+An Avg. over a column with failed sequences averages the other sequences and says how many it covers,
+``0.412 (7/9)`` (:func:`cell_failures`, :class:`CellFailure`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
@@ -30,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from eval.errors import EvalError
-from eval.metrics.results import coverage
+from eval.metrics.results import FAILURE_MARK, coverage, failure_of, failure_text, share_text
 
 TABLE1_BLOCKS: tuple[tuple[str, str], ...] = (
     ("Abs. Trajectory Error [m]", "ate_rmse"),
@@ -49,6 +59,102 @@ STATISTICS: tuple[str, ...] = ("median", "q1", "q3", "min", "max")
 _QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 
 
+class CellFailure(NamedTuple):
+    """The failures among one (sequence, method) cell's runs (:func:`eval.metrics.results.failure_of`): ``runs``
+    (runs with a tracked share or a pose count), ``failed`` (of them, failures), ``share`` (the median tracked share
+    of the runs the cell's figure stands for: its failed runs when the cell is a failure, else its other runs)."""
+
+    runs: int
+    failed: int
+    share: float
+
+    @property
+    def is_failure(self) -> bool:
+        """The cell is a failure: at least half of its runs failed."""
+        return self.runs > 0 and 2 * self.failed >= self.runs
+
+    def text(self) -> str:
+        """A failed cell as written, ``X (22 %)``."""
+        return failure_text(self.share)
+
+    def note(self) -> str:
+        """What a cell that is not a failure carries beside its figure: its tracked share when below 100 % and how
+        many of its runs failed, `` (95 %, 1/3 failed)``; empty for a whole cell."""
+        parts = []
+        if math.isfinite(self.share) and self.share < 1.0:
+            parts.append(share_text(self.share))
+        if self.failed:
+            parts.append(f"{self.failed}/{self.runs} failed")
+        return f" ({', '.join(parts)})" if parts else ""
+
+
+Failures = dict[tuple[str, str], CellFailure]
+
+
+def _run_metrics(frame: pd.DataFrame) -> pd.DataFrame:
+    """One row per run (``sequence``, ``method``, ``run``) with its ``tracked_share`` and ``ate_pairs`` (NaN where
+    absent); without a ``run`` column each ``tracked_share`` row is a run of its own."""
+    rows = frame[frame["metric"].isin(["tracked_share", "ate_pairs"])]
+    if rows.empty:
+        return pd.DataFrame(columns=["sequence", "method", "run", "tracked_share", "ate_pairs"])
+    rows = rows.assign(value=pd.to_numeric(rows["value"], errors="coerce"))
+    if "run" not in rows.columns:
+        rows = rows[rows["metric"] == "tracked_share"]
+        rows = rows.assign(run=np.arange(len(rows)).astype(str))
+    wide = rows.pivot_table(index=["sequence", "method", "run"], columns="metric", values="value", aggfunc="first",
+                            dropna=False).reset_index()  # fmt: skip
+    for col in ("tracked_share", "ate_pairs"):
+        if col not in wide.columns:
+            wide[col] = np.nan
+    return wide.dropna(subset=["tracked_share", "ate_pairs"], how="all")
+
+
+def failed_runs(frame: pd.DataFrame) -> set[tuple[str, str, str]]:
+    """(sequence, method, run) of every run of the long ``frame`` that is a failure
+    (:func:`eval.metrics.results.failure_of` of its ``tracked_share`` and ``ate_pairs``)."""
+    out = set()
+    for row in _run_metrics(frame).itertuples(index=False):
+        if failure_of({"tracked_share": row.tracked_share, "ate_pairs": row.ate_pairs}) is not None:
+            out.add((str(row.sequence), str(row.method), str(row.run)))
+    return out
+
+
+def cell_failures(frame: pd.DataFrame) -> Failures:
+    """(sequence, method) -> :class:`CellFailure` for every cell of the long ``frame`` whose runs carry a tracked
+    share or a pose count (a cell without them, e.g. a depth-only method, has none and is never a failure)."""
+    runs = _run_metrics(frame)
+    if runs.empty:
+        return {}
+    failed = failed_runs(frame)
+    out: Failures = {}
+    for (sequence, method), cell in runs.groupby(["sequence", "method"], sort=False):
+        bad = np.array([(str(sequence), str(method), str(r)) in failed for r in cell["run"]])
+        shares = pd.to_numeric(cell["tracked_share"], errors="coerce").to_numpy(dtype=float)
+        info = CellFailure(len(cell), int(bad.sum()), math.nan)
+        pick = bad if info.is_failure else ~bad
+        chosen = shares[pick][np.isfinite(shares[pick])]
+        out[(str(sequence), str(method))] = info._replace(share=float(np.median(chosen)) if chosen.size else
+                                                          (0.0 if info.is_failure else math.nan))  # fmt: skip
+    return out
+
+
+def without_failures(frame: pd.DataFrame, failures: Failures | None = None) -> pd.DataFrame:
+    """The long ``frame`` less what is no figure: every row of a failed cell, and the failed runs of the other cells
+    (a cell's figure is the median over the runs that did not fail)."""
+    if frame.empty or "metric" not in frame.columns:
+        return frame
+    failures = cell_failures(frame) if failures is None else failures
+    cells = {k for k, v in failures.items() if v.is_failure}
+    runs = failed_runs(frame) if "run" in frame.columns else set()
+    if not cells and not runs:
+        return frame
+    key = list(zip(frame["sequence"].astype(str), frame["method"].astype(str), strict=True))
+    keep = np.array([k not in cells for k in key], dtype=bool)
+    if runs:
+        keep &= np.array([(s, m, str(r)) not in runs for (s, m), r in zip(key, frame["run"], strict=True)])
+    return frame[keep]
+
+
 def cell_statistics(frame: pd.DataFrame) -> pd.DataFrame:
     """Per (sequence, method, metric): ``runs`` (finite values), ``median``, ``q1``, ``q3`` (quartiles, linear
     interpolation), ``min``, ``max`` over its runs; NaN values (a metric a run could not compute) are left out."""
@@ -65,12 +171,14 @@ Cells = dict[tuple[str, str], tuple[int, int]]
 
 class Spread(NamedTuple):
     """What a table's cells are written with besides their medians: the ``lo`` and ``hi`` tables (each cell's
-    min and max over its runs) and ``partial``, (sequence, method) -> (poses scored, frames) of the cells with a run
-    covering less than its sequence (:func:`partial_cells`)."""
+    min and max over its runs that did not fail), ``partial``, (sequence, method) -> (poses scored, frames) of the
+    cells with a run covering less than its sequence (:func:`partial_cells`), and ``failures``, the failed runs and
+    tracked share of each cell (:func:`cell_failures`)."""
 
     lo: pd.DataFrame
     hi: pd.DataFrame
     partial: Cells
+    failures: Failures = {}  # noqa: RUF012 (a NamedTuple's default, never changed in place)
 
 
 def partial_cells(frame: pd.DataFrame) -> Cells:
@@ -118,7 +226,9 @@ def table1(
 
     Each cell is the statistic ``stat`` (one of :data:`STATISTICS`) of the cell's runs (:func:`cell_statistics`);
     the Avg. row is that statistic of the per-seed averages over the sequences (see the module docstring), NaN for
-    a method with a missing cell or a run covering less than its sequence (:func:`partial_cells`).
+    a method with a missing cell or a run covering less than its sequence (:func:`partial_cells`). Failures
+    (:func:`cell_failures`) are no figures: a failed cell is NaN, a cell's statistic is over its runs that did not
+    fail, and the Avg. of a column with failed cells is over its other sequences (NaN when all failed).
     ``methods`` / ``sequences`` fix the order (default: order of first
     appearance). ``drop_empty`` leaves out a method's column in a block where it has no value at all (the paper
     leaves REMODE out of the ATE block).
@@ -130,6 +240,8 @@ def table1(
     sequences = list(sequences) if sequences is not None else list(dict.fromkeys(frame["sequence"]))
     if stat not in STATISTICS:
         raise EvalError(f"unknown statistic {stat!r}; valid: {', '.join(STATISTICS)}")
+    failures = cell_failures(frame) if len(frame) else {}
+    frame = without_failures(frame, failures)
     cells = cell_statistics(frame)[stat] if len(frame) else pd.Series(dtype=float)
     partial = partial_cells(frame)
     columns = []
@@ -137,14 +249,17 @@ def table1(
     for title, metric in blocks:
         for method in methods:
             values = [cells.get((seq, method, metric), np.nan) for seq in sequences]
-            if drop_empty and np.all(np.isnan(values)):
+            failed = {seq for seq in sequences if (f := failures.get((seq, method))) is not None and f.is_failure}
+            if drop_empty and np.all(np.isnan(values)) and not failed:
                 continue
             columns.append((title, method))
             avg = np.nan
-            if not np.any(np.isnan(values)) and not any((seq, method) in partial for seq in sequences):
-                per_seed = _avg_over_seeds(frame, sequences, method, metric)
+            covered = [seq for seq in sequences if seq not in failed]
+            kept = [v for seq, v in zip(sequences, values, strict=True) if seq not in failed]
+            if covered and not np.any(np.isnan(kept)) and not any((seq, method) in partial for seq in covered):
+                per_seed = _avg_over_seeds(frame, covered, method, metric)
                 if not per_seed.size:  # no seeds with every sequence: the mean of the cells
-                    avg = float(np.mean(values))
+                    avg = float(np.mean(kept))
                 else:
                     avg = float(np.quantile(per_seed, _QUANTILES[stat], method="linear") if stat in _QUANTILES
                                 else (np.min if stat == "min" else np.max)(per_seed))  # fmt: skip
@@ -195,8 +310,13 @@ def cell_text(value: float, row: object, method: object, spread: Spread | None, 
     ``\\textbf``), its runs' range ``[min, max]`` where they differ (LaTeX: in small type) and its coverage where a
     run is partial (``spread``: the cell's :class:`Spread`; the range looked up by (row, column) of the table the
     value comes from)."""
+    name = method[-1] if isinstance(method, tuple) else method
+    fail = spread.failures.get((str(row), str(name))) if spread is not None else None
+    if fail is not None and fail.is_failure:
+        return _latex_percent(fail.text(), latex)
+    covers = avg_coverage(spread, name) if spread is not None and row == AVG_LABEL else None
     if pd.isna(value):
-        return MISSING
+        return f"{FAILURE_MARK} ({covers[0]}/{covers[1]})" if covers is not None and covers[0] == 0 else MISSING
     text = f"{value:.{digits}f}"
     if bold and latex:
         text = f"\\textbf{{{text}}}"
@@ -206,8 +326,23 @@ def cell_text(value: float, row: object, method: object, spread: Spread | None, 
     if not (pd.isna(lo) or pd.isna(hi) or lo == hi):
         rng = f"[{lo:.{digits}f}, {hi:.{digits}f}]"
         text += " " + (f"{{\\scriptsize {rng}}}" if latex else rng)
-    name = method[-1] if isinstance(method, tuple) else method
-    return text + coverage_note(spread.partial.get((str(row), str(name))))
+    if covers is not None:
+        text += f" ({covers[0]}/{covers[1]})"
+    note = fail.note() if fail is not None else ""
+    return text + _latex_percent(note, latex) + coverage_note(spread.partial.get((str(row), str(name))))
+
+
+def avg_coverage(spread: Spread, method: object) -> tuple[int, int] | None:
+    """``(sequences averaged, sequences)`` of ``method``'s Avg. in the table ``spread`` belongs to, when some of its
+    sequences are failed cells (left out of the average); None when none is."""
+    sequences = [str(r) for r in spread.lo.index if r != AVG_LABEL]
+    failed = sum(1 for seq in sequences if (f := spread.failures.get((seq, str(method)))) is not None
+                 and f.is_failure)  # fmt: skip
+    return (len(sequences) - failed, len(sequences)) if failed else None
+
+
+def _latex_percent(text: str, latex: bool) -> str:
+    return text.replace("%", "\\%") if latex else text
 
 
 def format_table(table: pd.DataFrame, digits: int = 3, spread: Spread | None = None,
@@ -226,21 +361,50 @@ def format_table(table: pd.DataFrame, digits: int = 3, spread: Spread | None = N
 
 
 def spread_of(frame: pd.DataFrame, **kwargs) -> Spread:
-    """The ``min`` and ``max`` tables matching ``table1(frame, **kwargs)`` and the frame's partial cells, for
-    :func:`format_table`'s ``spread``."""
-    return Spread(table1(frame, stat="min", **kwargs), table1(frame, stat="max", **kwargs), partial_cells(frame))
+    """The ``min`` and ``max`` tables matching ``table1(frame, **kwargs)``, the frame's partial cells (of the runs
+    that did not fail) and its failures, for :func:`format_table`'s ``spread``."""
+    failures = cell_failures(frame) if len(frame) else {}
+    return Spread(table1(frame, stat="min", **kwargs), table1(frame, stat="max", **kwargs),
+                  partial_cells(without_failures(frame, failures)), failures)  # fmt: skip
+
+
+STATISTICS_COLUMNS: tuple[str, ...] = ("sequence", "method", "metric", "runs", *STATISTICS, "failed_runs", "failure")
 
 
 def statistics_frame(frame: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
-    """The cell statistics in long form (columns ``sequence, method, metric, runs, median, q1, q3, min, max``),
-    optionally only for ``metrics``."""
-    stats = cell_statistics(frame).reset_index()
+    """The cell statistics in long form (columns :data:`STATISTICS_COLUMNS`), optionally only for ``metrics``.
+    ``runs`` and the statistics are over the runs that did not fail; ``failed_runs``: the cell's runs that failed;
+    ``failure``: ``X (22 %)`` for a failed cell (its statistics empty: no figure), else empty."""
+    failures = cell_failures(frame) if len(frame) else {}
+    every = cell_statistics(frame)
+    kept = cell_statistics(without_failures(frame, failures))
+    stats = kept.reindex(every.index)
+    stats["runs"] = stats["runs"].fillna(0).astype(int)
+    keys = list(zip(stats.index.get_level_values(0), stats.index.get_level_values(1), strict=True))
+    found = [failures.get((str(s), str(m))) for s, m in keys]
+    stats["failed_runs"] = [f.failed if f is not None else 0 for f in found]
+    stats["failure"] = [f.text() if f is not None and f.is_failure else "" for f in found]
+    stats = stats.reset_index()[list(STATISTICS_COLUMNS)]
     return stats[stats["metric"].isin(metrics)] if metrics is not None else stats
 
 
-def table_to_csv(table: pd.DataFrame) -> str:
-    """Numeric CSV: two header rows (block, method), empty cells for missing values."""
-    return table.to_csv(float_format="%.6g")
+def table_to_csv(table: pd.DataFrame, spread: Spread | None = None) -> str:
+    """CSV: two header rows (block, method), numeric medians, empty cells for missing values; with ``spread``
+    (:func:`spread_of`), a failed cell is its mark and tracked share, ``X (22 %)``, never a figure, and an Avg. over
+    a column with failed cells says how many sequences it covers, ``0.412 (7/9)``."""
+    if spread is None or not any(f.is_failure for f in spread.failures.values()):
+        return table.to_csv(float_format="%.6g")
+    out = table.map(lambda v: "" if pd.isna(v) else f"{v:.6g}").astype(object)
+    for col in table.columns:
+        name = col[-1] if isinstance(col, tuple) else col
+        for row in table.index:
+            fail = spread.failures.get((str(row), str(name)))
+            if fail is not None and fail.is_failure:
+                out.at[row, col] = fail.text()
+            elif row == AVG_LABEL and (covers := avg_coverage(spread, name)) is not None:
+                out.at[row, col] = (f"{FAILURE_MARK} " if pd.isna(table.at[row, col]) else out.at[row, col] + " ") + \
+                    f"({covers[0]}/{covers[1]})"
+    return out.to_csv()
 
 
 def table_to_markdown(table: pd.DataFrame, digits: int = 3, spread: Spread | None = None) -> str:

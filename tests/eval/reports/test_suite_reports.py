@@ -1,5 +1,6 @@
 """What the suites leave under results/: Table 1 with the paper's numbers beside ours, rotation, sweep, long form."""
 
+import html
 import math
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import pytest
 from eval.bench.run import RunSpec
 from eval.bench.runner import RunOutcome, SuiteRun
 from eval.bench.suites import get_suite
-from eval.metrics.results import RunRecord
+from eval.metrics.results import FAILURE_RULE, RunRecord
 from eval.reports.suite_reports import (
     long_frame,
     ours_beside_paper,
@@ -106,10 +107,24 @@ def test_rotation_report(tmp_path):
     }
     report_rotation(fake_run(suite, values), tmp_path, "cnnslam bench rotation")
     md = (tmp_path / "rotation.md").read_text()
-    assert "| rot_yaw_60 | 0.200 | 1.000 | 20.000 | 0.000 | 4.000 | 0.000 | 0.500 | 100.000 |" in md
-    assert "| Avg. | 0.550 | 1.000 | 11.000 | 0.000 | 2.250 |" in md
-    # the LSD run on rot_yaw_60 tracked 20 % of its frames: lost, one of LSD's two runs
+    # the LSD run on rot_yaw_60 tracked 20 % of its frames: a failure, its mark in every block, never a figure; the
+    # one on rot_yaw_15 tracked 90 %, the threshold: a figure with its share; LSD's Avg. covers 1 of 2 sequences
+    assert "| rot_yaw_60 | X (20 %) | 1.000 | X (20 %) | 0.000 | X (20 %) | 0.000 | X (20 %) | 100.000 |" in md
+    assert "| rot_yaw_15 | 0.900 (90 %) | 1.000 | 2.000 (90 %) | 0.000 | 0.500 (90 %) | 0.000 | 3.000 (90 %) |" in md
+    assert "| Avg. | 0.900 (1/2) | 1.000 | 2.000 (1/2) | 0.000 | 0.500 (1/2) | 0.000 | 3.000 (1/2) | 100.000 |" in md
     assert "| LSD | 2 | 0 | 1 | 50% |" in md and "| oracle | 2 | 0 | 0 | 0% |" in md
+    assert md.count(FAILURE_RULE) == 1  # the rule, stated once
+    csv = (tmp_path / "rotation.csv").read_text()
+    assert "rot_yaw_60,X (20 %),1,X (20 %),0,X (20 %),0,X (20 %),100" in csv and "20," not in csv
+    tex = (tmp_path / "rotation.tex").read_text()
+    assert "rot\\_yaw\\_60 & X (20 \\%) &" in tex and "20.000" not in tex
+    stats = pd.read_csv(tmp_path / "rotation_stats.csv")
+    failed = stats[(stats["sequence"] == "rot_yaw_60") & (stats["method"] == "LSD")]
+    assert len(failed) == 4 and (failed["failure"] == "X (20 %)").all() and failed["median"].isna().all()
+    assert (failed["failed_runs"] == 1).all() and (failed["runs"] == 0).all()
+    page = (tmp_path / "rotation.html").read_text()
+    assert '<span class="failure">X (20 %)</span>' in page and html.escape(FAILURE_RULE) in page
+    assert "failure: tracked 20 % &lt; 90 %" in page  # the run itself says why
     assert (tmp_path / "rotation_long.csv").is_file() and (tmp_path / "rotation.tex").is_file()
 
 

@@ -11,7 +11,15 @@ from eval.reports.paper_table1 import (
     PAPER_SEQUENCES,
     paper_table1_frame,
 )
-from eval.reports.tables import AVG_LABEL, format_table, table1, table_to_latex, table_to_markdown, write_table
+from eval.reports.tables import (
+    AVG_LABEL,
+    TABLE1_BLOCKS,
+    format_table,
+    table1,
+    table_to_latex,
+    table_to_markdown,
+    write_table,
+)
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +97,7 @@ def test_cells_are_medians_with_their_range_and_the_average_is_per_seed():
     frame = pd.DataFrame([{"sequence": s, "method": "X", "metric": "ate_rmse", "value": v, "seed": k}
                           for s, k, v in rows])  # fmt: skip
     t = table1(frame)
-    lo, hi, partial = spread_of(frame)
+    lo, hi, partial, _ = spread_of(frame)
     assert partial == {}  # no run column: no coverage to read
     col = ("Abs. Trajectory Error [m]", "X")
     assert t.at["a", col] == 2.0 and (lo.at["a", col], hi.at["a", col]) == (1.0, 9.0)  # median [min, max]
@@ -152,3 +160,79 @@ def test_latex_sets_the_best_of_each_row_in_bold_among_the_methods_fed_no_ground
     assert "{lrrrrrr}" in latex
     assert better_direction("ate_sim3_rmse") == "lower" and better_direction("tracked_share") == "higher"
     assert better_direction("scale") is None and better_direction("rpe_trans_rmse_p10") == "lower"
+
+
+# ------------------------------------------------------------------------------------------------- failures
+def _runs(rows):
+    """A long frame from (sequence, method, seed, tracked_share, ate_rmse) runs, one run id each."""
+    out = []
+    for seq, method, seed, share, ate in rows:
+        run = f"{seq}/{method}/seed{seed}"
+        out += [{"sequence": seq, "method": method, "metric": "tracked_share", "value": share, "seed": seed,
+                 "run": run},
+                {"sequence": seq, "method": method, "metric": "ate_rmse", "value": ate, "seed": seed, "run": run},
+                {"sequence": seq, "method": method, "metric": "depth_percent_correct", "value": 10.0 * ate,
+                 "seed": seed, "run": run}]  # fmt: skip
+    return pd.DataFrame(out)
+
+
+FAILED_FRAME = [
+    # A never initialises on s2 (the ORB-SLAM3 case: tracked 0 on every seed, yet an ATE of its identity poses)
+    *(("s1", "A", k, 1.0, 0.1 + 0.01 * k) for k in range(3)),
+    *(("s2", "A", k, 0.0, 0.003) for k in range(3)),
+    *(("s3", "A", k, 0.95, 0.3) for k in range(3)),
+    # B: one of three seeds lost on s1 (a figure over the other two, "1/3 failed"), whole elsewhere
+    ("s1", "B", 0, 0.22, 9.0), ("s1", "B", 1, 1.0, 0.2), ("s1", "B", 2, 1.0, 0.4),
+    *(("s2", "B", k, 1.0, 0.5) for k in range(3)),
+    *(("s3", "B", k, 1.0, 0.6) for k in range(3)),
+]
+
+
+def test_a_failed_cell_shows_the_mark_and_its_share_never_its_figure():
+    from eval.reports.tables import cell_failures, spread_of, table_to_csv
+
+    frame = _runs(FAILED_FRAME)
+    t = table1(frame)
+    spread = spread_of(frame)
+    ate = ("Abs. Trajectory Error [m]", "A")
+    assert np.isnan(t.loc["s2", ate])  # no figure in the numeric table
+    assert cell_failures(frame)[("s2", "A")].is_failure and not cell_failures(frame)[("s1", "B")].is_failure
+    md = table_to_markdown(t, spread=spread)
+    row = next(line for line in md.splitlines() if line.startswith("| s2 |"))
+    assert row.split(" | ")[1] == "X (0 %)" and "0.003" not in md
+    assert "| s3 | 0.300 (95 %) |" in md  # below 100 % tracked, not a failure: its share beside it
+    assert "0.300 [0.200, 0.400] (1/3 failed)" in md  # B on s1: median of the two runs that did not fail
+    csv = table_to_csv(t, spread)
+    assert "s2,X (0 %)," in csv and "0.003" not in csv
+    tex = table_to_latex(t, spread=spread, blocks=TABLE1_BLOCKS)
+    assert "s2 & X (0 \\%) &" in tex and "0.003" not in tex
+
+
+def test_an_average_over_a_row_with_failures_says_how_many_sequences_it_covers():
+    from eval.reports.tables import spread_of
+
+    frame = _runs(FAILED_FRAME)
+    t = table1(frame)
+    ate = ("Abs. Trajectory Error [m]", "A")
+    # A's Avg. over s1 and s3 only: per seed (0.1 + 0.3, 0.11 + 0.3, 0.12 + 0.3) / 2, median 0.205
+    assert t.loc[AVG_LABEL, ate] == pytest.approx(0.205)
+    md = table_to_markdown(t, spread=spread_of(frame))
+    avg = next(line for line in md.splitlines() if line.startswith(f"| {AVG_LABEL} |"))
+    assert avg.split(" | ")[1].startswith("0.205") and avg.split(" | ")[1].endswith("(2/3)")
+    assert "(2/3)" not in avg.split(" | ")[2]  # B has no failed cell: a plain average
+    # every sequence a failure: the Avg. is the mark with 0 covered
+    only = _runs([("s1", "C", 0, 0.1, 1.0), ("s2", "C", 0, 0.0, 1.0)])
+    md = table_to_markdown(table1(only), spread=spread_of(only))
+    assert f"| {AVG_LABEL} | X (0/2) |" in md
+
+
+def test_a_record_without_a_pose_is_a_failure_in_a_table():
+    """An SfM run that registered none of its images: no pose scored (ate_pairs 0)."""
+    from eval.reports.tables import cell_failures
+
+    frame = pd.DataFrame([
+        {"sequence": "s1", "method": "COLMAP", "metric": m, "value": v, "run": "r0"}
+        for m, v in (("ate_rmse", 0.003), ("ate_pairs", 0.0), ("frames", 3.0))
+    ])  # fmt: skip
+    assert cell_failures(frame)[("s1", "COLMAP")].is_failure
+    assert np.isnan(table1(frame).loc["s1", ("Abs. Trajectory Error [m]", "COLMAP")])
