@@ -4,8 +4,10 @@ The folder layout (rgb/, depth/ 16-bit x5000, labels/, instances/, rgb.txt, dept
 ``cnnslam.json`` side file with the intrinsics) is described in :mod:`sim_envs.datasets`. The sequence registry
 (:mod:`sim_envs.sequences`) and the renderers are imported only when the command runs. The folder is written under a
 temporary name and renamed at the end (:func:`sim_envs.datasets.export_tum_rgbd`): Ctrl-C leaves nothing in the way
-of the next export. Exit status: 0 written, 1 the export failed, 2 a bad argument (an unknown sequence, a file where
-the folder goes, a camera or lighting that does not exist), 130 on Ctrl-C.
+of the next export. Exit status: 0 written, 1 the export failed, 2 a bad argument, refused in one line before
+anything renders (an unknown sequence, camera, lighting or renderer; ``--frames`` outside 1..the sequence's length; a
+file where the folder goes, a folder that cannot be written, a non-empty folder without ``--overwrite``), 130 on
+Ctrl-C.
 """
 
 from __future__ import annotations
@@ -15,9 +17,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from eval.errors import InputError
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.datasets import export_tum_rgbd
 from sim_envs.errors import SimEnvError
+from slamcommon.errors import ProjectError
+from slamcommon.output_paths import check_output_folder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,15 +59,37 @@ def open_sequence(name: str, renderer: str, camera_effects: str = DEFAULT_CAMERA
     return SimulatedSequence(spec, renderer=renderer)
 
 
+def check_folder(folder: Path, overwrite: bool) -> None:
+    """Refuse an output ``folder`` the export cannot write: a file there, a folder this user cannot create or write
+    (:func:`~slamcommon.output_paths.check_output_folder`), a non-empty folder unless ``overwrite``."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder} is a file; an export writes a folder: name a folder that does not exist "
+                                  "yet")  # fmt: skip
+    if folder.is_dir() and any(folder.iterdir()) and not overwrite:
+        raise InputError(f"{folder} exists and is not empty; name a new or empty folder, or pass --overwrite "
+                                  "to write into it")  # fmt: skip
+    check_output_folder(folder, "the output folder")
+
+
+def check_frames(frames: int | None, source: Any) -> None:
+    """Refuse a ``--frames`` outside 1..the length of ``source``."""
+    if frames is not None and not 1 <= frames <= len(source):
+        raise InputError(f"--frames {frames}: {source.name} has {len(source)} frames; give 1..{len(source)} "
+                                  "(or leave it out for all of them)")  # fmt: skip
+
+
 def run(args: argparse.Namespace) -> int:
     folder = Path(args.folder)
-    if folder.exists() and not folder.is_dir():  # refused before anything renders
-        print(f"cnnslam export: error: {folder} is a file; an export writes a folder: name a folder that does not "
-              "exist yet", file=sys.stderr)  # fmt: skip
-        return 2
-    try:  # the sequence, its camera and lighting: bad arguments are found before anything renders
+    source = None
+    try:  # the folder, the sequence, its camera, lighting and frames: bad arguments are found before anything renders
+        if args.frames is not None and args.frames < 1:
+            raise InputError(f"--frames {args.frames}: must be >= 1 (or left out for every frame)")
+        check_folder(folder, args.overwrite)
         source = open_sequence(args.sequence, args.renderer, args.camera_effects, args.lighting)
-    except SimEnvError as exc:
+        check_frames(args.frames, source)
+    except ProjectError as exc:
+        if source is not None:
+            source.close()
         print(f"cnnslam export: error: {exc}", file=sys.stderr)
         return 2
     try:

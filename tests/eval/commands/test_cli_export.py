@@ -43,7 +43,7 @@ def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
     np.testing.assert_array_equal(loaded.frame(2).rgb, source.frame(2).rgb)
     np.testing.assert_allclose(loaded.poses, source.poses[:3], atol=1e-9)
     assert loaded.frame(0).labels is None
-    assert main(["export", "tiny", str(out), "--no-progress"]) == 1  # not empty
+    assert main(["export", "tiny", str(out), "--no-progress"]) == 2  # not empty: refused before anything renders
     assert "not empty" in capsys.readouterr().err
 
 
@@ -117,3 +117,52 @@ def test_an_interrupted_export_leaves_nothing_in_the_way(tmp_path):
     assert list(tmp_path.iterdir()) == []
     assert export_tum_rgbd(TinySource(), tmp_path / "out", progress=False) == tmp_path / "out"
     assert [p.name for p in tmp_path.iterdir()] == ["out"] and len(RgbdFolder(tmp_path / "out")) == 4
+
+
+class CountingSource(TinySource):
+    """TinySource that counts the frames it renders."""
+
+    rendered = 0
+
+    def frame(self, i):
+        CountingSource.rendered += 1
+        return super().frame(i)
+
+
+def _refuse_writes(*args, **kwargs):
+    raise PermissionError(13, "Permission denied")
+
+
+@pytest.mark.parametrize(("folder", "options", "named", "valid"), [
+    ("new", ["--frames", "0"], "--frames 0", "must be >= 1"),
+    ("new", ["--frames", "-2"], "--frames -2", "must be >= 1"),
+    ("new", ["--frames", "5"], "--frames 5: tiny has 4 frames", "give 1..4"),
+    ("file", [], "{tmp}/file is a file", "name a folder that does not exist yet"),
+    ("file/sub", [], "{tmp}/file/sub: {tmp}/file is a file, not a folder", "name a path under a folder"),
+    ("full", [], "{tmp}/full exists and is not empty", "--overwrite"),
+    ("READ_ONLY", [], "{tmp}/new: cannot write in {tmp}/new (Permission denied)", "name a path this user can"),
+])
+def test_bad_arguments_exit_2_in_one_line_before_anything_renders(tmp_path, monkeypatch, capsys, folder, options,
+                                                                   named, valid):
+    """A --frames outside 1..the sequence's length, a file where the folder goes (or where one of its folders goes),
+    a non-empty folder without --overwrite, a folder this user cannot write: exit 2 and one line naming the value
+    and what is valid, before any frame renders; nothing is written."""
+    import slamcommon.output_paths as output_paths
+
+    source = CountingSource()
+    CountingSource.rendered = 0
+    monkeypatch.setattr(cli_export, "open_sequence", lambda name, renderer, effects="clean", lighting="flat": source)
+    if folder == "READ_ONLY":  # as the check sees a folder it may not write (root may write anywhere)
+        monkeypatch.setattr(output_paths.tempfile, "NamedTemporaryFile", _refuse_writes)
+        folder = "new"
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "kept").write_text("x")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    assert main(["export", "tiny", str(tmp_path / folder), "--no-progress", *options]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cnnslam export: error: "), captured.err
+    assert named.format(tmp=tmp_path) in lines[0] and valid in lines[0]
+    assert CountingSource.rendered == 0 and captured.out == ""
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
