@@ -16,6 +16,9 @@ Plot functions draw into axes the caller passes in and return them; the ``save_*
 
 Every method is drawn in its own colour and marker (:func:`eval.reports.style.method_style`, the same in every
 figure); a method without a value in a panel is named there as ``n/a`` with the reason; every axis states its unit.
+A failed run (:func:`eval.metrics.results.failure_of`: never initialised, or tracked less than
+:data:`eval.metrics.results.MIN_TRACKED_SHARE` of its frames) is never drawn at its value: it is the failure mark at
+the foot of its column with its tracked share (``X 22 %``), and counts in no median or line.
 A figure is written in the format its file name says (``.png``, ``.pdf``, ``.svg``; :func:`save_figure`): a PDF
 comes with a PNG twin (same name, ``.png``) for the Markdown and the HTML report, which cannot show a PDF inline;
 PDF and SVG files carry no creation date, so the same figure gives the same bytes.
@@ -36,6 +39,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from eval.errors import EvalError
+from eval.metrics.results import FAILURE_MARK, failure_of, share_text
 from eval.reports.style import GROUND_TRUTH_STYLE, MethodStyle, method_style
 from slamcommon.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
 
@@ -239,9 +243,18 @@ def save_sweep_figure(
     """ATE and correct depth (a pair of rows) against each difficulty axis (columns, at most ``per_row`` axes to a
     pair of rows), one line per method.
 
-    ``points``: one row per run with columns axis, x, method, ate_rmse, depth_percent_correct; ``axes_titles``:
-    axis name -> x-axis label, in column order.
+    ``points``: one row per run with columns axis, x, method, ate_rmse, depth_percent_correct (and
+    ``tracked_share``); ``axes_titles``: axis name -> x-axis label, in column order. Each line is the median over
+    the runs at an x that did not fail (:func:`eval.metrics.results.failure_of` of their ``tracked_share``); an x
+    where at least half of a method's runs failed has no point: the failure mark with the median share of its
+    failed runs at the foot of the panel (:func:`draw_failures`).
     """
+    if "tracked_share" in points.columns:
+        failed = np.array([failure_of({"tracked_share": v}) is not None
+                           for v in points["tracked_share"].to_numpy(dtype=float)], dtype=bool)  # fmt: skip
+    else:
+        failed = np.zeros(len(points), dtype=bool)
+    points = points.assign(_failed=failed)
     names = list(axes_titles)
     per_row = 4
     cols, bands = min(len(names), per_row), max(1, -(-len(names) // per_row))
@@ -254,10 +267,17 @@ def save_sweep_figure(
                                                ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
             ax = grid[2 * band + row, col]
             for method in methods:  # each method's own colour and marker (eval.reports.style)
-                line = sub[sub["method"] == method].groupby("x")[metric].mean().sort_index()
+                own = sub[sub["method"] == method]
+                lost = own.groupby("x")["_failed"].agg(lambda f: 2 * int(f.sum()) >= len(f) and bool(f.any()))
+                look = method_style(method)
+                line = own[~own["_failed"]].groupby("x")[metric].median()
+                line = line[~line.index.isin(lost[lost].index)].sort_index()
                 if line.notna().any():
-                    look = method_style(method)
                     ax.plot(line.index, line.to_numpy(), marker=look.marker, label=method, color=look.color)
+                if lost.any() and own[metric].notna().any():
+                    at = [x for x in lost[lost].index]
+                    draw_failures(ax, at, [float(own[own["_failed"] & (own["x"] == x)]["tracked_share"].median())
+                                           for x in at], look.color)  # fmt: skip
             ax.set_xlabel(axes_titles[axis])
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
@@ -306,6 +326,14 @@ def save_accuracy_scatter(
     return _save(fig, path, dpi)
 
 
+def draw_failures(ax: Axes, xs: Sequence[float], shares: Sequence[float], color: Any) -> None:
+    """Failed runs at data x ``xs``: the failure mark at the foot of the panel (axes-fraction y), each with its
+    tracked share, in ``color``: a failure is never drawn at a value."""
+    for x, share in zip(xs, shares, strict=True):
+        ax.text(x, 0.02, f"{FAILURE_MARK}\n{share_text(share)}", transform=ax.get_xaxis_transform(), ha="center",
+                va="bottom", fontsize=6, color=color, fontweight="bold", zorder=5)  # fmt: skip
+
+
 def draw_not_available(ax: Axes, x: float, reason: str) -> None:
     """Write ``n/a`` and its ``reason`` upright in the column at ``x`` of ``ax`` (data x, axes-fraction y): a method
     with no value in a panel says why instead of leaving a blank."""
@@ -318,7 +346,15 @@ def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequenc
     """Every run's ``metric`` as a dot, one column group per method (its name in its colour) and a colour per
     sequence, with each cell's median as a short black bar: the spread over runs that a table's single number
     hides. ``frame``: the long frame (``sequence, method, metric, value``); ``missing``: method -> why it has no
-    value (written in its column as ``n/a``)."""
+    value (written in its column as ``n/a``). A failed run (with a ``run`` column: its ``tracked_share`` and
+    ``ate_pairs`` rows, :func:`eval.metrics.results.failure_of`) is the failure mark with its share at the foot of
+    its place (:func:`draw_failures`), not a dot; a cell's bar is the median of its runs that did not fail, none
+    when at least half failed."""
+    from eval.reports.tables import failed_runs
+
+    failed = failed_runs(frame) if "run" in frame.columns else set()
+    shares = ({(str(r.sequence), str(r.method), str(r.run)): r.value for r in
+               frame[frame["metric"] == "tracked_share"].itertuples()} if failed else {})  # fmt: skip
     sub = frame[frame["metric"] == metric]
     cmap = colormaps["tab10"]
     width = 0.8 / max(len(sequences), 1)
@@ -326,16 +362,27 @@ def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequenc
     for i, method in enumerate(methods):
         drawn = False
         for j, seq in enumerate(sequences):
-            values = sub[(sub["method"] == method) & (sub["sequence"] == seq)]["value"].dropna().to_numpy()
-            if not values.size:
+            cell = sub[(sub["method"] == method) & (sub["sequence"] == seq)].dropna(subset=["value"])
+            if cell.empty:
                 continue
             drawn = True
             x = i - 0.4 + (j + 0.5) * width
-            jitter = np.linspace(-0.25, 0.25, values.size) * width if values.size > 1 else np.zeros(1)
-            ax.scatter(x + jitter, values, s=10, color=cmap(j % 10), label=None if seq in labelled else seq,
-                       zorder=3)  # fmt: skip
-            labelled.add(seq)
-            ax.hlines(np.median(values), x - 0.4 * width, x + 0.4 * width, color="k", linewidth=1.2, zorder=4)
+            bad = (np.array([(str(seq), str(method), str(r)) in failed for r in cell["run"]], dtype=bool)
+                   if failed else np.zeros(len(cell), dtype=bool))  # fmt: skip
+            jitter = np.linspace(-0.25, 0.25, len(cell)) * width if len(cell) > 1 else np.zeros(1)
+            values = cell["value"].to_numpy(dtype=float)
+            if (~bad).any():
+                ax.scatter(x + jitter[~bad], values[~bad], s=10, color=cmap(j % 10),
+                           label=None if seq in labelled else seq, zorder=3)  # fmt: skip
+                labelled.add(seq)
+            if bad.any():
+                runs = cell["run"].to_numpy()[bad]
+                draw_failures(ax, list(x + jitter[bad]),
+                              [float(shares.get((str(seq), str(method), str(r)), np.nan)) for r in runs],
+                              cmap(j % 10))  # fmt: skip
+            if (~bad).any() and 2 * int(bad.sum()) < len(cell):
+                ax.hlines(np.median(values[~bad]), x - 0.4 * width, x + 0.4 * width, color="k", linewidth=1.2,
+                          zorder=4)  # fmt: skip
         if not drawn:
             draw_not_available(ax, i, (missing or {}).get(method, "no value"))
     ax.set_xticks(range(len(methods)), list(methods), rotation=30, ha="right")
@@ -363,6 +410,11 @@ def save_runs_figure(frame: pd.DataFrame, path: str | Path, methods: Sequence[st
     handles, labels = axes[0].get_legend_handles_labels()
     if handles:
         fig.legend(handles, labels, fontsize=6, ncols=min(len(labels), 5), loc="outside lower center")
+    from eval.reports.tables import failed_runs
+
+    if "run" in frame.columns and failed_runs(frame):
+        title = (f"{title}\n" if title else "") + (f"{FAILURE_MARK} and a share: a failed run (never initialised, or "
+                                                  "tracked too little), drawn at no value")  # fmt: skip
     if title:
         fig.suptitle(title, fontsize=9)
     return _save(fig, path, dpi)

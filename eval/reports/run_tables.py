@@ -1,7 +1,9 @@
 """Tables of a suite's report that summarise its runs rather than a metric per cell: what each method used (speed and
 memory, as VSLAM-LAB and SLAMBench summarise them) and the relative error at several distances per sequence and
 method (rpg_trajectory_evaluation's distances). Each is a frame (numbers) and its Markdown; the HTML report renders
-the Markdown with the rest of the report.
+the Markdown with the rest of the report. Failed runs (:func:`eval.metrics.results.failure_of`) count in the speed
+and memory (they used them) but in no error: a relative-error cell is ``X (22 %)`` when at least half of its runs
+failed, else over the runs that did not fail, with ``k/n failed``.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from eval.bench.runner import SuiteRun
+from eval.metrics.results import failure_of, failure_text
 from eval.metrics.trajectory_metrics import RELATIVE_PATH_SHARES, RELATIVE_TOLERANCE
 from eval.reports.run_data import missing_reasons
 
@@ -71,7 +74,8 @@ def resources_markdown(run: SuiteRun) -> str:
              "the agent, scoring, plots; runs two at a time share the machine), frames per second end to end "
              "(frames / wall time) and of the agent's step alone, and the peak resident memory of the process that ran "
              "it (a fresh worker per run; a system run in a process of its own, ORB-SLAM3, is not in it). Every run's "
-             "figures: `resources` of its record, `timing.json` of its folder.\n",
+             "figures: `resources` of its record, `timing.json` of its folder. Failed runs count here: they used "
+             "the time and memory.\n",
              "| method | runs | frames per run | " + " | ".join(heads) + " | all its runs [min] |",
              "|---|---:|---:|" + "---:|" * len(heads) + "---:|"]  # fmt: skip
     for row in frame.itertuples(index=False):
@@ -91,13 +95,28 @@ def resources_markdown(run: SuiteRun) -> str:
 
 
 def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SHARES) -> pd.DataFrame:
-    """Long: one row per (sequence, method, share) with a value: ``distance_m`` and, over the cell's runs, the
-    median, min and max of the relative translation (``trans_*``, m) and rotation (``rot_*``, deg) error RMSE."""
+    """Long: one row per (sequence, method, share) with a value: ``distance_m`` and, over the cell's runs that did
+    not fail, the median, min and max of the relative translation (``trans_*``, m) and rotation (``rot_*``, deg)
+    error RMSE; ``runs`` and ``failed`` (its runs, those that failed: :func:`eval.metrics.results.failure_of`) and
+    ``failure``: ``X (22 %)`` when at least half failed (its figures NaN), else empty."""
     rows = []
     for sequence in [s.name for s in run.suite.sequences]:
         for method in run.suite.methods:
-            records = [r for r in run.records if r.sequence == sequence and r.method == method]
+            every = [r for r in run.records if r.sequence == sequence and r.method == method]
+            lost = [r for r in every if failure_of(r.metrics) is not None]
+            records = [r for r in every if failure_of(r.metrics) is None]
+            failed_cell = bool(lost) and 2 * len(lost) >= len(every)
+            count = {"runs": len(every), "failed": len(lost), "failure": ""}
+            if failed_cell:
+                share = float(np.median([r.metrics.get("tracked_share", 0.0) for r in lost]))
+                count["failure"] = failure_text(share if math.isfinite(share) else 0.0)
+                records = []
             for share in shares:
+                if failed_cell:
+                    if any(f"rpe_trans_rmse_p{share}" in r.metrics for r in lost):
+                        rows.append({"sequence": sequence, "method": method, "share": share, "distance_m": math.nan,
+                                     **count})  # fmt: skip
+                    continue
                 t = np.array([r.metrics.get(f"rpe_trans_rmse_p{share}", math.nan) for r in records], dtype=float)
                 q = np.array([r.metrics.get(f"rpe_rot_deg_rmse_p{share}", math.nan) for r in records], dtype=float)
                 d = [r.metrics.get(f"rpe_dist_m_p{share}", math.nan) for r in records]
@@ -110,7 +129,7 @@ def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SH
                              "trans_max": float(ft.max()),
                              "rot_median": float(np.median(fq)) if fq.size else math.nan,
                              "rot_min": float(fq.min()) if fq.size else math.nan,
-                             "rot_max": float(fq.max()) if fq.size else math.nan})  # fmt: skip
+                             "rot_max": float(fq.max()) if fq.size else math.nan, **count})  # fmt: skip
     return pd.DataFrame(rows)
 
 
@@ -134,12 +153,18 @@ def relative_error_markdown(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH
         for (sequence, method), cell in frame.groupby(["sequence", "method"], sort=False):
             by_share = cell.set_index("share")
             texts = []
+            failure = str(cell["failure"].iloc[0])
+            failed = int(cell["failed"].iloc[0])
             for s in shares:
+                if failure:
+                    texts.append(failure)
+                    continue
                 if s not in by_share.index or not np.isfinite(by_share.at[s, f"{kind}_median"]):
                     texts.append("-")
                     continue
-                texts.append(_cell(*(by_share.at[s, f"{kind}_{k}"] for k in ("median", "min", "max")), digits))
-            distances = ", ".join(f"{d:g}" for d in cell["distance_m"])
+                texts.append(_cell(*(by_share.at[s, f"{kind}_{k}"] for k in ("median", "min", "max")), digits)
+                             + (f" ({failed}/{int(cell['runs'].iloc[0])} failed)" if failed else ""))  # fmt: skip
+            distances = ", ".join("-" if not np.isfinite(d) else f"{d:g}" for d in cell["distance_m"])
             lines.append(f"| {sequence} | {method} | {distances} | " + " | ".join(texts) + " |")
         lines.append("")
     return "\n".join(lines) + "\n"

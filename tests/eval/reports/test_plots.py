@@ -1,4 +1,7 @@
+from pathlib import Path
+
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
@@ -9,8 +12,10 @@ from eval.reports.plots import (
     depth_error_image,
     plot_depth_error_map,
     plot_error_over_time,
+    plot_runs_strip,
     plot_trajectory_top,
     save_depth_error_figure,
+    save_sweep_figure,
     save_trajectory_figure,
 )
 
@@ -85,3 +90,39 @@ def test_a_figure_in_each_format_and_a_pdf_with_its_png_twin(tmp_path, suffix):
     if suffix != "png":  # no creation date: the same figure, the same bytes
         again = save_figure(figure(), tmp_path / f"g.{suffix}")
         assert again.read_bytes() == path.read_bytes()
+
+
+def _runs_frame(rows):
+    """A long frame from (sequence, method, run, tracked_share, ate_rmse) runs."""
+    return pd.DataFrame([{"sequence": s, "method": m, "run": r, "metric": metric, "value": v}
+                         for s, m, r, share, ate in rows
+                         for metric, v in (("tracked_share", share), ("ate_rmse", ate))])  # fmt: skip
+
+
+def test_a_failed_run_is_its_mark_and_share_not_a_dot_at_its_value():
+    frame = _runs_frame([("s1", "A", "r0", 1.0, 0.1), ("s1", "A", "r1", 1.0, 0.3), ("s1", "A", "r2", 0.22, 7.0),
+                         ("s2", "A", "q0", 0.0, 0.003)])  # fmt: skip
+    ax = Figure().subplots()
+    plot_runs_strip(ax, frame, "ate_rmse", ["A"], ["s1", "s2"])
+    dots = np.concatenate([c.get_offsets()[:, 1] for c in ax.collections if hasattr(c, "get_offsets")
+                           and len(c.get_offsets())])  # fmt: skip
+    assert 7.0 not in dots and 0.003 not in dots and {0.1, 0.3} <= set(np.round(dots, 6))
+    texts = [t.get_text() for t in ax.texts]
+    assert "X\n22 %" in texts and "X\n0 %" in texts
+    bars = [seg for c in ax.collections if c.__class__.__name__ == "LineCollection" for seg in c.get_segments()]
+    assert [round(float(seg[0][1]), 6) for seg in bars] == [0.2]  # s1: the median of the two that did not fail
+
+
+def test_the_sweep_figure_marks_a_failed_setting(tmp_path, monkeypatch):
+    import eval.reports.plots as plots
+
+    drawn = {}
+    monkeypatch.setattr(plots, "_save", lambda fig, path, dpi: drawn.setdefault("fig", fig) and Path(path))
+    points = pd.DataFrame({"axis": ["noise"] * 4, "x": [1.0, 1.0, 2.0, 2.0], "method": ["A"] * 4,
+                           "ate_rmse": [0.1, 0.2, 5.0, 6.0], "depth_percent_correct": [10.0, 12.0, 1.0, 1.0],
+                           "tracked_share": [1.0, 1.0, 0.3, 0.1]})  # fmt: skip
+    save_sweep_figure(points, tmp_path / "sweep.png", ["A"], {"noise": "noise"})
+    ate, depth = drawn["fig"].axes[:2]
+    assert [t.get_text() for t in ate.texts] == ["X\n20 %"]  # x = 2: both runs failed, median share 20 %
+    (line,) = ate.get_lines()
+    assert list(line.get_xdata()) == [1.0] and list(line.get_ydata()) == [pytest.approx(0.15)]

@@ -35,3 +35,32 @@ def test_relative_error_per_sequence_method_and_distance(folder_run):
     md = relative_error_markdown(folder_run)
     assert "**Relative translation error [m]**" in md and "**Relative rotation error [deg]**" in md
     assert "| office0 | oracle | 0.32, 0.63, 0.95, 1.3, 1.6 | 0.0000 |" in md
+
+
+def test_a_failed_cell_has_no_relative_error(folder_run):
+    from dataclasses import replace
+
+    def lose(record, share):
+        return record.replace(metrics={**record.metrics, "tracked_share": share})
+
+    # LSD on office0 (two runs): both lost; CNN-SLAM on office0: one of two never initialised, half: a failed cell
+    lost = {("office0", "LSD"): 0.22, ("office0", "CNN-SLAM"): 0.0}
+    first = {}
+    records = []
+    for r in folder_run.records:
+        key = (r.sequence, r.method)
+        if key == ("office0", "CNN-SLAM") and key in first:
+            records.append(r)
+            continue
+        first[key] = True
+        records.append(lose(r, lost[key]) if key in lost else r)
+    run = replace(folder_run, records=records)
+    frame = relative_error_frame(run)
+    cnn = frame[(frame.sequence == "office0") & (frame.method == "CNN-SLAM")]
+    assert (cnn["failed"] == 1).all() and (cnn["runs"] == 2).all() and cnn["trans_median"].isna().all()
+    living = frame[(frame.sequence == "living1") & (frame.method == "CNN-SLAM")]
+    assert (living["failed"] == 0).all() and living["trans_median"].notna().all()
+    md = relative_error_markdown(run)
+    row = next(line for line in md.splitlines() if line.startswith("| office0 | LSD |"))
+    assert row.count("X (22 %)") == 5 and "0.0" not in row.split("|", 4)[4]
+    assert next(line for line in md.splitlines() if line.startswith("| office0 | CNN-SLAM |")).count("X (0 %)") == 5
