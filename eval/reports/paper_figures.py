@@ -10,7 +10,10 @@ format (``--figure-format png|pdf|svg``; :data:`eval.reports.style.FIGURE_FORMAT
 
 and ``<results>/<suite>_resources.<fmt>``: frames per second end to end and peak memory per method, one dot per run
 (VSLAM-LAB's figure). A method without a trajectory (REMODE), skipped here or whose runs failed is named in the
-legend as ``n/a`` with the reason. Colours and markers: :mod:`eval.reports.style`.
+legend as ``n/a`` with the reason. Failed runs (:func:`eval.metrics.results.failure_of`: never initialised, or
+tracked less than :data:`eval.metrics.results.MIN_TRACKED_SHARE` of their frames) are drawn in no trajectory, band
+or box; a method whose runs on a sequence failed in at least half is named in the legend as ``n/a: X (22 %)``.
+Colours and markers: :mod:`eval.reports.style`.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from eval.bench.runner import SuiteRun
+from eval.metrics.results import failure_of, failure_text
 from eval.reports.plots import save_relative_error_figure, save_resources_figure, save_sequence_figure
 from eval.reports.run_data import RunTrack, ate_bands, median_track, missing_reasons
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
@@ -53,10 +57,12 @@ def sequence_figures(run: SuiteRun, tracks: dict[str, dict[str, list[RunTrack]]]
     folder = figures_dir(results_dir, run.suite.name)
     for ref in run.suite.sequences:
         by_method = {m: tracks[ref.name][m] for m in run.suite.methods if m in tracks.get(ref.name, {})}
+        by_method, failed = without_failed_tracks(run, ref.name, by_method)
         if not by_method:
             continue
         missing = {m: why for m, why in missing_reasons(run, "ate_rmse", sequence=ref.name).items()
                    if m not in by_method}  # fmt: skip
+        missing.update(failed)
         longest = max((t for ts in by_method.values() for t in ts), key=lambda t: t.stamps.size)
         stamps = longest.stamps
         shown = {m: median_track(ts) for m, ts in by_method.items()}
@@ -84,6 +90,27 @@ def sequence_figures(run: SuiteRun, tracks: dict[str, dict[str, list[RunTrack]]]
             out.append(ReportFigure(path, f"{ref.name}: relative translation and rotation error at several "
                                           "distances, every pair of every run (boxes: quartiles, whiskers: 1.5 IQR)"))
     return out
+
+
+def without_failed_tracks(run: SuiteRun, sequence: str, by_method: dict[str, list[RunTrack]]
+                          ) -> tuple[dict[str, list[RunTrack]], dict[str, str]]:
+    """``by_method`` (method -> its tracks on ``sequence``) less the failed runs' tracks
+    (:func:`eval.metrics.results.failure_of` of their records), and method -> ``X (22 %): ...`` for the methods whose
+    runs on ``sequence`` failed in at least half (their tracks all left out)."""
+    kept: dict[str, list[RunTrack]] = {}
+    failed: dict[str, str] = {}
+    for method, tracks in by_method.items():
+        records = [r for r in run.records if r.sequence == sequence and r.method == method]
+        lost = [r for r in records if failure_of(r.metrics) is not None]
+        if lost and 2 * len(lost) >= len(records):
+            share = float(np.median([r.metrics.get("tracked_share", 0.0) for r in lost]))
+            failed[method] = (f"{failure_text(share if np.isfinite(share) else 0.0)}: a failure (never initialised, "
+                              "or tracked too little)")  # fmt: skip
+            continue
+        keys = {str(r.run) for r in lost}
+        if ts := [t for t in tracks if t.key not in keys]:
+            kept[method] = ts
+    return kept, failed
 
 
 def resources_figure(run: SuiteRun, results_dir: str | Path,

@@ -42,3 +42,18 @@ def test_the_ate_drawn_over_time_is_evos(folder_run, tmp_path, monkeypatch, evo)
     legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert "REMODE: n/a (no trajectory of its own)" in legend
     assert "ORB: n/a (skipped: cannot import pyorb here)" in legend
+
+
+def test_a_failed_method_is_named_not_drawn(folder_run):
+    from dataclasses import replace
+
+    from eval.reports.paper_figures import without_failed_tracks
+    from eval.reports.run_data import suite_tracks
+
+    tracks = suite_tracks(folder_run)["office0"]
+    lost = replace(folder_run, records=[r.replace(metrics={**r.metrics, "tracked_share": 0.3})
+                                        if (r.sequence, r.method) == ("office0", "LSD") else r
+                                        for r in folder_run.records])  # fmt: skip
+    kept, failed = without_failed_tracks(lost, "office0", tracks)
+    assert "LSD" not in kept and failed["LSD"].startswith("X (30 %)")
+    assert set(kept) == set(tracks) - {"LSD"} and kept["CNN-SLAM"] == tracks["CNN-SLAM"]
