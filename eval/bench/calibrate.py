@@ -24,6 +24,10 @@ The perturbation matrix (:data:`MATRIX`) runs the suite, with all its runs per c
   machine do the same. Measured: the quick suite's LSD-BS and LSD figures moved as much under it on an AMD EPYC
   (AVX2) as between that machine and an Intel Xeon (AVX-512) (docs/benchmarks.md, "Which machine").
 
+An allowed change that could never be crossed inside its metric's bounds (a rotation error of 51.9 deg +- 182 deg
+cannot fail below 180 deg) is capped to :data:`eval.bench.regress.CROSSABLE_SHARE` of the room between the figure and
+its worst value (:func:`eval.bench.regress.cap_to_cross`), so every gated figure can fail.
+
 Other machines: ``--calibrate`` also writes this machine's reference figures to ``<baseline dir>/machines/<suite>/``
 (:func:`machine_record`), and folds every such record of another machine into the spread as one more configuration
 (``machine:<label>``) when it was made from the same runs: the same run fingerprints (agents, inputs, sequences,
@@ -53,7 +57,7 @@ from typing import Any
 from eval.bench.environment import machine_description
 from eval.bench.executors import LocalExecutor
 from eval.bench.methods import with_predictor_options
-from eval.bench.regress import CALIBRATION_K, Baseline, calibrate, gate_metrics, seed_figures
+from eval.bench.regress import CALIBRATION_K, CROSSABLE_SHARE, Baseline, calibrate, gate_metrics, seed_figures
 from eval.bench.runner import SuiteRun, run_suite
 from eval.bench.suites import Suite
 from eval.metrics.results import RunRecord, json_ready
@@ -224,7 +228,8 @@ def calibrated_baseline(suite: Suite, records: Mapping[str, Sequence[RunRecord]]
         "of each gated figure and the largest range of one seed's value over the configurations: "
         + "; ".join(f"{c.name}: {c.description}" for c in matrix)
         + "".join(f"; {name}: its reference figures, measured there" for name in sorted(machines))
-        + f"; allowed change = max({k:g} x spread, the rule's floor)"
+        + f"; allowed change = max({k:g} x spread, the rule's floor), capped to {CROSSABLE_SHARE:g} of the room "
+        "between the figure and its metric's worst value where it could never be crossed (listed in capped_to_cross)"
     )
     figures = {name: gate_metrics(rs) for name, rs in records.items()}
     clash = set(machines) & set(figures)
