@@ -1,17 +1,29 @@
+"""cnnslam eval, the judge's command line on trajectory files. The figures asserted on the shared TUM files (fr2/desk,
+fr1/xyz; skipped where ../shared is absent) are the reference figures of tests/reference_facts.toml, with their
+sources."""
+
 import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from cnnslam.cli import main
 
-TUM = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "tum"  # ../shared beside the repository
-FR2_GT, FR2_ORB = str(TUM / "fr2_desk_groundtruth.txt"), str(TUM / "fr2_desk_ORB.txt")
-FR1_GT, FR1_EST = str(TUM / "freiburg1_xyz-groundtruth.txt"), str(TUM / "freiburg1_xyz-rgbdslam.txt")
+
+@pytest.fixture(scope="module")
+def fr2(tum_dir):
+    """fr2/desk's ground truth (line 10863 repeats line 10862's timestamp) and ORB-SLAM's estimate (shared TUM files;
+    reference figures in tests/reference_facts.toml)."""
+    return str(tum_dir / "fr2_desk_groundtruth.txt"), str(tum_dir / "fr2_desk_ORB.txt")
+
+
+@pytest.fixture(scope="module")
+def fr1(tum_dir):
+    """fr1/xyz's ground truth and RGBD-SLAM's estimate (shared TUM files)."""
+    return str(tum_dir / "freiburg1_xyz-groundtruth.txt"), str(tum_dir / "freiburg1_xyz-rgbdslam.txt")
 
 
 def run_json(capsys, *args):
@@ -21,10 +33,12 @@ def run_json(capsys, *args):
     return json.loads(out)
 
 
-def test_json_reference_figures(capsys):
-    d = run_json(capsys, FR2_GT, FR2_ORB)
+def test_json_reference_figures(capsys, fr2, fr1):
+    fr2_gt, fr2_orb = fr2
+    fr1_gt, fr1_est = fr1
+    d = run_json(capsys, fr2_gt, fr2_orb)
     m = d["metrics"]
-    assert d["schema"] == "cnnslam-eval/1" and d["files"] == {"groundtruth": FR2_GT, "estimate": FR2_ORB}
+    assert d["schema"] == "cnnslam-eval/1" and d["files"] == {"groundtruth": fr2_gt, "estimate": fr2_orb}
     assert f"{m['ate_rmse']:.6f}" == "0.008144" and m["ate_pairs"] == 2223
     assert m["ate_se3_rmse"] == m["ate_rmse"] and f"{m['ate_sim3_rmse']:.6f}" == "0.006186"
     assert all(isinstance(v, float) for v in m.values())
@@ -35,40 +49,42 @@ def test_json_reference_figures(capsys):
         "offset": 0.0,
         "pairs": 2223,
     }
-    d = run_json(capsys, FR2_GT, FR2_ORB, "--association", "nearest", "--align", "sim3")
+    d = run_json(capsys, fr2_gt, fr2_orb, "--association", "nearest", "--align", "sim3")
     assert f"{d['metrics']['ate_rmse']:.6f}" == "0.006187" and f"{d['metrics']['scale']:.4f}" == "0.9970"
     assert f"{d['metrics']['ate_se3_rmse']:.6f}" == "0.008146"  # evo_ape -a with nearest matching
-    d = run_json(capsys, FR1_GT, FR1_EST, "--align", "sim3")
+    d = run_json(capsys, fr1_gt, fr1_est, "--align", "sim3")
     m = d["metrics"]
     assert f"{m['ate_rmse']:.6f}" == "0.013394" and f"{m['scale']:.4f}" == "1.0079" and m["ate_pairs"] == 786
-    d = run_json(capsys, FR1_GT, FR1_EST, "--rpe-delta", "10", "--rpe-unit", "frames")
+    d = run_json(capsys, fr1_gt, fr1_est, "--rpe-delta", "10", "--rpe-unit", "frames")
     assert d["rpe"] == {"delta": 10.0, "unit": "frames"} and d["metrics"]["rpe_trans_pairs"] == 776
 
 
-def test_official_fr2_desk_ground_truth_keeps_the_last_of_a_repeated_timestamp(capsys):
+def test_official_fr2_desk_ground_truth_keeps_the_last_of_a_repeated_timestamp(capsys, fr2):
     """The TUM tools and evo accept fr2/desk's ground truth (line 10863 repeats line 10862's timestamp): no option
     needed, the last pose kept, one warning line; --duplicates error still refuses it."""
-    assert main(["eval", FR2_GT, FR2_ORB, "--json"]) == 0
+    fr2_gt, fr2_orb = fr2
+    assert main(["eval", fr2_gt, fr2_orb, "--json"]) == 0
     captured = capsys.readouterr()
     warnings = captured.err.strip().splitlines()
     assert len(warnings) == 1 and warnings[0].startswith("cnnslam eval: warning: ")
     assert "lines 10862 and 10863; kept the last pose" in warnings[0]
     assert f"{json.loads(captured.out)['metrics']['ate_rmse']:.6f}" == "0.008144"
-    first = run_json(capsys, FR2_GT, FR2_ORB, "--duplicates", "first")
+    first = run_json(capsys, fr2_gt, fr2_orb, "--duplicates", "first")
     assert first["metrics"]["ate_pairs"] == 2223
-    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 2  # a file refused as read: bad input
+    assert main(["eval", fr2_gt, fr2_orb, "--duplicates", "error"]) == 2  # a file refused as read: bad input
     err = capsys.readouterr().err
-    assert f"{FR2_GT}:10863:" in err and "repeats" in err
+    assert f"{fr2_gt}:10863:" in err and "repeats" in err
 
 
-def test_json_metric_names_are_the_run_records(capsys, tmp_path):
+def test_json_metric_names_are_the_run_records(capsys, tmp_path, fr1):
     """``eval --json`` and metrics.json (evaluate_episode) name the same figures alike, with the same values."""
+    fr1_gt = fr1[0]
     from types import SimpleNamespace
 
     from eval.metrics.results import evaluate_episode
     from eval.metrics.trajectory import PoseTrajectory
 
-    gt = PoseTrajectory.from_tum_file(FR1_GT)
+    gt = PoseTrajectory.from_tum_file(fr1_gt)
     est = gt.subset(np.arange(0, len(gt), 3))
     rng = np.random.default_rng(0)
     T = est.T_world_cam.copy()
@@ -100,25 +116,28 @@ def test_json_metric_names_are_the_run_records(capsys, tmp_path):
     assert set(d["alignment"]) == set(record.alignment) and d["rpe"] == record.rpe
 
 
-def test_text_report_and_plot(capsys, tmp_path):
+def test_text_report_and_plot(capsys, tmp_path, fr1):
+    fr1_gt, fr1_est = fr1
     plot = tmp_path / "fig.png"
-    assert main(["eval", FR1_GT, FR1_EST, "--plot", str(plot)]) == 0
+    assert main(["eval", fr1_gt, fr1_est, "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "APE w.r.t. translation part (m)" in out and "      rmse  0.013473" in out
     assert "tum, max. difference 0.02 s, offset 0.0 s, 786 pairs" in out
     assert plot.stat().st_size > 10_000
 
 
-def test_errors_name_the_file_and_line(capsys, tmp_path):
-    assert main(["eval", FR2_GT, FR2_ORB, "--duplicates", "error"]) == 2
+def test_errors_name_the_file_and_line(capsys, tmp_path, fr2, fr1):
+    fr2_gt, fr2_orb = fr2
+    fr1_gt, fr1_est = fr1
+    assert main(["eval", fr2_gt, fr2_orb, "--duplicates", "error"]) == 2
     err = capsys.readouterr().err
-    assert f"{FR2_GT}:10863:" in err and "--duplicates last" in err
+    assert f"{fr2_gt}:10863:" in err and "--duplicates last" in err
     shifted = tmp_path / "shifted.txt"
     shifted.write_text("5.0 0 0 0 0 0 0 1\n6.0 0 0 0 0 0 0 1\n")
-    assert main(["eval", FR1_GT, str(shifted)]) == 1
+    assert main(["eval", fr1_gt, str(shifted)]) == 1
     assert "found 0 matching timestamps" in capsys.readouterr().err
     with pytest.raises(SystemExit):
-        main(["eval", FR1_GT, FR1_EST, "--align", "affine"])
+        main(["eval", fr1_gt, fr1_est, "--align", "affine"])
 
 
 def test_kitti_files_and_degenerate_warning(capsys, tmp_path):
@@ -141,14 +160,16 @@ def test_kitti_files_and_degenerate_warning(capsys, tmp_path):
     assert d["metrics"]["scale"] is None  # NaN (not observable) is written as null
 
 
-def test_eval_imports_only_what_it_needs():
+def test_eval_imports_only_what_it_needs(fr2, fr1):
     """``cnnslam eval`` on TUM files (fr2/desk's repeated timestamp included) loads numpy and the judge's trajectory
     modules, not the world (``sim_envs`` pulls in Gymnasium and scipy), pandas, OpenCV, matplotlib, torch or numba,
     and runs BLAS on one thread unless told otherwise: its whole-process time (issue 29)."""
+    fr2_gt, fr2_orb = fr2
+    fr1_gt, fr1_est = fr1
     code = f"""
 import os, sys
 from cnnslam.cli import main
-rc = main(["eval", {FR2_GT!r}, {FR2_ORB!r}]) or main(["eval", {FR1_GT!r}, {FR1_EST!r}, "--json"])
+rc = main(["eval", {fr2_gt!r}, {fr2_orb!r}]) or main(["eval", {fr1_gt!r}, {fr1_est!r}, "--json"])
 heavy = {{"sim_envs", "scipy", "pandas", "cv2", "matplotlib", "torch", "numba", "gymnasium", "mujoco", "trimesh"}}
 loaded = {{m.split(".")[0] for m in sys.modules}} & heavy
 loaded |= {{m for m in sys.modules if m.startswith("cnnslam.") and m != "cnnslam.cli"}}
@@ -183,16 +204,17 @@ def test_a_plot_file_matplotlib_cannot_write_is_refused_first(tmp_path, capsys):
     assert len(captured.err.strip().splitlines()) == 1 and not (tmp_path / "x.xyz").exists()
 
 
-def test_save_aligned_writes_what_evo_reads_and_scores_as_we_do(tmp_path, capsys, evo):
+def test_save_aligned_writes_what_evo_reads_and_scores_as_we_do(tmp_path, capsys, evo, fr1):
     """``--save-aligned``: the estimate after the alignment, in the ground truth's frame; evo_ape on it without an
     alignment (evo's association, 0.02 s, pairs the same 786 poses on fr1/xyz) gives our ATE."""
+    fr1_gt, fr1_est = fr1
     for align, rmse in (("se3", 0.013473), ("sim3", 0.013394)):
         aligned = tmp_path / f"aligned_{align}.tum"
-        assert main(["eval", FR1_GT, FR1_EST, "--align", align, "--save-aligned", str(aligned)]) == 0
+        assert main(["eval", fr1_gt, fr1_est, "--align", align, "--save-aligned", str(aligned)]) == 0
         out = capsys.readouterr().out
         assert f"aligned estimate: {aligned}" in out and "relative error at 10-50 % of the ground truth's path" in out
         assert "786 poses" in evo("evo_traj", "tum", str(aligned))["stdout"]
-        stats = evo("evo_ape", "tum", FR1_GT, str(aligned), "--t_max_diff", "0.02")["stats"]
+        stats = evo("evo_ape", "tum", fr1_gt, str(aligned), "--t_max_diff", "0.02")["stats"]
         assert stats["rmse"] == pytest.approx(rmse, abs=5e-7)
 
 
