@@ -42,6 +42,8 @@ register("eval", "eval.commands.cli_eval", "score an estimated trajectory agains
          GROUPS[0])
 register("regress", "eval.commands.cli_regress", "compare a run's metrics with a committed baseline (the gate)",
          GROUPS[0])
+register("results", "eval.commands.cli_results", "the committed results: made at which revision, still current?",
+         GROUPS[0])
 register("config", "eval.commands.cli_config", "print the exact configuration a method's runs use (with --set)",
          GROUPS[0])
 register("map", "cnnslam.cli_map", "run an agent, fuse its key-frames into the global model: PLY, pictures, metrics",

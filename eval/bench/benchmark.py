@@ -460,6 +460,10 @@ def run_bench(suite: Suite | str, methods: Sequence[str | Method] | None = None,
     reports: list[Path] = []
     if done:
         reports = KINDS[plan.suite.kind].report(done, plan.results_dir, plan.command, options.figure_format)
+        from eval.bench.provenance import write_manifest  # where the report came from: `cnnslam results status`
+
+        reports = [*reports, write_manifest(plan.results_dir, plan.suite.name, plan.command, options, plan.methods,
+                                            [run for _, run in done])]  # fmt: skip
     else:
         notes.append(f"suite {plan.suite.name} has no sequence to run here ({len(plan.suite.skipped)} skipped; the "
                      f"dataset list is {dataset_list_file()})")  # fmt: skip

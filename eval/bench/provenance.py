@@ -1,0 +1,379 @@
+"""Where each committed result came from, and whether the current code would give the same.
+
+A suite's report is written with a provenance manifest beside it, ``<results>/<suite>.provenance.json``
+(:func:`write_manifest`): the suite, the command, the selection that shaped its runs (methods, sequences, frames,
+seeds, ...), the git revision and whether the tree had uncommitted changes in tracked files outside ``results/``
+(then the result is marked and counts as stale), the definitions of methods that are not in the built-in table, the
+methods skipped, and per run key its fingerprint and the digests of the fingerprint's parts (agent, world, judge,
+weights, config: :mod:`eval.bench.fingerprint`).
+
+:func:`results_status` lists every result under a results folder: each suite's files (grouped by the suite names
+of :data:`eval.bench.suites.SUITES`) and every other group of files, and judges each: a suite's result with a
+manifest is planned again as :func:`eval.bench.benchmark.run_bench` plans it (:func:`eval.bench.benchmark.prepare`
+with the recorded selection, then :func:`eval.bench.runner.plan_runs` per part; nothing runs, renders or builds an
+agent) and every run's fingerprint parts recomputed and compared, timings excluded. A result without a manifest is
+stale: its revisions (read from its long table or run file) are shown, never judged current.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from eval.bench.fingerprint import PARTS, run_parts
+from eval.errors import InputError
+
+SCHEMA = "cnnslam-provenance/1"
+MANIFEST_SUFFIX = ".provenance.json"
+REPOSITORY = Path(__file__).resolve().parents[2]
+RESULTS_ROOT = REPOSITORY / "results"  # the committed results
+NOT_RESULTS: tuple[str, ...] = ("baselines",)  # folders under results/ that hold the gate's inputs, not results
+FIGURES_SUFFIX = "_figures"  # a report's folder of figures (<suite>_figures/)
+DIRTY_LISTED = 5  # uncommitted files named in a manifest (the count is always given)
+
+
+# ------------------------------------------------------------------------------------------------ the tree state
+@dataclass(frozen=True)
+class TreeState:
+    """The repository's ``revision`` (12 hex digits; None outside a git checkout) and the tracked files with
+    uncommitted changes outside ``results/`` (``dirty``)."""
+
+    revision: str | None
+    dirty: tuple[str, ...] = ()
+
+
+def tree_state(root: Path = REPOSITORY) -> TreeState:
+    """The revision of the checkout at ``root`` and its tracked files changed and not committed (results excluded:
+    a report rewrites them before its manifest is written)."""
+    def git(*args: str) -> str | None:
+        try:
+            out = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=30, check=True)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout
+
+    head = git("rev-parse", "--short=12", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") or ""
+    dirty = sorted({line[3:].split(" -> ")[-1] for line in status.splitlines() if len(line) > 3})
+    return TreeState(head.strip() if head else None, tuple(p for p in dirty if not p.startswith("results/")))
+
+
+# ------------------------------------------------------------------------------------------------ the manifest
+def manifest_path(results_dir: Path, suite: str) -> Path:
+    """Where the manifest of ``suite``'s report in ``results_dir`` goes."""
+    return Path(results_dir) / f"{suite}{MANIFEST_SUFFIX}"
+
+
+def selection_of(options: Any) -> dict[str, Any]:
+    """The options of a :class:`~eval.bench.benchmark.BenchOptions` that shape a suite's runs, JSON-ready."""
+    from eval.bench.methods import parse_setting
+
+    settings = [list(parse_setting(s)) if isinstance(s, str) else list(s) for s in options.settings]
+    size = options.image_size
+    return {
+        "sequences": list(options.sequences) if options.sequences is not None else None,
+        "frames": options.frames,
+        "seeds": list(options.seeds) if options.seeds is not None else None,
+        "runs": options.runs,
+        "lengths": list(options.lengths) if options.lengths is not None else None,
+        "motions": [str(m) for m in options.motions],
+        "camera": options.camera,
+        "image_size": list(size) if isinstance(size, tuple) else size,
+        "undistort": options.undistort,
+        "align": options.align,
+        "settings": settings,
+        "renderer": options.renderer,
+    }
+
+
+def build_manifest(suite: str, command: str, selection: Mapping[str, Any], methods: Mapping[str, Any],
+                   parts: Sequence[Any], state: TreeState) -> dict[str, Any]:
+    """The manifest (module docstring) of ``parts`` (the :class:`~eval.bench.runner.SuiteRun` of each part),
+    run with ``methods`` (name -> Method, as run) and ``selection`` (:func:`selection_of`)."""
+    from eval.bench.methods import load_methods
+
+    builtin = load_methods()
+    runs: dict[str, Any] = {}
+    skipped: dict[str, str] = {}
+    for run in parts:
+        skipped.update(run.skipped_methods)
+        stored = {r.run: r.metadata.get("fingerprint") for r in run.records}
+        for spec in run.specs:
+            digests = run_parts(spec)
+            status = run.outcomes[spec.key].status if spec.key in run.outcomes else "not_run"
+            entry: dict[str, Any] = {"fingerprint": digests.fingerprint, "parts": digests.digests, "status": status}
+            if stored.get(spec.key) not in (None, digests.fingerprint):  # reported from a run other code made
+                entry = {"fingerprint": stored[spec.key], "parts": None, "status": status}
+            runs[spec.key] = entry
+    return {
+        "schema": SCHEMA,
+        "suite": suite,
+        "command": command,
+        "git_revision": state.revision,
+        "dirty": bool(state.dirty),
+        "dirty_files": len(state.dirty),
+        "dirty_listed": list(state.dirty[:DIRTY_LISTED]),
+        "selection": dict(selection),
+        "methods": list(methods),
+        "method_definitions": {n: m.describe() for n, m in methods.items() if n not in builtin},
+        "skipped": skipped,
+        "runs": runs,
+    }
+
+
+def write_manifest(results_dir: Path, suite: str, command: str, options: Any, methods: Mapping[str, Any],
+                   parts: Sequence[Any], state: TreeState | None = None) -> Path:
+    """Write the manifest of a suite's report into ``results_dir`` (:func:`build_manifest`; ``state`` default: this
+    checkout's, :func:`tree_state`); returns its path."""
+    state = tree_state() if state is None else state
+    data = build_manifest(suite, command, selection_of(options), methods, parts, state)
+    path = manifest_path(results_dir, suite)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=1, sort_keys=True, default=str) + "\n")
+    return path
+
+
+# ------------------------------------------------------------------------------------------------- the status
+@dataclass(frozen=True)
+class ResultStatus:
+    """One committed result: its ``name`` (folder and stem below the results root, e.g. ``table1``,
+    ``bench/table1``), the ``suite`` that makes it (None: no suite), its ``files``, the revisions it was made at
+    (``made_at``), how many runs it holds (None: unknown), whether the current code gives the same (``current``),
+    ``why`` not (one line), and per part of the fingerprint the run keys whose part changed (``changed``)."""
+
+    name: str
+    suite: str | None
+    files: tuple[str, ...]
+    made_at: tuple[str, ...]
+    runs: int | None
+    current: bool
+    why: str
+    changed: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    @property
+    def status(self) -> str:
+        return "current" if self.current else "stale"
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "suite": self.suite, "files": list(self.files), "made_at": list(self.made_at),
+                "runs": self.runs, "status": self.status, "why": self.why,
+                "changed": {k: list(v) for k, v in self.changed.items()}}  # fmt: skip
+
+
+def result_groups(root: Path, suites: Sequence[str]) -> dict[str, list[Path]]:
+    """The results under ``root``: per folder, its files grouped by stem: a suite's name with everything named
+    ``<suite>.*`` or ``<suite>_*`` (its ``<suite>_figures/`` folder included), then every other stem with the stems
+    that extend it (``depthnet``, ``depthnet_real``); name -> files, a name being ``<folder>/<stem>`` below
+    ``root``. Manifests are not results; :data:`NOT_RESULTS` folders are left out."""
+    groups: dict[str, list[Path]] = {}
+    for folder in sorted([root, *(p for p in root.rglob("*") if p.is_dir())]):
+        rel = folder.relative_to(root)
+        if rel.parts and (rel.parts[0] in NOT_RESULTS or any(p.endswith(FIGURES_SUFFIX) for p in rel.parts)):
+            continue
+        entries = [p for p in folder.iterdir() if (p.is_file() and not p.name.endswith(MANIFEST_SUFFIX))
+                   or (p.is_dir() and p.name.endswith(FIGURES_SUFFIX))]  # fmt: skip
+        stems = sorted({_stem(p) for p in entries}, key=lambda s: (len(s), s))
+        heads: list[str] = [s for s in suites if any(_belongs(st, s) for st in stems)]
+        for stem in stems:
+            if not any(_belongs(stem, h) for h in heads):
+                heads.append(stem)
+        for entry in sorted(entries):
+            stem = _stem(entry)
+            head = min((h for h in heads if _belongs(stem, h)), key=len)
+            name = (rel / head).as_posix()
+            groups.setdefault(name, []).append(entry)
+    return groups
+
+
+def _stem(path: Path) -> str:
+    name = path.name
+    if path.is_dir():
+        return name[: -len(FIGURES_SUFFIX)] + "_figures" if name.endswith(FIGURES_SUFFIX) else name
+    return name.split(".")[0]
+
+
+def _belongs(stem: str, head: str) -> bool:
+    return stem == head or stem.startswith(head + "_")
+
+
+def results_status(root: Path = RESULTS_ROOT, names: Sequence[str] | None = None,
+                   table: Mapping[str, Any] | None = None) -> list[ResultStatus]:
+    """Every result under ``root`` (:func:`result_groups`), or those named in ``names``, judged (module docstring).
+    ``table``: the method table names are looked up in (default the built-in one). :class:`InputError` for a name
+    that is no result there, naming the valid ones; nothing is run."""
+    from eval.bench.suites import SUITES
+
+    root = Path(root)
+    if not root.is_dir():
+        raise InputError(f"results folder {root} does not exist; give the folder holding the committed results")
+    groups = result_groups(root, list(SUITES))
+    if names:
+        unknown = [n for n in names if n not in groups]
+        if unknown:
+            raise InputError(f"unknown result(s) {', '.join(unknown)}; results under {root}: {', '.join(groups)}")
+        groups = {n: groups[n] for n in names}
+    return [judge_result(root, name, files, table) for name, files in groups.items()]
+
+
+def judge_result(root: Path, name: str, files: Sequence[Path], table: Mapping[str, Any] | None = None
+                 ) -> ResultStatus:
+    """One result's :class:`ResultStatus` (module docstring)."""
+    from eval.bench.suites import SUITES
+
+    stem = name.rsplit("/", 1)[-1]
+    suite = stem if stem in SUITES else None
+    rels = tuple(p.relative_to(root).as_posix() + ("/" if p.is_dir() else "") for p in files)
+    manifest = manifest_path((root / name).parent, stem) if suite else None
+    if manifest is None:
+        return ResultStatus(name, None, rels, (), None, False, "no provenance: made by no suite (its command "
+                            "writes no manifest)")  # fmt: skip
+    if not manifest.is_file():
+        made, runs = recorded_revisions(files)
+        return ResultStatus(name, suite, rels, made, runs, False, "no provenance (made before manifests)")
+    try:
+        data = json.loads(manifest.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        return ResultStatus(name, suite, rels, (), None, False, f"unreadable manifest {manifest.name}: {exc}")
+    return judge_manifest(name, rels, data, table)
+
+
+def recorded_revisions(files: Sequence[Path]) -> tuple[tuple[str, ...], int | None]:
+    """The git revisions a result's runs name (its ``*_long.csv`` or ``*_runs.json``), and how many runs it holds;
+    ``((), None)`` when it has neither."""
+    revisions: dict[str, None] = {}
+    runs: set[str] = set()
+    for path in files:
+        if path.name.endswith("_long.csv"):
+            with path.open(newline="") as fh:
+                for row in csv.DictReader(fh):
+                    if row.get("git_revision"):
+                        revisions[row["git_revision"]] = None
+                    if row.get("run"):
+                        runs.add(row["run"])
+        elif path.name.endswith("_runs.json"):
+            try:
+                records = json.loads(path.read_text())
+            except (OSError, json.JSONDecodeError):
+                continue
+            for record in records if isinstance(records, list) else []:
+                meta = record.get("metadata") or {}
+                if meta.get("git_revision"):
+                    revisions[str(meta["git_revision"])] = None
+                if record.get("run"):
+                    runs.add(record["run"])
+    return tuple(sorted(revisions)), (len(runs) if runs else None)
+
+
+def planned_specs(data: Mapping[str, Any], table: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The run specs the current code plans for a manifest's suite and selection (key -> RunSpec), as
+    :func:`eval.bench.benchmark.run_bench` plans them; methods the manifest records as skipped are left out.
+    Raises :class:`InputError` when the selection cannot be planned any more (a suite or sequence gone)."""
+    from eval.bench.benchmark import BenchOptions, ExecutorOptions, prepare
+    from eval.bench.methods import Method, load_methods
+    from eval.bench.runner import plan_runs
+
+    sel = dict(data.get("selection") or {})
+    methods = {**(load_methods() if table is None else dict(table))}
+    for name, definition in (data.get("method_definitions") or {}).items():
+        if name not in methods:
+            methods[name] = Method(**definition)
+    size = sel.get("image_size")
+    options = BenchOptions(
+        sequences=tuple(sel["sequences"]) if sel.get("sequences") is not None else None,
+        frames=sel.get("frames"),
+        seeds=tuple(sel["seeds"]) if sel.get("seeds") is not None else None,
+        runs=sel.get("runs"),
+        lengths=tuple(sel["lengths"]) if sel.get("lengths") is not None else None,
+        motions=tuple(Path(m) for m in sel.get("motions") or ()),
+        camera=sel.get("camera"),
+        image_size=tuple(size) if isinstance(size, list) else size,
+        undistort=sel.get("undistort"),
+        align=sel.get("align"),
+        settings=tuple(tuple(s) for s in sel.get("settings") or ()),
+        executor=ExecutorOptions("serial"), check=False, plots=False, progress=False,
+    )  # fmt: skip
+    plan = prepare(str(data.get("suite")), list(data.get("methods") or []) or None, options, methods)
+    skipped = set(data.get("skipped") or {})
+    specs: dict[str, Any] = {}
+    for part in plan.parts:
+        chosen = [plan.methods[m] for m in part.suite.methods if m in plan.methods and m not in skipped]
+        for spec in plan_runs(part.suite, chosen, renderer=str(sel.get("renderer") or "mujoco"), plots=False):
+            specs[spec.key] = spec
+    return specs
+
+
+def judge_manifest(name: str, files: tuple[str, ...], data: Mapping[str, Any],
+                   table: Mapping[str, Any] | None = None) -> ResultStatus:
+    """A result with a manifest, judged: stale when made from an uncommitted tree, when the suite now plans runs it
+    lacks or no longer plans runs it holds, or when any run's fingerprint parts differ from the current code's."""
+    suite = str(data.get("suite"))
+    revision = str(data.get("git_revision") or "?") + ("-dirty" if data.get("dirty") else "")
+    recorded: dict[str, Any] = dict(data.get("runs") or {})
+    reasons: list[str] = []
+    if data.get("schema") != SCHEMA:
+        reasons.append(f"manifest schema {data.get('schema')!r}, not {SCHEMA}")
+    if data.get("dirty"):
+        listed = ", ".join(data.get("dirty_listed") or [])
+        reasons.append(f"made from an uncommitted tree ({data.get('dirty_files')} changed file(s): {listed})")
+    try:
+        specs = planned_specs(data, table)
+    except InputError as exc:
+        reasons.append(f"cannot be planned now: {exc}")
+        return ResultStatus(name, suite, files, (revision,), len(recorded), False, "; ".join(reasons))
+    changed: dict[str, list[str]] = {}
+    missing = [k for k in specs if k not in recorded]
+    extra = [k for k in recorded if k not in specs]
+    for key, spec in specs.items():
+        entry = recorded.get(key)
+        if entry is None:
+            continue
+        if not entry.get("parts"):
+            changed.setdefault("made by other code", []).append(key)
+            continue
+        for part in run_parts(spec).changed(entry["parts"]):
+            changed.setdefault(part, []).append(key)
+    if missing:
+        reasons.append(f"{len(missing)} planned run(s) missing (e.g. {missing[0]})")
+    if extra:
+        reasons.append(f"{len(extra)} run(s) no longer planned (e.g. {extra[0]})")
+    for part in [*PARTS, "made by other code"]:
+        keys = changed.get(part)
+        if keys:
+            reasons.append(f"{part} changed: {_runs_by_method(keys, specs)}")
+    why = "; ".join(reasons) or f"all {len(specs)} runs' fingerprints equal"
+    return ResultStatus(name, suite, files, (revision,), len(recorded), not reasons, why,
+                        {k: tuple(v) for k, v in changed.items()})  # fmt: skip
+
+
+def _runs_by_method(keys: Sequence[str], specs: Mapping[str, Any]) -> str:
+    """``ORB (9 runs), LSD (3 runs)``: the runs of ``keys`` counted per method."""
+    counts: dict[str, int] = {}
+    for key in keys:
+        method = specs[key].method.name
+        counts[method] = counts.get(method, 0) + 1
+    return ", ".join(f"{m} ({n} run{'s' if n != 1 else ''})" for m, n in counts.items())
+
+
+def format_status(rows: Sequence[ResultStatus]) -> str:
+    """The status as a table a person reads at a glance (result, suite, made at, runs, status, why) and a summary
+    line."""
+    head = ("result", "suite", "made at", "runs", "status", "why")
+    body = [(r.name, r.suite or "-", _made(r.made_at), "-" if r.runs is None else str(r.runs), r.status, r.why)
+            for r in rows]  # fmt: skip
+    widths = [max(len(row[i]) for row in [head, *body]) for i in range(5)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(row[:5], widths, strict=True)) + "  " + row[5]
+             for row in [head, *body]]  # fmt: skip
+    current = sum(r.current for r in rows)
+    lines.append(f"{current} of {len(rows)} result(s) current, {len(rows) - current} stale")
+    return "\n".join(lines)
+
+
+def _made(revisions: Sequence[str]) -> str:
+    if not revisions:
+        return "?"
+    return revisions[0] + (f" +{len(revisions) - 1}" if len(revisions) > 1 else "")
