@@ -1,5 +1,4 @@
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +15,6 @@ from sim_envs.formats import (
     write_tum_image_list,
     write_tum_trajectory,
 )
-
-TUM_DATA = Path("/work/shared/data/tum")
 
 
 def random_poses(n: int, seed: int = 0) -> np.ndarray:
@@ -111,8 +108,8 @@ def test_tum_duplicate_policies(tmp_path):
         read_tum_trajectory(path, duplicate_timestamps="last")
 
 
-def test_real_tum_ground_truth_with_a_repeated_timestamp():
-    path = TUM_DATA / "fr2_desk_groundtruth.txt"
+def test_real_tum_ground_truth_with_a_repeated_timestamp(tum_dir):
+    path = tum_dir / "fr2_desk_groundtruth.txt"
     with pytest.raises(FormatError) as err:
         read_tum_trajectory(path)
     assert f"{path}:10863:" in str(err.value) and "line 10862" in str(err.value)
@@ -123,7 +120,7 @@ def test_real_tum_ground_truth_with_a_repeated_timestamp():
         f"{path}: 1 repeated timestamp(s), the first 1311868229.576 on lines 10862 and 10863; kept the last pose of "
         "each"
     ]
-    read_tum_trajectory(TUM_DATA / "fr2_desk_ORB.txt", duplicate_timestamps="last", on_duplicates=messages.append)
+    read_tum_trajectory(tum_dir / "fr2_desk_ORB.txt", duplicate_timestamps="last", on_duplicates=messages.append)
     assert len(messages) == 1  # nothing dropped, nothing said
 
 

@@ -1,8 +1,6 @@
 """The aligned trajectory files, the relative error at several distances and the ATE, tested against evo itself:
 evo reads each aligned file, its APE on it (no alignment) is ours, its RPE over the same path distances is ours."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -11,16 +9,12 @@ from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import RELATIVE_TOLERANCE, error_statistics, evaluate_trajectory
 from sim_envs.formats import write_tum_trajectory
 
-TUM = Path("/work/shared/data/tum")
-
 
 @pytest.fixture(scope="module")
-def fr1_xyz_scored():
+def fr1_xyz_scored(tum_dir):
     """RGBD-SLAM's estimate of TUM fr1/xyz scored with SE(3) alignment (TUM association, 0.02 s)."""
-    if not (TUM / "freiburg1_xyz-groundtruth.txt").is_file():
-        pytest.skip(f"the TUM reference files are not in {TUM}")
-    gt = PoseTrajectory.from_tum_file(TUM / "freiburg1_xyz-groundtruth.txt")
-    est = PoseTrajectory.from_tum_file(TUM / "freiburg1_xyz-rgbdslam.txt")
+    gt = PoseTrajectory.from_tum_file(tum_dir / "freiburg1_xyz-groundtruth.txt")
+    est = PoseTrajectory.from_tum_file(tum_dir / "freiburg1_xyz-rgbdslam.txt")
     return evaluate_trajectory(gt, est, alignment="se3")
 
 

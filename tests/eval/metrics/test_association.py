@@ -1,5 +1,3 @@
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,8 +14,6 @@ from eval.metrics.association import (
 )
 from eval.metrics.trajectory import PoseTrajectory
 from sim_envs.formats import associate_greedy
-
-TUM = Path("/work/shared/data/tum")
 
 
 def traj(stamps):
@@ -72,9 +68,9 @@ def test_index_rule_and_errors():
     assert len(g) == len(e) == 2
 
 
-def test_reference_pair_counts_on_real_files():
-    gt = PoseTrajectory.from_tum_file(TUM / "fr2_desk_groundtruth.txt", duplicate_timestamps="last")
-    est = PoseTrajectory.from_tum_file(TUM / "fr2_desk_ORB.txt")
+def test_reference_pair_counts_on_real_files(tum_dir):
+    gt = PoseTrajectory.from_tum_file(tum_dir / "fr2_desk_groundtruth.txt", duplicate_timestamps="last")
+    est = PoseTrajectory.from_tum_file(tum_dir / "fr2_desk_ORB.txt")
     assert len(associate(gt, est, "tum")) == 2223
     assert len(associate(gt, est, "nearest")) == 2225  # evo's rule reuses ground-truth poses
 

@@ -1,7 +1,6 @@
-"""Known answers for the trajectory metrics, and the reference figures of reference-facts.md pinned to the digits
-printed there (TUM-tools association and evo's nearest match, SE(3) and Sim(3), max. difference 0.02 s)."""
-
-from pathlib import Path
+"""Known answers for the trajectory metrics, and the reference figures of tests/reference_facts.toml (the TUM
+tools' association and evo's nearest match, SE(3) and Sim(3), max. difference 0.02 s; sources there) pinned to the
+digits printed there."""
 
 import numpy as np
 import pytest
@@ -20,47 +19,47 @@ from eval.metrics.trajectory_metrics import (
     tracked_share,
 )
 
-TUM = Path("/work/shared/data/tum")
+
+@pytest.fixture(scope="module")
+def fr2_desk(tum_dir):
+    gt = PoseTrajectory.from_tum_file(tum_dir / "fr2_desk_groundtruth.txt", duplicate_timestamps="last")
+    return gt, PoseTrajectory.from_tum_file(tum_dir / "fr2_desk_ORB.txt")
 
 
 @pytest.fixture(scope="module")
-def fr2_desk():
-    gt = PoseTrajectory.from_tum_file(TUM / "fr2_desk_groundtruth.txt", duplicate_timestamps="last")
-    return gt, PoseTrajectory.from_tum_file(TUM / "fr2_desk_ORB.txt")
+def fr1_xyz(tum_dir):
+    gt = PoseTrajectory.from_tum_file(tum_dir / "freiburg1_xyz-groundtruth.txt")
+    return gt, PoseTrajectory.from_tum_file(tum_dir / "freiburg1_xyz-rgbdslam.txt")
 
 
-@pytest.fixture(scope="module")
-def fr1_xyz():
-    gt = PoseTrajectory.from_tum_file(TUM / "freiburg1_xyz-groundtruth.txt")
-    return gt, PoseTrajectory.from_tum_file(TUM / "freiburg1_xyz-rgbdslam.txt")
+def reference_case(facts: dict, name: str) -> dict:
+    """The reference figures of one case (ground truth / estimate) of reference_facts.toml's trajectory section."""
+    return next(case for case in facts["trajectory"]["cases"] if case["name"] == name)
 
 
-@pytest.mark.parametrize(
-    ("association", "alignment", "rmse", "pairs", "scale"),
-    [
-        ("tum", "se3", "0.008144", 2223, None),
-        ("nearest", "se3", "0.008146", 2225, None),
-        ("tum", "sim3", "0.006186", 2223, "0.9970"),
-        ("nearest", "sim3", "0.006187", 2225, "0.9970"),
-    ],
-)
-def test_reference_fr2_desk_orb(fr2_desk, association, alignment, rmse, pairs, scale):
-    m = evaluate_trajectory(*fr2_desk, alignment=alignment, association=association, max_difference=0.02)
-    assert f"{m.ate.rmse:.6f}" == rmse
+@pytest.mark.parametrize(("association", "alignment"), [("tum", "se3"), ("nearest", "se3"), ("tum", "sim3"),
+                                                        ("nearest", "sim3")])  # fmt: skip
+def test_reference_fr2_desk_orb(fr2_desk, reference_facts, association, alignment):
+    case = reference_case(reference_facts, "fr2_desk/ORB")
+    max_difference = reference_facts["trajectory"]["max_difference"]
+    pairs = case["pairs"] if association == "tum" else 2225  # evo's nearest match reuses ground-truth poses
+    m = evaluate_trajectory(*fr2_desk, alignment=alignment, association=association, max_difference=max_difference)
+    assert f"{m.ate.rmse:.6f}" == case["rmse"][association][alignment]
     assert m.ate.pairs == pairs and len(m.association) == pairs
-    assert m.association.rule.value == association and m.association.max_difference == 0.02
+    assert m.association.rule.value == association and m.association.max_difference == max_difference == 0.02
     assert m.alignment.used == alignment
-    if scale is not None:
-        assert f"{m.alignment.scale:.4f}" == scale
-    assert f"{m.scale:.4f}" == "0.9970"  # the Sim(3) scale is reported whatever the alignment
+    if alignment == "sim3":
+        assert f"{m.alignment.scale:.4f}" == case["scale"]
+    assert f"{m.scale:.4f}" == case["scale"]  # the Sim(3) scale is reported whatever the alignment
 
 
 @pytest.mark.parametrize("association", ["tum", "nearest"])
-@pytest.mark.parametrize(("alignment", "rmse"), [("se3", "0.013473"), ("sim3", "0.013394")])
-def test_reference_fr1_xyz_rgbdslam(fr1_xyz, association, alignment, rmse):
+@pytest.mark.parametrize("alignment", ["se3", "sim3"])
+def test_reference_fr1_xyz_rgbdslam(fr1_xyz, reference_facts, association, alignment):
+    case = reference_case(reference_facts, "fr1_xyz/rgbdslam")
     m = evaluate_trajectory(*fr1_xyz, alignment=alignment, association=association)
-    assert f"{m.ate.rmse:.6f}" == rmse and m.ate.pairs == 786
-    assert f"{m.scale:.4f}" == "1.0079"
+    assert f"{m.ate.rmse:.6f}" == case["rmse"][association][alignment] and m.ate.pairs == case["pairs"]
+    assert f"{m.scale:.4f}" == case["scale"]
     assert m.scale_error == pytest.approx(abs(1 / m.scale - 1))
 
 

@@ -2,7 +2,6 @@
 errors."""
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,7 +20,6 @@ from eval.metrics.tum_reader import (
 )
 from sim_envs.errors import FormatError
 
-TUM = Path("/work/shared/data/tum")
 GOOD = [
     "1.0 0 0 0 0 0 0 1",
     "2.0 1 0 0 0 0 0 1",
@@ -167,13 +165,15 @@ def test_data_line_numbers_count_as_the_reference():
     assert data_line_numbers(text) == [3, 5, 6, 7]
 
 
-@pytest.mark.parametrize("name", sorted(p.name for p in TUM.glob("*.txt")))
-def test_real_files_read_as_the_reference(name):
-    path = TUM / name
-    for policy in ("last", "first"):
-        messages: tuple[list[str], list[str]] = ([], [])
-        ours = read_tum_file(path, duplicate_timestamps=policy, on_duplicates=messages[0].append)
-        theirs = reference.read_tum_trajectory(path, duplicate_timestamps=policy, on_duplicates=messages[1].append)
-        assert_same(ours, theirs)
-        assert messages[0] == messages[1]
-    assert parse_plain_tum_text(path.read_text()) is not None  # all on the fast path
+def test_real_files_read_as_the_reference(tum_dir):
+    paths = sorted(tum_dir.glob("*.txt"))
+    assert len(paths) >= 4  # the reference cases' ground truths and estimates, at least
+    for path in paths:
+        for policy in ("last", "first"):
+            messages: tuple[list[str], list[str]] = ([], [])
+            ours = read_tum_file(path, duplicate_timestamps=policy, on_duplicates=messages[0].append)
+            theirs = reference.read_tum_trajectory(path, duplicate_timestamps=policy,
+                                                   on_duplicates=messages[1].append)  # fmt: skip
+            assert_same(ours, theirs)
+            assert messages[0] == messages[1], path.name
+        assert parse_plain_tum_text(path.read_text()) is not None, path.name  # all on the fast path
