@@ -29,6 +29,7 @@ import ast
 import hashlib
 import importlib.util
 import json
+import os
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -51,8 +52,8 @@ _DIGESTS: dict[tuple[str, _Stamp], str] = {}
 _ROOTS: dict[tuple[str, tuple[str, ...]], Path | None] = {}
 
 
-def _stamp(path: Path) -> _Stamp:
-    st = path.stat()
+def _stamp(path: Path | str) -> _Stamp:
+    st = os.stat(path)
     return st.st_size, st.st_mtime_ns
 
 
@@ -152,7 +153,7 @@ def import_closure(modules: Iterable[str], packages: Sequence[str] | None = None
     if cached is not None:
         files, stamps = cached
         try:
-            if all(_stamp(Path(p)) == s for p, s in stamps):
+            if all(_stamp(p) == s for p, s in stamps):
                 return dict(files)
         except OSError:
             pass
