@@ -39,8 +39,10 @@ A time limit per run (``timeout_s``) stops a run still unfinished after that man
 :class:`RunTimedOut`. ``local`` kills its pool (a process pool cannot lose one worker without breaking) and restarts
 the pool's other unfinished runs in a new one, with fresh clocks and without counting it against them. ``ray``
 cancels the task with ``ray.cancel(force=True)``, which kills its worker, and then keeps at most as many tasks in
-flight as the cluster has CPU slots for, so that a task's clock starts about when the task does. ``serial`` cannot
-stop work in its own process and refuses a limit (use ``local`` with one job).
+flight as the cluster has CPU slots for, so that a task's clock starts about when the task does. ``serial`` sets a
+SIGALRM timer around each run (:func:`time_limit`) and stops it at the next Python bytecode after the limit: from the
+main thread only (refused elsewhere), and native code that never returns to the interpreter (a deadlock in C) is not
+stopped: ``local`` with one job stops anything.
 """
 
 from __future__ import annotations
@@ -338,17 +340,72 @@ def _finished(future: Future) -> bool:
     return future.done() and not future.cancelled() and not isinstance(future.exception(), BrokenProcessPool)
 
 
+class _Overtime(BaseException):
+    """Raised in this process's main thread by SIGALRM when a serial run is past its time limit (a BaseException, so
+    that a run's own ``except Exception`` does not swallow it)."""
+
+
+def check_alarm() -> None:
+    """:class:`ExecutorError` unless a serial run can be stopped by a timer signal here: a platform with
+    ``signal.setitimer`` and the main thread (the only one Python delivers signals to)."""
+    if not hasattr(signal, "setitimer"):
+        raise ExecutorError("--executor serial stops a run past its time limit with SIGALRM, which this platform "
+                            "lacks: use --executor local --jobs 1")  # fmt: skip
+    if threading.current_thread() is not threading.main_thread():
+        raise ExecutorError(f"--executor serial stops a run past its time limit with a signal, which only the main "
+                            f"thread receives, and runs in thread {threading.current_thread().name!r}: use "
+                            "--executor local --jobs 1")  # fmt: skip
+
+
+@contextlib.contextmanager
+def time_limit(timeout_s: float) -> Iterator[None]:
+    """Raise :class:`_Overtime` in the code inside after ``timeout_s`` seconds (a SIGALRM timer; main thread only).
+    Python runs the handler between bytecodes, so Python code, ``time.sleep`` and blocking I/O are stopped, native
+    code only when it returns to the interpreter. The previous handler, and a timer the caller had set (less the
+    time spent here), are put back."""
+
+    def overtime(signum: int, frame: Any) -> None:
+        raise _Overtime
+
+    started = time.monotonic()
+    previous = signal.signal(signal.SIGALRM, overtime)
+    try:
+        earlier, interval = signal.setitimer(signal.ITIMER_REAL, timeout_s)
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        if earlier > 0:  # the caller's own timer: what is left of it
+            signal.setitimer(signal.ITIMER_REAL, max(1e-3, earlier - (time.monotonic() - started)), interval)
+
+
 class SerialExecutor:
-    """Runs every item in this process, in order. No time limit: nothing can stop a call in its own process."""
+    """Runs every item in this process, in order; ``timeout_s``: a run's time limit, enforced by a SIGALRM timer
+    (:func:`time_limit`: from the main thread only, and native code that never returns to the interpreter is not
+    stopped; ``local`` with one job stops anything)."""
 
     name = "serial"
 
+    def __init__(self, timeout_s: float | None = None) -> None:
+        self.timeout_s = check_timeout(timeout_s)
+        if self.timeout_s is not None:
+            check_alarm()
+
     def map(self, fn: Callable[[T], R], items: Iterable[T]) -> Iterator[tuple[T, R | BaseException]]:
+        if self.timeout_s is not None:
+            check_alarm()
         for item in items:
             try:
-                yield item, fn(item)
+                if self.timeout_s is None:
+                    result: R | BaseException = fn(item)
+                else:
+                    with time_limit(self.timeout_s):
+                        result = fn(item)
+            except _Overtime:
+                result = RunTimedOut(self.timeout_s or 0.0)
             except Exception as exc:  # noqa: BLE001 - one bad item never stops the others
-                yield item, exc
+                result = exc
+            yield item, result  # outside the limit: the consumer's time is not the run's
 
 
 class LocalExecutor:
@@ -597,20 +654,15 @@ def make_executor(
 ) -> Executor:
     """An executor by name (``local``, ``serial``, ``ray``); ``address`` only for ``ray``; ``fresh_workers``,
     ``preload`` (modules the fork server imports for its workers) and ``threads`` (math threads per worker; None:
-    the cores shared among the jobs) only for ``local``; ``timeout_s``, the time limit
-    of a run, for ``local`` and ``ray`` (``serial`` cannot stop a run in its own process)."""
+    the cores shared among the jobs) only for ``local``; ``timeout_s``, the time limit of a run, for every kind
+    (``serial``: from the main thread, see :func:`time_limit`)."""
     if name not in EXECUTORS:
         raise ExecutorError(f"unknown executor {name!r}; valid executors: {', '.join(EXECUTORS)}")
     if address and name != "ray":
         raise ExecutorError(f"--address is for --executor ray, not {name!r}")
     timeout_s = check_timeout(timeout_s)
     if name == "serial":
-        if timeout_s is not None:
-            raise ExecutorError(
-                "--executor serial cannot stop a run in its own process, so it has no time limit; "
-                "use --executor local --jobs 1"
-            )
-        return SerialExecutor()
+        return SerialExecutor(timeout_s)
     if name == "local":
         check_main_guarded()  # now, before the suite is planned further, rather than at its first run
         return LocalExecutor(jobs, threads, fresh_workers=fresh_workers, timeout_s=timeout_s, preload=preload)

@@ -254,10 +254,64 @@ def test_a_run_past_its_time_limit_is_stopped_and_reported(nap_work):
 def test_time_limits_per_executor():
     assert make_executor("local", timeout_s=5).timeout_s == 5.0
     assert make_executor("local").timeout_s is None
-    with pytest.raises(ExecutorError, match="serial cannot stop a run"):
-        make_executor("serial", timeout_s=5)
-    with pytest.raises(ExecutorError, match="must be positive"):
-        make_executor("local", timeout_s=0)
+    assert make_executor("serial", timeout_s=5).timeout_s == 5.0 and make_executor("serial").timeout_s is None
+    for kind in ("local", "serial"):
+        with pytest.raises(ExecutorError, match="must be positive"):
+            make_executor(kind, timeout_s=0)
+
+
+def overtime_work(item):
+    """Sleeps ``item`` seconds, swallowing any Exception (a run that catches everything), and returns ``item``."""
+    try:
+        time.sleep(item)
+    except Exception:  # noqa: BLE001 - what a careless agent does; the time limit must still stop it
+        return "swallowed"
+    return item
+
+
+@pytest.mark.skipif(not hasattr(signal, "setitimer"), reason="the serial executor's limit is a SIGALRM timer")
+def test_the_serial_executor_stops_a_run_past_its_time_limit():
+    """In this process: the late run (even one that catches every Exception) is yielded as RunTimedOut, the others
+    run; the SIGALRM handler and a timer the caller had set are put back."""
+    def mine(signum, frame):
+        raise AssertionError("the caller's timer went off during the runs")
+
+    saved = signal.signal(signal.SIGALRM, mine)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 100.0)
+        started = time.monotonic()
+        out = list(SerialExecutor(timeout_s=0.5).map(overtime_work, [0.01, 60, 0.02]))
+        assert time.monotonic() - started < 20.0
+        assert [item for item, _ in out] == [0.01, 60, 0.02]
+        assert out[0][1] == 0.01 and out[2][1] == 0.02
+        assert isinstance(out[1][1], RunTimedOut) and str(out[1][1]) == "run exceeded its time limit of 0.5 s"
+        assert signal.getsignal(signal.SIGALRM) is mine
+        left, _ = signal.getitimer(signal.ITIMER_REAL)
+        assert 80.0 < left < 100.0  # the caller's timer, less the time spent
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, saved)
+    out = dict(SerialExecutor(timeout_s=5).map(math.sqrt, [4.0, -1.0]))  # errors are still results
+    assert out[4.0] == 2.0 and isinstance(out[-1.0], ValueError)
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
+@pytest.mark.skipif(not hasattr(signal, "setitimer"), reason="the serial executor's limit is a SIGALRM timer")
+def test_the_serial_executor_s_time_limit_is_refused_off_the_main_thread():
+    errors = []
+
+    def make():
+        try:
+            make_executor("serial", timeout_s=5)
+        except ExecutorError as exc:
+            errors.append(str(exc))
+
+    thread = threading.Thread(target=make, name="bench-thread")
+    thread.start()
+    thread.join()
+    assert errors == ["--executor serial stops a run past its time limit with a signal, which only the main thread "
+                      "receives, and runs in thread 'bench-thread': use --executor local --jobs 1"]  # fmt: skip
+    assert isinstance(make_executor("serial"), SerialExecutor)  # no limit: any thread
 
 
 def test_choosing_an_executor():
