@@ -24,6 +24,11 @@ The replays and metrics are :mod:`cnnslam.map_replay` (its docstring says what e
 
 Ground truth is read only here, at the edge, for scoring and for the image of each key-frame; the agent never sees
 it unless its class declares ``uses_ground_truth``.
+
+Exit status: 0 written; 2 a bad argument, refused in one line naming the value and what is valid before the episode
+runs (an unknown sequence, renderer or alignment; ``--frames`` outside 1..the sequence's length, ``--length`` < 2, a
+size or distance that is not positive; an agent that cannot be loaded or refuses its options; an ``--out`` or
+``--figure`` that cannot be written); 1 when the run gives nothing to fuse or score (the message says why).
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ import numpy as np
 from cnnslam.errors import CnnSlamError
 from slamcommon.alignment import parse_method
 from slamcommon.errors import ProjectError
+from slamcommon.output_paths import check_output_file, check_output_folder
 
 DEFAULT_AGENT = "cnnslam.agent:CnnSlamAgent"
 
@@ -83,6 +89,48 @@ def _open_env(args: argparse.Namespace) -> Any:
     return gym.make(get_sequence(args.sequence).gym_id, renderer=args.renderer, max_frames=args.frames)
 
 
+def check_arguments(args: argparse.Namespace) -> tuple[Path, dict[str, Any]]:
+    """Refuse, before anything is loaded or run, an argument ``cnnslam map`` cannot use: an unknown alignment or
+    sequence, ``--frames`` outside 1..the sequence's length (``--length``'s when given), ``--length`` < 2, a voxel,
+    spacing, threshold or label distance that is not a positive number of metres, ``--agent-options`` that is not a
+    JSON object, an ``--out`` folder or ``--figure`` file that cannot be written. Returns the output folder and the
+    agent's options; :class:`CnnSlamError` (or the error of the check that refused) with one line otherwise."""
+    from sim_envs.sequences import get_sequence
+
+    try:
+        parse_method(args.alignment)
+    except ProjectError as exc:
+        raise CnnSlamError(f"--alignment: {exc}") from None
+    spec = get_sequence(args.sequence)  # UnknownNameError listing the valid names
+    if args.length is not None and args.length < 2:
+        raise CnnSlamError(f"--length {args.length}: a sequence needs at least 2 frames")
+    n_frames = spec.n_frames if args.length is None else args.length
+    if args.frames is not None and not 1 <= args.frames <= n_frames:
+        raise CnnSlamError(f"--frames {args.frames}: {args.sequence} has {n_frames} frames; give 1..{n_frames} "
+                               "(or leave it out for all of them)")  # fmt: skip
+    for flag, value in (("--voxel", args.voxel), ("--gt-spacing", args.gt_spacing), ("--threshold", args.threshold),
+                        ("--label-distance", args.label_distance)):  # fmt: skip
+        if not (math.isfinite(value) and value > 0):
+            raise CnnSlamError(f"{flag} {value:g}: must be a positive number of metres")
+    try:
+        options = json.loads(args.agent_options)
+    except json.JSONDecodeError as exc:
+        raise CnnSlamError(f"--agent-options {args.agent_options!r}: not JSON ({exc}); give a JSON object, e.g. "
+                               "'{}'") from None  # fmt: skip
+    if not isinstance(options, dict):
+        raise CnnSlamError(f"--agent-options must be a JSON object, got {args.agent_options!r}")
+    out = check_output_folder(args.out or os.path.join("runs", "map", args.sequence), "--out")
+    if args.figure:
+        from matplotlib.figure import Figure
+
+        formats = Figure().canvas.get_supported_filetypes()
+        if Path(args.figure).suffix.lstrip(".").lower() not in formats:
+            raise CnnSlamError(f"--figure {args.figure}: matplotlib cannot write this suffix; valid suffixes: "
+                                   f"{', '.join('.' + f for f in sorted(formats))}")  # fmt: skip
+        check_output_file(args.figure, "--figure")
+    return out, options
+
+
 def run(args: argparse.Namespace) -> int:
     from cnnslam.config import CnnSlamConfig
     from cnnslam.global_model import GlobalModelConfig
@@ -94,30 +142,31 @@ def run(args: argparse.Namespace) -> int:
     from slamcommon.resources import peak_rss_mib
     from slamcommon.strict_json import json_ready
 
-    out = Path(args.out or os.path.join("runs", "map", args.sequence))
-    try:  # a bad choice is refused before the episode runs
-        parse_method(args.alignment)
-    except ProjectError as exc:
-        print(f"cnnslam map: error: --alignment: {exc}", file=sys.stderr)
-        return 2
-    try:
-        options = json.loads(args.agent_options)
-        if not isinstance(options, dict):
-            raise CnnSlamError(f"--agent-options must be a JSON object, got {args.agent_options!r}")
+    try:  # bad arguments, an agent that cannot be loaded, an environment that cannot be made: before the episode runs
+        out, options = check_arguments(args)
         config = GlobalModelConfig(voxel_size=args.voxel)
-        agent = load_agent(args.agent, **options)
+        try:
+            agent = load_agent(args.agent, **options)
+        except TypeError as exc:  # a keyword the agent's class does not take
+            raise CnnSlamError(f"--agent-options {args.agent_options}: {args.agent} refuses them ({exc})") from None
         if isinstance(getattr(agent, "config", None), CnnSlamConfig):  # the paper's agent (any entry point to it):
             # its key-frames keep their class probabilities, which the replays below fuse again
             agent.config = agent.config.with_overrides({"system.keep_label_probabilities": True})
         env = _open_env(args)
-        try:
-            t0 = time.perf_counter()
-            result = run_episode(env, agent, progress=not args.no_progress)
-            run_seconds = time.perf_counter() - t0
-            source = env.unwrapped.source
-            scene = getattr(source, "scene", None)
-        finally:
-            env.close()
+    except ProjectError as exc:
+        print(f"cnnslam map: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        t0 = time.perf_counter()
+        result = run_episode(env, agent, progress=not args.no_progress)
+        run_seconds = time.perf_counter() - t0
+        scene = getattr(env.unwrapped.source, "scene", None)
+    except ProjectError as exc:
+        print(f"cnnslam map: error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        env.close()
+    try:
         if not result.keyframes:
             raise CnnSlamError(f"the agent {result.agent!r} returned no key-frames: nothing to fuse")
         steps = np.array([f.index for f in result.keyframe_gt], dtype=np.int64)  # matched once, by the driver
@@ -166,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
         tmp = out / "metrics.json.part"
         tmp.write_text(json.dumps(json_ready(record), indent=2) + "\n")
         os.replace(tmp, out / "metrics.json")
-    except (ProjectError, json.JSONDecodeError) as exc:
+    except ProjectError as exc:
         print(f"cnnslam map: error: {exc}", file=sys.stderr)
         return 1
     summary = [f"{result.sequence}: {len(result.keyframes)} key-frames -> {len(cloud)} surfels ({ply})",

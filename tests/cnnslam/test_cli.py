@@ -36,9 +36,3 @@ def test_a_closed_pipe_ends_quietly():
     assert proc.stdout.startswith("# CNN-SLAM:") and len(proc.stdout.splitlines()) == 1
     assert proc.stderr == ""
 
-
-def test_map_refuses_an_unknown_alignment_in_one_line(capsys):
-    assert main(["map", "office0", "--alignment", "foo"]) == 2
-    err = capsys.readouterr().err
-    assert err == ("cnnslam map: error: --alignment: unknown alignment 'foo'; valid alignments: se3, sim3, origin, "
-                   "none\n")

@@ -122,7 +122,7 @@ def test_map_command_end_to_end(tmp_path):
     props, _ = read_ply(out / "model.ply")
     assert len(props["x"]) == record["model"]["surfels"]
     assert (tmp_path / "fig.png").exists() and (out / "map.png").exists()
-    assert main(["map", "office0", "--agent-options", "[1]", "--out", str(out)]) == 1
+    assert main(["map", "office0", "--agent-options", "[1]", "--out", str(out)]) == 2  # refused before the run
 
 
 def test_evidence_maps_hold_the_ground_truth_one_hot_and_whether_the_cnn_was_right():
