@@ -114,8 +114,10 @@ def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SH
             for share in shares:
                 if failed_cell:
                     if any(f"rpe_trans_rmse_p{share}" in r.metrics for r in lost):
-                        rows.append({"sequence": sequence, "method": method, "share": share, "distance_m": math.nan,
-                                     **count})  # fmt: skip
+                        d = np.array([r.metrics.get(f"rpe_dist_m_p{share}", math.nan) for r in lost], dtype=float)
+                        rows.append({"sequence": sequence, "method": method, "share": share,
+                                     "distance_m": float(np.median(d[np.isfinite(d)])) if np.isfinite(d).any()
+                                     else math.nan, **count})  # fmt: skip
                     continue
                 t = np.array([r.metrics.get(f"rpe_trans_rmse_p{share}", math.nan) for r in records], dtype=float)
                 q = np.array([r.metrics.get(f"rpe_rot_deg_rmse_p{share}", math.nan) for r in records], dtype=float)
