@@ -553,7 +553,9 @@ def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
 # ------------------------------------------------------------------------------------------------------ sweep
 def sweep_points(run: SuiteRun) -> pd.DataFrame:
     """One row per finished sweep run: axis, x (the axis value; for the rotation axis the measured rotation
-    share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share``."""
+    share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share`` and ``failure`` (why the run is a
+    failure, :func:`eval.metrics.results.failure_of`, e.g. ``tracked 22 % < 90 %``; empty when it is not: its figures
+    count in no median, table or line)."""
     rows = []
     for record in run.records:
         meta = record.metadata
@@ -572,9 +574,11 @@ def sweep_points(run: SuiteRun) -> pd.DataFrame:
                 "ate_rmse": metrics.get("ate_rmse", math.nan),
                 "depth_percent_correct": metrics.get("depth_percent_correct", math.nan),
                 "tracked_share": metrics.get("tracked_share", math.nan),
+                "failure": failure_of(metrics) or "",
             }
         )
-    columns = ["axis", "x", "setting", "sequence", "method", "ate_rmse", "depth_percent_correct", "tracked_share"]
+    columns = ["axis", "x", "setting", "sequence", "method", "ate_rmse", "depth_percent_correct", "tracked_share",
+               "failure"]
     return pd.DataFrame(rows, columns=columns)
 
 

@@ -247,3 +247,17 @@ def test_the_papers_average_is_quoted_only_beside_an_average_over_its_nine_seque
     assert "| Avg. | 0.100 (0.246) |" in ours_beside_paper(nine, title, "ate_rmse", 3)
     two = nine.loc[["office0", "living1", AVG_LABEL]]
     assert "| Avg. | 0.100 |" in ours_beside_paper(two, title, "ate_rmse", 3)
+
+
+def test_a_sweep_cell_is_a_failure_or_the_median_of_the_runs_that_did_not_fail():
+    from eval.reports.suite_reports import sweep_cells, sweep_markdown
+
+    points = pd.DataFrame({"axis": "noise", "x": [1.0] * 3 + [2.0] * 3, "setting": [1.0] * 3 + [2.0] * 3,
+                           "sequence": "office1@noise", "method": "ORB",
+                           "ate_rmse": [0.1, 0.3, 9.0, 5.0, 6.0, 0.2],
+                           "depth_percent_correct": [1.0, 3.0, 0.0, 0.0, 0.0, 2.0],
+                           "tracked_share": [1.0, 0.95, 0.2, 0.5, 0.0, 1.0]})  # fmt: skip
+    cells = sweep_cells(points)
+    assert cells[(1.0, 1.0, "ORB", "ate_rmse")] == "0.200 (97 %, 1/3 failed)"  # 0.2 lost: median of 0.1 and 0.3
+    assert cells[(2.0, 2.0, "ORB", "ate_rmse")] == "X (25 %)"  # 2 of 3 failed: median share of those two
+    assert "| 2 | 2.000 | X (25 %) | X (25 %) |" in sweep_markdown(points)
