@@ -13,14 +13,18 @@ folder's depth images (not its poses), and writes to ``--out`` (default ``result
   against the SfM reference (SE(3) and Sim(3) ATE, orientation-aligned rotation RMSE, rotation-angle ratio, RPE);
 - ``reference.png``: both trajectories and their distance over time.
 
-FOLDER: a path, or a name of the dataset list (``datasets.toml`` / ``$CNNSLAM_DATASETS``). Exit status 0, 1 when
-no reference could be made (the message says why), 2 on bad arguments.
+FOLDER: a path, or a name of the dataset list (``datasets.toml`` / ``$CNNSLAM_DATASETS``). Exit status 0; 2 on bad
+arguments, refused in one line naming the value and what is valid before COLMAP starts (an option out of its range, a
+folder that is missing or not an RGB-D folder, a selection of fewer than 3 images, a stated camera the camera model
+cannot hold with ``--fixed-camera``, an ``--out`` or ``--workdir`` that cannot be written); 1 when COLMAP could
+make no reference (the message says why).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -30,7 +34,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from eval.errors import EvalError
+from eval.errors import EvalError, InputError
 from eval.metrics.results import json_ready
 from eval.metrics.sfm_reference import (
     CAMERA_MODELS,
@@ -44,7 +48,8 @@ from eval.metrics.sfm_reference import (
 )
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory, rotation_angle_ratio
-from slamcommon.errors import MetricError
+from slamcommon.errors import MetricError, ProjectError
+from slamcommon.output_paths import check_output_folder
 
 REFERENCE_SCHEMA = "cnnslam-reference/1"
 DEFAULT_OUT = Path("results/reference")
@@ -123,27 +128,52 @@ def _markdown(name: str, summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(args: argparse.Namespace) -> int:
-    from eval.bench.sequence_ref import resolve_sequence
-    from eval.errors import SuiteError
-    from sim_envs.datasets import load_rgbd_folder
-    from sim_envs.errors import SimEnvError
+def check_options(args: argparse.Namespace) -> None:
+    """Refuse an option out of its range (``--step``, ``--overlap`` >= 1, ``--first`` >= 0, ``--frames`` >= 3,
+    ``--rpe-delta`` a positive number of seconds) and a ``--workdir`` folder that cannot be written: one line naming
+    the option, its value and what is valid."""
+    for flag, value, low, what in (
+        ("--step", args.step, 1, "use every STEP-th image"),
+        ("--overlap", args.overlap, 1, "match each image against its next N"),
+        ("--first", args.first, 0, "an image index"),
+        ("--frames", args.frames, 3, "COLMAP needs at least 3 images"),
+    ):
+        if value is not None and value < low:
+            raise InputError(f"{flag} {value}: must be >= {low} ({what})")
+    if not (math.isfinite(args.rpe_delta) and args.rpe_delta > 0):
+        raise InputError(f"--rpe-delta {args.rpe_delta:g}: must be a positive number of seconds (default 1)")
+    if args.workdir is not None:
+        check_output_folder(args.workdir, "--workdir")
 
-    if args.step < 1 or args.first < 0 or (args.frames is not None and args.frames < 3) or args.overlap < 1:
-        print("error: --step and --overlap must be >= 1, --first >= 0, --frames >= 3", file=sys.stderr)
-        return 2
-    try:
-        seq = resolve_sequence(args.folder)
-        if seq.folder is None:
-            raise EvalError(f"{args.folder!r} is a simulated sequence; give a real RGB-D folder or dataset-list name")
-        folder = load_rgbd_folder(seq.folder, seq.camera, size=None, depth_scale=seq.depth_scale)
-    except (EvalError, MetricError, SuiteError, SimEnvError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    selected = np.arange(len(folder))[args.first :: args.step]
+
+def select_images(n_images: int, args: argparse.Namespace) -> np.ndarray:
+    """The indices of the images COLMAP gets: every ``--step``-th from ``--first``, at most ``--frames``; an
+    :class:`~eval.errors.InputError` naming the options when that leaves fewer than 3 of the folder's ``n_images``."""
+    selected = np.arange(n_images)[args.first :: args.step]
     if args.frames is not None:
         selected = selected[: args.frames]
-    out = args.out or DEFAULT_OUT / seq.name
+    if len(selected) < 3:
+        raise InputError(f"--first {args.first} --step {args.step} select {len(selected)} of the folder's {n_images} "
+                         "images; COLMAP needs at least 3: lower --first or --step")  # fmt: skip
+    return selected
+
+
+def run(args: argparse.Namespace) -> int:
+    from eval.bench.sequence_ref import resolve_sequence
+    from sim_envs.datasets import load_rgbd_folder
+
+    try:  # bad options, a folder that is no RGB-D folder, too few images, unwritable outputs: before COLMAP starts
+        check_options(args)
+        seq = resolve_sequence(args.folder)
+        if seq.folder is None:
+            raise InputError(f"{args.folder!r} is a simulated sequence; give a real RGB-D folder or dataset-list name")
+        folder = load_rgbd_folder(seq.folder, seq.camera, size=None, depth_scale=seq.depth_scale)
+        selected = select_images(len(folder), args)
+        out = check_output_folder(args.out or DEFAULT_OUT / seq.name, "--out")
+        fixed = _colmap_params(folder.camera, args.camera_model) if args.fixed_camera else None
+    except ProjectError as exc:
+        print(f"cnnslam reference: error: {exc}", file=sys.stderr)
+        return 2
     out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
     # one step per stage (features, matches) and per image the mapper registers
@@ -159,7 +189,6 @@ def run(args: argparse.Namespace) -> int:
     try:
         with tempfile.TemporaryDirectory() as scratch:
             work = args.workdir or Path(scratch)
-            fixed = _colmap_params(folder.camera, args.camera_model) if args.fixed_camera else None
             model = reconstruct([folder.rgb_paths[i] for i in selected], work, camera_model=args.camera_model,
                                 overlap=args.overlap, fixed_camera=fixed, verbose=args.verbose,
                                 on_stage=stage_done, on_image=image_registered)  # fmt: skip
@@ -168,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
             reference = reference_trajectory(model, folder.timestamps[selected], depth_at)
     except (EvalError, MetricError) as exc:
         stages.close()
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"cnnslam reference: error: {exc}", file=sys.stderr)
         return 1
     reference.frame_indices = selected[reference.frame_indices]
     seconds = time.monotonic() - started
@@ -188,7 +217,8 @@ def _colmap_params(camera: Any, model: str) -> list[float]:
     if model == "OPENCV":
         return [K.fx, K.fy, cx, cy, d[0], d[1], d[2], d[3]]
     if abs(K.fx - K.fy) > 1e-6 * K.fx or any(d[2:]) or (model == "SIMPLE_RADIAL" and d[1]):
-        raise EvalError(f"the stated camera (fx {K.fx}, fy {K.fy}, distortion {d}) needs --camera-model OPENCV")
+        raise InputError(f"--fixed-camera --camera-model {model}: the stated camera (fx {K.fx:.6g}, fy {K.fy:.6g}, "
+                         f"distortion {', '.join(f'{v:.6g}' for v in d)}) needs --camera-model OPENCV")
     return [K.fx, cx, cy, d[0]] if model == "SIMPLE_RADIAL" else [K.fx, cx, cy, d[0], d[1]]
 
 

@@ -165,5 +165,5 @@ def test_bad_input_gets_one_clear_error(tmp_path, capsys):
         reconstruct([tmp_path / f"{i}.png" for i in range(3)], tmp_path / "w")
     with pytest.raises(SfmError, match="valid PINHOLE, SIMPLE_RADIAL"):
         reconstruct([tmp_path / f"{i}.png" for i in range(3)], tmp_path / "w", camera_model="FISHEYE")
-    assert main(["reference", "office0", "--out", str(tmp_path / "o")]) == 1
+    assert main(["reference", "office0", "--out", str(tmp_path / "o")]) == 2  # refused before COLMAP
     assert "simulated sequence" in capsys.readouterr().err
