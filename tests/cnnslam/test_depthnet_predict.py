@@ -126,7 +126,8 @@ def test_shipped_manifest_fields() -> None:
 def test_shipped_weights_predict_depth_and_labels_of_an_unseen_test_room() -> None:
     """The shipped network on frames of office0 (a room style, scene and camera it never saw): loose bounds well
     inside what results/depthnet.md reports over 360 frames, far outside what untrained or broken weights give."""
-    pytest.importorskip("mujoco")
+    pytest.importorskip("mujoco", reason="mujoco is not installed (a core dependency: pip install -c "
+                                         "constraints.txt -e '.[dev]')")
     from sim_envs.sequences import get_sequence
     from sim_envs.simsource import SimulatedSequence
 

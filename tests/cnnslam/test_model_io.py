@@ -44,7 +44,8 @@ def test_ply_round_trip_with_our_reader(tmp_path):
 
 
 def test_ply_is_read_by_trimesh(tmp_path):
-    trimesh = pytest.importorskip("trimesh")
+    trimesh = pytest.importorskip("trimesh", reason="trimesh is not installed (a core dependency: "
+                                                    "pip install -c constraints.txt -e '.[dev]')")
     cloud = _cloud(200, seed=1)
     loaded = trimesh.load(write_ply(tmp_path / "m.ply", cloud))
     assert isinstance(loaded, trimesh.PointCloud)

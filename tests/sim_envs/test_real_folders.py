@@ -35,9 +35,6 @@ from sim_envs.formats import read_tum_image_list, read_tum_trajectory
 from sim_envs.frames import Frame
 from sim_envs.simsource import FrameListSource
 
-REAL_DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"  # ../shared/data/real
-REDKITCHEN = REAL_DATA / "7scenes_redkitchen"
-
 
 def look(position, yaw_deg, pitch_deg):
     """T_world_cam of an OpenCV camera at ``position`` looking along yaw/pitch, world z up."""
@@ -356,21 +353,21 @@ def test_a_seven_scenes_folder_gets_its_colour_camera_poses(tmp_path):
 
 
 # ----------------------------------------------------------------------------------------- the real 7-Scenes data
-@pytest.mark.skipif(not REDKITCHEN.is_dir(), reason="../shared/data/real/7scenes_redkitchen is not here")
-def test_the_shared_7scenes_redkitchen_folder():
-    folder = load_rgbd_folder(REDKITCHEN)
+def test_the_shared_7scenes_redkitchen_folder(shared_data):
+    redkitchen = shared_data("data/real/7scenes_redkitchen", "rgb.txt", "groundtruth.txt")
+    folder = load_rgbd_folder(redkitchen)
     assert folder.layout == "7scenes_split" and len(folder) == 1000 and folder.original_size == (640, 480)
     assert folder.depth_scale == 1000.0 and folder.camera_source == SEVEN_SCENES_COLOUR_SOURCE
     K = folder.intrinsics  # the colour camera's 525 px, not camera-intrinsics.txt's 585 (the depth camera's)
     assert (K.width, K.height, K.fx, K.fy, K.cx, K.cy) == (320, 240, 262.5, 262.5, 159.75, 119.75)
     assert folder.depth_rig.depth_intrinsics.fx == 585.0 and "camera-intrinsics.txt" in folder.depth_rig.source
-    stamps, _ = read_tum_image_list(REDKITCHEN / "rgb.txt")
+    stamps, _ = read_tum_image_list(redkitchen / "rgb.txt")
     np.testing.assert_allclose(folder.timestamps, stamps, atol=1e-6)
-    gt_t, gt_T = read_tum_trajectory(REDKITCHEN / "groundtruth.txt")  # the depth camera's poses
+    gt_t, gt_T = read_tum_trajectory(redkitchen / "groundtruth.txt")  # the depth camera's poses
     np.testing.assert_allclose(folder.poses, gt_T @ np.linalg.inv(SEVEN_SCENES_T_COLOUR_DEPTH), atol=1e-4)
-    as_given = RgbdFolder(REDKITCHEN, camera="7scenes", size=(320, 240))  # a camera given: depth as the files have it
+    as_given = RgbdFolder(redkitchen, camera="7scenes", size=(320, 240))  # a camera given: depth as the files have it
     np.testing.assert_allclose(as_given.poses, gt_T, atol=1e-4)  # the index files were made from the same matrices
-    raw = cv2.imread(str(REDKITCHEN / "depth" / "frame-000500.depth.png"), cv2.IMREAD_UNCHANGED)
+    raw = cv2.imread(str(redkitchen / "depth" / "frame-000500.depth.png"), cv2.IMREAD_UNCHANGED)
     expected = raw[1::2, 1::2].astype(np.float32) / 1000.0
     expected[raw[1::2, 1::2] == 65535] = 0.0
     np.testing.assert_allclose(as_given.frame(500).depth, expected)
@@ -381,4 +378,4 @@ def test_the_shared_7scenes_redkitchen_folder():
                depth_edge_alignment(as_given.frame(i).rgb, as_given.frame(i).depth)) for i in (0, 500, 999)]
     assert all(registered > given + 0.2 for registered, given in scores), scores
     assert frame.rgb.shape == (240, 320, 3) and 0 < frame.depth.max() <= 3.975
-    assert folder_fingerprint(REDKITCHEN)["files"] >= 3000
+    assert folder_fingerprint(redkitchen)["files"] >= 3000

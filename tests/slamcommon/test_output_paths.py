@@ -35,7 +35,8 @@ def test_a_path_that_cannot_be_written_is_named_in_one_line(tmp_path, check, whe
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "folder"]
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root writes into a read-only folder")
+@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="needs a POSIX user other than root (root "
+                    "writes into a read-only folder): run the tests as a normal user")
 def test_a_read_only_folder_is_refused(tmp_path):
     ro = tmp_path / "ro"
     ro.mkdir()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("pycolmap") is None,
-                                reason="pycolmap is not installed (pip install -e '.[sfm]')")
+                                reason="pycolmap is not installed (pip install -c constraints.txt -e '.[sfm]')")
 
 
 def test_unregistered_frames_take_the_nearest_registered_pose_untracked():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("pyorbslam3") is None,
-                                reason="pyorbslam3 is not installed (pip install -e '.[orbslam3]')")
+                                reason="pyorbslam3 is not installed (pip install -c constraints.txt -e '.[orbslam3]')")
 
 
 def test_settings_file_is_the_episode_camera():

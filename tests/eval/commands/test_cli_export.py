@@ -7,6 +7,8 @@ from sim_envs.camera import preset
 from sim_envs.datasets import RgbdFolder
 from sim_envs.frames import Frame
 
+NO_WORLD = "sim_envs.sequences cannot be imported (core dependencies: pip install -c constraints.txt -e '.[dev]')"
+
 
 class TinySource:
     """A 4-frame source of random images (the exporter needs nothing else)."""
@@ -48,19 +50,19 @@ def test_export_command_writes_a_loadable_folder(tmp_path, monkeypatch, capsys):
 
 
 def test_export_command_unknown_sequence(tmp_path, capsys):
-    pytest.importorskip("sim_envs.sequences")
+    pytest.importorskip("sim_envs.sequences", reason=NO_WORLD)
     assert main(["export", "no-such-sequence", str(tmp_path / "x"), "--no-progress"]) == 2
     assert "no-such-sequence" in capsys.readouterr().err
 
 
 def test_export_command_unknown_camera_effects(tmp_path, capsys):
-    pytest.importorskip("sim_envs.sequences")
+    pytest.importorskip("sim_envs.sequences", reason=NO_WORLD)
     assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 2
     assert "clean, hard, kinect" in capsys.readouterr().err
 
 
 def test_export_command_lighting(tmp_path, capsys):
-    pytest.importorskip("sim_envs.sequences")
+    pytest.importorskip("sim_envs.sequences", reason=NO_WORLD)
     assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--lighting", "dim"]) == 2
     assert "lighting must be one of flat, lit" in capsys.readouterr().err
     assert main(["export", "office0", str(tmp_path / "y"), "--no-progress", "--lighting", "lit", "--renderer",

@@ -85,7 +85,8 @@ def test_rotation_angle_ratio_of_a_camera_that_turns_nine_tenths_as_far():
 
 
 # ------------------------------------------------------------------------------- a rendered camera, end to end
-pycolmap = pytest.importorskip("pycolmap")
+pycolmap = pytest.importorskip("pycolmap", reason="pycolmap is not installed (the sfm extra: pip install -c "
+                               "constraints.txt -e '.[sfm]')")
 LENS = (0.12, -0.08, 0.0, 0.0, 0.0)  # a Kinect-like barrel lens COLMAP's RADIAL model can express
 
 
