@@ -233,7 +233,8 @@ def run_fuzz(
 @pytest.fixture
 def fuzz_reader() -> Callable[..., FuzzReport]:
     """:func:`run_fuzz`, for the ``test_*_fuzz.py`` files (skipped where hypothesis is not installed)."""
-    pytest.importorskip("hypothesis")
+    pytest.importorskip("hypothesis", reason="hypothesis is not installed (pip install -c constraints.txt -e "
+                                             "'.[test]')")
     return run_fuzz
 
 

@@ -32,7 +32,7 @@ from eval.bench.runner import run_suite
 from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import get_suite
 
-linux_only = pytest.mark.skipif(sys.platform != "linux", reason="reads worker processes from /proc")
+linux_only = pytest.mark.skipif(sys.platform != "linux", reason="Linux only: reads worker processes from /proc")
 
 
 def results(executor, fn, items):
@@ -141,7 +141,7 @@ def test_a_dead_worker_fails_its_run_only(tmp_path, monkeypatch):
 @linux_only
 def test_ctrl_c_kills_the_workers_at_once(nap_work):
     if threading.current_thread() is not threading.main_thread():
-        pytest.skip("SIGINT raises KeyboardInterrupt in the main thread only")
+        pytest.skip("SIGINT raises KeyboardInterrupt in the main thread only: run pytest in its main thread")
     parent = os.getpid()
     workers: set[int] = set()
     sent: list[float] = []
@@ -341,7 +341,7 @@ def test_ray_runs_the_same_runs_as_the_local_executors(tmp_path):
     if os.environ.get("CI"):  # make test installs Ray (the dev extra): CI must not skip the distributed path
         import ray
     else:
-        ray = pytest.importorskip("ray")
+        ray = pytest.importorskip("ray", reason="ray is not installed (pip install -c constraints.txt -e '.[ray]')")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         items = [25.0, -1.0, 2.0]
