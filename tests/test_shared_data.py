@@ -1,6 +1,6 @@
 """The test machinery's shared data (tests/conftest.py): found from the repository or $CNNSLAM_SHARED, a test skipped
-with what is missing where it is absent; and tests/reference_facts.toml, the reference figures the tests assert,
-the same as the notes they were copied from."""
+with what is missing where it is absent; and tests/reference_facts.toml, the reference figures the tests assert: the
+same as the notes they were copied from, and as the constants the code holds (camera presets, the paper's Table 1)."""
 
 from __future__ import annotations
 
@@ -50,3 +50,37 @@ def test_the_reference_facts_are_the_notes_figures(shared_data, reference_facts)
         assert cells == [str(case["pairs"]), rmse["tum"]["se3"], f"{rmse['tum']['sim3']} ({case['scale']})",
                          rmse["nearest"]["se3"], rmse["nearest"]["sim3"]]  # fmt: skip
     assert "association tolerance 0.02 s" in notes
+    for name, row in (("icl", "| ICL-NUIM |"), ("tum_fr1", "| TUM fr1 RGB |"), ("tum_fr2", "| TUM fr2 RGB |"),
+                      ("tum_fr3", "| TUM fr3 RGB |"), ("tum_default", "| TUM default"), ("nyu", "| NYU Depth v2")):
+        camera = reference_facts["cameras"][name]
+        line = next(line for line in notes.splitlines() if line.startswith(row))
+        cells = [cell.strip() for cell in line.strip("|").split("|")]
+        assert [float(c) for c in cells[1:5]] == [camera[k] for k in ("fx", "fy", "cx", "cy")], name
+        if "distortion" in camera:
+            assert cells[6] == "distortion " + " ".join(f"{v:.4f}" for v in camera["distortion"]), name
+    table1 = reference_facts["table1"]
+    for method, row in (("CNN-SLAM", "| CNN-SLAM"), ("LSD-BS", "| LSD-SLAM with"), ("LSD", "| LSD-SLAM |"),
+                        ("ORB", "| ORB-SLAM"), ("Laina", "| Laina"), ("REMODE", "| REMODE")):
+        line = next(line for line in notes.splitlines() if line.startswith(row))
+        ate, depth = (cell.strip() for cell in line.strip("|").split("|")[1:3])
+        assert ate == (f"{table1['ate_m'][method]:.3f}" if method in table1["ate_m"] else "-"), method
+        assert depth == f"{table1['correct_depth_percent'][method]:.3f}", method
+    fcrn = reference_facts["fcrn"]
+    assert f"{fcrn['parameters_millions']} M parameters" in notes
+    assert f"rel {fcrn['nyu_v2_rel']}, rms {fcrn['nyu_v2_rms_m']} m" in notes
+
+
+def test_the_code_holds_the_reference_cameras_and_the_papers_averages(reference_facts):
+    from eval.reports.paper_table1 import PAPER_AVG_ATE, PAPER_AVG_CORRECT_DEPTH
+    from sim_envs.camera import preset, preset_distortion
+
+    for name, camera in reference_facts["cameras"].items():
+        if name == "source":
+            continue
+        k = preset(name, 640, 480)
+        fy = abs(camera["fy"])  # ICL-NUIM's official fy is negative (y flipped); OpenCV's y-down convention: +
+        assert (k.fx, k.fy, k.cx, k.cy) == (camera["fx"], fy, camera["cx"], camera["cy"]), name
+        assert preset_distortion(name) == tuple(camera.get("distortion", (0.0,) * 5)), name
+    table1 = reference_facts["table1"]
+    assert {m: v for m, v in PAPER_AVG_ATE.items() if v == v} == table1["ate_m"]  # REMODE's NaN: no ATE
+    assert PAPER_AVG_CORRECT_DEPTH == table1["correct_depth_percent"]
