@@ -130,7 +130,7 @@ def _avg_table(report: Path, long_csv: Path, sections: Sequence[tuple[str, str]]
     for label, table in tables:
         avg = {_method(h): cell for h, cell in table.row("Avg.").items()}
         lines.append(f"| {label} | " + " | ".join(avg.get(m, "-") for m in methods) + " |")
-    lines += ["", _made_at(long_csv, root) + "."]
+    lines += ["", _made_at(long_csv, root) + "."]  # a blank line ends the table
     return "\n".join(lines)
 
 
@@ -152,8 +152,7 @@ def block_bench(root: Path) -> str:
 
 REAL_COLUMNS = (("Abs. Trajectory Error [m]", "ATE, SE(3) [m]"),
                 ("ATE after Sim(3) alignment [m]", "ATE, Sim(3) [m]"),
-                ("Perc. Correct Depth [%]", "Correct depth [%]"),
-                ("Tracked share", "Tracked share"))  # fmt: skip
+                ("Perc. Correct Depth [%]", "Correct depth [%]"))  # fmt: skip
 
 
 def block_real(root: Path) -> str:
@@ -170,7 +169,7 @@ def block_real(root: Path) -> str:
     lines = []
     for folder in folders:
         row = table.row(folder)
-        lines += [f"**{folder}**:", "", "| | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
+        lines += [f"| **{folder}** | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
         for column, label in REAL_COLUMNS:
             lines.append(f"| {label} | " + " | ".join(row.get(f"{column}: {m}", "-") for m in methods) + " |")
         lines.append("")
