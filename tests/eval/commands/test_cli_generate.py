@@ -45,13 +45,54 @@ def test_a_generated_length_is_a_prefix_of_the_registered_sequence():
 
 
 def test_bad_arguments(capsys):
-    with pytest.raises(SystemExit):
-        main(["generate", "rotation", "--speeds", "fast"])
+    assert main(["generate", "rotation", "--speeds", "fast"]) == 2
     assert "comma-separated numbers" in capsys.readouterr().err
-    assert main(["generate", "rotation", "--axes", "sideways"]) == 1
+    assert main(["generate", "rotation", "--axes", "sideways"]) == 2
     assert "bad rotation axes" in capsys.readouterr().err
-    with pytest.raises(EvalError, match="frames must be >= 2"):
+    with pytest.raises(EvalError, match="--frames 1: must be >= 2"):
         rotation_refs(["yaw"], [30.0], 1)
+
+
+def _refuse_writes(*args, **kwargs):
+    raise PermissionError(13, "Permission denied")
+
+
+@pytest.mark.parametrize(("options", "named", "valid"), [
+    (["--frames", "0"], "--frames 0", "must be >= 2"),
+    (["--frames", "-5"], "--frames -5", "must be >= 2"),
+    (["--axes", "sideways"], "--axes 'sideways': bad rotation axes 'sideways'", "yaw, pitch, roll"),
+    (["--axes", ","], "--axes ','", "no axes; give e.g. yaw"),
+    (["--axes", "rpy,yaw+pitch+roll", "--speeds", "15"], "give rot_rpy_15@kinect more than once", "once"),
+    (["--speeds", "0"], "--speeds '0'", "positive numbers of deg/s"),
+    (["--speeds", "fast"], "--speeds 'fast'", "comma-separated numbers of deg/s"),
+    (["--speeds", "15,15"], "--speeds '15,15'", "given twice"),
+    (["--export", "{tmp}/file"], "--export {tmp}/file: a file, not a folder", "name a folder"),
+    (["--export", "{tmp}/file/sub"], "--export {tmp}/file/sub: {tmp}/file is a file", "under a folder"),
+    (["--export", "READ_ONLY"], "--export {tmp}/new: cannot write in", "Permission denied"),
+    (["--export", "{tmp}/full", "--axes", "yaw", "--speeds", "15"],
+     "--export {tmp}/full: {tmp}/full/rot_yaw_15@kinect exists and is not empty", "--overwrite"),
+])
+def test_bad_arguments_exit_2_in_one_line_before_anything_renders(tmp_path, monkeypatch, capsys, options, named,
+                                                                   valid):
+    """Bad frames, axes (unknown, none, one sequence twice), speeds (not numbers, not positive, repeated), an
+    --export that cannot be written or holds a non-empty sequence folder: exit 2 and one line, nothing rendered
+    (not even the table's header) and nothing written."""
+    import slamcommon.output_paths as output_paths
+
+    if "READ_ONLY" in options:  # as the check sees a folder it may not write (root may write anywhere)
+        monkeypatch.setattr(output_paths.tempfile, "NamedTemporaryFile", _refuse_writes)
+        options = [o.replace("READ_ONLY", "{tmp}/new") for o in options]
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "full" / "rot_yaw_15@kinect").mkdir(parents=True)
+    (tmp_path / "full" / "rot_yaw_15@kinect" / "kept").write_text("x")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    options = [o.replace("{tmp}", str(tmp_path)) for o in options]
+    assert main(["generate", "rotation", "--no-progress", *options]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cnnslam generate: error: "), captured.err
+    assert named.replace("{tmp}", str(tmp_path)) in lines[0] and valid in lines[0] and captured.out == ""
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
 
 
 def test_generated_sequences_take_the_suites_camera_and_names():
