@@ -13,7 +13,9 @@ Run folder ``OUT/<suite>/<sequence>/<method>/seed<seed>-frames<N>/`` (:data:`RUN
   (suite, seed, frames, entry point and keyword arguments, environment id, sequence definition, git revision,
   fingerprint). Deterministic: the same run gives the same bytes (wall-clock figures are kept out of it);
 - ``timing.json``: what the run used (:data:`eval.metrics.results.RESOURCE_FIGURES`: wall time, frames per second
-  end to end and of the agent's step, peak resident memory of the run's process), its process's CPU time
+  end to end and of the agent's step, peak resident memory of the run's process; an external system's wall time and
+  frames per second are its own, from its ``run.toml``, or absent without one, and the judge's seconds
+  ``scoring_wall_s``), its process's CPU time
   (``cpu_s``), per-frame step times, ``stages`` (where the run's wall seconds went, :data:`STAGES`; read by
   :mod:`eval.bench.profile`), ``frame_reads`` / ``frame_renders`` (frames read from the frame cache / rendered),
   ``unit_cpu_s`` / ``frames_per_unit`` (the machine unit timed around the run in the thread's CPU seconds,
@@ -307,6 +309,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         if cpu_start is not None:  # CPU seconds of the run's process, all its threads: what a loaded machine's wall
             timing["cpu_s"] = time.process_time() - cpu_start  # time hides
         stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
+        if method.kind == "external":
+            _external_speed(timing, n_frames)
         timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
         timing.update(reads)
         # the run's speed in machine units (slamcommon.machine_unit, timed here just before and just after it, in this
@@ -320,6 +324,18 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         timing["environment"] = machine_description()  # which CPU and versions made these bytes
         write_json(folder / TIMING_FILE, timing)
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def _external_speed(timing: dict[str, Any], frames: int) -> None:
+    """An external system's speed is its own: ``wall_s`` and ``fps_end_to_end`` (what the speed tables show) become
+    its ``run.toml``'s ``wall_s`` (``method_wall_s``) and frames / that, or are left out when it declares none (the
+    judge only read and scored its output); the judge's own seconds stay as ``scoring_wall_s``."""
+    timing["scoring_wall_s"] = timing.pop("wall_s")
+    timing.pop("fps_end_to_end", None)
+    own = timing.get("method_wall_s")
+    if own is not None:
+        timing["wall_s"] = float(own)
+        timing["fps_end_to_end"] = frames / own if own > 0 else math.nan
 
 
 def resource_figures(frames: int, wall_s: float) -> dict[str, float]:
@@ -456,11 +472,11 @@ def _declared_wall_s(path: Path) -> float | None:
     if not path.is_file():
         return None
     try:
-        value = tomllib.loads(path.read_text()).get("wall_s")
-    except tomllib.TOMLDecodeError as exc:
+        value = tomllib.loads(path.read_text(encoding="utf-8")).get("wall_s")
+    except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise RunnerError(f"{path}: not valid TOML: {exc}") from exc
-    if not isinstance(value, int | float) or isinstance(value, bool) or not value >= 0:
-        raise RunnerError(f"{path}: wall_s must be a number of seconds >= 0, got {value!r}")
+    if not isinstance(value, int | float) or isinstance(value, bool) or not 0 <= value < math.inf:
+        raise RunnerError(f"{path}: wall_s must be a finite number of seconds >= 0, got {value!r}")
     return float(value)
 
 

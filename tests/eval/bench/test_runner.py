@@ -193,10 +193,16 @@ def test_an_external_systems_output_is_scored_like_an_agent(tmp_path):
     record = json.loads(result.files["metrics.json"])
     assert record["association"]["rule"] == "tum"  # matched by timestamp, and recorded so
     assert record["sensor"] == "rgbd" and record["uses_ground_truth"] and record["ground_truth_used"] == ["depth"]
-    assert json.loads(result.files["timing.json"])["method_wall_s"] == 12.5  # its own run time, beside ours
+    timing = json.loads(result.files["timing.json"])
+    assert timing["method_wall_s"] == 12.5  # its own run time: the speed tables' wall time and frames per second
+    assert timing["wall_s"] == 12.5 and timing["fps_end_to_end"] == pytest.approx(10 / 12.5)
+    assert timing["scoring_wall_s"] > 0  # the judge's own seconds, apart
     m = record["metrics"]
     assert m["frames"] == 10 and m["ate_pairs"] == 5 and m["tracked_share"] == 0.5
     assert m["ate_rmse"] < 1e-6 and m["depth_keyframes"] == 1 and m["depth_percent_correct"] > 99.9
+    (out / "run.toml").unlink()  # no declared run time: no speed figures, never the judge's time in their place
+    timing = json.loads(execute_run(spec_of(method, frames=10, sequence=ref)).files["timing.json"])
+    assert "wall_s" not in timing and "fps_end_to_end" not in timing and timing["scoring_wall_s"] > 0
     missing = execute_run(spec_of(method, frames=10))  # no output for office0
     assert missing.status == "failed" and "no trajectory for 'office0'" in missing.error
 
