@@ -1,26 +1,18 @@
 """A simulated camera that behaves like a real one: response curve, vignetting, auto-exposure, linear-domain noise,
 motion blur over the exposure, rolling shutter, lens distortion, 8-bit quantisation, and Kinect-like depth noise.
 
-Everything a camera does is in one frozen dataclass, :class:`CameraEffects`, every part switchable; named presets
-(:func:`camera_effect_presets`, :func:`camera_effects_preset`): ``clean`` (the renderer's image as it is), ``kinect``
-(a TUM / ICL-NUIM-like hand-held RGB-D camera) and ``hard`` (low light, strong blur, long rolling-shutter readout,
-fast exposure changes, TUM fr1 lens distortion).
+The camera is a chain of stages, one class per effect (:mod:`sim_envs.camera_stages`, whose docstring gives the order
+of image formation); :class:`CameraEffects` is the frozen configuration of one camera, made from an ordered list of
+stages (:meth:`CameraEffects.from_stages`), every part switchable. Named presets (:func:`camera_effect_presets`,
+:func:`camera_effects_preset`, :data:`sim_envs.camera_stages.PRESET_STAGES`): ``clean`` (the renderer's image as it
+is), ``kinect`` (a TUM / ICL-NUIM-like hand-held RGB-D camera) and ``hard`` (low light, strong blur, long
+rolling-shutter readout, fast exposure changes, TUM fr1 lens distortion); one effect alone at a strength,
+``"<effect>:<s>"`` (:func:`single_effect`, :data:`SINGLE_EFFECTS`: the stage classes that name an ``effect``).
 
-Image formation of one frame (:func:`sensor_image`), in this order:
-
-1. the renderer's uint8 RGB is read as sRGB-encoded scene radiance and decoded to linear values in [0, 1]
-   (:func:`srgb_to_linear`); renders are made at the sub-frame times of :func:`subframe_times`;
-2. lens distortion (OpenCV radial-tangential, ``distortion``) resamples each linear render onto the sensor grid with
-   ``cv2.remap`` (:func:`distortion_maps`; pixels seeing rays outside the pinhole render are 0);
-3. motion blur and rolling shutter: sensor row r integrates a box of width ``exposure_s`` centred on
-   ``t + readout_s * (r / (H - 1) - 1/2)`` (the middle row is exposed around the frame's timestamp, whose pose is the
-   ground truth); the box is integrated over the renders by linear interpolation in time (:func:`row_weights`);
-4. vignetting (a radial fall-off ``V``, :func:`vignette`), scene light, exposure: the sensor signal is
-   ``x = L * V * scene_light * exposure_s / reference_exposure_s`` (at the reference exposure, full light and no
-   vignetting a pixel gets the renderer's value back);
-5. shot and read noise in the linear domain (ICL-NUIM model: std ``sqrt(x) * shot_noise`` and ``read_noise`` per
-   channel), then the analogue gain;
-6. the camera response function ``f`` (:func:`apply_response`), then 8-bit quantisation.
+:func:`sensor_image` forms one frame: the renders at the sub-frame times, each warped by the stages' ``warp`` hooks
+(the lens), combined over the rows' exposure windows (blur, rolling shutter), then the linear signal through the
+stages' ``signal`` hooks (exposure, vignetting, saturation, noise, gain), the response and 8-bit quantisation, and the
+``encoded`` hooks.
 
 Auto-exposure (:func:`auto_exposure`) is a first-order controller on the mean linear brightness of the previous
 frames, so exposure lags behind changes of scene brightness; frame i's exposure depends on the brightness of
@@ -38,31 +30,54 @@ right, y down, z forward; poses ``T_world_cam``; times in seconds.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
-from typing import Any, Literal
+from typing import Any
 
 import cv2
 import numpy as np
 
-from sim_envs.camera import NO_DISTORTION, CameraModel, Intrinsics, pinhole_maps, preset_distortion
+from sim_envs.camera import CameraModel, Intrinsics, pinhole_maps
+from sim_envs.camera_sensor import (  # noqa: F401  (re-exported: the camera's public names live here)
+    FPS_NOMINAL,
+    ICL_READ_NOISE,
+    ICL_SHOT_NOISE,
+    KINECT_BASELINE_M,
+    KINECT_FOCAL_PX,
+    KINECT_SHIFT_STD_PX,
+    KINECT_SUBPIXEL,
+    decode_render,
+    distortion_maps,
+    kinect_depth,
+    linear_to_srgb,
+    row_times,
+    row_weights,
+    srgb_to_linear,
+    vignette,
+)
+from sim_envs.camera_stages import (  # noqa: F401  (re-exported)
+    BUILTIN_STAGES,
+    PRESET_STAGES,
+    RESPONSES,
+    SINGLE_EFFECTS,
+    AutoExposure,
+    CameraStage,
+    Distortion,
+    Exposure,
+    FrameContext,
+    FullWell,
+    MotionBlur,
+    Noise,
+    ResponseCurve,
+    RollingShutter,
+    SensorDepth,
+    Vignetting,
+    effect_stage,
+)
+from sim_envs.camera_stages import Response as ResponseStage
 from sim_envs.errors import SimEnvError, UnknownNameError
 
-Response = Literal["srgb", "gamma"]
-RESPONSES: tuple[str, ...] = ("srgb", "gamma")
-FPS_NOMINAL: float = 30.0  # Kinect v1 / TUM RGB-D / ICL-NUIM frame rate
-
-# ICL-NUIM RGB noise as reimplemented in ShudaLi/rgbd_simulation (../shared/notes/real-cameras.md, section 4):
-# per channel (R, G, B), on linear intensities in [0, 1].
-ICL_SHOT_NOISE: tuple[float, float, float] = (0.0104, 0.0066, 0.0106)
-ICL_READ_NOISE: tuple[float, float, float] = (0.0045, 0.0038, 0.0050)
-# simkinect (ankurhanda/simkinect, part of ICL-NUIM): the Kinect's IR camera focal length, projector baseline,
-# disparity quantisation and lateral jitter.
-KINECT_FOCAL_PX: float = 480.0
-KINECT_BASELINE_M: float = 0.075
-KINECT_SUBPIXEL: float = 8.0  # disparity quantised to 1/8 px
-KINECT_SHIFT_STD_PX: float = 0.5
+Response = ResponseCurve  # the response kinds ("srgb", "gamma"), as the fields name them
 
 
 @dataclass(frozen=True)
@@ -108,80 +123,85 @@ class CameraEffects:
     Depth:
     depth_noise: whether frames carry a Kinect-like sensor depth (:func:`kinect_depth`) besides the exact ground
     truth (which stays untouched).
+
+    Each group of fields is one stage's parameters (:data:`sim_envs.camera_stages.BUILTIN_STAGES`, which check
+    them); extra_stages: the camera's other stages (classes of :mod:`sim_envs.camera_stages` without fields here), run
+    in chain order with the built-in ones (:attr:`stages`).
     """
 
     name: str = "custom"
-    response: Response = "srgb"
-    response_gamma: float = 2.2
-    vignette_corner: float = 1.0
-    scene_light: float = 1.0
-    reference_exposure_s: float = 1.0 / 60.0
-    exposure_s: float = 1.0 / 60.0
+    response: ResponseCurve = ResponseStage.response
+    response_gamma: float = ResponseStage.response_gamma
+    vignette_corner: float = Vignetting.vignette_corner
+    scene_light: float = Exposure.scene_light
+    reference_exposure_s: float = Exposure.reference_exposure_s
+    exposure_s: float = Exposure.exposure_s
     auto_exposure: bool = False
-    ae_target: float = 0.18
-    ae_rate: float = 0.25
-    ae_min_s: float = 1e-4
-    ae_max_s: float = 1.0 / FPS_NOMINAL
-    max_gain: float = 1.0
-    exposure_jitter: float = 0.0
-    shot_noise: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    read_noise: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    sensor_width: int | None = None
-    blur_subframes: int = 1
-    readout_s: float = 0.0
-    distortion: tuple[float, float, float, float, float] = field(default=NO_DISTORTION)
+    ae_target: float = AutoExposure.ae_target
+    ae_rate: float = AutoExposure.ae_rate
+    ae_min_s: float = AutoExposure.ae_min_s
+    ae_max_s: float = AutoExposure.ae_max_s
+    max_gain: float = AutoExposure.max_gain
+    exposure_jitter: float = AutoExposure.exposure_jitter
+    shot_noise: tuple[float, float, float] = Noise.shot_noise
+    read_noise: tuple[float, float, float] = Noise.read_noise
+    sensor_width: int | None = Noise.sensor_width
+    blur_subframes: int = MotionBlur.blur_subframes
+    readout_s: float = RollingShutter.readout_s
+    distortion: tuple[float, float, float, float, float] = Distortion.distortion
     depth_noise: bool = False
+    extra_stages: tuple[CameraStage, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        for key in ("shot_noise", "read_noise"):
-            value = tuple(float(v) for v in getattr(self, key))
-            if len(value) != 3 or not all(np.isfinite(v) and v >= 0 for v in value):
-                raise SimEnvError(f"{key} must be 3 numbers >= 0 (R, G, B), got {getattr(self, key)!r}")
-            object.__setattr__(self, key, value)
-        object.__setattr__(self, "distortion", CameraModel(Intrinsics(1, 1, 0, 0, 1, 1), self.distortion).distortion)
-        if self.response not in RESPONSES:
-            raise UnknownNameError(f"unknown response {self.response!r}; valid: {', '.join(RESPONSES)}")
-        positive = ("response_gamma", "scene_light", "reference_exposure_s", "ae_target", "ae_min_s", "ae_max_s")
-        for key in positive:
-            if not (np.isfinite(getattr(self, key)) and getattr(self, key) > 0):
-                raise SimEnvError(f"{key} must be a number > 0, got {getattr(self, key)!r}")
-        if not 0 < self.vignette_corner <= 1:
-            raise SimEnvError(f"vignette_corner must be in (0, 1] (1 = no vignetting), got {self.vignette_corner}")
-        if not (np.isfinite(self.exposure_s) and self.exposure_s >= 0):
-            raise SimEnvError(f"exposure_s must be >= 0 seconds, got {self.exposure_s}")
-        if not 0 < self.ae_rate <= 1:
-            raise SimEnvError(f"ae_rate must be in (0, 1], got {self.ae_rate}")
-        if self.ae_min_s > self.ae_max_s:
-            raise SimEnvError(f"ae_min_s ({self.ae_min_s}) must not exceed ae_max_s ({self.ae_max_s})")
-        if not (np.isfinite(self.max_gain) and self.max_gain >= 1):
-            raise SimEnvError(f"max_gain must be >= 1, got {self.max_gain}")
-        if not (np.isfinite(self.exposure_jitter) and self.exposure_jitter >= 0):
-            raise SimEnvError(f"exposure_jitter must be >= 0, got {self.exposure_jitter}")
-        if self.sensor_width is not None and int(self.sensor_width) < 1:
-            raise SimEnvError(f"sensor_width must be a positive number of pixels or None, got {self.sensor_width}")
-        if int(self.blur_subframes) != self.blur_subframes or self.blur_subframes < 1:
-            raise SimEnvError(f"blur_subframes must be an integer >= 1 (1 = one render), got {self.blur_subframes}")
-        if not (np.isfinite(self.readout_s) and self.readout_s >= 0):
-            raise SimEnvError(f"readout_s must be >= 0 seconds, got {self.readout_s}")
+        chain: list[CameraStage] = []
+        for cls in BUILTIN_STAGES:  # each stage checks and normalises its own parameters
+            stage = cls(**{f.name: getattr(self, f.name) for f in dataclasses.fields(cls)})  # type: ignore[call-arg]
+            for key, value in stage.params().items():
+                object.__setattr__(self, key, value)
+            chain.append(stage)
+        extra = tuple(self.extra_stages)
+        for stage in extra:
+            if not isinstance(stage, CameraStage) or type(stage) in BUILTIN_STAGES:
+                raise SimEnvError(f"extra_stages takes camera stages other than the built-in ones "
+                                  f"({', '.join(c.__name__ for c in BUILTIN_STAGES)}), got {stage!r}")  # fmt: skip
+        object.__setattr__(self, "extra_stages", extra)
+        object.__setattr__(self, "_chain", tuple(sorted(chain + list(extra), key=lambda s: s.order)))
+
+    @classmethod
+    def from_stages(cls, name: str, stages: Iterable[CameraStage]) -> CameraEffects:
+        """The camera named ``name`` made of ``stages`` (each class at most once; the built-in ones not given keep
+        their neutral defaults). :class:`SimEnvError` for a stage given twice."""
+        values: dict[str, Any] = {}
+        extra: list[CameraStage] = []
+        seen: set[type] = set()
+        for stage in stages:
+            if type(stage) in seen:
+                raise SimEnvError(f"camera {name!r}: stage {type(stage).__name__} given twice")
+            seen.add(type(stage))
+            if type(stage) in BUILTIN_STAGES:
+                values.update(stage.params())
+            else:
+                extra.append(stage)
+        return cls(name=name, extra_stages=tuple(extra), **values)
+
+    @property
+    def stages(self) -> tuple[CameraStage, ...]:
+        """The camera's chain: every built-in stage (neutral ones included) and the extra stages, in chain order."""
+        return self._chain  # type: ignore[attr-defined, no-any-return]
+
+    def stage(self, cls: type[Any]) -> Any:
+        """The camera's stage of class ``cls`` (None if it has none)."""
+        return next((s for s in self.stages if type(s) is cls), None)
 
     @property
     def any(self) -> bool:
         """Whether this camera changes the renderer's image at all (False: the clean camera, same bytes)."""
-        return self.photometric or self.blur_subframes > 1 or any(c != 0.0 for c in self.distortion)
+        return any(s.changes_image for s in self.stages)
 
     @property
     def photometric(self) -> bool:
         """Whether the pixel values go through exposure, vignetting, noise or a non-neutral response."""
-        return (
-            self.response != "srgb"
-            or self.vignette_corner != 1.0
-            or self.scene_light != 1.0
-            or self.auto_exposure
-            or self.exposure_jitter > 0
-            or self.exposure_s != self.reference_exposure_s
-            or any(self.shot_noise)
-            or any(self.read_noise)
-        )
+        return any(s.changes_image for s in self.stages if s.photometric)
 
     @property
     def distorted(self) -> bool:
@@ -189,8 +209,13 @@ class CameraEffects:
         return any(c != 0.0 for c in self.distortion)
 
     def describe(self) -> dict[str, Any]:
-        """JSON-ready parameters (lists for tuples), e.g. for run records and fingerprints."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+        """JSON-ready parameters (lists for tuples), e.g. for run records and fingerprints; ``extra_stages`` (each
+        stage's :meth:`~sim_envs.camera_stages.CameraStage.describe`) only when there are some."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "extra_stages"}
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        if self.extra_stages:
+            out["extra_stages"] = [s.describe() for s in self.extra_stages]
+        return out
 
 
 # --------------------------------------------------------------------------------------------------------- presets
@@ -198,65 +223,8 @@ class CameraEffects:
 # export, train validate): a hand-held RGB-D camera calibrated on real Kinect frames (results/camera_calibration.md).
 DEFAULT_CAMERA_EFFECTS = "kinect"
 
-_PRESETS: dict[str, CameraEffects] = {
-    # The renderer's image, byte for byte (what every sequence gave before camera effects existed).
-    "clean": CameraEffects(name="clean"),
-    # A TUM / ICL-NUIM-like hand-held RGB-D camera (Kinect v1 class). Sources: noise, ICL-NUIM (real-cameras.md 4),
-    # for a 640-px-wide sensor (ICL-NUIM's and the Kinect's resolution; at 320x240 it is the 2x2 area average, as
-    # real frames are when loaded); shutter open about half the frame interval at 30 fps as the reference exposure
-    # and a rolling-shutter readout of 0.05 of the frame time (BlenderProc's example, real-cameras.md 4); an sRGB
-    # response (the 8-bit encoding of consumer cameras; ours). Calibrated on the first 100 frames of 7-Scenes
-    # redkitchen against office0 / living0 (results/camera_calibration.md): ae_target (mean grey level 116),
-    # exposure_jitter (frame-to-frame change of log mean grey level, std 0.008); vignette_corner 0.9 is a gentle value
-    # within that measurement's uncertainty (corner/centre ratios of scene content alone differ by +-8 % between
-    # rooms); ae_rate 0.25 (ours: a lag of a few frames). No lens distortion (7-Scenes gives none).
-    "kinect": CameraEffects(
-        name="kinect",
-        response="srgb",
-        vignette_corner=0.90,
-        reference_exposure_s=0.5 / FPS_NOMINAL,
-        exposure_s=0.5 / FPS_NOMINAL,
-        auto_exposure=True,
-        ae_target=0.20,
-        ae_rate=0.25,
-        ae_min_s=1e-3,
-        ae_max_s=1.0 / FPS_NOMINAL,
-        max_gain=2.0,
-        exposure_jitter=0.010,
-        shot_noise=ICL_SHOT_NOISE,
-        read_noise=ICL_READ_NOISE,
-        sensor_width=640,
-        blur_subframes=3,
-        readout_s=0.05 / FPS_NOMINAL,
-        depth_noise=True,
-    ),
-    # TartanAir-like stress (ours): a dim room (a quarter of the light), so exposure runs at its longest (a whole
-    # frame interval: strong blur) with up to 4x gain (noisier; ICL noise at the image's own resolution); a fast
-    # controller (ae_rate 0.7) and 3 % exposure jitter (exposure changes from frame to frame); a readout of half
-    # the frame interval; a gamma-2.2 response; strong vignetting; the TUM fr1 lens (reference-facts.md).
-    "hard": CameraEffects(
-        name="hard",
-        response="gamma",
-        response_gamma=2.2,
-        vignette_corner=0.55,
-        scene_light=0.25,
-        reference_exposure_s=0.5 / FPS_NOMINAL,
-        exposure_s=1.0 / FPS_NOMINAL,
-        auto_exposure=True,
-        ae_target=0.18,
-        ae_rate=0.7,
-        ae_min_s=1e-3,
-        ae_max_s=1.0 / FPS_NOMINAL,
-        max_gain=4.0,
-        exposure_jitter=0.03,
-        shot_noise=ICL_SHOT_NOISE,
-        read_noise=ICL_READ_NOISE,
-        blur_subframes=5,
-        readout_s=0.5 / FPS_NOMINAL,
-        distortion=preset_distortion("tum_fr1"),
-        depth_noise=True,
-    ),
-}
+_PRESETS: dict[str, CameraEffects] = {name: CameraEffects.from_stages(name, stages)
+                                      for name, stages in PRESET_STAGES.items()}  # fmt: skip
 
 
 def camera_effect_presets() -> list[str]:
@@ -264,46 +232,21 @@ def camera_effect_presets() -> list[str]:
     return sorted(_PRESETS)
 
 
-# One camera effect alone on the clean camera, at a strength (the sweep's camera axes): the effect's name and what
-# strength s means. s = 1 is the kinect preset's value where it has one.
-SINGLE_EFFECTS: dict[str, str] = {
-    "noise": "shot + read noise, s x ICL-NUIM's (640-px sensor, as kinect)",
-    "blur": "motion blur, exposure s x half the frame interval (kinect's; 2 = the whole interval), global shutter",
-    "exposure": "auto-exposure with kinect's lag, per-frame exposure jitter s x kinect's (1 %)",
-    "rolling_shutter": "rolling-shutter readout of s frame intervals (kinect: 0.05, hard: 0.5), 1 ms exposure",
-    "distortion": "lens distortion s x TUM fr1's coefficients, undistorted for the agent",
-}
-
-
 def single_effect(effect: str, strength: float) -> CameraEffects:
     """The clean camera with one effect of :data:`SINGLE_EFFECTS` at ``strength`` (>= 0; 0 = the clean camera's
-    bytes), named ``"<effect>:<strength>"``. :class:`SimEnvError` for an unknown effect or a bad strength."""
-    if effect not in SINGLE_EFFECTS:
-        raise UnknownNameError(f"unknown camera effect {effect!r}; valid effects: {', '.join(SINGLE_EFFECTS)}")
+    bytes), named ``"<effect>:<strength>"``: the stages of the effect's class (:meth:`CameraStage.alone`).
+    :class:`SimEnvError` for an unknown effect or a bad strength."""
+    cls = effect_stage(effect)
     s = float(strength)
     if not (np.isfinite(s) and s >= 0):
         raise SimEnvError(f"camera effect {effect!r}: strength must be a finite number >= 0, got {strength!r}")
-    if effect == "blur" and s > 2:
-        raise SimEnvError(f"camera effect 'blur': strength is at most 2 (an exposure of the whole frame interval), "
-                          f"got {s:g}")  # fmt: skip
-    name, kinect = f"{effect}:{s:g}", _PRESETS["kinect"]
+    if s > cls.max_strength:
+        raise SimEnvError(f"camera effect {effect!r}: strength is at most {cls.max_strength:g} "
+                          f"({cls.max_strength_means}), got {s:g}")  # fmt: skip
+    name = f"{effect}:{s:g}"
     if s == 0:
         return replace(_PRESETS["clean"], name=name)
-    if effect == "noise":
-        return CameraEffects(name=name, shot_noise=tuple(s * v for v in kinect.shot_noise),  # type: ignore[arg-type]
-                             read_noise=tuple(s * v for v in kinect.read_noise),  # type: ignore[arg-type]
-                             sensor_width=kinect.sensor_width)  # fmt: skip
-    if effect == "blur":
-        exposure = s * 0.5 / FPS_NOMINAL  # the brightness stays the renderer's: reference exposure = exposure
-        return CameraEffects(name=name, exposure_s=exposure, reference_exposure_s=exposure, blur_subframes=5)
-    if effect == "exposure":
-        return replace(kinect, name=name, vignette_corner=1.0, shot_noise=(0.0,) * 3, read_noise=(0.0,) * 3,
-                       sensor_width=None, blur_subframes=1, readout_s=0.0, depth_noise=False,
-                       exposure_jitter=s * kinect.exposure_jitter)  # fmt: skip
-    if effect == "rolling_shutter":
-        return CameraEffects(name=name, exposure_s=1e-3, reference_exposure_s=1e-3, readout_s=s / FPS_NOMINAL,
-                             blur_subframes=max(3, int(np.ceil(8 * s))))  # fmt: skip
-    return CameraEffects(name=name, distortion=tuple(s * c for c in preset_distortion("tum_fr1")))  # type: ignore[arg-type]
+    return CameraEffects.from_stages(name, cls.alone(s))
 
 
 def camera_effects_preset(name: str) -> CameraEffects:
@@ -338,142 +281,30 @@ def with_options(effects: CameraEffects, **changes: Any) -> CameraEffects:
     return replace(effects, name=f"{effects.name}+{label}", **changes)
 
 
-# ------------------------------------------------------------------------------------------------ response curves
-def srgb_to_linear(v: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB decoding of values in [0, 1] to linear intensities in [0, 1] (same shape, float)."""
-    v = np.asarray(v, dtype=np.float64)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB encoding of linear intensities in [0, 1] to values in [0, 1] (same shape, float)."""
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
-
-
+# ------------------------------------------------------------------------------------- the stages, as functions
 def apply_response(x: np.ndarray, effects: CameraEffects) -> np.ndarray:
     """The camera response ``f``: linear signal in [0, 1] (clipped) -> encoded value in [0, 1], float64."""
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    if effects.response == "srgb":
-        return linear_to_srgb(x)
-    return x ** (1.0 / effects.response_gamma)
+    return effects.stage(ResponseStage).apply(x)  # type: ignore[no-any-return]
 
 
 def inverse_response(effects: CameraEffects) -> np.ndarray:
     """(256,) float64 ``G(k) = 255 * f^-1(k / 255)``: the linear signal of each 8-bit value, on the 0-255 scale of
     TUM monoVO's ``pcalib.txt`` (G(0) = 0, G(255) = 255)."""
-    k = np.arange(256) / 255.0
-    linear = srgb_to_linear(k) if effects.response == "srgb" else k**effects.response_gamma
-    return 255.0 * linear
-
-
-_ENCODE_STEPS = 1 << 18  # linear steps of the encoding table (a step moves the output by < 0.02 levels)
-
-
-@lru_cache(maxsize=8)
-def _encode_lut(response: str, gamma: float) -> np.ndarray:
-    fx = CameraEffects(response=response, response_gamma=gamma)  # type: ignore[arg-type]
-    lut = np.rint(apply_response(np.arange(_ENCODE_STEPS + 1) / _ENCODE_STEPS, fx) * 255.0).astype(np.uint8)
-    lut.setflags(write=False)
-    return lut
+    return effects.stage(ResponseStage).inverse()  # type: ignore[no-any-return]
 
 
 def encode(x: np.ndarray, effects: CameraEffects) -> np.ndarray:
     """The camera response and 8-bit quantisation of a linear signal (clipped to [0, 1]): uint8 of the same shape,
     ``rint(255 f(x))`` read from a table of 2^18 + 1 linear steps (x rounded to the nearest step first)."""
-    t = np.clip(x, 0.0, 1.0)
-    t *= np.float32(_ENCODE_STEPS)  # in place: the same float32 operations as rint(clip(x) * steps), fewer copies
-    np.rint(t, out=t)
-    return np.take(_encode_lut(effects.response, float(effects.response_gamma)), t.astype(np.int32))
-
-
-@lru_cache(maxsize=4)
-def _decode_lut() -> np.ndarray:
-    lut = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
-    lut.setflags(write=False)
-    return lut
-
-
-def decode_render(rgb: np.ndarray) -> np.ndarray:
-    """A renderer's (H, W, 3) uint8 image read as sRGB: (H, W, 3) float32 linear radiance in [0, 1]."""
-    return cv2.LUT(np.asarray(rgb, dtype=np.uint8), _decode_lut().reshape(256, 1))  # = lut[rgb], 10x faster
-
-
-# ------------------------------------------------------------------------------------------------------ vignetting
-def vignette(intrinsics: Intrinsics, corner: float) -> np.ndarray:
-    """(H, W) float32 relative irradiance, 1 at the principal point and ``corner`` at the farthest image corner.
-
-    cos^4-shaped fall-off ``V(rho) = 1 / (1 + a rho^2)^2`` (the cos^4 law of a thin lens, whose tan(theta) grows
-    linearly with the distance from the principal point), rho = distance / the farthest corner's distance, and
-    ``a = corner^(-1/2) - 1`` so that V(1) = corner.
-    """
-    K = intrinsics
-    u = np.arange(K.width, dtype=np.float64) - K.cx
-    v = np.arange(K.height, dtype=np.float64) - K.cy
-    r2 = u[None, :] ** 2 + v[:, None] ** 2
-    corners = [(x - K.cx) ** 2 + (y - K.cy) ** 2 for x in (-0.5, K.width - 0.5) for y in (-0.5, K.height - 0.5)]
-    a = corner**-0.5 - 1.0
-    return (1.0 / (1.0 + a * r2 / max(corners)) ** 2).astype(np.float32)
-
-
-# ------------------------------------------------------------------------------------------------------ distortion
-def distortion_maps(intrinsics: Intrinsics, distortion: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Maps for ``cv2.remap`` that turn a pinhole render into the distorted image of the same K.
-
-    For each pixel (u, v) of the distorted image: the pinhole pixel ``K undistort(K^-1 (u, v))`` to read, computed
-    with ``cv2.undistortPoints`` (OpenCV radial-tangential model, iterative inverse). Returns ``(map_u, map_v)``,
-    each (H, W) float32. Back to a pinhole image: :meth:`sim_envs.camera.CameraModel.undistort_maps`.
-    """
-    K = intrinsics
-    u, v = np.meshgrid(np.arange(K.width, dtype=np.float64), np.arange(K.height, dtype=np.float64))
-    pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
-    und = cv2.undistortPoints(pts, K.K, np.asarray(distortion, dtype=np.float64), P=K.K)
-    und = und.reshape(K.height, K.width, 2).astype(np.float32)
-    return np.ascontiguousarray(und[..., 0]), np.ascontiguousarray(und[..., 1])
-
-
-# ------------------------------------------------------------------------------------ exposure timing over the rows
-def row_times(height: int, readout_s: float) -> np.ndarray:
-    """(H,) float64 centre of each sensor row's exposure relative to the frame's timestamp:
-    ``readout_s * (r / (H - 1) - 1/2)`` (the middle row at the timestamp, rows read top to bottom)."""
-    if height < 2 or readout_s == 0:
-        return np.zeros(height)
-    return readout_s * (np.arange(height) / (height - 1) - 0.5)
+    return effects.stage(ResponseStage).encode(x)  # type: ignore[no-any-return]
 
 
 def subframe_times(effects: CameraEffects, exposure_s: float, height: int) -> np.ndarray:
-    """(K,) float64 render times relative to the frame's timestamp: ``blur_subframes`` times evenly spread over
-    ``[-(readout_s + exposure_s) / 2, +(readout_s + exposure_s) / 2]`` (just ``[0]`` for one sub-frame or a zero
-    window). With an odd count the middle time is 0, so the frame's own render is one of them."""
-    k = int(effects.blur_subframes)
-    half = 0.5 * (effects.readout_s * (height > 1) + exposure_s)
-    if k == 1 or half == 0:
-        return np.zeros(1)
-    return np.linspace(-half, half, k)
+    """(K,) float64 render times relative to the frame's timestamp (:meth:`MotionBlur.times` under the camera's
+    rolling-shutter readout)."""
+    return effects.stage(MotionBlur).times(effects.readout_s, exposure_s, height)  # type: ignore[no-any-return]
 
 
-def row_weights(times: np.ndarray, row_centres: np.ndarray, exposure_s: float, samples: int = 32) -> np.ndarray:
-    """(K, H) float32 weights of the K renders at ``times`` for each row: the mean over the row's exposure box
-    (width ``exposure_s`` around ``row_centres``) of the linear-interpolation basis functions of ``times`` (a box
-    filter through a piecewise-linear signal in time). Each column sums to 1; times outside ``times``' span are
-    clamped to it. ``samples`` quadrature points per row."""
-    times = np.asarray(times, dtype=np.float64)
-    n = times.shape[0]
-    if n == 1:
-        return np.ones((1, row_centres.shape[0]), dtype=np.float32)
-    offsets = (np.arange(samples) + 0.5) / samples - 0.5 if exposure_s > 0 else np.zeros(1)
-    tau = row_centres[:, None] + exposure_s * offsets[None, :]  # (H, S)
-    pos = np.interp(tau, times, np.arange(n, dtype=np.float64))  # fractional index in the render list
-    lo = np.clip(np.floor(pos).astype(int), 0, n - 2)
-    frac = pos - lo
-    weights = np.zeros((n, row_centres.shape[0]))
-    rows = np.broadcast_to(np.arange(row_centres.shape[0])[:, None], tau.shape)
-    np.add.at(weights, (lo, rows), 1.0 - frac)
-    np.add.at(weights, (lo + 1, rows), frac)
-    return (weights / tau.shape[1]).astype(np.float32)
-
-
-# --------------------------------------------------------------------------------------------------- auto-exposure
 def auto_exposure(
     brightness: np.ndarray, effects: CameraEffects, jitter: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -519,54 +350,34 @@ def mean_brightness(rgb: np.ndarray, effects: CameraEffects, vignette_map: np.nd
     return float(linear.mean()) * effects.scene_light
 
 
-# ---------------------------------------------------------------------------------------------- the sensor image
 def noise_draws(shape: tuple[int, ...], effects: CameraEffects, rng: np.random.Generator) -> np.ndarray | None:
     """The (H, W, 3) float32 standard normal draws :func:`linear_noise` makes from ``rng`` for an image of
     ``shape``, or None when the camera has no noise (no draw). Drawn ahead, they let the draw run beside the
     renders: ``linear_noise(x, effects, rng)`` equals ``linear_noise(x, effects, normals=noise_draws(...))``."""
-    if not (any(effects.shot_noise) or any(effects.read_noise)):
-        return None
-    return rng.standard_normal(shape, dtype=np.float32)
+    return effects.stage(Noise).draws(shape, rng)  # type: ignore[no-any-return]
 
 
 def linear_noise(x: np.ndarray, effects: CameraEffects, rng: np.random.Generator | None = None, *,
                  normals: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-    """``x`` (H, W, 3) linear sensor signal plus shot noise (std ``sqrt(x) * shot_noise``) and read noise (std
-    ``read_noise``) per channel, both scaled by ``width / sensor_width`` (at most 1) when ``sensor_width`` is set,
-    as float32; no draw when both are zero. The standard normal draws come from ``normals`` when given
-    (:func:`noise_draws`), else from ``rng``."""
-    if not (any(effects.shot_noise) or any(effects.read_noise)):
-        return x
-    if normals is None:
-        if rng is None:
-            raise ValueError("linear_noise needs rng or normals (the camera has noise)")
-        normals = noise_draws(x.shape, effects, rng)
-    scale = 1.0 if effects.sensor_width is None else min(1.0, x.shape[1] / effects.sensor_width)
-    shot = np.asarray(effects.shot_noise, dtype=np.float32) * np.float32(scale)
-    read = np.asarray(effects.read_noise, dtype=np.float32) * np.float32(scale)
-    std = np.maximum(x, 0.0)  # std = sqrt(max(x, 0) shot^2 + read^2), computed in place (the same float32 steps)
-    std *= shot**2
-    std += read**2
-    np.sqrt(std, out=std)
-    std *= normals
-    std += x
-    return std
+    """``x`` (H, W, 3) linear sensor signal plus the camera's shot and read noise (:meth:`Noise.apply`)."""
+    return effects.stage(Noise).apply(x, rng, normals=normals)  # type: ignore[no-any-return]
 
 
+# ---------------------------------------------------------------------------------------------- the sensor image
 def expose(linear: np.ndarray, effects: CameraEffects, exposure_s: float, gain: float,
            rng: np.random.Generator | None, vignette_map: np.ndarray | None = None, *,
            normals: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-    """Linear radiance (H, W, 3) float -> (H, W, 3) uint8 camera image: vignetting, scene light and exposure, noise
-    (from ``normals`` when given, else from ``rng``: :func:`linear_noise`), gain, response, 8-bit quantisation
-    (steps 4-6 of the module docstring)."""
-    scale = effects.scene_light * exposure_s / effects.reference_exposure_s
-    x = np.asarray(linear, dtype=np.float32) * np.float32(scale)  # a new array: the steps below work in place
-    if vignette_map is not None:
-        x *= vignette_map[..., None]
-    np.minimum(x, np.float32(1.0), out=x)  # the sensor saturates (full well) before the noise is read
-    x = linear_noise(x, effects, rng, normals=normals)
-    x *= np.float32(gain)
-    return encode(x, effects)
+    """Linear radiance (H, W, 3) float -> (H, W, 3) uint8 camera image: the stages' ``signal`` hooks in chain order
+    (exposure and scene light, vignetting, saturation, noise from ``normals`` when given else from ``rng``, gain),
+    the response and 8-bit quantisation, then their ``encoded`` hooks."""
+    frame = FrameContext(float(exposure_s), float(gain), rng, normals, vignette_map)
+    x = np.array(linear, dtype=np.float32)  # a copy: the stages work in place
+    for stage in effects.stages:
+        x = stage.signal(x, frame)
+    rgb = encode(x, effects)
+    for stage in effects.stages:
+        rgb = stage.encoded(rgb, frame)
+    return rgb
 
 
 @dataclass(frozen=True)
@@ -628,21 +439,15 @@ def sensor_image(
     """
     exposure = effects.exposure_s if exposure_s is None else float(exposure_s)
     geometry = geometry or sensor_geometry(intrinsics, effects)
-    H = intrinsics.height
-    times = subframe_times(effects, exposure, H)
-    poses = pose_at(t + times)
+    frame = FrameContext(exposure, float(gain), rng, None, geometry.vignette, geometry.distort)
+    times = subframe_times(effects, exposure, intrinsics.height)
     renders = []
-    for dt, T in zip(times, poses, strict=True):
-        rgb = own_render if (dt == 0.0 and own_render is not None) else render_rgb(T)
-        linear = decode_render(rgb)
-        if geometry.distort is not None:
-            linear = cv2.remap(linear, *geometry.distort, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    for dt, T in zip(times, pose_at(t + times), strict=True):
+        linear = decode_render(own_render if (dt == 0.0 and own_render is not None) else render_rgb(T))
+        for stage in effects.stages:
+            linear = stage.warp(linear, frame)
         renders.append(linear)
-    if len(renders) == 1:
-        linear = renders[0]
-    else:
-        weights = row_weights(times, row_times(H, effects.readout_s), exposure)
-        linear = np.einsum("kh,khwc->hwc", weights, np.stack(renders), optimize=True)
+    linear = effects.stage(MotionBlur).combine(renders, times, effects.readout_s, exposure)
     drawn = normals() if normals is not None else None
     return expose(linear, effects, exposure, gain, None if drawn is not None else rng, geometry.vignette,
                   normals=drawn)  # fmt: skip
@@ -663,46 +468,3 @@ def ground_truth_on_delivered_grid(image: np.ndarray, geometry: SensorGeometry) 
     if geometry.ground_truth is None:
         return image
     return cv2.remap(image, *geometry.ground_truth, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
-
-
-# ----------------------------------------------------------------------------------------------------- depth noise
-def kinect_depth(
-    depth: np.ndarray,
-    rng: np.random.Generator,
-    *,
-    focal_px: float = KINECT_FOCAL_PX,
-    baseline_m: float = KINECT_BASELINE_M,
-    shift_std_px: float = KINECT_SHIFT_STD_PX,
-    edge_disparity_px: float = 0.5,
-) -> np.ndarray:
-    """A Kinect-like sensor depth from exact planar depth (H, W) float32 metres (0 = none), after simkinect
-    (ankurhanda/simkinect, ICL-NUIM): (H, W) float32 metres, 0 = no measurement. A new array; ``depth`` is not
-    changed.
-
-    1. lateral jitter: the depth is resampled at positions shifted by N(0, ``shift_std_px``) per pixel and axis
-       (bilinear, as simkinect's ``add_gaussian_shifts``);
-    2. disparity ``focal_px * baseline_m / z`` quantised to 1/8 px;
-    3. holes at depth edges: where the disparity over a pixel's 3x3 neighbourhood spans more than
-       ``edge_disparity_px`` (simkinect uses a 9x9 dot-pattern filter, whose pattern image is not shipped here;
-       this keeps its effect of dropping measurements across depth discontinuities), and where there was no depth;
-    4. simkinect's final step ``35130 / round(35130 / z_cm + N(0, 1/6) + 0.5)`` with z in centimetres.
-    """
-    depth = np.asarray(depth, dtype=np.float32)
-    h, w = depth.shape
-    u, v = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    shifts = rng.normal(0.0, shift_std_px, size=(2, h, w)).astype(np.float32)
-    map_u = np.clip(u + shifts[0], 0, w - 1)
-    map_v = np.clip(v + shifts[1], 0, h - 1)
-    jittered = cv2.remap(depth, map_u, map_v, cv2.INTER_LINEAR)
-    valid = jittered > 0
-    disp = np.where(valid, focal_px * baseline_m / np.where(valid, jittered, 1.0), 0.0)
-    disp = np.round(disp * KINECT_SUBPIXEL) / KINECT_SUBPIXEL
-    kernel = np.ones((3, 3), np.uint8)
-    spread = cv2.dilate(disp.astype(np.float32), kernel) - cv2.erode(disp.astype(np.float32), kernel)
-    valid &= (spread <= edge_disparity_px) & (disp > 0)
-    z = np.where(valid, focal_px * baseline_m / np.where(valid, disp, 1.0), 0.0)
-    z_cm = np.round(z * 100.0)
-    noisy = rng.normal(0.0, 1.0 / 6.0, size=(h, w))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = 35130.0 / np.round(35130.0 / z_cm + noisy + 0.5) / 100.0
-    return np.where(valid & (z_cm > 0) & np.isfinite(out), out, 0.0).astype(np.float32)
