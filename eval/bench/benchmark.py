@@ -36,15 +36,18 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
-from eval.bench.executors import EXECUTORS, Executor, make_executor
-from eval.bench.methods import Method, apply_settings, load_methods, parse_setting
+from eval.bench.executors import EXECUTORS, Executor, ExecutorError, check_alarm, make_executor
+from eval.bench.methods import Method, MethodError, apply_settings, entry_point_problem, load_methods, parse_setting
 from eval.bench.regress import GateAction, GateOutcome, apply_gate, check_gate
-from eval.bench.runner import RunOutcome, SuiteRun, git_revision, run_suite
+from eval.bench.run import DONE_FILE
+from eval.bench.run_store import run_folder
+from eval.bench.runner import UNKNOWN_LENGTH, RunOutcome, SuiteRun, git_revision, plan_runs, run_suite
 from eval.bench.sequence_ref import dataset_list_file, parse_image_size
 from eval.bench.suites import (
     SUITES,
@@ -66,7 +69,18 @@ from slamcommon.errors import ProjectError
 log = logging.getLogger(__name__)
 
 DEFAULT_JOBS = 2  # runs in parallel: one per core of the 2-core machines the suites are sized for
-COMMITTED_RESULTS = Path("results")  # the committed tables (relative to the working directory, as --results is)
+DEFAULT_RESULTS = Path("results")  # a suite as defined writes here (relative to the working folder, as --results is)
+# the repository's committed tables: the folder beside the installed eval package (eval/bench/benchmark.py -> the
+# repository root), resolved, so that no working folder or relative --results walks around the guard
+COMMITTED_RESULTS = Path(__file__).resolve().parents[2] / "results"
+# The default time limit of a run when none is given (--timeout): TIMEOUT_PER_FRAME_S seconds per frame of the
+# longest run planned, at least TIMEOUT_MIN_S. Sized so that no committed run comes near it: the slowest measured
+# per-frame time is COLMAP's, 0.38 s a frame (60 frames of office0 in 23 s, offline SfM that grows faster than its
+# frames), 10x that is about 4 s; the whole-sequence runs of results/table1_long.csv take at most 0.075 s a frame
+# (REMODE, 2-core EPYC, runs two at a time), 50x under it; the quick suite's short runs, where setting up dominates,
+# at most 0.5 s a frame (results/quick_long.csv): tens of seconds, far under the 900 s floor.
+TIMEOUT_PER_FRAME_S = 4.0
+TIMEOUT_MIN_S = 900.0
 Frames = int | Literal["all"] | None
 
 
@@ -291,7 +305,8 @@ KINDS: dict[SuiteKind, KindSpec] = {
 @dataclass(frozen=True)
 class BenchPlan:
     """A checked benchmark (:func:`prepare`): the selected suite, its parts, the methods by name (settings
-    applied), where each setting went, the executor, the results folder, the command line, and what was skipped."""
+    applied), where each setting went, the executor, the results folder, the command line (with the time limit of a
+    run), what was skipped, and the time limit of a run (``--timeout`` or the default, :func:`_timeout`; None: none)."""
 
     suite: Suite
     parts: tuple[Part, ...]
@@ -301,6 +316,7 @@ class BenchPlan:
     results_dir: Path
     command: str
     skipped: tuple[Skip, ...]
+    timeout_s: float | None = None
 
 
 def prepare(suite: Suite | str, methods: Sequence[str | Method] | None = None,
@@ -321,6 +337,7 @@ def _prepare(suite: Suite | str, methods: Sequence[str | Method] | None, options
     suite = get_suite(suite) if isinstance(suite, str) else suite
     _check_options(suite, options)
     chosen = _chosen_methods(suite, methods, table)
+    _check_entry_points(chosen, methods is not None, options.allow_skips)
     settings = tuple(parse_setting(s) if isinstance(s, str) else tuple(s) for s in options.settings)
     resolved, applied = apply_settings(list(chosen.values()), settings) if settings else (chosen, {})
     camera = None if _presets(options) is not None and suite.kind is SuiteKind.TRANSFER else options.camera
@@ -328,18 +345,132 @@ def _prepare(suite: Suite | str, methods: Sequence[str | Method] | None, options
                             camera=camera, size=parse_image_size(options.image_size), undistort=options.undistort)
     if options.align is not None:
         selected = replace(selected, alignment=options.align)
+    lengths: dict[str, int] = {}
     for ref in selected.sequences:  # a folder's camera (file, preset, side file) and index read now, not in a run
         if ref.folder is not None:
-            ref.make_source().close()
+            source = ref.make_source()
+            try:
+                lengths[ref.name] = len(source)
+            finally:
+                source.close()
     parts = () if suite.kind is SuiteKind.PERF else tuple(KINDS[suite.kind].parts(selected, options))
     command = options.command or command_line(selected.name, options)
     builtin = load_methods()
     as_defined = (selected.is_default and not settings and all(builtin.get(n) == m for n, m in resolved.items())
                   and (suite.kind is SuiteKind.PERF or KINDS[suite.kind].as_defined(options)))  # fmt: skip
     results_dir = _results_dir(selected, options, command, as_defined)
+    _check_outputs(selected, parts, resolved, options, results_dir)
+    timeout = _timeout(selected, parts, options, lengths)
+    if timeout is not None and "--timeout" not in command.split():  # the limit, given or the default, stated in
+        command += f" --timeout {timeout:g}"  # the command the reports quote (their provenance)
+    if timeout is not None and options.executor.timeout_s is None:
+        log.info("%s: a run is stopped after %g s (the default: %g s a frame of the longest run, %d frames, at "
+                 "least %g s; --timeout sets another)", selected.name, timeout, TIMEOUT_PER_FRAME_S,
+                 _longest_run(parts, lengths), TIMEOUT_MIN_S)  # fmt: skip
     skipped = tuple(Skip("sequence", name, reason) for name, reason in selected.skipped)
-    return BenchPlan(selected, parts, dict(resolved), tuple(applied.items()), _executor(selected, resolved, options),
-                     results_dir, command, skipped)  # fmt: skip
+    plan_options = replace(options, executor=replace(options.executor, timeout_s=timeout))
+    return BenchPlan(selected, parts, dict(resolved), tuple(applied.items()),
+                     _executor(selected, resolved, plan_options), results_dir, command, skipped, timeout)
+
+
+def _check_entry_points(chosen: Mapping[str, Method], named: bool, allow_skips: bool) -> None:
+    """Every chosen agent's module imported and its class found before any run
+    (:func:`eval.bench.methods.entry_point_problem`). A broken definition (a module that is not there, a misspelt
+    class, a module that raises) is refused. A method whose module needs a package this machine lacks (an optional
+    third-party system) is refused when the caller ``named`` the methods, unless ``allow_skips``; in a suite's own
+    selection (or allowed) it is left to the suite's check, which skips it with the reason."""
+    for method in chosen.values():
+        problem = entry_point_problem(method)
+        if problem is None:
+            continue
+        if not problem.optional:
+            raise MethodError(problem.reason)
+        if named and not allow_skips:
+            raise MethodError(f"method {method.name!r} cannot run here ({problem.reason}): leave it out of "
+                              "--methods, install what it needs, or pass --allow-skips to skip it")  # fmt: skip
+
+
+def check_writable(folder: str | Path, flag: str) -> None:
+    """Refuse a folder the benchmark could not write into (a file where the folder should be, a folder this user
+    may not write): try to create it and a temporary file in it, then remove what the try created.
+    :class:`~eval.errors.InputError` naming ``flag`` (the option that gave it) and the folder."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{flag} {folder}: a file, not a folder; name a folder (it is created when missing)")
+    created = []
+    probe = folder
+    while not probe.exists() and probe.parent != probe:
+        created.append(probe)  # deepest first, removed in that order
+        probe = probe.parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".cnnslam-write-check-"):
+            pass
+    except OSError as exc:
+        raise InputError(f"{flag} {folder}: cannot write there ({exc.strerror or type(exc).__name__}"
+                         f"{f': {exc.filename}' if exc.filename and str(exc.filename) != str(folder) else ''}); "
+                         "name a folder this user can create and write") from None  # fmt: skip
+    finally:
+        for path in created:
+            try:
+                path.rmdir()
+            except OSError:
+                break
+
+
+def _check_outputs(suite: Suite, parts: Sequence[Part], methods: Mapping[str, Method], options: BenchOptions,
+                   results_dir: Path) -> None:
+    """The folders the call writes, checked before any run: the results folder (:func:`check_writable`), and the
+    runs' folder ``out`` (written by every run; ``--report-only``: it must hold finished runs of this selection,
+    else there is nothing to report)."""
+    if suite.kind is SuiteKind.PERF:
+        check_writable(options.results or DEFAULT_RESULTS, "--results")
+        return
+    if options.report_only:
+        out = Path(options.out)
+        if not out.is_dir():
+            raise InputError(f"--out {out}: no such folder; --report-only writes the tables from the finished runs "
+                             "of an --out folder that a run of the suite wrote")  # fmt: skip
+        folders = [run_folder(out, spec) for part in parts
+                   for spec in plan_runs(part.suite, [methods[m] for m in part.suite.methods if m in methods])]
+        if not any((folder / DONE_FILE).is_file() for folder in folders):
+            example = f" (e.g. {folders[0]})" if folders else ""
+            raise InputError(f"--out {out}: no finished run of suite {suite.name} for this selection: none of its "
+                             f"{len(folders)} run folders holds a {DONE_FILE}{example}; --report-only reports "
+                             "finished runs only (run the suite first, or name the --out that holds them)")
+    else:
+        check_writable(options.out, "--out")
+    check_writable(results_dir, "--results")
+
+
+def _longest_run(parts: Sequence[Part], lengths: Mapping[str, int]) -> int:
+    """The most frames any planned run reads: its part's frames, or its sequence's length (a folder's as read, a
+    simulated one's from its definition)."""
+    longest = 0
+    for part in parts:
+        for ref in part.suite.sequences:
+            n = lengths.get(ref.name, UNKNOWN_LENGTH) if ref.folder is not None else \
+                max(0, int(ref.spec().n_frames) - int(ref.start))
+            longest = max(longest, n if part.suite.frames is None else min(n, int(part.suite.frames)))
+    return longest
+
+
+def _timeout(suite: Suite, parts: Sequence[Part], options: BenchOptions, lengths: Mapping[str, int]) -> float | None:
+    """A run's time limit: ``--timeout`` when given; else :data:`TIMEOUT_PER_FRAME_S` per frame of the longest run
+    planned, at least :data:`TIMEOUT_MIN_S`; None for ``perf`` (probes, no runs) and for the serial executor where
+    it cannot stop a run (no SIGALRM, or called from a thread other than the main one:
+    :func:`eval.bench.executors.check_alarm`)."""
+    given = options.executor.timeout_s
+    if given is not None:
+        return float(given)
+    if suite.kind is SuiteKind.PERF:
+        return None
+    if options.executor.kind == "serial" and options.gate is not GateAction.CALIBRATE:
+        try:
+            check_alarm()
+        except ExecutorError:
+            return None
+    return max(TIMEOUT_MIN_S, TIMEOUT_PER_FRAME_S * _longest_run(parts, lengths))
 
 
 def _check_options(suite: Suite, options: BenchOptions) -> None:
@@ -354,6 +485,17 @@ def _check_options(suite: Suite, options: BenchOptions) -> None:
     bad = [s for s in options.seeds or () if not (isinstance(s, int) and s >= 0)]
     if bad:
         raise SuiteError(f"--seeds takes whole numbers >= 0 (a run's seed), got {', '.join(map(str, bad))}")
+    frames = options.frames
+    if frames is not None and frames != "all" and not (_whole(frames) and frames >= 2):
+        raise SuiteError(f"--frames takes a number of frames >= 2 (the first N of each sequence) or 'all', got "
+                         f"{frames!r}")  # fmt: skip
+    bad_lengths = [n for n in options.lengths or () if n is not None and not (_whole(n) and n >= 2)]
+    if bad_lengths:
+        raise SuiteError(f"--lengths takes numbers of frames >= 2 or 'all', got {', '.join(map(repr, bad_lengths))}")
+    if options.runs is not None and not (_whole(options.runs) and options.runs >= 1):
+        raise SuiteError(f"--runs takes a number of runs per cell >= 1 (seeds 0..N-1), got {options.runs!r}")
+    if not (_whole(options.executor.jobs) and options.executor.jobs >= 1):
+        raise SuiteError(f"--jobs takes a number of runs in parallel >= 1, got {options.executor.jobs!r}")
     timeout = options.executor.timeout_s
     if timeout is not None and not timeout > 0:
         raise SuiteError(f"--timeout must be a number of seconds > 0, got {timeout}")
@@ -364,6 +506,11 @@ def _check_options(suite: Suite, options: BenchOptions) -> None:
     if options.gate is GateAction.CALIBRATE and not options.executor.is_default:
         raise SuiteError("--calibrate runs its matrix's own local pools (2 runs at a time, then 1 with 2 threads; "
                          "eval/bench/calibrate.py): --executor, --jobs and --reuse-workers do not apply")
+
+
+def _whole(value: object) -> bool:
+    """Whether ``value`` is a whole number (an int, not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _chosen_methods(suite: Suite, methods: Sequence[str | Method] | None,
@@ -388,15 +535,17 @@ def _chosen_methods(suite: Suite, methods: Sequence[str | Method] | None,
 def _results_dir(suite: Suite, options: BenchOptions, command: str, as_defined: bool) -> Path:
     """Where the report goes: ``options.results``; else ``results/`` for the suite as defined; else a folder named
     after the selection under ``<out>/reports/``. A selection of other sequences or methods than the suite's never
-    writes into the committed ``results/`` (it would overwrite the whole table with part of it)."""
+    writes into the committed ``results/`` (it would overwrite the whole table with part of it): neither the
+    repository's own (:data:`COMMITTED_RESULTS`, however ``--results`` reaches it: paths compared resolved) nor
+    ``results/`` under the working folder, where the suite as defined writes."""
     if options.results is None:
         if as_defined:
-            return COMMITTED_RESULTS
+            return DEFAULT_RESULTS
         return Path(options.out) / "reports" / f"{suite.name}-{hashlib.sha256(command.encode()).hexdigest()[:8]}"
-    committed = COMMITTED_RESULTS.resolve()
     target = Path(options.results).resolve()
     note = suite.selection_note()
-    if note and (target == committed or committed in target.parents):
+    guarded = (COMMITTED_RESULTS, DEFAULT_RESULTS.resolve())  # the repository's, and where the suite writes here
+    if note and any(target == committed or committed in target.parents for committed in guarded):
         raise SuiteError(f"--results {options.results}: the committed results hold suite {suite.name} as defined, "
                          f"and this selection is {note}: leave --results out (it writes under {options.out}/reports/) "
                          "or name a folder outside results/")  # fmt: skip
@@ -543,7 +692,7 @@ def _perf(plan: BenchPlan, options: BenchOptions) -> BenchOutcome:
     """The ``perf`` suite: throughput probes (:func:`eval.bench.perf.run_perf`), their report and speed gate."""
     from eval.bench.perf import SPEED_BASELINE, run_perf
 
-    results = options.results or COMMITTED_RESULTS
+    results = options.results or DEFAULT_RESULTS
     frames = None if options.frames == "all" else options.frames
     report = run_perf(results, frames=frames, progress=options.progress,
                       update_speed_baseline=options.gate in (GateAction.UPDATE, GateAction.REPLACE))  # fmt: skip
@@ -562,7 +711,7 @@ def _calibrate(plan: BenchPlan, options: BenchOptions) -> BenchOutcome:
 
     done = calibrate_suite(plan.suite, plan.methods, options.out, options.baseline or plan.suite.baseline_path,
                            baseline_description(plan.suite), renderer=options.renderer,
-                           timeout_s=options.executor.timeout_s, progress=options.progress,
+                           timeout_s=plan.timeout_s, progress=options.progress,
                            revision=git_revision() or "")  # fmt: skip
     parts = [(Part(name, run.suite), run) for name, run in done.runs.items()]
     reports: list[Path] = []

@@ -444,6 +444,57 @@ def method_table(method_file: str | Path | None = None, externals: Sequence[str]
 
 
 # ------------------------------------------------------------------------------------------------ availability
+@dataclass(frozen=True)
+class EntryPointProblem:
+    """Why an agent method's entry point cannot be loaded (:func:`entry_point_problem`): ``reason`` (one line) and
+    whether it is ``optional``: the method's own module is there but imports a package this machine lacks (a
+    third-party system whose package is not installed: ORB-SLAM3 without ``pyorbslam3``, Open3D), as opposed to a
+    broken definition (its module not found, a misspelt class, a module that raises on import)."""
+
+    reason: str
+    optional: bool
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def entry_point_problem(method: Method) -> EntryPointProblem | None:
+    """None when the agent method's module imports and has its class (external methods: always None); else what is
+    wrong, without building the agent. A :class:`ModuleNotFoundError` for the entry point's own module (or a package
+    above it) is a broken definition (a typo in ``"module:Class"``, or its folder not on the Python path), as is a
+    missing attribute (with the module's names closest to it) and any other exception raised on import; an
+    ImportError for anything else is a package this machine lacks (``optional``)."""
+    if method.kind != "agent":
+        return None
+    entry = method.entry_point or ""
+    module_name, _, attr = entry.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or ""
+        if missing and (module_name == missing or module_name.startswith(missing + ".")):
+            return EntryPointProblem(f"method {method.name!r}: no module {module_name!r} to import (entry point "
+                                     f"{entry!r}): check its spelling and that its folder is on the Python path "
+                                     "(PYTHONPATH)", optional=False)  # fmt: skip
+        return EntryPointProblem(f"cannot import {module_name!r}: {type(exc).__name__}: {_one_line(exc)}", True)
+    except ImportError as exc:
+        return EntryPointProblem(f"cannot import {module_name!r}: {type(exc).__name__}: {_one_line(exc)}", True)
+    except Exception as exc:  # noqa: BLE001 - a module that raises on import is a broken method, named with its error
+        return EntryPointProblem(f"method {method.name!r}: importing {module_name!r} raises {type(exc).__name__}: "
+                                 f"{_one_line(exc)}", optional=False)  # fmt: skip
+    if getattr(module, attr, None) is None:
+        import difflib
+
+        names = [n for n in dir(module) if not n.startswith("_")]
+        close = difflib.get_close_matches(attr, names, n=3)
+        hint = f"did you mean {' or '.join(repr(f'{module_name}:{c}') for c in close)}?" if close else \
+            f"its names: {', '.join(n for n in names if n[:1].isupper())[:200] or '(none)'}"
+        return EntryPointProblem(f"method {method.name!r}: module {module_name!r} has no {attr!r} (entry point "
+                                 f"{entry!r}); {hint}", optional=False)  # fmt: skip
+    return None
+
+
 def check_available(method: Method, build: bool = True) -> str | None:
     """None when the method can run here, else a one-line reason.
 

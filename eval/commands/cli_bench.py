@@ -12,6 +12,17 @@ Examples::
     cnnslam bench quick --update-baseline           # after an intended change: rewrite the gate's baseline
     cnnslam bench table1 --executor ray --address auto
 
+Checked before any run (exit 2, one line): the options' numbers (``--frames`` and ``--lengths`` >= 2, ``--runs``
+and ``--jobs`` >= 1, ``--timeout`` > 0); every chosen method's module imported and its class found: a module that is
+not there or a misspelt class (a method file's ``"mymod:MySlma"``) is refused. A method whose module needs a package
+this machine lacks (ORB-SLAM3 without pyorbslam3, COLMAP without pycolmap, Open3D-odometry without open3d) is skipped
+with the reason when it comes with the suite (no ``--methods``), and refused when ``--methods`` names it, unless
+``--allow-skips``. ``--out`` and ``--results`` are tried (created, a temporary file written in them); ``--report-only``
+needs an ``--out`` that holds finished runs of the selection. A selection other than the suite's never writes into
+the repository's ``results/``, however ``--results`` names it. A run is stopped after ``--timeout`` seconds, by
+default 4 s a frame of the longest run planned and at least 900 s (``eval.bench.benchmark.TIMEOUT_PER_FRAME_S``);
+the reports' command quotes the limit.
+
 Exit status: 0 when every requested run finished (and the gate passed); 1 when a run failed or timed out, a requested
 method, external folder or listed dataset folder was skipped (``--allow-skips``: only reported), or the gate failed
 or refused an update; 2 on bad arguments, before any run (one line naming the value and what is valid); 130 on
@@ -88,7 +99,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add("--address", help="Ray cluster address (auto, ray://host:10001, local)")
     add("--reuse-workers", action="store_true", help="local: several runs per worker process (faster start; a "
         "run's last digits may then depend on what its worker ran before)")
-    add("--timeout", type=float, metavar="S", help="stop a run after S seconds and record it as failed (timed out)")
+    add("--timeout", type=float, metavar="S", help="stop a run after S seconds and record it as failed (timed out; "
+        "default: 4 s a frame of the longest run, at least 900 s)")
     add("--rerun", action="store_true", help="run every run again, even finished ones")
     add("--report-only", action="store_true", help="run nothing: write the tables from the finished runs in --out")
     add("--out", type=Path, default=Path("runs"), help="per-run artifacts (default: runs/)")

@@ -241,3 +241,26 @@ def test_an_external_folder_declares_itself_in_method_toml(tmp_path):
     (tmp_path / "method.toml").write_text('speed = "fast"\n')
     with pytest.raises(MethodError, match="unknown field"):
         external_method("bad", tmp_path)
+
+
+def test_entry_point_problem_tells_a_broken_definition_from_a_missing_package(tmp_path, monkeypatch):
+    """A module that is not there, a misspelt class or a module raising on import: broken (refused by a suite);
+    an existing module that imports a package this machine lacks: optional (skipped where a suite brings it)."""
+    from eval.bench.methods import entry_point_problem
+
+    (tmp_path / "mymod.py").write_text("class MySlam:\n    pass\n")
+    (tmp_path / "needs_dep.py").write_text("import no_such_dependency_pkg\nclass Agent:\n    pass\n")
+    (tmp_path / "raises_on_import.py").write_text("raise RuntimeError('a bug at import')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert entry_point_problem(Method("ok", entry_point="mymod:MySlam")) is None
+    assert entry_point_problem(external_method("ext", tmp_path)) is None
+    typo = entry_point_problem(Method("mine", entry_point="mymod:MySlma"))
+    assert typo is not None and not typo.optional
+    assert "module 'mymod' has no 'MySlma'" in typo.reason and "did you mean 'mymod:MySlam'?" in typo.reason
+    for entry, words in (("nosuchmod:Agent", "no module 'nosuchmod'"), ("nosuchpkg.sub:Agent", "no module"),
+                         ("raises_on_import:Agent", "RuntimeError: a bug at import")):  # fmt: skip
+        problem = entry_point_problem(Method("m", entry_point=entry))
+        assert problem is not None and not problem.optional and words in problem.reason, entry
+    lacking = entry_point_problem(Method("dep", entry_point="needs_dep:Agent"))
+    assert lacking is not None and lacking.optional and "no_such_dependency_pkg" in lacking.reason
+    assert "\n" not in lacking.reason and "\n" not in typo.reason

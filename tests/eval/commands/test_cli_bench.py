@@ -107,22 +107,59 @@ def test_unknown_names_are_one_line_errors(tmp_path, capsys):
     assert "--runs or --seeds" in capsys.readouterr().err
 
 
-def test_a_skipped_method_fails_the_command_unless_allowed(tmp_path, capsys):
-    """A method that cannot run here (its module is not installed) is skipped with the reason: exit 1 unless
-    --allow-skips. A missing --external folder is no skip but a bad argument: exit 2 before any run."""
+def test_a_skipped_method_fails_the_command_unless_allowed(tmp_path, capsys, monkeypatch):
+    """A method whose module imports a package this machine lacks, named in --methods: exit 2 before any run, or
+    skipped with the reason under --allow-skips (exit 0). A module that is not there at all is a typo: exit 2 even
+    with --allow-skips. A missing --external folder is no skip but a bad argument: exit 2 before any run."""
+    (tmp_path / "needs_dep_agent.py").write_text("import no_such_dependency_pkg\n\n\nclass Agent:\n    pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
     methods = tmp_path / "methods.toml"
-    methods.write_text('[methods.Absent]\nentry_point = "no_such_package.agent:Agent"\n')
-    args = ["table1", "--sequences", "office0", "--methods", "oracle", "Absent", "--method-file", str(methods), *SMALL]
-    assert bench(tmp_path, *args) == 1
-    captured = capsys.readouterr()
-    assert "skipped Absent: cannot import 'no_such_package.agent'" in captured.out and "--allow-skips" in captured.err
+    methods.write_text('[methods.Lacking]\nentry_point = "needs_dep_agent:Agent"\n'
+                       '[methods.Absent]\nentry_point = "no_such_package.agent:Agent"\n')
+    args = ["table1", "--sequences", "office0", "--methods", "oracle", "Lacking", "--method-file", str(methods), *SMALL]
+    assert bench(tmp_path, *args) == 2
+    err = capsys.readouterr().err
+    assert "method 'Lacking' cannot run here" in err and "--allow-skips" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "runs").exists()
     assert bench(tmp_path, *args, "--allow-skips") == 0
-    capsys.readouterr()
+    assert "skipped Lacking: cannot import 'needs_dep_agent'" in capsys.readouterr().out
+    absent = [a if a != "Lacking" else "Absent" for a in args]
+    assert bench(tmp_path, *absent, "--allow-skips") == 2
+    assert "no module 'no_such_package.agent' to import" in capsys.readouterr().err
     assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", "--external",
                  f"Mine={tmp_path / 'typo'}", *SMALL) == 2  # fmt: skip
     err = capsys.readouterr().err
     assert f"--external Mine={tmp_path / 'typo'}: no such folder" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "runs" / "table1" / "office0@kinect" / "oracle" / "seed0-frames6" / "x").exists()
+
+
+def test_bad_input_of_issue_60_exits_2_with_one_line_before_any_run(tmp_path, capsys, monkeypatch):
+    """A misspelt class in one's method file, an --out or --results that cannot be written, --report-only without
+    finished runs, numbers out of range: exit 2, one line naming the value, no run folder."""
+    (tmp_path / "cli_user_slam.py").write_text("from sim_envs.agents import OracleAgent\n\n\n"
+                                               "class MySlam(OracleAgent):\n    pass\n")  # fmt: skip
+    monkeypatch.syspath_prepend(str(tmp_path))
+    methods = tmp_path / "methods.toml"
+    methods.write_text('[methods.Mine]\nentry_point = "cli_user_slam:MySlma"\n')
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    base = ["bench", "table1", "--sequences", "office0", "--methods", "oracle", *SMALL]
+    cases = [
+        (["--methods", "oracle", "Mine", "--method-file", str(methods)], "has no 'MySlma'"),
+        (["--results", str(afile)], f"--results {afile}: a file, not a folder"),
+        (["--out", str(afile / "runs")], f"--out {afile / 'runs'}: cannot write there"),
+        (["--report-only", "--out", str(tmp_path / "none")], f"--out {tmp_path / 'none'}: no such folder"),
+        (["--frames", "0"], "--frames takes a number of frames >= 2"),
+        (["--runs", "0"], "--runs takes a number of runs per cell >= 1"),
+        (["--jobs", "0"], "--jobs takes a number of runs in parallel >= 1, got 0"),
+        (["--timeout", "-1"], "--timeout must be a number of seconds > 0, got -1"),
+    ]
+    for extra, message in cases:
+        line = [*base, "--out", str(tmp_path / "runs"), "--results", str(tmp_path / "results"), *extra]  # the last wins
+        assert main(line) == 2, extra
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, (extra, err)
+    assert not (tmp_path / "runs").exists() and not (tmp_path / "results").exists()
 
 
 def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
@@ -141,9 +178,15 @@ def test_runs_rerun_and_where_a_subset_writes(tmp_path, capsys, monkeypatch):
     assert "1 runs (1 run now, 0 reused" in capsys.readouterr().out
 
 
-def test_a_time_limit_needs_an_executor_that_can_stop_a_run(tmp_path, capsys):
-    assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", *SMALL, "--timeout", "5") == 2
-    assert "--executor local" in capsys.readouterr().err  # the serial executor cannot stop work in its own process
+def test_a_runs_time_limit_is_stated_in_the_report(tmp_path, capsys):
+    """Every run has a time limit, given (--timeout) or the default sized from the longest run (at least 900 s for
+    6 frames), and the report's command quotes it; a limit <= 0 is refused."""
+    args = ["table1", "--sequences", "office0", "--methods", "oracle", *SMALL]
+    assert bench(tmp_path, *args) == 0
+    assert "Made by `cnnslam bench table1 --frames 6 --runs 1 --sequences office0 --methods oracle --timeout 900`" \
+        in (tmp_path / "results" / "table1.md").read_text()
+    assert bench(tmp_path, *args, "--timeout", "60") == 0
+    assert "--methods oracle --timeout 60`" in (tmp_path / "results" / "table1.md").read_text()
     assert bench(tmp_path, "table1", "--methods", "oracle", "--timeout", "0", *SMALL) == 2
     assert "--timeout must be" in capsys.readouterr().err
 
