@@ -115,7 +115,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def check_arguments(args: argparse.Namespace) -> None:
     """Refuse, before any file is read, an option out of its range (``--max-diff`` and ``--rpe-delta`` positive and
     finite, a whole number of frames with ``--rpe-unit frames``; ``--offset`` finite) and an output path that cannot
-    be written (``--plot``, ``--save-aligned``): :class:`~eval.errors.InputError` or
+    be written (``--plot``, ``--save-aligned``, which must not be one of the input files):
+    :class:`~eval.errors.InputError` or
     :class:`~slamcommon.output_paths.OutputPathError`, one line naming the option, its value and what is valid."""
     if not (math.isfinite(args.max_diff) and args.max_diff > 0):
         raise InputError(f"--max-diff {args.max_diff:g}: must be a positive number of seconds (default "
@@ -138,6 +139,10 @@ def check_arguments(args: argparse.Namespace) -> None:
         check_output_file(args.plot, "--plot")
     if args.save_aligned:
         check_output_file(args.save_aligned, "--save-aligned")
+        for role, given in (("ground truth", args.groundtruth), ("estimate", args.estimate)):
+            if Path(given).resolve() == Path(args.save_aligned).resolve():
+                raise InputError(f"--save-aligned {args.save_aligned}: that is the {role} file, which it would "
+                                 "overwrite; name another file")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -236,12 +236,15 @@ THREE_POSES = "0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 1\n2 2 0 0 0 0 0 1\n"
     ("gt.txt", ["--save-aligned", "{tmp}/file/a.tum"], "--save-aligned {tmp}/file/a.tum", "is a file, not a folder"),
     ("gt.txt", ["--plot", "{tmp}/file/figure.png"], "--plot {tmp}/file/figure.png", "is a file, not a folder"),
     ("gt.txt", ["--plot", "{tmp}/folder.png"], "--plot {tmp}/folder.png: a folder, not a file", "name a file"),
+    ("est.txt", ["--save-aligned", "{tmp}/est.txt"], "--save-aligned {tmp}/est.txt: that is the estimate file",
+     "name another file"),
 ])
 def test_bad_input_exits_2_with_one_line_before_anything_is_computed(tmp_path, capsys, estimate, options, named,
                                                                     valid):
     """An option out of its range, a missing, malformed or non-text file, an output that cannot be written: exit 2
     and one line naming the value and what is valid; nothing is printed to stdout, nothing is written."""
     (tmp_path / "gt.txt").write_text(THREE_POSES)
+    (tmp_path / "est.txt").write_text(THREE_POSES)
     (tmp_path / "malformed.txt").write_text("0 0 0 0 0 0 0 1\n1 1 0 0\n")
     (tmp_path / "binary.txt").write_bytes(bytes(range(256)))
     (tmp_path / "folder").mkdir()
