@@ -11,12 +11,16 @@ as evo's ``main_ape.ape(...)`` returns a result its command line prints::
 What it does, in this order:
 
 1. **Checks everything it can before the first run** (:func:`prepare`): the suite and the options that belong to
-   it, the methods (names of the method table, ``Method`` objects as given, an external folder that is not there),
-   ``settings`` (keys that no chosen method's configuration has, values of the wrong type or range:
+   it, the numbers (frames and lengths >= 2, runs and jobs >= 1, a time limit > 0), the methods (names of the method
+   table, ``Method`` objects as given, an external folder that is not there, every agent's module imported and its
+   class found: :func:`_check_entry_points` says which are refused and which skipped), ``settings`` (keys that no
+   chosen method's configuration has, values of the wrong type or range:
    :func:`eval.bench.methods.apply_settings`), seeds, sequence names, every folder sequence's camera (a camera file
-   that does not parse or has ``fx = -5``), the results folder (a selection other than the suite's never writes into
-   the committed ``results/``), the executor. Anything wrong raises :class:`~eval.errors.InputError` with one line
-   naming the value and what is valid; nothing has run.
+   that does not parse or has ``fx = -5``), the output folders (``out`` and the results folder writable,
+   :func:`check_writable`; ``report_only``: ``out`` holds finished runs of the selection), the results folder (a
+   selection other than the suite's never writes into the committed ``results/``, :data:`COMMITTED_RESULTS`), the
+   executor, and a run's time limit (given, or :func:`_timeout`'s default, quoted in the reports' command). Anything
+   wrong raises :class:`~eval.errors.InputError` with one line naming the value and what is valid; nothing has run.
 2. **Runs every part of the suite** (:data:`KINDS`): a plain suite is one part; ``transfer``, ``lengths`` and
    ``preprocessing`` are several parts, each run as a plain suite (so their runs are those suites' own), with one
    report over all of them; ``perf`` runs throughput probes instead. A run that breaks (an agent that raises, no
