@@ -73,6 +73,7 @@ from sim_envs.camera_stages import (  # noqa: F401  (re-exported)
     SensorDepth,
     Vignetting,
     effect_stage,
+    sweep_effects,
 )
 from sim_envs.camera_stages import Response as ResponseStage
 from sim_envs.errors import SimEnvError, UnknownNameError

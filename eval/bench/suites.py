@@ -36,7 +36,7 @@ the spec has the parameter, and by :class:`sim_envs.variants.VariantSequence` wh
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from enum import StrEnum
 from pathlib import Path
@@ -55,7 +55,7 @@ from eval.bench.sequence_ref import (
     with_default_camera,
 )
 from eval.errors import SuiteError
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS, sweep_effects
 from sim_envs.datasets import detect_layout
 from sim_envs.errors import SimEnvError
 from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variants
@@ -100,25 +100,39 @@ BENCH_FRAMES = 200
 TEXTURE_DENSITIES: tuple[float, ...] = (1.0, 0.6, 0.3, 0.1)
 ADDED_PAN_SPEEDS: tuple[float, ...] = (0.0, 15.0, 30.0, 60.0)
 FOCAL_RATIOS: tuple[float, ...] = (0.7, 0.85, 1.0, 1.2, 1.4)
-# the sweep's camera axes: each effect alone on the clean camera (sim_envs.camera_effects.SINGLE_EFFECTS), strength 1
-# = the kinect preset's value
-CAMERA_EFFECT_STRENGTHS: dict[str, tuple[float, ...]] = {
-    "noise": (1.0, 2.0, 4.0),
-    "blur": (0.5, 1.0, 2.0),
-    "exposure": (1.0, 3.0, 6.0),
-    "rolling_shutter": (0.1, 0.5, 1.0),
-    "distortion": (0.5, 1.0, 2.0),
-}
-SWEEP_AXES: dict[str, str] = {
-    "texture": "texture density",
-    "rotation": "share of rotation in the motion",
-    "focal": "focal length, test / training camera",
-    "noise": "camera noise alone, x ICL-NUIM's",
-    "blur": "motion blur alone, exposure x half a frame interval",
-    "exposure": "auto-exposure alone, exposure jitter x kinect's",
-    "rolling_shutter": "rolling shutter alone, readout in frame intervals",
-    "distortion": "lens distortion alone, x TUM fr1's",
-}
+
+
+# the sweep's camera axes: each camera effect whose stage class declares sweep strengths, alone on the clean camera
+# (sim_envs.camera_stages: a class's effect, sweep_strengths and axis_title; strength 1 = the kinect preset's value),
+# in the classes' definition order. Live views of the stage classes: a new effect stage is a new axis.
+class _SweepAxes(Mapping[str, Any]):
+    """Axis name -> value: ``fixed``'s, then each camera effect's ``pick(stage class)`` (read at every access)."""
+
+    def __init__(self, fixed: dict[str, Any], pick: Callable[[type], Any]) -> None:
+        self._fixed, self._pick = fixed, pick
+
+    def _now(self) -> dict[str, Any]:
+        return {**self._fixed, **{name: self._pick(cls) for name, cls in sweep_effects().items()}}
+
+    def __getitem__(self, axis: str) -> Any:
+        return self._now()[axis]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._now())
+
+    def __len__(self) -> int:
+        return len(self._now())
+
+    def __repr__(self) -> str:
+        return repr(self._now())
+
+
+CAMERA_EFFECT_STRENGTHS: Mapping[str, tuple[float, ...]] = _SweepAxes({}, lambda cls: cls.sweep_strengths)
+SWEEP_AXES: Mapping[str, str] = _SweepAxes(
+    {"texture": "texture density", "rotation": "share of rotation in the motion",
+     "focal": "focal length, test / training camera"},
+    lambda cls: cls.axis_title,
+)  # fmt: skip
 
 
 # the report layouts a suite may name (eval.reports.suite_reports writes each); "generic" is the plain per-metric table
