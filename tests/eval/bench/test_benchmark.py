@@ -127,7 +127,8 @@ def test_an_agent_that_raises_in_step_is_a_failed_run_in_the_failure_table(tmp_p
 
 def test_a_method_that_cannot_import_at_run_time_fails_and_is_never_cached(tmp_path, monkeypatch):
     """COLMAP whose pycolmap breaks at run time: a failed run (no identity poses scored), and a rerun tries again."""
-    pytest.importorskip("thirdparty.colmap_sfm")
+    pytest.importorskip("thirdparty.colmap_sfm", reason="COLMAP's bindings are not installed (the sfm extra: "
+                        "pip install -c constraints.txt -e '.[sfm]')")
     import slamcommon.sfm as sfm
 
     def broken() -> None:
@@ -245,7 +246,7 @@ def test_a_built_in_optional_method_named_without_its_package_is_refused(tmp_pat
     import importlib.util
 
     if importlib.util.find_spec("open3d") is not None:
-        pytest.skip("open3d is installed here: Open3D-odometry can run")
+        pytest.skip("open3d is installed here, so Open3D-odometry can run: this checks a checkout without it")
     with pytest.raises(InputError, match="method 'Open3D-odometry' cannot run here .*open3d"):
         prepare("table1", ["oracle", "Open3D-odometry"], options(tmp_path))
 
@@ -291,7 +292,7 @@ def test_the_committed_results_guard_compares_resolved_paths_from_any_folder(tmp
     """From a subfolder of the repository, ``--results ../results`` (or the committed folder's absolute path, or
     a folder below it) with a selection is the repository's results/ all the same: refused."""
     if not (REPO / "results").is_dir():
-        pytest.skip("no committed results/ beside this checkout's eval package")
+        pytest.skip("no committed results/ beside this eval package: run the tests in a clone of the repository")
     monkeypatch.chdir(REPO / "eval")
     for target in (Path("../results"), Path("../results/bench"), REPO / "results", Path("../eval/../results")):
         with pytest.raises(InputError, match="this selection is 1 of its 9 sequences .*leave --results out"):
