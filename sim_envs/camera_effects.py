@@ -86,48 +86,24 @@ class CameraEffects:
     """What a simulated camera does to the rendered image. Every default is off: ``CameraEffects()`` is the clean
     camera (the renderer's bytes). Frozen and hashable; :meth:`describe` gives a JSON-ready dict.
 
-    name: a label (the preset's name; "custom" for a hand-made one), recorded with runs.
+    name: a label (the preset's name; "custom" for a hand-made one), recorded with runs. The other fields are the
+    built-in stages' parameters, under the same names (each documented and checked on its class in
+    :mod:`sim_envs.camera_stages`):
 
-    Photometric:
-    response: the camera response function applied to the linear signal: "srgb" (IEC 61966-2-1 encoding; what the
-    renderer's bytes are read as, so the neutral choice) or "gamma" (``x ** (1 / response_gamma)``);
-    response_gamma: the exponent of "gamma" (2.2: the common display gamma);
-    vignette_corner: irradiance at the image corner farthest from the principal point relative to the principal
-    point, 1 = no vignetting; the fall-off is cos^4-shaped, ``V(rho) = 1 / (1 + a rho^2)^2`` with rho the distance
-    from the principal point over the corner's (:func:`vignette`);
-    scene_light: scale of the scene's irradiance (1 = as rendered; < 1 a darker room);
-    reference_exposure_s: the exposure at which, with scene_light 1, gain 1 and no vignetting, a pixel keeps the
-    renderer's value;
-    exposure_s: the exposure time when auto-exposure is off (and the first frame's guess when it is on);
-    auto_exposure: whether a first-order controller sets each frame's exposure (:func:`auto_exposure`);
-    ae_target: the mean linear brightness the controller aims at;
-    ae_rate: the fraction of the log-brightness error corrected per frame (1 = no lag; 0.2 = a time constant of
-    about 5 frames);
-    ae_min_s, ae_max_s: exposure limits in seconds (the longest exposure is at most a frame interval);
-    max_gain: the analogue gain the controller may add once the exposure is at ``ae_max_s`` (it amplifies noise);
-    exposure_jitter: std of a per-frame log-normal factor on the effective exposure (exposure x gain), drawn from
-    the frame's own generator, that the controller sees and corrects like any brightness change (real auto-exposure
-    hunts; 0 = off).
+    - :class:`~sim_envs.camera_stages.Response`: response ("srgb" or "gamma"), response_gamma;
+    - :class:`~sim_envs.camera_stages.Vignetting`: vignette_corner (1 = none);
+    - :class:`~sim_envs.camera_stages.Exposure`: scene_light, reference_exposure_s, exposure_s;
+    - :class:`~sim_envs.camera_stages.AutoExposure`: auto_exposure (default off), ae_target, ae_rate, ae_min_s,
+      ae_max_s, max_gain, exposure_jitter;
+    - :class:`~sim_envs.camera_stages.Noise`: shot_noise, read_noise (per channel R, G, B), sensor_width;
+    - :class:`~sim_envs.camera_stages.MotionBlur`: blur_subframes (1 = one render: no blur, no rolling shutter);
+    - :class:`~sim_envs.camera_stages.RollingShutter`: readout_s (0 = global shutter);
+    - :class:`~sim_envs.camera_stages.Distortion`: distortion, OpenCV ``(k1, k2, p1, p2, k3)`` (zeros: none);
+    - :class:`~sim_envs.camera_stages.SensorDepth`: depth_noise (default off), a Kinect-like sensor depth
+      (:func:`kinect_depth`) besides the exact ground truth.
 
-    Noise (linear domain, per channel R, G, B, on intensities in [0, 1], before the gain):
-    shot_noise: std ``sqrt(x) * shot_noise``; read_noise: std ``read_noise``; sensor_width: the width in pixels of
-    the sensor these stds are for (None: the image's own): an image narrower than the sensor is the sensor's image
-    area-averaged, as the folder loader does to real frames (``cv2.INTER_AREA``), so both stds are scaled by
-    ``width / sensor_width`` (the mean of (sensor_width / width)^2 independent pixels).
-
-    Geometry of the exposure:
-    blur_subframes: renders per frame spread over the union of the rows' exposure windows (1 = one render at the
-    frame's pose: no blur and no rolling shutter, whatever the exposure);
-    readout_s: rolling-shutter readout, seconds from the first row's exposure to the last row's (0 = global shutter);
-    distortion: OpenCV radial-tangential ``(k1, k2, p1, p2, k3)`` of the lens (zeros: none).
-
-    Depth:
-    depth_noise: whether frames carry a Kinect-like sensor depth (:func:`kinect_depth`) besides the exact ground
-    truth (which stays untouched).
-
-    Each group of fields is one stage's parameters (:data:`sim_envs.camera_stages.BUILTIN_STAGES`, which check
-    them); extra_stages: the camera's other stages (classes of :mod:`sim_envs.camera_stages` without fields here), run
-    in chain order with the built-in ones (:attr:`stages`).
+    extra_stages: the camera's other stages (stage classes without fields here), run in chain order with the
+    built-in ones (:attr:`stages`).
     """
 
     name: str = "custom"
