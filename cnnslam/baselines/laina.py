@@ -58,6 +58,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from cnnslam.baselines.base import BaselineAgent
 from cnnslam.baselines.laina_kernels import depth_surface_pyramid, evaluate_icp, maps_surface_pyramid
 from cnnslam.config import TrackingConfig
 from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
@@ -165,14 +166,16 @@ class _PhotometricReference:
     T_world_ref: np.ndarray
 
 
-class LainaAgent:
+class LainaAgent(BaselineAgent):
     """Laina et al. [16] + point-based fusion [11] as a ``sim_envs`` agent (see the module docstring)."""
 
     uses_ground_truth = False
+    name = "laina"
     default_predictor = "network"
 
     def __init__(self, config: LainaConfig | dict[str, Any] | None = None, predictor: str | Any | None = None,
                  predictor_options: dict[str, Any] | None = None) -> None:
+        super().__init__()
         self.config = configure(LainaConfig(), config)
         self._predictor_spec = self.default_predictor if predictor is None else predictor
         if (isinstance(self._predictor_spec, str) and self._predictor_spec == "degraded_ground_truth"
@@ -181,10 +184,7 @@ class LainaAgent:
                                "cnnslam.baselines.laina:GroundTruthAidedLainaAgent")
         self._predictor_options = dict(predictor_options or {})
         self._predictor: Any = None
-        self.name = "laina"
         self._model: GlobalModel | None = None
-        self._intrinsics = np.zeros(4)
-        self._size = (0, 0)
 
     @property
     def predictor(self) -> Any:
@@ -201,44 +201,33 @@ class LainaAgent:
             raise CnnSlamError("no episode yet: call reset() first")
         return self._model
 
-    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
-        """Start a new episode: ``intrinsics`` [fx, fy, cx, cy] pixels, ``image_size`` (H, W)."""
-        k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
-        if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
-            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
-        self._intrinsics = k
-        self._size = (int(image_size[0]), int(image_size[1]))
+    def _start(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
+        k = intrinsics
         scale = self.config.icp_downsample
-        if self._size[0] % scale or self._size[1] % scale:
-            raise CnnSlamError(f"laina.icp_downsample = {scale} needs an image size divisible by it, got {self._size}")
+        if image_size[0] % scale or image_size[1] % scale:
+            raise CnnSlamError(f"laina.icp_downsample = {scale} needs an image size divisible by it, got {image_size}")
         self._icp_intrinsics = k.copy() if scale == 1 else pyramid_intrinsics(k, int(math.log2(scale)))
-        self._icp_size = (self._size[0] // scale, self._size[1] // scale)
+        self._icp_size = (image_size[0] // scale, image_size[1] // scale)
         self._model = GlobalModel(self.config.model)
-        self._frame = 0
         self._T_world_prev: np.ndarray | None = None
         self._velocity = np.eye(4)  # T_prev_cur of the last tracked motion
         self._keyframes: list[Any] = []
         self._last_kf: tuple[int, np.ndarray] | None = None  # (frame, T_world_kf)
         self._photometric: _PhotometricReference | None = None
-        self._tracked: list[bool] = []
         self._model_sizes: list[tuple[int, int, int]] = []  # (frame, surfels, bytes) every 100 frames
         self._counters = {"lost": 0, "predicted": 0, "fused": 0, "pruned": 0, "photometric": 0}
         self._seconds = {"prediction": 0.0, "icp": 0.0, "render": 0.0, "fusion": 0.0, "photometric": 0.0}
 
-    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
-        """Process one observation (``rgb``, ``timestamp``); answer ``{"T_world_cam": (4, 4), "tracked": 0|1}``."""
-        return self._step(observation, None)
-
-    def _step(self, observation: dict[str, np.ndarray], hint: GroundTruthHint | None) -> dict[str, Any]:
-        if self._model is None:
-            raise CnnSlamError("call reset(intrinsics, image_size) before step()")
+    def _track(self, observation: dict[str, np.ndarray], timestamp: float,
+               info: dict[str, Any] | None) -> tuple[np.ndarray, bool]:
+        """One frame: predict (every ``cnn_every``-th), track (ICP or photometric), fuse, maybe a key-frame; the
+        development predictor's ground truth (``info``) is read only with ``uses_ground_truth``."""
+        assert self._model is not None  # the base calls _track after _start only
+        hint = GroundTruthHint.from_info(info) if self.uses_ground_truth else None
         cfg = self.config
         rgb = np.asarray(observation["rgb"])
-        if rgb.shape[:2] != self._size:
-            raise CnnSlamError(f"frame of size {rgb.shape[:2]} but the agent was reset for {self._size}")
-        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
-        frame = self._frame
-        self._frame += 1
+        stamp = timestamp
+        frame = len(self._tracked)  # this frame's index in the episode
         predicted = frame % cfg.cnn_every == 0
         pred = None
         if predicted:
@@ -262,7 +251,6 @@ class LainaAgent:
         else:  # lost: report the prediction, but try the next frame from the last tracked pose, at rest
             self._counters["lost"] += 1
             self._velocity = np.eye(4)
-        self._tracked.append(bool(tracked))
 
         if pred is not None and tracked:
             t0 = time.perf_counter()
@@ -285,7 +273,7 @@ class LainaAgent:
                 self._last_kf = (frame, T_world_cur.copy())
         if frame % 100 == 0:
             self._model_sizes.append((frame, len(self._model), self._model.nbytes))
-        return {"T_world_cam": T_world_cur, "tracked": int(tracked)}
+        return T_world_cur, bool(tracked)
 
     def _track_icp(self, depth: np.ndarray, T_world_pred: np.ndarray) -> tuple[np.ndarray, bool]:
         """Frame-to-model ICP of the CNN depth against the model rendered at the previous pose."""
@@ -341,16 +329,13 @@ class LainaAgent:
         return bool(np.linalg.norm(T_kf_cur[:3, 3]) >= cfg.keyframe_translation
                     or rotation_angle_deg(T_kf_cur) >= cfg.keyframe_rotation_deg)
 
-    def finish(self) -> Any:
-        """End the episode: an ``AgentOutput`` with the key-frames (CNN depth) and JSON-serialisable extras."""
+    def _finish(self) -> Any:
+        """An ``AgentOutput`` with the key-frames (CNN depth) and JSON-serialisable extras."""
         from sim_envs.agent import AgentOutput
 
-        if self._model is None:
-            raise CnnSlamError("finish() before reset()")
-        n = len(self._tracked)
+        assert self._model is not None
         extras: dict[str, Any] = {
-            "frames": n,
-            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            **self.episode_extras(),
             "keyframes": len(self._keyframes),
             **self._counters,
             "model_surfels": len(self._model),
@@ -375,8 +360,3 @@ class GroundTruthAidedLainaAgent(LainaAgent):
 
     uses_ground_truth = True
     default_predictor = "degraded_ground_truth"
-
-    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
-        """Like :meth:`LainaAgent.step`; ``info`` feeds the development predictor only."""
-        hint = GroundTruthHint.from_info(info)
-        return self._step(observation, hint)

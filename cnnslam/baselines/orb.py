@@ -42,6 +42,7 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
+from cnnslam.baselines.base import BaselineAgent
 from cnnslam.baselines.orb_ba import optimize_pose
 from cnnslam.baselines.orb_config import OrbConfig
 from cnnslam.baselines.orb_features import (
@@ -508,44 +509,35 @@ class OrbSlam:
         return out
 
 
-class OrbSlamAgent:
+class OrbSlamAgent(BaselineAgent):
     """ORB-SLAM as a ``sim_envs`` agent (see the module docstring for what it does and the arguments)."""
 
     uses_ground_truth = False
     name = "orb_slam"
 
     def __init__(self, config: OrbConfig | dict[str, Any] | None = None, seed: int = 0) -> None:
+        super().__init__()
         self.config = configure(OrbConfig(), config)
         self.seed = int(seed)
         self.system: OrbSlam | None = None
-        self._timestamps: list[float] = []
-        self._poses: list[np.ndarray] = []
-        self._tracked: list[bool] = []
         self._seconds: list[float] = []
 
-    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
-        """Start a new episode: ``intrinsics`` [fx, fy, cx, cy] pixels, ``image_size`` (H, W)."""
+    def _start(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
         self.system = OrbSlam(intrinsics, image_size, self.config, self.seed)
-        self._timestamps, self._poses, self._tracked, self._seconds = [], [], [], []
+        self._seconds = []
 
-    def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
-        """Process one observation (``rgb``, ``timestamp``); answer ``{"T_world_cam": (4, 4), "tracked": 0|1}``."""
-        if self.system is None:
-            raise CnnSlamError("call reset(intrinsics, image_size) before step()")
-        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
-        out = self.system.process(observation["rgb"], stamp)
-        self._timestamps.append(stamp)
-        self._poses.append(out.T_world_cam)
-        self._tracked.append(out.tracked)
+    def _track(self, observation: dict[str, np.ndarray], timestamp: float,
+               info: dict[str, Any] | None) -> tuple[np.ndarray, bool]:
+        assert self.system is not None  # the base calls _track after _start only
+        out = self.system.process(observation["rgb"], timestamp)
         self._seconds.append(out.seconds)
-        return {"T_world_cam": out.T_world_cam, "tracked": int(out.tracked)}
+        return out.T_world_cam, out.tracked
 
-    def finish(self) -> Any:
+    def _finish(self) -> Any:
         """An ``AgentOutput``: every key-frame with its sparse map-point depth (map units) and final pose."""
         from sim_envs.agent import AgentOutput, KeyframeDepth
 
-        if self.system is None:
-            raise CnnSlamError("finish() before reset()")
+        assert self.system is not None
         sys_ = self.system
         keyframes = [
             KeyframeDepth(timestamp=kf.timestamp, depth=sys_.keyframe_depth(kf), T_world_cam=kf.T_world_cam)
@@ -554,8 +546,7 @@ class OrbSlamAgent:
         n = len(self._tracked)
         secs = np.asarray(self._seconds)
         extras: dict[str, Any] = {
-            "frames": n,
-            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            **self.episode_extras(),
             "keyframes": len(keyframes),
             "map_points": int((~sys_.map.bad).sum()),
             "init_frame": sys_.init_frame,
@@ -573,7 +564,7 @@ class OrbSlamAgent:
     def final_trajectory(self) -> tuple[np.ndarray, np.ndarray]:
         """(timestamps (N,), T_world_cam (N, 4, 4)): every tracked frame through its reference key-frame's final
         pose (after the episode; the online answers are what the driver recorded)."""
-        if self.system is None:
+        if self.system is None or not self._started:
             raise CnnSlamError("final_trajectory() before reset()")
         online = np.stack(self._poses) if self._poses else np.zeros((0, 4, 4))
         return np.asarray(self._timestamps), self.system.final_trajectory(online)

@@ -61,6 +61,7 @@ import cv2
 import numpy as np
 from numba import njit
 
+from cnnslam.baselines.base import BaselineAgent
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import se3_inverse
 from slamcommon.config import Configurable, configure
@@ -873,7 +874,7 @@ class _Reference:
     updates: int = 0
 
 
-class RemodeAgent:
+class RemodeAgent(BaselineAgent):
     """REMODE on the LSD-BS trajectory as a ``sim_envs`` agent (see the module docstring for the arguments).
 
     Depth only: Table 1 shows '-' for REMODE's ATE (the trajectory it answers is LSD-BS's). Receives ground truth
@@ -887,37 +888,33 @@ class RemodeAgent:
                  threads: bool = False, seed: int | None = None) -> None:
         from cnnslam.agent import build_config
 
+        super().__init__()
         self.config = configure(RemodeConfig(), config)
         lsd_overrides = dict(lsd_config or {})
         if seed is not None:
             lsd_overrides["system.seed"] = int(seed)
         self.lsd_config = build_config("lsd_bs", lsd_overrides, threads)
         self._system: Any = None
-        self._intrinsics = np.zeros(4)
         self._active: list[_Reference] = []
         self._done: dict[int, tuple[np.ndarray, np.ndarray, dict[str, float]]] = {}
         self._ms: list[float] = []
 
-    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
-        """Start a new episode: ``intrinsics`` [fx, fy, cx, cy] pixels, ``image_size`` (H, W)."""
+    def _start(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
         from cnnslam.system import CnnSlam
 
         if self._system is not None:
             self._system.close()
-        self._intrinsics = np.asarray(intrinsics, dtype=np.float64).reshape(4)
-        self._system = CnnSlam(self.lsd_config, self._intrinsics, tuple(image_size), None)
+        self._system = CnnSlam(self.lsd_config, intrinsics, image_size, None)
         self._active, self._done, self._ms = [], {}, []
 
-    def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
+    def _track(self, observation: dict[str, np.ndarray], timestamp: float,
+               info: dict[str, Any] | None) -> tuple[np.ndarray, bool]:
         """Track the frame with LSD-BS (``info["gt_depth"]`` bootstraps its first key-frame), update the active
         REMODE reference frames with it, and start one on each new LSD-BS key-frame. Answers LSD-BS's pose."""
         from cnnslam.depth_prediction import GroundTruthHint
 
-        if self._system is None:
-            raise CnnSlamError("call reset(intrinsics, image_size) before step()")
         hint = GroundTruthHint.from_info(info)
-        stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
-        out = self._system.process(observation["rgb"], stamp, hint)
+        out = self._system.process(observation["rgb"], timestamp, hint)
         gray = _gray(observation["rgb"])
         t0 = time.perf_counter()
         if out.tracked:
@@ -940,7 +937,7 @@ class RemodeAgent:
                 while len(self._active) > self.config.max_active_references:
                     self._retire(self._active[0])
         self._ms.append(1e3 * (time.perf_counter() - t0))
-        return {"T_world_cam": out.T_world_cam, "tracked": int(out.tracked)}
+        return out.T_world_cam, out.tracked
 
     def _retire(self, ref: _Reference) -> None:
         """Finish a reference frame: its (smoothed) depth and variance are kept for ``finish``."""
@@ -952,12 +949,10 @@ class RemodeAgent:
         self._done[ref.keyframe] = (depth, f.depth_variance(), stats)
         self._active.remove(ref)
 
-    def finish(self) -> Any:
+    def _finish(self) -> Any:
         """An ``AgentOutput``: LSD-BS's key-frames (final poses) with REMODE's depth (0 where not converged)."""
         from sim_envs.agent import AgentOutput, KeyframeDepth
 
-        if self._system is None:
-            raise CnnSlamError("finish() before reset()")
         for ref in list(self._active):
             self._retire(ref)
         result = self._system.finish()
