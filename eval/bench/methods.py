@@ -334,6 +334,23 @@ def _thaw(value: Any) -> Any:
 # ------------------------------------------------------------------------------------------------------ the table
 _FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
            "sensor", "uses_ground_truth", "cost", "preload"}
+_STRING_FIELDS = ("entry_point", "paper", "description", "kind", "folder", "align", "sensor")
+_LIST_FIELDS = ("metrics", "inputs", "uses_ground_truth", "preload")
+_FIELD_KINDS = {**dict.fromkeys(_STRING_FIELDS, "a string"), **dict.fromkeys(_LIST_FIELDS, "a list of strings"),
+                "seed": "a string or a list of strings", "kwargs": "a table", "cost": "a number"}  # fmt: skip
+
+
+def _strings(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+
+_FIELD_TYPES: dict[str, Any] = {
+    **dict.fromkeys(_STRING_FIELDS, lambda v: isinstance(v, str)),
+    **dict.fromkeys(_LIST_FIELDS, _strings),
+    "seed": lambda v: isinstance(v, str) or _strings(v),
+    "kwargs": lambda v: isinstance(v, Mapping),
+    "cost": lambda v: isinstance(v, int | float) and not isinstance(v, bool),
+}  # what the value of each field of a method table must be (checked before the Method is made)
 SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
 GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
 ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)
@@ -353,9 +370,14 @@ def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[st
         unknown = sorted(set(entry) - _FIELDS)
         if unknown:
             raise MethodError(f"{source}: methods.{name} has unknown field(s) {unknown}; valid: {sorted(_FIELDS)}")
+        for key, value in entry.items():
+            if not _FIELD_TYPES[key](value):
+                raise MethodError(f"{source}: methods.{name}.{key} = {value!r}; {key} is {_FIELD_KINDS[key]}")
         try:
             methods[name] = Method(name=name, **dict(entry))
-        except TypeError as exc:
+        except MethodError as exc:
+            raise MethodError(f"{source}: {exc}") from exc
+        except (TypeError, ValueError) as exc:  # a value of the wrong type for its field
             raise MethodError(f"{source}: methods.{name}: {exc}") from exc
     return methods
 
@@ -364,10 +386,10 @@ def load_methods(path: str | Path | None = None) -> dict[str, Method]:
     """The method table of ``path`` (default :data:`METHODS_FILE`), name -> :class:`Method`, in file order."""
     path = Path(path) if path is not None else METHODS_FILE
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise MethodError(f"{path}: cannot read the method table: {exc.strerror or exc}") from exc
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MethodError(f"{path}: not valid TOML: {exc}") from exc
     return parse_methods(data, str(path))
 
@@ -404,23 +426,31 @@ def external_method(name: str, folder: str | Path, metrics: Sequence[str] = ("tr
     path = Path(folder) / EXTERNAL_SIDE_FILE
     if path.is_file():
         try:
-            side = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as exc:
+            side = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise MethodError(f"{path}: not valid TOML: {exc}") from exc
         unknown = sorted(set(side) - {"sensor", "uses_ground_truth", "align", "description"})
         if unknown:
             raise MethodError(f"{path}: unknown field(s) {unknown}; valid: align, description, sensor, "
                               "uses_ground_truth")
-    return Method(
-        name=name,
-        kind="external",
-        folder=str(Path(folder).resolve()),
-        metrics=tuple(metrics),
-        description=str(side.get("description", f"external system, output read from {folder}")),
-        align=side.get("align"),
-        sensor=side.get("sensor", "mono"),
-        uses_ground_truth=tuple(side.get("uses_ground_truth", ())),
-    )
+        used = side.get("uses_ground_truth", [])
+        if not (isinstance(used, list) and all(isinstance(g, str) for g in used)) or not all(
+                isinstance(side.get(k, ""), str) for k in ("sensor", "align", "description")):  # fmt: skip
+            raise MethodError(f"{path}: sensor, align and description are strings, uses_ground_truth a list of "
+                              f"them; got {side!r}")  # fmt: skip
+    try:
+        return Method(
+            name=name,
+            kind="external",
+            folder=str(Path(folder).resolve()),
+            metrics=tuple(metrics),
+            description=str(side.get("description", f"external system, output read from {folder}")),
+            align=side.get("align"),
+            sensor=side.get("sensor", "mono"),
+            uses_ground_truth=tuple(side.get("uses_ground_truth", ())),
+        )
+    except MethodError as exc:
+        raise MethodError(f"{path}: {exc}" if side else str(exc)) from exc
 
 
 def parse_external(text: str) -> Method:
