@@ -14,30 +14,33 @@ A run's fingerprint (:meth:`eval.bench.run.RunSpec.fingerprint`) is the SHA-256 
 - ``weights``: the SHA-256 of the method's input files (:meth:`eval.bench.methods.Method.input_hashes`);
 - ``config``: the method's and sequence's definitions, seed, frames, alignment, renderer.
 
-The closure of a module (:func:`import_closure`) follows, within the project's packages (:data:`PROJECT_PACKAGES`),
-every ``import`` and ``from ... import`` statement of its file, including those inside functions, the packages'
-``__init__`` files that importing a module runs, and ``importlib.import_module("literal")`` calls; it never imports
-anything (files are located from the top-level packages' folders and parsed with :mod:`ast`). Modules outside the
-project's packages (numpy, torch, ...) are not followed: their versions are the machine's (a run's ``timing.json``
-names them). Parsed files and closures are cached per process by each file's size and modification time, so a suite
-of hundreds of runs parses each file once.
+The closure of a module (:func:`import_closure`, defined in :mod:`slamcommon.provenance`) follows, within the
+project's packages (:data:`PROJECT_PACKAGES`), every ``import`` and ``from ... import`` statement of its file, including
+those inside functions, the packages' ``__init__`` files that importing a module runs, and
+``importlib.import_module("literal")`` calls; it never imports anything. Modules outside the project's packages
+(numpy, torch, ...) are not followed: their versions are the machine's (a run's ``timing.json`` names them). Parsed
+files and closures are cached per process by each file's size and modification time, so a suite of hundreds of runs
+parses each file once.
 """
 
 from __future__ import annotations
 
-import ast
 import hashlib
-import importlib.util
 import json
-import os
-import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from slamcommon import provenance as _closure
+from slamcommon.provenance import file_sha256, files_digest, imported_modules, package_root
+
+__all__ = ["PARTS", "PROJECT_PACKAGES", "RunParts", "agent_files", "agent_modules", "closure_sha256", "file_sha256",
+           "files_digest", "import_closure", "imported_modules", "judge_files", "module_file", "package_root",
+           "project_packages", "run_parts", "world_files", "world_roots"]
+
 # the packages whose files a closure follows (and hashes); modules of any other package are left out
-PROJECT_PACKAGES: tuple[str, ...] = ("cnnslam", "sim_envs", "slamcommon", "thirdparty", "eval")
+PROJECT_PACKAGES: tuple[str, ...] = _closure.PROJECT_PACKAGES
 WORLD_PACKAGES: tuple[str, ...] = ("sim_envs",)
 JUDGE_PREFIXES: tuple[str, ...] = ("eval.metrics", "slamcommon")
 # the world every run of an agent goes through: the environments and the episode loop
@@ -45,155 +48,32 @@ WORLD_ROOTS: tuple[str, ...] = ("sim_envs.env", "sim_envs.driver")
 RUN_MODULE = "eval.bench.run"  # whose eval.metrics imports are the judge's roots
 PARTS: tuple[str, ...] = ("agent", "world", "judge", "weights", "config")
 
-_Stamp = tuple[int, int]
-_PARSED: dict[tuple[str, _Stamp], tuple[str, ...]] = {}
-_CLOSURES: dict[tuple[str, tuple[str, ...]], tuple[dict[str, Path], tuple[tuple[str, _Stamp], ...]]] = {}
-_DIGESTS: dict[tuple[str, _Stamp], str] = {}
-_ROOTS: dict[tuple[str, tuple[str, ...]], Path | None] = {}
-
-
-def _stamp(path: Path | str) -> _Stamp:
-    st = os.stat(path)
-    return st.st_size, st.st_mtime_ns
-
 
 def project_packages() -> tuple[str, ...]:
     """The packages closures follow now (:data:`PROJECT_PACKAGES`, read at each call so a test may add one)."""
     return tuple(PROJECT_PACKAGES)
 
 
-def package_root(top: str) -> Path | None:
-    """The folder of top-level package ``top`` (found with :func:`importlib.util.find_spec`, which does not import
-    it), or None when it is no package here. Cached per process and Python path."""
-    key = (top, tuple(sys.path))
-    if key not in _ROOTS:
-        try:
-            spec = importlib.util.find_spec(top)
-        except (ImportError, ValueError):
-            spec = None
-        roots = list(spec.submodule_search_locations or []) if spec is not None else []
-        _ROOTS[key] = Path(roots[0]) if roots else None
-    return _ROOTS[key]
+def _packages(packages: Sequence[str] | None) -> tuple[str, ...]:
+    return project_packages() if packages is None else tuple(packages)
 
 
 def module_file(module: str, packages: Sequence[str] | None = None) -> Path | None:
-    """The source file of ``module`` (``a/b.py`` or ``a/b/__init__.py`` below its top-level package's folder) when
-    its top-level package is one of ``packages``; None otherwise or when there is no such file."""
-    packages = project_packages() if packages is None else tuple(packages)
-    top, *rest = module.split(".")
-    if top not in packages:
-        return None
-    root = package_root(top)
-    if root is None:
-        return None
-    base = root.joinpath(*rest)
-    for path in (base.with_suffix(".py") if rest else None, base / "__init__.py"):
-        if path is not None and path.is_file():
-            return path
-    return None
-
-
-def _resolve_relative(module: str, is_package: bool, level: int, name: str | None) -> str:
-    """The absolute module of a relative import ``from .name import x`` (``level`` dots) in ``module``."""
-    parts = module.split(".")
-    base = parts if is_package else parts[:-1]
-    base = base[: len(base) - (level - 1)] if level > 1 else base
-    return ".".join([*base, name] if name else base)
-
-
-def imported_modules(path: Path, module: str) -> tuple[str, ...]:
-    """Every module name the file ``path`` (module ``module``) may import: ``import a.b``, ``from a import b`` (both
-    ``a`` and ``a.b``, which may be a submodule), relative imports resolved, and ``importlib.import_module("a.b")``
-    with a literal name; statements inside functions and classes included. Cached by the file's size and time."""
-    key = (str(path), _stamp(path))
-    if key in _PARSED:
-        return _PARSED[key]
-    tree = ast.parse(path.read_bytes(), filename=str(path))
-    is_package = path.name == "__init__.py"
-    names: list[str] = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                base = _resolve_relative(module, is_package, node.level, node.module)
-            names.append(base)
-            names += [f"{base}.{alias.name}" for alias in node.names if alias.name != "*"]
-        elif (isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant)
-              and isinstance(node.args[0].value, str) and _called_name(node.func) == "import_module"):
-            names.append(node.args[0].value)
-    out = tuple(dict.fromkeys(n for n in names if n))
-    _PARSED[key] = out
-    return out
-
-
-def _called_name(func: ast.expr) -> str | None:
-    if isinstance(func, ast.Attribute):
-        return func.attr
-    if isinstance(func, ast.Name):
-        return func.id
-    return None
-
-
-def _parents(module: str) -> list[str]:
-    """The packages importing ``module`` runs first: ``a``, ``a.b`` for ``a.b.c``."""
-    parts = module.split(".")
-    return [".".join(parts[:i]) for i in range(1, len(parts))]
+    """The source file of ``module`` within ``packages`` (default :func:`project_packages`;
+    :func:`slamcommon.provenance.module_file`)."""
+    return _closure.module_file(module, _packages(packages))
 
 
 def import_closure(modules: Iterable[str], packages: Sequence[str] | None = None) -> dict[str, Path]:
-    """``{module: file}`` of ``modules`` and everything they import, transitively, within ``packages`` (module
-    docstring); names that are no module file of those packages (a class imported by ``from a import Class``, a
-    third-party module) are left out. Cached per process and checked against the files' sizes and times."""
-    packages = project_packages() if packages is None else tuple(packages)
-    roots = tuple(sorted(set(modules)))
-    key = (",".join(roots), tuple(f"{p}={package_root(p)}" for p in packages))
-    cached = _CLOSURES.get(key)
-    if cached is not None:
-        files, stamps = cached
-        try:
-            if all(_stamp(p) == s for p, s in stamps):
-                return dict(files)
-        except OSError:
-            pass
-    found: dict[str, Path] = {}
-    todo = list(roots)
-    while todo:
-        name = todo.pop()
-        if name in found:
-            continue
-        path = module_file(name, packages)
-        if path is None:
-            continue
-        found[name] = path
-        todo += _parents(name)
-        todo += [m for m in imported_modules(path, name) if m.split(".")[0] in packages and m not in found]
-    _CLOSURES[key] = (dict(found), tuple((str(p), _stamp(p)) for p in found.values()))
-    return found
-
-
-def file_sha256(path: Path) -> str:
-    """SHA-256 of a file's bytes, cached per process by (path, size, modification time)."""
-    key = (str(path), _stamp(path))
-    if key not in _DIGESTS:
-        _DIGESTS[key] = hashlib.sha256(path.read_bytes()).hexdigest()
-    return _DIGESTS[key]
-
-
-def files_digest(files: dict[str, Path]) -> str:
-    """SHA-256 over ``files`` (module -> file), by module name and content, in sorted order."""
-    digest = hashlib.sha256()
-    for name in sorted(files):
-        digest.update(name.encode() + b"\0" + file_sha256(files[name]).encode() + b"\n")
-    return digest.hexdigest()
+    """``{module: file}`` of ``modules`` and everything they import within ``packages`` (default
+    :func:`project_packages`; :func:`slamcommon.provenance.import_closure`)."""
+    return _closure.import_closure(modules, _packages(packages))
 
 
 def closure_sha256(module: str, packages: Sequence[str] | None = None) -> str | None:
-    """SHA-256 of the import closure of ``module`` (:func:`import_closure`), None when ``module`` is no module file
-    of ``packages``."""
-    files = import_closure([module], packages)
-    return files_digest(files) if module in files else None
+    """SHA-256 of the import closure of ``module``, None when it is no module file of ``packages`` (default
+    :func:`project_packages`)."""
+    return _closure.closure_sha256(module, _packages(packages))
 
 
 def _within(files: dict[str, Path], prefixes: Sequence[str]) -> dict[str, Path]:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import json
-import subprocess
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,40 +26,13 @@ from typing import Any
 
 from eval.bench.fingerprint import PARTS, run_parts
 from eval.errors import InputError
+from slamcommon.provenance import DIRTY_LISTED, MANIFEST_SUFFIX, REPOSITORY, SCHEMA, TreeState, tree_state
 
-SCHEMA = "cnnslam-provenance/1"
-MANIFEST_SUFFIX = ".provenance.json"
-REPOSITORY = Path(__file__).resolve().parents[2]
+__all__ = ["MANIFEST_SUFFIX", "RESULTS_ROOT", "SCHEMA", "ResultStatus", "TreeState", "format_status", "judge_result",
+           "result_groups", "results_status", "tree_state", "write_manifest"]
 RESULTS_ROOT = REPOSITORY / "results"  # the committed results
 NOT_RESULTS: tuple[str, ...] = ("baselines",)  # folders under results/ that hold the gate's inputs, not results
 FIGURES_SUFFIX = "_figures"  # a report's folder of figures (<suite>_figures/)
-DIRTY_LISTED = 5  # uncommitted files named in a manifest (the count is always given)
-
-
-# ------------------------------------------------------------------------------------------------ the tree state
-@dataclass(frozen=True)
-class TreeState:
-    """The repository's ``revision`` (12 hex digits; None outside a git checkout) and the tracked files with
-    uncommitted changes outside ``results/`` (``dirty``)."""
-
-    revision: str | None
-    dirty: tuple[str, ...] = ()
-
-
-def tree_state(root: Path = REPOSITORY) -> TreeState:
-    """The revision of the checkout at ``root`` and its tracked files changed and not committed (results excluded:
-    a report rewrites them before its manifest is written)."""
-    def git(*args: str) -> str | None:
-        try:
-            out = subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=30, check=True)
-        except (OSError, subprocess.SubprocessError):
-            return None
-        return out.stdout
-
-    head = git("rev-parse", "--short=12", "HEAD")
-    status = git("status", "--porcelain", "--untracked-files=no") or ""
-    dirty = sorted({line[3:].split(" -> ")[-1] for line in status.splitlines() if len(line) > 3})
-    return TreeState(head.strip() if head else None, tuple(p for p in dirty if not p.startswith("results/")))
 
 
 # ------------------------------------------------------------------------------------------------ the manifest
