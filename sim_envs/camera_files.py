@@ -11,13 +11,14 @@ hold ``camera-intrinsics.txt`` (:data:`SEVEN_SCENES_INTRINSICS_FILE`, a 3x3 K, t
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from sim_envs.camera import DISTORTION_NAMES, CameraModel, Intrinsics, camera_model
+from sim_envs.camera import DISTORTION_NAMES, CameraModel, Intrinsics, camera_model, camera_presets
 from sim_envs.errors import FormatError
 
 CAMERA_FILES: tuple[str, ...] = ("camera.toml", "camera.yaml", "camera.yml")  # a folder's own camera file
@@ -46,37 +47,59 @@ def read_camera_file(path: str | Path, width: int | None = None, height: int | N
     ``fx fy cx cy`` (pixels, OpenCV convention: y down, pixel centres at integers, so fy > 0) and optionally
     ``width height`` (the image size they are for; default: ``width`` x ``height`` given here) and the OpenCV
     distortion ``k1 k2 p1 p2 k3`` (default 0); or ``preset = "<name>"`` (a :func:`sim_envs.camera.preset` with its
-    distortion). The camera is scaled to ``width`` x ``height`` when both are given.
+    distortion, scaled to ``width`` x ``height`` when both are given, else 640x480).
+
+    ``width`` x ``height``: the size of the images the camera is for. A file whose own ``width height`` differ from
+    them is refused (:class:`FormatError`, both sizes named), not rescaled: fx fy cx cy of another resolution are a
+    camera of other images. Every error is one :class:`FormatError` line naming the file.
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
         data = tomllib.loads(text) if path.suffix == ".toml" else _read_flat_yaml(text, path)
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise FormatError(f"{path}: not a readable camera file ({exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise FormatError(f"{path}: not a text file (UTF-8 decoding failed at byte {exc.start})") from exc
     valid = ("preset", "fx", "fy", "cx", "cy", "width", "height", *DISTORTION_NAMES)
     unknown = sorted(set(data) - set(valid))
     if unknown:
-        raise FormatError(f"{path}: unknown key(s) {', '.join(unknown)}; valid: {', '.join(valid)}")
+        raise FormatError(f"{path}: unknown key(s) {', '.join(map(repr, unknown))}; valid: {', '.join(valid)}")
     if "preset" in data:
         if len(data) > 1:
             raise FormatError(f"{path}: give either preset or fx fy cx cy (and distortion), not both")
-        name = str(data["preset"])
+        name = data["preset"]
+        if not isinstance(name, str) or name not in camera_presets():
+            raise FormatError(f"{path}: unknown camera preset {name!r}; valid: {', '.join(camera_presets())}")
         return camera_model(name, width, height) if width and height else camera_model(name, 640, 480)
     missing = [k for k in ("fx", "fy", "cx", "cy") if k not in data]
     if missing:
         raise FormatError(f"{path}: missing {', '.join(missing)} (pixels) or a preset name")
-    w, h = data.get("width", width), data.get("height", height)
-    if not w or not h:
-        raise FormatError(f"{path}: give width and height (the image size fx fy cx cy are for)")
+    numbers = {}
+    for key in ("fx", "fy", "cx", "cy", *(n for n in DISTORTION_NAMES if n in data)):
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise FormatError(f"{path}: {key} = {value!r}; it must be a finite number")
+        numbers[key] = float(value)
+    size = []
+    for key, given in (("width", width), ("height", height)):
+        value = data.get(key, given)
+        if value is None:
+            raise FormatError(f"{path}: give width and height (the image size fx fy cx cy are for)")
+        if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and value > 0 and value == int(value)):  # fmt: skip
+            raise FormatError(f"{path}: {key} = {value!r}; it must be a whole number of pixels > 0")
+        size.append(int(value))
+    if width and height and tuple(size) != (width, height):
+        raise FormatError(
+            f"{path}: the camera is for {size[0]}x{size[1]} images but the images are {width}x{height}; give the "
+            "fx fy cx cy of these images (or leave width and height out: the images' size)"
+        )
     try:
-        K = Intrinsics(float(data["fx"]), float(data["fy"]), float(data["cx"]), float(data["cy"]), int(w), int(h))
-        model = CameraModel(K, tuple(float(data.get(n, 0.0)) for n in DISTORTION_NAMES))  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
+        K = Intrinsics(numbers["fx"], numbers["fy"], numbers["cx"], numbers["cy"], size[0], size[1])
+        return CameraModel(K, tuple(numbers.get(n, 0.0) for n in DISTORTION_NAMES))  # type: ignore[arg-type]
+    except ValueError as exc:
         raise FormatError(f"{path}: {exc}") from exc
-    if width and height and (K.width, K.height) != (width, height):
-        model = model.scaled(width, height)
-    return model
 
 
 def _read_intrinsics_matrix(path: Path, width: int, height: int) -> Intrinsics:
@@ -101,6 +124,8 @@ def _read_flat_yaml(text: str, path: Path) -> dict[str, Any]:
         value = value.strip().strip("\"'")
         if not sep or line[0].isspace() or not value:
             raise FormatError(f"{path}:{number}: expected a flat 'key: value' line (use TOML for anything else)")
+        if key.strip() in data:
+            raise FormatError(f"{path}:{number}: {key.strip()!r} given twice")
         try:
             data[key.strip()] = float(value) if key.strip() != "preset" else value
         except ValueError:

@@ -63,6 +63,7 @@ the raw POV-Ray depth (Euclidean ray length), converted by z = d / sqrt(((u-cx)/
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import re
 from collections.abc import Sequence
@@ -488,11 +489,17 @@ def load_tum_rgbd_folder(folder: str | Path, camera: CameraLike = None, **kwargs
 
 
 def check_size(size: Sequence[int]) -> tuple[int, int]:
-    """``size`` as a (width, height) pair of positive pixel counts; :class:`SimEnvError` otherwise."""
+    """``size`` as a (width, height) pair of positive whole pixel counts (ints, or floats of whole values);
+    :class:`SimEnvError` otherwise."""
     try:
-        width, height = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise SimEnvError(f"size must be (width, height) in pixels, got {size!r}") from None
+        width, height = size
+        whole = all(isinstance(v, numbers.Real) and not isinstance(v, bool) and float(v) == int(v)
+                    for v in (width, height))  # fmt: skip
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole:
+        raise SimEnvError(f"size must be (width, height) in whole pixels, got {size!r}")
+    width, height = int(width), int(height)
     if width <= 0 or height <= 0:
         raise SimEnvError(f"size must be positive, got {width}x{height}")
     return width, height

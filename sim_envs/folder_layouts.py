@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 from collections.abc import Sequence
@@ -42,7 +43,7 @@ from typing import Any, Literal
 import numpy as np
 
 from sim_envs.errors import FormatError, SimEnvError
-from sim_envs.formats import associate_greedy, read_tum_image_list, read_tum_trajectory
+from sim_envs.formats import _data_lines, associate_greedy, read_tum_image_list, read_tum_trajectory
 
 SIDE_FILE = "cnnslam.json"
 SIDE_FORMAT = "cnnslam-tum-rgbd/1"
@@ -62,6 +63,7 @@ LAYOUTS: dict[str, str] = {
 _LAYOUT_DEPTH_SCALE: dict[str, float] = {"7scenes": SEVEN_SCENES_DEPTH_SCALE, "7scenes_split": SEVEN_SCENES_DEPTH_SCALE}
 _SEVEN_SCENES_COLOUR = re.compile(r"^(frame-(\d+))\.color\.(png|jpg)$")
 MAX_DIFFERENCE: float = 0.02  # seconds, the TUM tools' default association tolerance
+POSE_ROTATION_TOL: float = 1e-2  # max |R - nearest rotation| of a 7-Scenes pose (ours: its matrices are within 4e-4)
 
 
 @dataclass(frozen=True)
@@ -147,20 +149,23 @@ def _index_rgb_only(folder: Path, max_difference: float) -> _Index:
 def _index_icl(folder: Path, max_difference: float) -> _Index:
     path = folder / "associations.txt"
     rows = []
-    for number, line in enumerate(path.read_text().splitlines(), start=1):
-        fields = line.split("#", 1)[0].split()
-        if not fields:
-            continue
+    layout = "index depth/N.png index rgb/N.png"
+    for number, fields in _data_lines(path):
         if len(fields) != 4:
             raise FormatError(
-                f"{path}:{number}: expected 4 columns (index depth/N.png index rgb/N.png), found {len(fields)}"
+                f"{path}:{number}: expected 4 columns ({layout}), found {len(fields)}: {' '.join(fields)!r}"
             )
-        try:
-            rows.append((float(fields[2]), fields[3], fields[1]))
-        except ValueError:
-            raise FormatError(f"{path}:{number}: {fields[2]!r} is not a number (the RGB frame index)") from None
+        for column in (1, 3):
+            try:
+                value = float(fields[column - 1])
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                raise FormatError(f"{path}:{number}: column {column} is {fields[column - 1]!r}, not a frame index "
+                                  f"(a finite number); valid lines are '{layout}'")  # fmt: skip
+        rows.append((float(fields[2]), fields[3], fields[1]))
     if not rows:
-        raise FormatError(f"{path}: no entries")
+        raise FormatError(f"{path}: no entries; expected lines '{layout}'")
     rows.sort()
     index = np.array([r[0] for r in rows])
     gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
@@ -212,7 +217,9 @@ def _has_seven_scenes_colour(folder: Path) -> bool:
 def read_pose_matrix(path: str | Path) -> np.ndarray:
     """A 7-Scenes ``frame-XXXXXX.pose.txt`` (4 rows of 4 numbers, camera-to-world, metres) -> (4, 4) float64
     ``T_world_cam``, the rotation block replaced by the nearest rotation (SVD, U V^T): 7-Scenes' KinectFusion
-    matrices are orthonormal only to about 4e-4. A matrix with a non-finite entry (no pose) comes back all NaN."""
+    matrices are orthonormal only to about 4e-4. A matrix with a non-finite entry (no pose) comes back all NaN.
+    :class:`FormatError` (one line naming the file) for anything else that is not a pose: not 4 rows of 4 numbers,
+    a last row other than 0 0 0 1, a reflection, a block farther than :data:`POSE_ROTATION_TOL` from a rotation."""
     path = Path(path)
     try:
         M = np.loadtxt(path, dtype=np.float64, ndmin=2)
@@ -228,6 +235,10 @@ def read_pose_matrix(path: str | Path) -> np.ndarray:
     R = U @ Vt
     if np.linalg.det(R) < 0:
         raise FormatError(f"{path}: the 3x3 block is a reflection (det < 0), not a rotation")
+    deviation = float(np.abs(M[:3, :3] - R).max())
+    if deviation > POSE_ROTATION_TOL:
+        raise FormatError(f"{path}: the 3x3 block is {deviation:.3g} away from the nearest rotation; a pose needs a "
+                          f"rotation (orthonormal to within {POSE_ROTATION_TOL:g}, det +1)")  # fmt: skip
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = M[:3, 3]

@@ -31,6 +31,7 @@ from sim_envs.datasets import (
     write_folder,
 )
 from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
+from sim_envs.folder_layouts import index_folder
 from sim_envs.formats import read_tum_image_list, read_tum_trajectory
 from sim_envs.frames import Frame
 from sim_envs.simsource import FrameListSource
@@ -163,21 +164,56 @@ def test_read_pose_matrix_projects_the_rotation_and_keeps_the_translation(tmp_pa
         read_pose_matrix(path)
 
 
+@pytest.mark.parametrize("block", [np.diag([0.0, 0.0, 1.0]), np.diag([10.0, 10.0, 10.0]), np.diag([1.0, 1.0, 1.02])])
+def test_read_pose_matrix_refuses_a_block_far_from_any_rotation(tmp_path, block):
+    """Projected onto SO(3), a zero or scaled block would be some rotation: it is refused, naming the file."""
+    M = np.eye(4)
+    M[:3, :3] = block
+    path = tmp_path / "frame-000007.pose.txt"
+    np.savetxt(path, M)
+    with pytest.raises(FormatError, match=r"frame-000007.pose.txt: the 3x3 block is .* from the nearest rotation"):
+        read_pose_matrix(path)
+    M[:3, :3] = np.eye(3) * 1.0004  # within KinectFusion's 4e-4: taken
+    np.savetxt(path, M)
+    np.testing.assert_allclose(read_pose_matrix(path), np.eye(4), atol=1e-12)
+
+
+def test_icl_associations_are_read_strictly(tmp_path):
+    """ICL-NUIM's associations.txt: a frame index that is not a finite number, a wrong column count or a file that is
+    not UTF-8 is one FormatError line naming the file and line (the TUM readers' comment rules)."""
+    source = box_room(3)
+    folder = write_folder(source, tmp_path / "icl", "icl")
+    path = folder / "associations.txt"
+    good = path.read_text()
+    assert len(index_folder(folder, "icl").rgb_files) == 3
+    path.write_text("# index depth index rgb\n" + good.replace("\n", "  # a comment\n", 1))
+    assert len(index_folder(folder, "icl").rgb_files) == 3
+    cases = [(good.replace("1 ", "nan ", 1), "column 1 is 'nan', not a frame index"),
+             (good.replace(" 2 ", " inf ", 1), "column 3 is 'inf', not a frame index"),
+             ("0 depth/0.png 0\n", "expected 4 columns")]  # fmt: skip
+    for text, message in cases:
+        path.write_text(text)
+        with pytest.raises(FormatError, match=rf"associations.txt:\d+: {message}"):
+            index_folder(folder, "icl")
+    path.write_bytes(b"\xff" + good.encode())
+    with pytest.raises(FormatError, match="associations.txt: not a text file"):
+        index_folder(folder, "icl")
+
+
 # ------------------------------------------------------------------------------------------------------- camera
 def test_camera_files_toml_and_yaml(tmp_path):
     toml = tmp_path / "camera.toml"
     toml.write_text("fx = 517.3\nfy = 516.5\ncx = 318.6\ncy = 255.3\nwidth = 640\nheight = 480\n"
                     "k1 = 0.2624\nk2 = -0.9531\np1 = -0.0054\np2 = 0.0026\nk3 = 1.1633\n")  # fmt: skip
     model = read_camera_file(toml)
-    assert model == camera_model("tum_fr1", 640, 480)
-    assert read_camera_file(toml, 320, 240) == camera_model("tum_fr1", 320, 240)  # scaled, distortion kept
+    assert model == camera_model("tum_fr1", 640, 480) == read_camera_file(toml, 640, 480)
     yaml = tmp_path / "camera.yaml"
     yaml.write_text("%YAML:1.0\n# TUM fr3\nfx: 535.4\nfy: 539.2\ncx: 320.1\ncy: 247.6\n")
     assert read_camera_file(yaml, 640, 480) == CameraModel(Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480))
     (tmp_path / "preset.toml").write_text('preset = "tum_fr2"\n')
     assert read_camera_file(tmp_path / "preset.toml", 64, 48) == camera_model("tum_fr2", 64, 48)
     (tmp_path / "bad.toml").write_text("fx = 1\nfy = 1\ncx = 0\ncy = 0\nk4 = 0.1\n")
-    with pytest.raises(FormatError, match="unknown key.*k4; valid: preset, fx"):
+    with pytest.raises(FormatError, match="unknown key.*'k4'; valid: preset, fx"):
         read_camera_file(tmp_path / "bad.toml", 64, 48)
     (tmp_path / "icl.toml").write_text("fx = 481.2\nfy = -480\ncx = 319.5\ncy = 239.5\n")
     with pytest.raises(FormatError, match="negative fy"):
@@ -185,6 +221,28 @@ def test_camera_files_toml_and_yaml(tmp_path):
     (tmp_path / "nested.yaml").write_text("camera:\n  fx: 1\n")
     with pytest.raises(FormatError, match="flat 'key: value'"):
         read_camera_file(tmp_path / "nested.yaml", 64, 48)
+
+
+def test_a_camera_file_for_other_images_is_refused_not_rescaled(tmp_path):
+    """A camera.toml for 160x120 images beside 64x48 ones is refused, naming the file and both sizes (rescaled, its
+    fx 600 would have become fx 240 silently); without width and height it is taken at the images' size."""
+    folder = write_folder(box_room(2), tmp_path / "seq", "tum", camera_file=False)
+    camera = folder / "camera.toml"
+    camera.write_text("fx = 600.0\nfy = 600.0\ncx = 79.5\ncy = 59.5\nwidth = 160\nheight = 120\n")
+    with pytest.raises(FormatError, match=r"camera.toml: the camera is for 160x120 images but the images are 64x48"):
+        RgbdFolder(folder)
+    camera.write_text("fx = 60.0\nfy = 60.0\ncx = 31.5\ncy = 23.5\n")
+    assert RgbdFolder(folder).camera.intrinsics == Intrinsics(60.0, 60.0, 31.5, 23.5, 64, 48)
+    for text, message in [("fx = 60.0\nfy = 60.0\ncx = 31.5\ncy = 23.5\nwidth = 64.5\nheight = 48\n", "width = 64.5"),
+                          ("fx = 60.0\nfy = 60.0\ncx = 31.5\ncy = 23.5\nwidth = inf\nheight = 48\n", "width = inf"),
+                          ('fx = "60"\nfy = 60.0\ncx = 31.5\ncy = 23.5\n', "fx = '60'; it must be a finite number"),
+                          ('preset = "tum_fr9"\n', "unknown camera preset 'tum_fr9'")]:  # fmt: skip
+        camera.write_text(text)
+        with pytest.raises(FormatError, match=f"camera.toml: {message}"):
+            RgbdFolder(folder)
+    camera.write_bytes(b"fx = 60.0\xff\n")
+    with pytest.raises(FormatError, match="camera.toml: not a text file"):
+        RgbdFolder(folder)
 
 
 def test_camera_order_argument_file_side_file_name(tmp_path):

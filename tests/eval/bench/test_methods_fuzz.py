@@ -6,7 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from eval.bench.methods import Method, external_method, load_methods
+
+pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 
 METHOD_TABLE_SEEDS = (
     '[methods."CNN-SLAM"]\nentry_point = "cnnslam.agent:CnnSlamAgent"\nkwargs = { preset = "cnn_slam", threads = '

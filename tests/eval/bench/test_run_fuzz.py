@@ -7,7 +7,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import pytest
+
 from eval.bench.run import _declared_wall_s
+
+pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 
 RUN_SEEDS = ("wall_s = 12.5\n", "# ORB-SLAM3's own timing\nwall_s = 3\nframes = 60\n", 'wall_s = 1.5e2\nnote = "x"\n')
 

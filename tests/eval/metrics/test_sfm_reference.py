@@ -35,14 +35,17 @@ def test_colmap_cameras_become_opencv_cameras():
 def test_the_camera_file_reads_back(tmp_path):
     from sim_envs.camera import Intrinsics
     from sim_envs.datasets import camera_file_text, read_camera_file
+    from sim_envs.errors import FormatError
 
     cam = colmap_to_opencv_camera("RADIAL", [526.5, 320.0, 240.0, 0.01, -0.05], 640, 480)
     (tmp_path / "camera.toml").write_text(camera_file_text(cam, "self-calibrated\nsecond line"))
     assert read_camera_file(tmp_path / "camera.toml") == cam  # exactly, at its own size
 
-    model = read_camera_file(tmp_path / "camera.toml", 320, 240)
-    assert model.intrinsics == Intrinsics(526.5, 526.5, 319.5, 239.5, 640, 480).scaled(320, 240)
+    model = read_camera_file(tmp_path / "camera.toml", 640, 480)
+    assert model.intrinsics == Intrinsics(526.5, 526.5, 319.5, 239.5, 640, 480)
     assert model.distortion == cam.distortion
+    with pytest.raises(FormatError, match="camera is for 640x480 images but the images are 320x240"):
+        read_camera_file(tmp_path / "camera.toml", 320, 240)  # another resolution's camera is refused
 
 
 def test_metric_scale_is_the_median_depth_ratio():
