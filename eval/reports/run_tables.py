@@ -73,7 +73,9 @@ def resources_markdown(run: SuiteRun) -> str:
              "Per run, median [min, max] over the method's runs: wall time (the whole run: frames rendered or read, "
              "the agent, scoring, plots; runs two at a time share the machine), frames per second end to end "
              "(frames / wall time) and of the agent's step alone, and the peak resident memory of the process that ran "
-             "it (a fresh worker per run; a system run in a process of its own, ORB-SLAM3, is not in it). Every run's "
+             "it (a fresh worker per run; a system run in a process of its own, ORB-SLAM3, is not in it). An external "
+             "method's wall time and frames per second are its own (`wall_s` of its `run.toml`), not the judge's "
+             "scoring time. Every run's "
              "figures: `resources` of its record, `timing.json` of its folder. Failed runs count here: they used "
              "the time and memory.\n",
              "| method | runs | frames per run | " + " | ".join(heads) + " | all its runs [min] |",
