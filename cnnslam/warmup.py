@@ -12,14 +12,17 @@ Two parts, run side by side with ``--jobs 2`` (each in its own process, one math
   office0 through the default camera: the kernels of tracking, refinement, key-frames, the pose graph and the model's
   fusion and re-placement are all called with the signatures a run uses (34 s with a cold cache on a 2-core Intel
   Xeon);
-- :func:`warm_up_baselines` runs the baselines with kernels of their own (:data:`BASELINE_AGENTS`: ORB's features,
-  map and bundle adjustment; REMODE's depth filter and smoothing; Laina's ICP) through ``sim_envs``' driver over the
+- :func:`warm_up_baselines` runs the baselines with kernels of their own through ``sim_envs``' driver over the
   first frames of office0, as a suite runs them. Without it the first suite run of each compiled them: 22, 21 and
-  6 s there (a 30-frame run of each in a fresh clone, against the same run again).
+  6 s there for ORB (features, map, bundle adjustment), REMODE (depth filter, smoothing) and Laina (ICP) (a 30-frame
+  run of each in a fresh clone, against the same run again).
 
-Side by side, the baselines of :data:`SYSTEM_SIDE_BASELINES` (Laina, whose global model is the system's) run in the
-system's process after it, so that the two processes take about as long: on the 2-core EPYC with AVX-512 the
-system's part took 17 s and the baselines' 34 s (ORB 12, REMODE 19 and Laina 9 s from a cold cache, one process).
+Which baselines, built how, comes from the method table's data (:func:`warmup_agents`): every table of
+``eval/methods.toml`` with a ``warmup`` field, its ``entry_point`` built with its ``kwargs``; ``warmup = "system"``
+(Laina, whose global model is the system's) runs in the system's process after it when the two parts run side by
+side, so that the two processes take about as long (on the 2-core EPYC with AVX-512 the system's part took 17 s and
+the baselines' 34 s: ORB 12, REMODE 19 and Laina 9 s from a cold cache, one process); ``"baselines"`` in the
+baselines' process. The table is read as a file: the agents' package never imports the judge's.
 """
 
 from __future__ import annotations
@@ -27,21 +30,42 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import time
+import tomllib
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 from typing import Any
 
+from cnnslam.errors import CnnSlamError
 from slamcommon.threads import limit_threads
 
 WARMUP_FRAMES = 150  # enough for several key-frames, pose-graph edges and a re-placement at finish
-# (entry point, keyword arguments) of the baselines whose kernels the system's warm-up does not call; ORB first:
-# the LSD-BS tracking inside REMODE then loads what the system's warm-up, beside it, has compiled meanwhile
-BASELINE_AGENTS: tuple[tuple[str, dict[str, Any]], ...] = (
-    ("cnnslam.baselines.orb:OrbSlamAgent", {}),
-    ("cnnslam.baselines.remode:RemodeAgent", {"threads": False}),
-    ("cnnslam.baselines.laina:LainaAgent", {}),
-)
 BASELINE_FRAMES = 40  # ORB's map and bundle adjustment, REMODE's updates and (at finish) its smoothing
-SYSTEM_SIDE_BASELINES: tuple[str, ...] = ("cnnslam.baselines.laina:LainaAgent",)  # (module docstring)
+# the method table (data beside the judge's code, read as TOML): which agents the warm-up runs (module docstring)
+METHODS_FILE: Path = Path(__file__).resolve().parents[1] / "eval" / "methods.toml"
+WARMUP_PARTS: tuple[str, ...] = ("system", "baselines")  # the values of a table's `warmup` field
+AgentSpec = tuple[str, dict[str, Any]]  # ("module:Class", keyword arguments)
+
+
+def warmup_agents(path: str | Path = METHODS_FILE) -> dict[str, tuple[AgentSpec, ...]]:
+    """``{part: (("module:Class", kwargs), ...)}`` for each part of :data:`WARMUP_PARTS`: the tables of the method
+    table at ``path`` with a ``warmup`` field naming that part, in the file's order, each as its ``entry_point`` and
+    ``kwargs``. :class:`CnnSlamError` (one line) for a file that cannot be read or a bad ``warmup`` value."""
+    path = Path(path)
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8")).get("methods", {})
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise CnnSlamError(f"cannot read the method table {path} ({type(exc).__name__}: {exc}); "
+                           "--method-file names another") from None
+    parts: dict[str, list[AgentSpec]] = {part: [] for part in WARMUP_PARTS}
+    for name, entry in table.items():
+        part = entry.get("warmup") if isinstance(entry, dict) else None
+        if part is None:
+            continue
+        if part not in WARMUP_PARTS or not isinstance(entry.get("entry_point"), str):
+            raise CnnSlamError(f"{path}: methods.{name}.warmup = {part!r} needs an entry_point and one of "
+                               f"{', '.join(WARMUP_PARTS)}")
+        parts[part].append((entry["entry_point"], dict(entry.get("kwargs", {}))))
+    return {part: tuple(agents) for part, agents in parts.items()}
 
 
 def warm_up(frames: int = WARMUP_FRAMES, sequence: str = "office0") -> dict[str, Any]:
@@ -59,11 +83,12 @@ def warm_up(frames: int = WARMUP_FRAMES, sequence: str = "office0") -> dict[str,
 
 
 def warm_up_baselines(frames: int = BASELINE_FRAMES, sequence: str = "office0", camera: str = "kinect",
-                      agents: tuple[tuple[str, dict[str, Any]], ...] = BASELINE_AGENTS) -> dict[str, Any]:
-    """Run each of ``agents`` ("module:Class", keyword arguments) over the first ``frames`` frames of ``sequence``
-    through ``camera``, as a suite runs an agent (``sim_envs.driver.run_episode`` on a ``ReplayEnv``; the frames
-    rendered once, into a temporary frame cache), so that numba compiles (or loads) their kernels. Returns the
-    seconds each agent took, and how many signatures of the loaded ``cnnslam`` kernels were compiled and loaded."""
+                      agents: tuple[AgentSpec, ...] | None = None) -> dict[str, Any]:
+    """Run each of ``agents`` ("module:Class", keyword arguments; None: every agent of :func:`warmup_agents`) over
+    the first ``frames`` frames of ``sequence`` through ``camera``, as a suite runs an agent
+    (``sim_envs.driver.run_episode`` on a ``ReplayEnv``; the frames rendered once, into a temporary frame cache), so
+    that numba compiles (or loads) their kernels. Returns the seconds each agent took, and how many signatures of the
+    loaded ``cnnslam`` kernels were compiled and loaded."""
     import importlib
     import tempfile
 
@@ -74,6 +99,8 @@ def warm_up_baselines(frames: int = BASELINE_FRAMES, sequence: str = "office0", 
     from sim_envs.sequences import get_sequence, with_camera
     from sim_envs.simsource import SimulatedSequence
 
+    if agents is None:
+        agents = tuple(a for part in warmup_agents().values() for a in part)
     figures: dict[str, Any] = {"frames": int(frames)}
     spec = with_camera(get_sequence(sequence), camera)
     with tempfile.TemporaryDirectory(prefix="cnnslam-warmup-") as folder, SimulatedSequence(spec) as live:
@@ -93,17 +120,17 @@ def _line(label: str, figures: dict[str, Any], seconds: float) -> str:
             f"{figures['numba_signatures_from_cache']} loaded from the cache, {seconds:.0f} s")
 
 
-def _baselines_of(side_by_side: bool) -> dict[str, tuple[tuple[str, dict[str, Any]], ...]]:
-    """The baselines each part warms up: one after another, all of them in the baselines' part; side by side, those
-    of :data:`SYSTEM_SIDE_BASELINES` in the system's part, after it (module docstring), the others in the baselines'."""
+def _baselines_of(side_by_side: bool, path: str | Path = METHODS_FILE) -> dict[str, tuple[AgentSpec, ...]]:
+    """The baselines each part warms up (:func:`warmup_agents` of ``path``): one after another, all of them in the
+    baselines' part (the system's first, then the others, in the table's order); side by side, those of
+    ``warmup = "system"`` in the system's part, after it (module docstring), the others in the baselines'."""
+    parts = warmup_agents(path)
     if not side_by_side:
-        return {"system": (), "baselines": BASELINE_AGENTS}
-    return {"system": tuple(a for a in BASELINE_AGENTS if a[0] in SYSTEM_SIDE_BASELINES),
-            "baselines": tuple(a for a in BASELINE_AGENTS if a[0] not in SYSTEM_SIDE_BASELINES)}
+        return {"system": (), "baselines": parts["system"] + parts["baselines"]}
+    return parts
 
 
-def _timed(part: str, frames: int | None, agents: tuple[tuple[str, dict[str, Any]], ...]
-           ) -> tuple[dict[str, Any], float]:
+def _timed(part: str, frames: int | None, agents: tuple[AgentSpec, ...]) -> tuple[dict[str, Any], float]:
     """Run ``part`` ("system": the system, then the baselines ``agents`` if any; "baselines": ``agents``); returns
     the figures of its last call (the kernel counts are the process's) and the seconds it took."""
     start = time.perf_counter()
@@ -114,7 +141,7 @@ def _timed(part: str, frames: int | None, agents: tuple[tuple[str, dict[str, Any
     return figures, time.perf_counter() - start
 
 
-def _label(part: str, agents: tuple[tuple[str, dict[str, Any]], ...]) -> str:
+def _label(part: str, agents: tuple[AgentSpec, ...]) -> str:
     if part == "system" and agents:
         return "system, then " + ", ".join(entry.partition(":")[2] for entry, _ in agents)
     return part
@@ -128,11 +155,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="processes: 2 runs the two parts side by side")
     parser.add_argument("--parts", nargs="+", choices=("system", "baselines"), default=["system", "baselines"],
                         help="what to warm up (default both)")
+    parser.add_argument("--method-file", default=str(METHODS_FILE),
+                        help="the method table whose `warmup` entries name the baselines (default eval/methods.toml)")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
     side_by_side = args.jobs > 1 and len(args.parts) > 1
-    agents = _baselines_of(side_by_side)
+    try:
+        agents = _baselines_of(side_by_side, args.method_file)
+    except CnnSlamError as exc:
+        parser.error(str(exc))
     if not side_by_side:
         for part in args.parts:
             figures, seconds = _timed(part, args.frames, agents[part])

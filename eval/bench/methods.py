@@ -106,7 +106,10 @@ class Method:
     machine, for scheduling only (a suite starts its longest runs first, :func:`eval.bench.runner.run_order`); not
     part of a run's fingerprint. preload: modules a run of the method imports late (the network's, and torch with it)
     that a suite's fork server imports once ahead of the runs (:mod:`eval.bench.executors`), so that no run pays
-    the import (1-2 s); names, never imported by the judge itself; not part of a run's fingerprint.
+    the import (1-2 s); names, never imported by the judge itself; not part of a run's fingerprint. table1: whether
+    the Table-1 suite (and the suites built on its methods) runs the method (:data:`eval.bench.suites.TABLE1_METHODS`,
+    in the table's order). warmup: which part of the agents' install-time numba warm-up runs it (``"baselines"`` or
+    ``"system"``; the agents' package reads it from the table file, the judge does nothing with it).
     """
 
     name: str
@@ -124,8 +127,13 @@ class Method:
     uses_ground_truth: tuple[str, ...] = ()
     cost: float = DEFAULT_COST_MS
     preload: tuple[str, ...] = ()
+    table1: bool = False
+    warmup: str | None = None
 
     def __post_init__(self) -> None:
+        if not isinstance(self.table1, bool) or not isinstance(self.warmup, str | None):
+            raise MethodError(f"method {self.name!r}: table1 is true or false and warmup a string, got "
+                              f"{self.table1!r} and {self.warmup!r}")
         object.__setattr__(self, "preload", tuple(str(m) for m in self.preload))
         bad_modules = [m for m in self.preload if not re.fullmatch(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*", m)]
         if bad_modules:
@@ -333,11 +341,12 @@ def _thaw(value: Any) -> Any:
 
 # ------------------------------------------------------------------------------------------------------ the table
 _FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
-           "sensor", "uses_ground_truth", "cost", "preload"}
+           "sensor", "uses_ground_truth", "cost", "preload", "table1", "warmup"}
 _STRING_FIELDS = ("entry_point", "paper", "description", "kind", "folder", "align", "sensor")
 _LIST_FIELDS = ("metrics", "inputs", "uses_ground_truth", "preload")
 _FIELD_KINDS = {**dict.fromkeys(_STRING_FIELDS, "a string"), **dict.fromkeys(_LIST_FIELDS, "a list of strings"),
-                "seed": "a string or a list of strings", "kwargs": "a table", "cost": "a number"}  # fmt: skip
+                "seed": "a string or a list of strings", "kwargs": "a table", "cost": "a number",
+                "table1": "true or false", "warmup": "a string"}  # fmt: skip
 
 
 def _strings(value: Any) -> bool:
@@ -350,6 +359,8 @@ _FIELD_TYPES: dict[str, Any] = {
     "seed": lambda v: isinstance(v, str) or _strings(v),
     "kwargs": lambda v: isinstance(v, Mapping),
     "cost": lambda v: isinstance(v, int | float) and not isinstance(v, bool),
+    "table1": lambda v: isinstance(v, bool),
+    "warmup": lambda v: isinstance(v, str),
 }  # what the value of each field of a method table must be (checked before the Method is made)
 SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
 GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")

@@ -4,7 +4,9 @@
 :func:`measure` (the command: ``python -m eval.commands.cli_profile [--sequences office0@kinect] [--frames 100]
 [--methods ...] [--jobs 1] [--threads 1] [--json]``) renders the sequences into a fresh frame cache (timed: the
 rendering a suite does once, ahead of its runs), runs each method once as a Table-1 suite would
-(``eval.bench.run_bench``, fresh worker processes, plots on), and the command prints the table (Markdown, or one
+(``eval.bench.run_bench``, fresh worker processes, plots on; by default the Table-1 suite's own methods,
+:data:`eval.bench.suites.TABLE1_METHODS`, a method this machine cannot run, an optional third-party system, skipped
+with its reason as the suite skips it), and the command prints the table (Markdown, or one
 JSON object with ``--json``: the perf suite's ``suite`` probe, ``eval/perf.toml``, shown in ``results/perf.md``).
 One job at a time by default, so that runs do not slow each other down, with one math thread per run as in a 2-job
 suite on 2 cores (``make bench``; ``--threads``); the figures depend on the machine and its load, and are measured,
@@ -24,7 +26,6 @@ from eval.bench.run import STAGES
 
 DEFAULT_SEQUENCES = ("office0@kinect",)
 DEFAULT_FRAMES = 100
-TABLE1_METHODS = ("CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle")
 
 
 @dataclass(frozen=True)
@@ -85,10 +86,11 @@ def format_table(table: Mapping[str, Any]) -> str:
 
 
 def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_FRAMES,
-            methods: Sequence[str] = TABLE1_METHODS, jobs: int = 1, threads: int = 1) -> dict[str, Any]:
-    """Render ``sequences`` (first ``frames`` frames) into a fresh frame cache, run each of ``methods`` once on each
-    as the Table-1 suite does (``jobs`` at a time, ``threads`` math threads each), and return :func:`profile_table`
-    with the rendering's milliseconds per frame, the suite's wall seconds and the machine's load."""
+            methods: Sequence[str] | None = None, jobs: int = 1, threads: int = 1) -> dict[str, Any]:
+    """Render ``sequences`` (first ``frames`` frames) into a fresh frame cache, run each of ``methods`` (None: the
+    Table-1 suite's, those this machine cannot run skipped) once on each as the Table-1 suite does (``jobs`` at a
+    time, ``threads`` math threads each), and return :func:`profile_table` with the rendering's milliseconds per
+    frame, the suite's wall seconds, the machine's load and the methods skipped (their names, comma-separated)."""
     import os
 
     from eval.bench import BenchOptions, run_bench
@@ -107,10 +109,11 @@ def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_
                                gate=GateAction.OFF, progress=False,
                                executor=ExecutorOptions(jobs=jobs, threads=threads))
         t1 = time.perf_counter()
-        outcome = run_bench("table1", list(methods), options)
+        outcome = run_bench("table1", None if methods is None else list(methods), options)
         suite_s = time.perf_counter() - t1
         profiles = [p for _, part in outcome.parts for p in suite_profile(part)]
     return {**profile_table(profiles), "sequences": list(sequences), "frames": frames, "jobs": jobs, "threads": threads,
             "rendering_ms_per_frame": round(1e3 * render_s / max(1, frames * len(sequences)), 2),
             "suite_wall_s": round(suite_s, 1), "failed_runs": len(outcome.failed),
+            "skipped_methods": ", ".join(s.name for s in outcome.skipped if s.what == "method"),
             "load_average_1min": round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else None}

@@ -47,3 +47,31 @@ def test_the_probe_prints_a_table_perf_md_shows(capsys) -> None:
     text = format_perf_markdown(PerfReport([probe], {"cores_available": 2}, "r"))
     assert "| method | runs | frames | fps | wall_s | setup_ms |" in text and "| oracle | 1 | 3 |" in text
     json.dumps(figures)
+
+
+def test_the_default_methods_are_the_table1_suites_defined_once_in_the_method_table(monkeypatch, capsys) -> None:
+    import eval.bench
+    import eval.bench.profile as profile
+    import eval.bench.run
+    from eval.bench.benchmark import Skip
+    from eval.bench.suites import TABLE1_METHODS
+
+    # the Table-1 list is the method table's `table1 = true` methods, in its order, and nowhere else
+    assert TABLE1_METHODS == tuple(name for name, m in load_methods().items() if m.table1)
+    assert {"CNN-SLAM", "LSD-BS", "LSD", "ORB", "Laina", "REMODE", "oracle"} <= set(TABLE1_METHODS)
+    assert get_suite("table1").methods == TABLE1_METHODS and not hasattr(profile, "TABLE1_METHODS")
+    calls = []
+
+    class Outcome:
+        parts: tuple = ()
+        failed: tuple = ()
+        skipped = (Skip("method", "ORB-SLAM3", "no pyorbslam3"), Skip("sequence", "x", "absent"))
+
+    monkeypatch.setattr(eval.bench.run, "render_frames", lambda job: None)
+    monkeypatch.setattr(eval.bench, "run_bench", lambda suite, methods, options: calls.append((suite, methods))
+                        or Outcome())
+    assert main(["--frames", "3"]) == 0
+    assert calls == [("table1", None)]  # None: the suite's own methods, a method that cannot run here skipped
+    assert "skipped (cannot run here): ORB-SLAM3" in capsys.readouterr().out
+    assert main(["--frames", "3", "--methods", "oracle", "--json"]) == 0 and calls[-1] == ("table1", ["oracle"])
+    assert json.loads(capsys.readouterr().out)["skipped_methods"] == "ORB-SLAM3"
