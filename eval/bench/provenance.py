@@ -26,12 +26,25 @@ from typing import Any
 
 from eval.bench.fingerprint import PARTS, run_parts
 from eval.errors import InputError
-from slamcommon.provenance import DIRTY_LISTED, MANIFEST_SUFFIX, REPOSITORY, SCHEMA, TreeState, tree_state
+from slamcommon.provenance import (
+    DIRTY_LISTED,
+    MANIFEST_SUFFIX,
+    OUTPUT_KIND,
+    REPOSITORY,
+    SCHEMA,
+    TreeState,
+    code_digest,
+    file_sha256,
+    found_path,
+    package_root,
+    tree_state,
+)
 
 __all__ = ["MANIFEST_SUFFIX", "RESULTS_ROOT", "SCHEMA", "ResultStatus", "TreeState", "format_status", "judge_result",
            "result_groups", "results_status", "tree_state", "write_manifest"]
 RESULTS_ROOT = REPOSITORY / "results"  # the committed results
 NOT_RESULTS: tuple[str, ...] = ("baselines",)  # folders under results/ that hold the gate's inputs, not results
+KEPT_BY_HAND: tuple[str, ...] = ("perf_history.md",)  # records written by people, not made by a command
 FIGURES_SUFFIX = "_figures"  # a report's folder of figures (<suite>_figures/)
 
 
@@ -84,6 +97,7 @@ def build_manifest(suite: str, command: str, selection: Mapping[str, Any], metho
             runs[spec.key] = entry
     return {
         "schema": SCHEMA,
+        "kind": "suite",
         "suite": suite,
         "command": command,
         "git_revision": state.revision,
@@ -147,7 +161,8 @@ def result_groups(root: Path, suites: Sequence[str]) -> dict[str, list[Path]]:
         rel = folder.relative_to(root)
         if rel.parts and (rel.parts[0] in NOT_RESULTS or any(p.endswith(FIGURES_SUFFIX) for p in rel.parts)):
             continue
-        entries = [p for p in folder.iterdir() if (p.is_file() and not p.name.endswith(MANIFEST_SUFFIX))
+        entries = [p for p in folder.iterdir() if (p.is_file() and not p.name.endswith(MANIFEST_SUFFIX)
+                                                   and p.name not in KEPT_BY_HAND)
                    or (p.is_dir() and p.name.endswith(FIGURES_SUFFIX))]  # fmt: skip
         stems = sorted({_stem(p) for p in entries}, key=lambda s: (len(s), s))
         heads: list[str] = [s for s in suites if any(_belongs(st, s) for st in stems)]
@@ -194,24 +209,100 @@ def results_status(root: Path = RESULTS_ROOT, names: Sequence[str] | None = None
 
 def judge_result(root: Path, name: str, files: Sequence[Path], table: Mapping[str, Any] | None = None
                  ) -> ResultStatus:
-    """One result's :class:`ResultStatus` (module docstring)."""
+    """One result's :class:`ResultStatus` (module docstring): by its suite's manifest, else by the output manifests
+    in its folder that list its files (:func:`judge_outputs`), else stale without provenance."""
     from eval.bench.suites import SUITES
 
     stem = name.rsplit("/", 1)[-1]
     suite = stem if stem in SUITES else None
     rels = tuple(p.relative_to(root).as_posix() + ("/" if p.is_dir() else "") for p in files)
-    manifest = manifest_path((root / name).parent, stem) if suite else None
-    if manifest is None:
-        return ResultStatus(name, None, rels, (), None, False, "no provenance: made by no suite (its command "
-                            "writes no manifest)")  # fmt: skip
-    if not manifest.is_file():
-        made, runs = recorded_revisions(files)
-        return ResultStatus(name, suite, rels, made, runs, False, "no provenance (made before manifests)")
-    try:
-        data = json.loads(manifest.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        return ResultStatus(name, suite, rels, (), None, False, f"unreadable manifest {manifest.name}: {exc}")
-    return judge_manifest(name, rels, data, table)
+    folder = (root / name).parent
+    manifest = manifest_path(folder, stem) if suite else None
+    data: dict[str, Any] | None = None
+    if manifest is not None and manifest.is_file():
+        try:
+            data = json.loads(manifest.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            return ResultStatus(name, suite, rels, (), None, False, f"unreadable manifest {manifest.name}: {exc}")
+    if data is not None and data.get("kind") != OUTPUT_KIND:
+        return judge_manifest(name, rels, data, table)
+    covering = covering_manifests(folder, files)
+    if covering:
+        return judge_outputs(name, suite, rels, files, covering)
+    if suite is None:
+        return ResultStatus(name, None, rels, (), None, False, "no provenance: no manifest lists its files")
+    made, runs = recorded_revisions(files)
+    return ResultStatus(name, suite, rels, made, runs, False, "no provenance (made before manifests)")
+
+
+def output_manifests(folder: Path) -> dict[Path, dict[str, Any]]:
+    """The output manifests (:func:`slamcommon.provenance.write_output_manifest`) in ``folder``: path -> content;
+    unreadable ones and suites' manifests left out."""
+    found: dict[Path, dict[str, Any]] = {}
+    for path in sorted(Path(folder).glob(f"*{MANIFEST_SUFFIX}")):
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        if isinstance(data, dict) and data.get("kind") == OUTPUT_KIND:
+            found[path] = data
+    return found
+
+
+def covering_manifests(folder: Path, files: Sequence[Path]) -> dict[Path, dict[str, Any]]:
+    """The output manifests in ``folder`` that list any of ``files`` (a figures folder counts by its name)."""
+    names = {p.name for p in files}
+    return {p: d for p, d in output_manifests(folder).items()
+            if names & {str(o).split("/")[0] for o in d.get("outputs") or ()}}  # fmt: skip
+
+
+def output_changes(data: Mapping[str, Any]) -> dict[str, list[str]]:
+    """What differs now from what an output manifest recorded, per part: ``code`` (the import closure of its
+    modules), ``inputs`` (a file's SHA-256, or the file gone), ``folders`` (a data folder's content fingerprint,
+    :func:`sim_envs.folder_layouts.folder_fingerprint`, or the folder gone); part -> the names that changed."""
+    from sim_envs.folder_layouts import folder_fingerprint
+
+    changed: dict[str, list[str]] = {}
+    code = data.get("code") or {}
+    packages = [p for p in code.get("packages") or () if package_root(p) is not None]
+    if code_digest(list(code.get("modules") or ()), packages) != code.get("sha256"):
+        changed.setdefault("code", []).extend(code.get("modules") or ["?"])
+    for text, digest in (data.get("inputs") or {}).items():
+        path = found_path(text)
+        if not path.is_file() or file_sha256(path.resolve()) != digest:
+            changed.setdefault("inputs", []).append(text + ("" if path.is_file() else " (gone)"))
+    for text, digest in (data.get("folders") or {}).items():
+        path = found_path(text)
+        if not path.is_dir() or folder_fingerprint(path)["sha256"] != digest:
+            changed.setdefault("folders", []).append(text + ("" if path.is_dir() else " (gone)"))
+    return changed
+
+
+def judge_outputs(name: str, suite: str | None, rels: tuple[str, ...], files: Sequence[Path],
+                  manifests: Mapping[Path, Mapping[str, Any]]) -> ResultStatus:
+    """A result whose files output manifests list: stale when a file is listed by none, a manifest was written from
+    an uncommitted tree, or its code, inputs or data folders differ now (:func:`output_changes`)."""
+    listed = {str(o).split("/")[0] for d in manifests.values() for o in d.get("outputs") or ()}
+    reasons: list[str] = []
+    unlisted = [p.name for p in files if p.name not in listed]
+    if unlisted:
+        reasons.append(f"no provenance for {', '.join(unlisted)}")
+    changed: dict[str, list[str]] = {}
+    made: list[str] = []
+    for path, data in manifests.items():
+        made.append(str(data.get("git_revision") or "?") + ("-dirty" if data.get("dirty") else ""))
+        if data.get("schema") != SCHEMA:
+            reasons.append(f"{path.name}: schema {data.get('schema')!r}, not {SCHEMA}")
+        if data.get("dirty"):
+            listed_dirty = ", ".join(data.get("dirty_listed") or [])
+            reasons.append(f"{path.name}: made from an uncommitted tree ({data.get('dirty_files')} changed file(s): "
+                           f"{listed_dirty})")  # fmt: skip
+        for part, names in output_changes(data).items():
+            changed.setdefault(part, []).extend(names)
+            reasons.append(f"{part} changed: {', '.join(names)} ({path.name})")
+    why = "; ".join(reasons) or f"{len(manifests)} manifest(s): code, inputs and data as recorded"
+    return ResultStatus(name, suite, rels, tuple(dict.fromkeys(made)), None, not reasons, why,
+                        {k: tuple(v) for k, v in changed.items()})  # fmt: skip
 
 
 def recorded_revisions(files: Sequence[Path]) -> tuple[tuple[str, ...], int | None]:

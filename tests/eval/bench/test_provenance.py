@@ -127,7 +127,7 @@ def test_results_are_grouped_by_suite_and_those_without_a_manifest_are_stale(tmp
     rows = {r.name: r for r in results_status(root)}
     assert rows["table1"].made_at == ("abc", "def") and rows["table1"].runs == 2 and not rows["table1"].current
     assert rows["table1"].why == "no provenance (made before manifests)"
-    assert rows["depthnet"].suite is None and "made by no suite" in rows["depthnet"].why
+    assert rows["depthnet"].suite is None and "no manifest lists its files" in rows["depthnet"].why
     table = format_status(list(rows.values()))
     assert re.search(r"^table1 +table1 +abc \+1 +2 +stale +no provenance", table, re.M)
     assert table.endswith("0 of 3 result(s) current, 3 stale")

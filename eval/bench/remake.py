@@ -1,0 +1,388 @@
+"""Remaking results: for each stale result under a results folder (or each one named), the command that remakes it,
+how many of its runs are reused and how many made, and an estimate of the time; then running those commands.
+
+Where a result's command comes from, first found wins:
+
+1. its suite's manifest (:mod:`eval.bench.provenance`): the ``cnnslam bench`` line it records;
+2. the output manifests that list its files (:func:`slamcommon.provenance.write_output_manifest`): each stale one's
+   command, run in the folder it ran in;
+3. a suite's result without a manifest: the ``cnnslam bench`` lines its reports quote ("Made by `...`"), else the
+   suite as defined (``cnnslam bench SUITE``);
+4. the other outputs the project's commands make (:data:`KNOWN_COMMANDS`).
+
+A ``cnnslam bench`` line is planned and run in this process (:func:`eval.bench.benchmark.prepare`, then
+:func:`eval.commands.cli_bench.run`) with ``--results`` the result's folder and ``--out`` the runs folder, where the
+runner reuses every finished run whose fingerprint is current; any other command runs as a subprocess. The estimate
+adds, per run to make, the ``wall_s`` its result recorded for that run (else the median of its method's there, else
+of all its runs), divided by the runs in parallel (``--jobs``); an output command's is its manifest's ``wall_s`` or
+the seconds its files record.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import re
+import shlex
+import statistics
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from eval.bench.provenance import RESULTS_ROOT, ResultStatus, covering_manifests, results_status
+from eval.errors import InputError
+from slamcommon.provenance import REPOSITORY, found_path
+
+# the commands that make the outputs no suite makes, for results that have no manifest yet: file stem -> command
+# lines ({folder}: the result's folder, relative to the repository)
+KNOWN_COMMANDS: dict[str, tuple[str, ...]] = {
+    "depthnet": ("cnnslam train validate --results {folder}",),
+    "depthnet_real": ("cnnslam train validate-folder ../shared/data/real/7scenes_redkitchen --results {folder}",),
+    "depthnet_data": ("cnnslam train data-statistics ../shared/data/real/7scenes_redkitchen --results {folder}",),
+    "contact_sheet": ("cnnslam contact-sheet --out {folder}/contact_sheet.png",),
+    "camera_calibration": (
+        "python -m sim_envs.cli_camera_calibration --real ../shared/data/real/7scenes_redkitchen "
+        "--out {folder}/camera_calibration.md --png {folder}/camera_calibration.png",),
+    "reference": ("cnnslam reference {name} --step 2 --out {folder}",),
+    "camera": ("cnnslam reference {name} --step 2 --out {folder}",),
+}
+MAP_PREFIX = "map_"  # map_<sequence>.{png,json}: cnnslam map <sequence> --figure <folder>/map_<sequence>.png
+MADE_BY = re.compile(r"Made by `(cnnslam bench [^`]+)`")
+
+
+@dataclass(frozen=True)
+class Remake:
+    """How one result is remade: its ``name``, the ``commands`` (shown as typed), whether they are ``cnnslam bench``
+    lines (``bench``), the folder they run in (``cwd``), the runs planned, reused and to make (None: not a suite or
+    not planned), the estimated seconds (None: unknown) and ``notes`` (why it cannot be remade, what is missing)."""
+
+    name: str
+    commands: tuple[str, ...]
+    bench: bool
+    cwd: Path
+    folder: Path
+    runs: int | None = None
+    reused: int | None = None
+    to_make: int | None = None
+    estimate_s: float | None = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def possible(self) -> bool:
+        """Whether there is a command to run (an unplannable bench line has a note and no runs)."""
+        return bool(self.commands) and not (self.bench and self.runs is None)
+
+
+def bench_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``cnnslam bench`` (:mod:`eval.commands.cli_bench`)."""
+    from eval.commands.cli_bench import add_arguments
+
+    parser = argparse.ArgumentParser(prog="cnnslam bench", exit_on_error=False)
+    add_arguments(parser)
+    return parser
+
+
+def bench_args(command: str, folder: Path, out: Path, extra: Sequence[str] = ()) -> argparse.Namespace:
+    """The parsed arguments of a ``cnnslam bench`` line run into ``folder`` with runs under ``out``; ``extra``:
+    further options (``--jobs 2``). :class:`InputError` when the line does not parse."""
+    words = shlex.split(command)
+    if words[:2] != ["cnnslam", "bench"]:
+        raise InputError(f"{command!r} is no cnnslam bench line")
+    try:
+        return bench_parser().parse_args([*words[2:], "--results", str(folder), "--out", str(out), *extra])
+    except (argparse.ArgumentError, SystemExit) as exc:
+        raise InputError(f"{command!r} does not parse as cnnslam bench options: {exc}") from None
+
+
+def recorded_walls(files: Sequence[Path]) -> dict[str, tuple[str, float]]:
+    """Run key -> (method, wall_s) as a result's ``*_long.csv`` records them."""
+    walls: dict[str, tuple[str, float]] = {}
+    for path in files:
+        if path.is_file() and path.name.endswith("_long.csv"):
+            with path.open(newline="") as fh:
+                for row in csv.DictReader(fh):
+                    try:
+                        walls[row["run"]] = (row.get("method") or "", float(row["wall_s"]))
+                    except (KeyError, TypeError, ValueError):
+                        continue
+    return walls
+
+
+_RATES: dict[str, dict[str, float]] = {}
+
+
+def seconds_per_frame(root: Path) -> dict[str, float]:
+    """Method -> the median over every run recorded in the ``*_long.csv`` files under ``root`` of its ``wall_s``
+    per frame run (cached per process)."""
+    key = str(Path(root).resolve())
+    if key not in _RATES:
+        rates: dict[str, list[float]] = {}
+        for path in sorted(Path(root).rglob("*_long.csv")):
+            with path.open(newline="") as fh:
+                for row in csv.DictReader(fh):
+                    if row.get("metric") != "frames":
+                        continue
+                    try:
+                        frames, wall = float(row["value"]), float(row["wall_s"])
+                    except (KeyError, TypeError, ValueError):
+                        continue
+                    if frames > 0 and wall > 0:
+                        rates.setdefault(row.get("method") or "", []).append(wall / frames)
+        _RATES[key] = {m: statistics.median(v) for m, v in rates.items()}
+    return _RATES[key]
+
+
+_LENGTHS: dict[str, int] = {}
+
+
+def _folder_length(ref: Any, frames: int | None) -> int:
+    """The frames a run of a folder sequence ``ref`` goes through (its length, read once per process)."""
+    from eval.bench.runner import UNKNOWN_LENGTH
+
+    if ref.name not in _LENGTHS:
+        try:
+            source = ref.make_source()
+            try:
+                _LENGTHS[ref.name] = max(0, len(source) - int(ref.start))
+            finally:
+                source.close()
+        except Exception:  # noqa: BLE001 - an estimate: a folder that cannot be read has no length
+            _LENGTHS[ref.name] = UNKNOWN_LENGTH
+    length = _LENGTHS[ref.name]
+    return length if frames is None or length == UNKNOWN_LENGTH else min(length, int(frames))
+
+
+def estimate_runs(specs: Sequence[Any], walls: Mapping[str, tuple[str, float]],
+                  rates: Mapping[str, float] | None = None) -> float | None:
+    """Seconds of one core for ``specs`` (module docstring): the run's recorded ``wall_s``, else its method's
+    seconds per frame (``rates``, :func:`seconds_per_frame`) times its frames, else its method's median in
+    ``walls``, else the median of ``walls``; None when no run has any."""
+    from eval.bench.runner import UNKNOWN_LENGTH, run_frames
+
+    rates = rates or {}
+    per_method: dict[str, list[float]] = {}
+    for method, wall in walls.values():
+        per_method.setdefault(method, []).append(wall)
+    overall = statistics.median(w for _, w in walls.values()) if walls else None
+    total = 0.0
+    for spec in specs:
+        frames = run_frames(spec)
+        if frames == UNKNOWN_LENGTH and spec.sequence.folder is not None:  # a folder: its length read once
+            frames = _folder_length(spec.sequence, spec.frames)
+        if spec.key in walls:
+            total += walls[spec.key][1]
+        elif spec.method.name in rates and frames != UNKNOWN_LENGTH:
+            total += rates[spec.method.name] * frames
+        elif spec.method.name in per_method:
+            total += statistics.median(per_method[spec.method.name])
+        elif overall is not None:
+            total += overall
+        else:
+            return None
+    return total
+
+
+def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence[Path], out: Path, jobs: int,
+               notes: Sequence[str] = (), rates_root: Path | None = None) -> Remake:
+    """A suite's result remade by ``cnnslam bench`` lines: each planned now (nothing runs), its runs counted as
+    reused (finished in ``out`` with the current fingerprint) or to make, and the time of those estimated (the
+    seconds per frame of ``rates_root``'s results, default ``folder``'s)."""
+    rates_root = folder if rates_root is None else rates_root
+    from eval.bench.benchmark import prepare
+    from eval.bench.methods import method_table
+    from eval.bench.run_store import is_finished
+    from eval.bench.runner import plan_runs
+    from eval.commands.cli_bench import options_of
+
+    planned = reused = 0
+    specs_to_make: list[Any] = []
+    notes = list(notes)
+    for command in commands:
+        try:
+            args = bench_args(command, folder, out)
+            table = method_table(args.method_file, args.external, args.override)
+            plan = prepare(args.suite, args.methods, options_of(args), table)
+        except InputError as exc:
+            notes.append(f"cannot be remade into {folder}: {exc}")
+            return Remake(name, tuple(commands), True, REPOSITORY, folder, notes=tuple(notes))
+        for part in plan.parts:
+            chosen = [plan.methods[m] for m in part.suite.methods if m in plan.methods]
+            for spec in plan_runs(part.suite, chosen, renderer=args.renderer, plots=False):
+                planned += 1
+                if is_finished(out, spec):
+                    reused += 1
+                else:
+                    specs_to_make.append(spec)
+    seconds = estimate_runs(specs_to_make, recorded_walls(files), seconds_per_frame(rates_root))
+    if not planned:  # perf: probes, no runs
+        seconds = recorded_seconds(files)
+    estimate = None if seconds is None else seconds / max(1, jobs) if planned else seconds
+    return Remake(name, tuple(commands), True, REPOSITORY, folder, planned, reused, len(specs_to_make), estimate,
+                  tuple(notes))  # fmt: skip
+
+
+def recorded_seconds(files: Sequence[Path]) -> float | None:
+    """The seconds an output's files record of the command that made them: ``perf.json``'s probes' ``wall_s``, a
+    JSON's ``run_seconds`` or ``seconds``; None when none does."""
+    total = None
+    for path in files:
+        if not (path.is_file() and path.suffix == ".json"):
+            continue
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        if not isinstance(data, dict):
+            continue
+        if isinstance(data.get("probes"), dict):
+            walls = [p.get("wall_s") for p in data["probes"].values() if isinstance(p, dict)]
+            total = (total or 0.0) + sum(w for w in walls if isinstance(w, int | float))
+        for key in ("run_seconds", "seconds"):
+            if isinstance(data.get(key), int | float):
+                total = (total or 0.0) + float(data[key])
+                break
+    return total
+
+
+def known_commands(name: str, root: Path, files: Sequence[Path]) -> list[str]:
+    """The commands of :data:`KNOWN_COMMANDS` (and ``cnnslam map``) that make a result's files."""
+    folder = _shown(root / name).rsplit("/", 1)[0] if "/" in name else _shown(root)
+    parent = Path(name).parent.name
+    commands: list[str] = []
+    for path in files:
+        stem = path.name.split(".")[0]
+        if stem.startswith(MAP_PREFIX):
+            line = f"cnnslam map {stem[len(MAP_PREFIX):]} --figure {folder}/{stem}.png"
+        else:
+            line = next((c for k in (stem, *_prefixes(stem)) for c in KNOWN_COMMANDS.get(k, ())), "")
+            line = line.format(folder=folder, name=parent)
+        if line and line not in commands:
+            commands.append(line)
+    return commands
+
+
+def _prefixes(stem: str) -> list[str]:
+    parts = stem.split("_")
+    return ["_".join(parts[:i]) for i in range(len(parts) - 1, 0, -1)]
+
+
+def _shown(path: Path) -> str:
+    from slamcommon.provenance import shown_path
+
+    return shown_path(path)
+
+
+def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
+    """How ``row`` (a result under ``root``) is remade (module docstring)."""
+    files = [root / f.rstrip("/") for f in row.files]
+    folder = (root / row.name).parent
+    stem = row.name.rsplit("/", 1)[-1]
+    manifest = folder / f"{stem}.provenance.json"
+    if row.suite is not None and manifest.is_file():
+        data = json.loads(manifest.read_text())
+        if data.get("kind") != "output":
+            return plan_bench(row.name, [str(data["command"])], folder, files, out, jobs, rates_root=root)
+    covering = covering_manifests(folder, files)
+    if covering:
+        commands = list(dict.fromkeys(str(d["command"]) for d in covering.values()))
+        cwd = found_path(next(iter(covering.values())).get("cwd") or ".")
+        walls = [d.get("wall_s") for d in covering.values()]
+        listed = {str(o).split("/")[0] for d in covering.values() for o in d.get("outputs") or ()}
+        unlisted = [p.name for p in files if p.name not in listed]
+        notes = (f"no recorded command for {', '.join(unlisted)}",) if unlisted else ()
+        if row.suite is not None and all(c.startswith("cnnslam bench ") for c in commands):
+            return plan_bench(row.name, commands, folder, files, out, jobs, notes, root)
+        seconds = sum(w for w in walls if isinstance(w, int | float)) if any(walls) else recorded_seconds(files)
+        return Remake(row.name, tuple(commands), False, cwd, folder, estimate_s=seconds, notes=notes)
+    if row.suite is not None:
+        quoted: list[str] = []
+        for path in files:
+            if path.is_file() and path.suffix == ".md":
+                quoted += [m for m in MADE_BY.findall(path.read_text()) if m not in quoted]
+        commands = quoted or [f"cnnslam bench {row.suite}"]
+        planned = plan_bench(row.name, commands, folder, files, out, jobs, rates_root=root)
+        if planned.runs is None and quoted and folder.resolve() == Path(root).resolve():  # the suite's own place
+            notes = (f"the command its report quotes cannot be planned now ({'; '.join(planned.notes)}): the suite "
+                     "as defined instead",)  # fmt: skip
+            return plan_bench(row.name, [f"cnnslam bench {row.suite}"], folder, files, out, jobs, notes, root)
+        return planned
+    commands = known_commands(row.name, root, files)
+    notes = () if commands else ("no manifest and no known command: remake it by hand",)
+    return Remake(row.name, tuple(commands), False, REPOSITORY, folder, estimate_s=recorded_seconds(files),
+                  notes=notes)  # fmt: skip
+
+
+def plan_remakes(root: Path = RESULTS_ROOT, names: Sequence[str] | None = None, out: Path = Path("runs"),
+                 jobs: int = 2, table: Mapping[str, Any] | None = None) -> list[Remake]:
+    """The remake of every stale result under ``root``, or of each of ``names`` (stale or not); nothing runs.
+    :class:`InputError` for an unknown name (:func:`eval.bench.provenance.results_status`)."""
+    rows = results_status(root, names, table)
+    chosen = rows if names else [r for r in rows if not r.current]
+    return [plan_result(r, Path(root), Path(out), jobs) for r in chosen]
+
+
+def format_plan(plans: Sequence[Remake], jobs: int) -> str:
+    """The plan as lines a person reads: per result its commands, runs reused / to make, the estimate; a total."""
+    lines = []
+    total = 0.0
+    unknown = 0
+    shared: dict[tuple[str, ...], float | None] = {}  # results one command makes together: its estimate once
+    for p in plans:
+        known = [q.estimate_s for q in plans if q.commands == p.commands and q.estimate_s is not None]
+        shared.setdefault(p.commands, max(known) if known else None)
+    seen: set[tuple[str, ...]] = set()
+    for p in plans:
+        runs = "" if p.runs is None else f"{p.runs} runs: {p.reused} reused, {p.to_make} to make; "
+        estimate = shared[p.commands] if p.possible else p.estimate_s
+        est = "time unknown" if estimate is None else f"about {_duration(estimate)}"
+        if p.possible and p.commands in seen:
+            est = "made by the command above"
+        elif p.possible and estimate is not None:
+            total += estimate
+        elif p.possible:
+            unknown += 1
+        seen.add(p.commands)
+        lines.append(f"{p.name}: {runs}{est}" + ("" if p.possible else " (not remade)"))
+        lines += [f"    {c}" for c in p.commands]
+        lines += [f"    note: {n}" for n in p.notes]
+    lines.append(f"{len(plans)} result(s) to remake ({sum(not p.possible for p in plans)} of them not remade), "
+                 f"about {_duration(total)} with {jobs} run(s) in parallel"
+                 + (f" (+ {unknown} of unknown time)" if unknown else ""))  # fmt: skip
+    return "\n".join(lines)
+
+
+def _duration(seconds: float) -> str:
+    if seconds >= 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 60:.0f} min" if seconds >= 60 else f"{seconds:.0f} s"
+
+
+def command_argv(command: str) -> list[str]:
+    """The argv of an output command: ``cnnslam ...`` through the ``cnnslam`` script beside this Python (its name
+    recorded again in the manifest), ``python -m ...`` with this Python."""
+    words = shlex.split(command)
+    if words and words[0] == "cnnslam":
+        script = Path(sys.executable).parent / "cnnslam"
+        return [str(script), *words[1:]] if script.is_file() else [sys.executable, "-m", "cnnslam.cli", *words[1:]]
+    if words and words[0] in ("python", "python3"):
+        return [sys.executable, *words[1:]]
+    return words
+
+
+def remake(plan: Remake, out: Path, extra: Sequence[str] = ()) -> int:
+    """Run ``plan``'s commands (module docstring); ``extra``: options added to ``cnnslam bench`` lines (``--jobs``,
+    ``--executor``). Returns the worst exit status (0: all made)."""
+    from eval.commands.cli_bench import run
+
+    status = 0
+    for command in plan.commands:
+        if plan.bench:
+            code = run(bench_args(command, plan.folder, out, extra))
+        else:
+            code = subprocess.run(command_argv(command), cwd=plan.cwd, check=False).returncode
+        status = max(status, code)
+    return status
