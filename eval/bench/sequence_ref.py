@@ -368,18 +368,20 @@ def folder_ref(
     depth_scale: float | None = None,
     name: str | None = None,
 ) -> SequenceRef:
-    """An RGB-D folder as a sequence (see :class:`SequenceRef`). Its name: ``name``, else the folder's name with
-    characters other than letters, digits and ``_.+-`` replaced by ``_``, and a short hash of the path appended
-    when that would be taken for a simulated sequence. :class:`SuiteError` (one line) when it is not a folder of a
-    known layout."""
-    folder = Path(path).expanduser().resolve()
+    """An RGB-D folder as a sequence (see :class:`SequenceRef`). Its name: ``name``, else the folder's own name as
+    it is (spaces and any letters included: the name of its run folders, and of the folder an external system's
+    output for it is looked up in), with only what no name can hold changed: leading dots dropped, characters
+    that do not print replaced by ``_``; a short hash of the path appended when the name would be taken for a
+    simulated sequence (``office0``, ``rot_yaw_30``, ``office0+lit``, ``office0@kinect``). :class:`SuiteError`
+    (one line) when it is not a folder of a known layout."""
     try:
+        folder = Path(path).expanduser().resolve()
         detect_layout(folder)
-    except SimEnvError as exc:
+    except (SimEnvError, RuntimeError, OSError) as exc:
         raise SuiteError(f"sequence {os.fspath(path)!r}: {exc}") from None
     if name is None:
-        name = _SAFE_NAME.sub("_", folder.name).lstrip(".") or "folder"
-        if name in list_sequences("all") or _ROTATION_NAME.match(name):
+        name = "".join(c if c.isprintable() else "_" for c in folder.name).lstrip(".") or "folder"
+        if _names_a_simulated_sequence(name):
             name = f"{name}-{_path_tag(folder)}"
     return SequenceRef(
         name,
@@ -388,6 +390,19 @@ def folder_ref(
         size=size,
         depth_scale=depth_scale,
     )
+
+
+def _names_a_simulated_sequence(name: str) -> bool:
+    """True when ``name`` is, or could be, a simulated sequence's: a registered or rotation stress sequence's name,
+    alone or with variant marks (``+lit``), a camera preset (``@kinect``) or a recorded motion (``~fr1_desk``)."""
+    plain, at, preset = name.rpartition("@")
+    plain = plain if at and preset in sim_camera_presets() else name
+    plain = plain.partition("~")[0]
+    try:
+        plain, _ = split_variants(plain)
+    except SimEnvError:
+        return False
+    return plain in list_sequences("all") or bool(_ROTATION_NAME.match(plain))
 
 
 def parse_image_size(text: str | tuple[int, int] | None) -> FolderSize | None:
@@ -470,7 +485,7 @@ def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
     return SequenceRef(name, rotation=("+".join(names), float(speed_deg_s)))
 
 
-def resolve_sequence(name: str) -> SequenceRef:
+def resolve_sequence(name: str, *, check_references: bool = True) -> SequenceRef:
     """A sequence by name: a registered sequence; ``rot_<axes>_<speed>`` (axes yaw, pitch, roll joined by ``-``, or
     ``rpy``; speed in deg/s) for any rotation stress sequence; the path of an RGB-D folder (:func:`folder_ref`) when
     it has a ``/`` or starts with ``.`` or ``~``; a name of the dataset list (:func:`load_dataset_list`); an existing
@@ -479,7 +494,8 @@ def resolve_sequence(name: str) -> SequenceRef:
     one it is the renderer's image (``clean``). A simulated name may end in ``+lit`` before that (``office0+lit@hard``):
     the same room and trajectory with lamps, shadows and highlights (:meth:`SequenceRef.with_lighting`), and in
     ``+rich`` (``office0+rich``, ``office0+lit+rich@kinect``): the same room with clutter and texture detail
-    (:meth:`SequenceRef.with_detail`); the marks may come in either order, the name is made ``+lit+rich``."""
+    (:meth:`SequenceRef.with_detail`); the marks may come in either order, the name is made ``+lit+rich``.
+    ``check_references``: see :func:`load_dataset_list` (False: for the command that makes a missing reference)."""
     plain, sep, preset = name.rpartition("@")
     if sep and preset in sim_camera_presets() and plain:
         ref = resolve_sequence(plain)
@@ -504,7 +520,7 @@ def resolve_sequence(name: str) -> SequenceRef:
             raise SuiteError(f"sequence {name!r}: {exc}") from None
     if "/" in name or os.sep in name or name.startswith((".", "~")):
         return folder_ref(name)
-    datasets = load_dataset_list()
+    datasets = load_dataset_list(check_references=check_references)
     if name in datasets:
         entry = datasets[name]
         if not entry.path.is_dir():
@@ -557,14 +573,18 @@ def dataset_list_file() -> Path:
     return Path(named).expanduser() if named else DEFAULT_DATASETS_FILE
 
 
-def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]:
+def load_dataset_list(path: str | Path | None = None, *, check_references: bool = True) -> dict[str, DatasetEntry]:
     """The named local dataset folders of a TOML list (default :func:`dataset_list_file`), in file order.
 
     Format: a ``[datasets]`` table whose entries are ``name = "path"`` or ``[datasets.<name>]`` tables with
     ``path`` and optionally ``camera`` (preset name or camera file), ``size`` (``[width, height]`` or
-    ``"native"``), ``depth_scale`` and ``reference`` (a second reference trajectory). Relative paths are
-    relative to the list file's folder; ``~`` is expanded.
-    A missing default list is an empty list; a missing list named by ``$CNNSLAM_DATASETS`` is an error.
+    ``"native"``), ``depth_scale`` and ``reference`` (a second reference trajectory, TUM format: read here, so
+    that a missing or malformed one is refused before any run; ``check_references=False`` leaves a missing one to
+    be made, by ``cnnslam reference``, and still refuses one that is there but malformed). Relative paths are
+    relative to the list file's
+    folder; ``~`` is expanded. A missing default list is an empty list; a missing list named by
+    ``$CNNSLAM_DATASETS`` is an error. Every error is one :class:`SuiteError` line naming the list file (and the
+    entry).
     """
     explicit = path is not None or bool(os.environ.get(DATASETS_ENV))
     file = Path(path) if path is not None else dataset_list_file()
@@ -573,35 +593,84 @@ def load_dataset_list(path: str | Path | None = None) -> dict[str, DatasetEntry]
             raise SuiteError(f"no dataset list at {file} (${DATASETS_ENV} or the given path)")
         return {}
     try:
-        data = tomllib.loads(file.read_text())
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise SuiteError(f"{file}: not a readable TOML dataset list ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise SuiteError(f"{file}: not a text file (UTF-8 decoding failed at byte {exc.start})") from None
     table = data.get("datasets", {})
     if not isinstance(table, dict) or set(data) - {"datasets"}:
         raise SuiteError(f"{file}: expected only a [datasets] table (name = \"path\" or [datasets.<name>])")
     base = file.resolve().parent
-    entries = {}
-    for name, value in table.items():
-        entry = value if isinstance(value, dict) else {"path": value}
-        unknown = sorted(set(entry) - {"path", "camera", "size", "depth_scale", "reference"})
-        if unknown or not isinstance(entry.get("path"), str):
-            raise SuiteError(
-                f"{file}: dataset {name!r} needs path = \"FOLDER\" (optional: camera, size, depth_scale, reference)"
-                + (f"; unknown key(s) {', '.join(unknown)}" if unknown else "")
-            )
-        if _SAFE_NAME.search(name) or name.startswith(".") or name in list_sequences("all"):
-            raise SuiteError(f"{file}: dataset name {name!r} must use letters, digits, _.+- and not be a sequence's")
+    return {name: _dataset_entry(file, base, name, value, check_references) for name, value in table.items()}
+
+
+def _dataset_entry(file: Path, base: Path, name: str, value: Any, check_references: bool = True) -> DatasetEntry:
+    """One entry of the dataset list ``file`` (relative paths from ``base``); :class:`SuiteError` naming both.
+    ``check_references``: a reference that is not there is an error (else only one that is there and malformed)."""
+    entry = value if isinstance(value, dict) else {"path": value}
+    unknown = sorted(set(entry) - {"path", "camera", "size", "depth_scale", "reference"})
+    if unknown or not isinstance(entry.get("path"), str) or not entry["path"]:
+        raise SuiteError(
+            f"{file}: dataset {name!r} needs path = \"FOLDER\" (optional: camera, size, depth_scale, reference)"
+            + (f"; unknown key(s) {', '.join(map(repr, unknown))}" if unknown else "")
+        )
+    if _SAFE_NAME.search(name) or not name or name.startswith(".") or name in list_sequences("all"):
+        raise SuiteError(f"{file}: dataset name {name!r} must use letters, digits, _.+- and not be a sequence's")
+    for key in ("camera", "reference"):
+        if key in entry and not (isinstance(entry[key], str) and entry[key]):
+            raise SuiteError(f"{file}: dataset {name!r}: {key} = {entry[key]!r}; it must be a non-empty string "
+                             f"({'a preset name or a camera file' if key == 'camera' else 'a TUM trajectory file'})")
+    depth_scale = entry.get("depth_scale")
+    if depth_scale is not None and (isinstance(depth_scale, bool) or not isinstance(depth_scale, int | float)
+                                    or not (math.isfinite(depth_scale) and depth_scale > 0)):  # fmt: skip
+        raise SuiteError(f"{file}: dataset {name!r}: depth_scale = {depth_scale!r}; it must be a positive number "
+                         "(16-bit PNG value per metre)")  # fmt: skip
+    try:
+        size = _folder_size(entry.get("size", PROCESSING_SIZE))
+        folder = _resolve_path(base, entry["path"])
         camera = entry.get("camera")
         if camera is not None and camera not in camera_presets():
-            camera = str((base / Path(camera).expanduser()).resolve())  # checked when the folder is loaded
-        entries[name] = DatasetEntry(
-            name,
-            (base / Path(entry["path"]).expanduser()).resolve(),
-            camera,
-            _folder_size(entry.get("size", PROCESSING_SIZE)),
-            float(entry["depth_scale"]) if entry.get("depth_scale") is not None else None,
-            (base / Path(str(entry["reference"])).expanduser()).resolve() if entry.get("reference") else None,
-        )
-    return entries
+            camera = str(_resolve_path(base, camera))  # checked when the folder is loaded
+        reference = _resolve_path(base, entry["reference"]) if "reference" in entry else None
+    except SuiteError as exc:
+        raise SuiteError(f"{file}: dataset {name!r}: {exc}") from None
+    if reference is not None and (check_references or reference.exists()):
+        _check_reference(file, name, reference)
+    return DatasetEntry(name, folder, camera, size, None if depth_scale is None else float(depth_scale), reference)
 
 
+def _resolve_path(base: Path, text: str) -> Path:
+    """``text`` (``~`` expanded) relative to ``base``, absolute; :class:`SuiteError` when it cannot be."""
+    try:
+        return (base / Path(text).expanduser()).resolve()
+    except (RuntimeError, OSError, ValueError) as exc:  # ~user of no user, a NUL, a loop of links
+        raise SuiteError(f"path {text!r} cannot be resolved ({exc})") from None
+
+
+def _check_reference(file: Path, name: str, reference: Path) -> None:
+    """A dataset's second reference must be a readable TUM trajectory (scored against every run of the folder)."""
+    try:
+        stat = reference.stat()
+    except OSError:
+        stat = None
+    if stat is None or not reference.is_file():
+        raise SuiteError(f"{file}: dataset {name!r}: reference {reference} is not a file; make it (a TUM "
+                         f"trajectory: `cnnslam reference {name} --out DIR` writes DIR/reference.tum) or remove the "
+                         "entry's reference")  # fmt: skip
+    problem = _trajectory_problem(str(reference), stat.st_size, stat.st_mtime_ns)
+    if problem:
+        raise SuiteError(f"{file}: dataset {name!r}: the reference is not a TUM trajectory: {problem}")
+
+
+@lru_cache(maxsize=64)
+def _trajectory_problem(path: str, size: int, mtime_ns: int) -> str | None:
+    """Why the TUM trajectory file ``path`` (as it is at ``size``, ``mtime_ns``: the cache's key) cannot be read, or
+    None when it can (a dataset list is read whenever a name is resolved; its references once per version)."""
+    from sim_envs.errors import FormatError
+
+    try:
+        read_tum_trajectory(path)  # as the reports read it
+    except FormatError as exc:
+        return str(exc)
+    return None

@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:  # bad options, a folder that is no RGB-D folder, too few images, unwritable outputs: before COLMAP starts
         check_options(args)
-        seq = resolve_sequence(args.folder)
+        seq = resolve_sequence(args.folder, check_references=False)  # it makes a missing reference
         if seq.folder is None:
             raise InputError(f"{args.folder!r} is a simulated sequence; give a real RGB-D folder or dataset-list name")
         folder = load_rgbd_folder(seq.folder, seq.camera, size=None, depth_scale=seq.depth_scale)

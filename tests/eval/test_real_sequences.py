@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cnnslam.cli import main
-from eval.bench.methods import load_methods
+from eval.bench.methods import external_method, load_methods
 from eval.bench.runner import run_suite
 from eval.bench.sequence_ref import (
     DATASETS_ENV,
@@ -25,6 +25,7 @@ from eval.bench.suites import get_suite
 from eval.errors import SuiteError
 from sim_envs.camera import preset
 from sim_envs.datasets import write_folder
+from sim_envs.formats import write_tum_trajectory
 from sim_envs.frames import Frame
 from sim_envs.simsource import FrameListSource
 
@@ -70,16 +71,35 @@ def test_a_folder_is_a_sequence(folders, tmp_path):
         ref.spec()
 
 
-def test_folder_names_are_safe_and_unique(tmp_path):
-    weird = write_folder(tiny_source(2), tmp_path / "my seq (1)", "7scenes")
-    assert folder_ref(weird).name == "my_seq__1_"
-    clash = write_folder(tiny_source(2), tmp_path / "office0", "7scenes")
-    assert folder_ref(clash).name.startswith("office0-")  # never taken for the simulated office0
+def test_folder_names_are_their_own_and_unique(tmp_path):
+    for own in ("my seq (1)", "office 0", "b\u00fcro_k\u00fcche", "\u5ba2\u5385 2"):  # spaces, any letters: as is
+        folder = write_folder(tiny_source(2), tmp_path / own, "7scenes")
+        assert folder_ref(folder).name == own == resolve_sequence(str(folder)).name
+    for taken in ("office0", "office0+lit", "office0@kinect", "rot_yaw_30", "office1~fr1_desk"):
+        clash = write_folder(tiny_source(2), tmp_path / taken, "7scenes")
+        assert folder_ref(clash).name.startswith(f"{taken}-")  # never taken for a simulated sequence's runs
+    hidden = write_folder(tiny_source(2), tmp_path / ".seq\tone", "7scenes")
+    assert folder_ref(hidden).name == "seq_one"  # no leading dot (a hidden run folder), nothing unprintable
     a = write_folder(tiny_source(2), tmp_path / "a" / "rgbd", "7scenes")
     b = write_folder(tiny_source(2), tmp_path / "b" / "rgbd", "7scenes")
     suite = get_suite("table1").select([str(a), str(b), str(a)], ["oracle"])
     names = [s.name for s in suite.sequences]
     assert len(names) == 2 and len(set(names)) == 2 and all(n.startswith("rgbd-") for n in names)
+
+
+def test_an_external_system_is_looked_up_under_the_folder_s_own_name(tmp_path):
+    """``--external NAME=OUT`` finds OUT/office 0/trajectory.txt for the folder "office 0" (not OUT/office_0)."""
+    folder = write_folder(tiny_source(6), tmp_path / "data" / "office 0", "7scenes")
+    source = folder_ref(folder).make_source()
+    out = tmp_path / "orb"
+    (out / "office 0").mkdir(parents=True)
+    write_tum_trajectory(out / "office 0" / "trajectory.txt", source.timestamps, source.poses)
+    table = {**METHODS, "orb": external_method("orb", out)}
+    suite = get_suite("table1").select([str(folder)], ["orb"], frames=5, runs=1, size="native")
+    run = run_suite(suite, table, tmp_path / "runs", plots=False, progress=False)
+    assert not run.failed, [o.error for o in run.failed]
+    (record,) = run.records
+    assert record.sequence == "office 0" and record.metrics["ate_rmse"] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_a_changed_folder_changes_the_fingerprint(tmp_path):
@@ -135,6 +155,40 @@ def test_the_dataset_list_and_the_real_suite(folders, tmp_path, monkeypatch):
     monkeypatch.setenv(DATASETS_ENV, str(tmp_path / "none.toml"))
     with pytest.raises(SuiteError, match="no dataset list at"):
         get_suite("real")
+
+
+@pytest.mark.parametrize(("reference", "message"), [
+    (None, r"reference .*missing.tum is not a file; make it \(a TUM trajectory: `cnnslam reference seven --out "
+           r"DIR` writes DIR/reference.tum\) or remove the entry's reference"),
+    ("0.0 0 0 0 0 0 0 1\nnot a pose\n", r"the reference is not a TUM trajectory: .*ref.tum:2: "
+                                         r"expected 8 columns"),
+    ("", "the reference is not a TUM trajectory: .*ref.tum: no poses found"),
+    ("1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n", "ref.tum:2: timestamp 0.5 is smaller than"),
+])  # fmt: skip
+def test_a_dataset_reference_that_is_missing_or_malformed_is_refused_before_any_run(folders, tmp_path, monkeypatch,
+                                                                                   capsys, reference, message):
+    """A list entry's ``reference`` is read with the list: missing or not a TUM trajectory, the list is refused
+    (SuiteError naming the list, the dataset and the reference), and ``cnnslam bench`` exits 2 before any run."""
+    listing = tmp_path / "datasets.toml"
+    name = "missing.tum" if reference is None else "ref.tum"
+    if reference is not None:
+        (tmp_path / name).write_text(reference)
+    listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "{name}"\n')
+    monkeypatch.setenv(DATASETS_ENV, str(listing))
+    with pytest.raises(SuiteError, match=f"datasets.toml: dataset 'seven': .*{message}") as err:
+        load_dataset_list()
+    assert "\n" not in str(err.value)
+    assert bench(tmp_path, "table1", "--sequences", "seven", "--methods", "oracle", *SMALL) == 2
+    err = capsys.readouterr().err
+    assert "datasets.toml: dataset 'seven': " in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "runs").exists()
+    for bad in ("1", "[]", '""'):  # not a path
+        listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = {bad}\n')
+        with pytest.raises(SuiteError, match="datasets.toml: dataset 'seven': reference = .*; it must be a non-empty"):
+            load_dataset_list()
+    (tmp_path / "ok.tum").write_text("0.0 0 0 0 0 0 0 1\n0.1 0.01 0 0 0 0 0 1\n")
+    listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "ok.tum"\n')
+    assert load_dataset_list()["seven"].reference == (tmp_path / "ok.tum").resolve()
 
 
 def test_the_shipped_list_names_the_shared_7scenes_folder(monkeypatch):
@@ -221,17 +275,20 @@ def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, mo
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')
     monkeypatch.setenv(DATASETS_ENV, str(listing))
-    assert load_dataset_list()["seven"].reference == (tmp_path / "refs" / "seven.tum").resolve()
     args = ["real", "--methods", "oracle", *SMALL]
+    assert bench(tmp_path, *args) == 2 and not (tmp_path / "runs").exists()  # listed, not made: refused
+    assert load_dataset_list(check_references=False)["seven"].reference == (tmp_path / "refs" / "seven.tum").resolve()
+    assert resolve_sequence("seven", check_references=False).folder == str(folders["7scenes"].resolve())
+    listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\n')
     assert bench(tmp_path, *args) == 0
-    report = (tmp_path / "results" / "real.md").read_text()
-    assert "**seven** against" in report and "(not scored:" in report  # listed, not made yet: said, not fatal
     stamps, T = read_tum_trajectory(tmp_path / "runs" / "real" / "seven" / "oracle" / "seed0-frames5" /
                                     "groundtruth.tum")  # fmt: skip
     T = T.copy()
     T[:, :3, 3] *= 2.0
     (tmp_path / "refs").mkdir()
     write_tum_trajectory(tmp_path / "refs" / "seven.tum", stamps, T)
+    listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')
+    assert load_dataset_list()["seven"].reference == (tmp_path / "refs" / "seven.tum").resolve()
     assert bench(tmp_path, *args) == 0  # the runs are reused: a reference is a scoring input, not a run input
     report = (tmp_path / "results" / "real.md").read_text()
     section = report.split("## Against a second reference")[1].split("![every run")[0]
