@@ -215,6 +215,17 @@ def run(args: argparse.Namespace) -> int:
         tmp = out / "metrics.json.part"
         tmp.write_text(json.dumps(json_ready(record), indent=2) + "\n")
         os.replace(tmp, out / "metrics.json")
+        if args.figure:  # the picture's metrics beside it, and what made both: `cnnslam results status`
+            from slamcommon.provenance import record_outputs
+
+            beside = Path(args.figure).with_suffix(".json")
+            beside.write_text(json.dumps(json_ready(record), indent=2) + "\n")
+            from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS
+
+            network = isinstance(getattr(agent, "config", None), CnnSlamConfig)  # the paper's agent: its weights
+            record_outputs([Path(args.figure), beside], "cnnslam map",
+                           ["cnnslam.cli_map", "sim_envs.env", "sim_envs.simsource", args.agent.partition(":")[0]],
+                           [DEFAULT_WEIGHTS] if network else [], wall_s=run_seconds)
     except ProjectError as exc:
         print(f"cnnslam map: error: {exc}", file=sys.stderr)
         return 1

@@ -153,6 +153,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         Path(args.out).write_text(table + "\n")
     if args.png:
         side_by_side(args.sequences[0], args.presets, min(args.frames, 60) - 1, Path(args.png))
+    from sim_envs.folder_layouts import folder_fingerprint
+    from slamcommon.provenance import record_outputs  # what made the files: `cnnslam results status`
+
+    record_outputs([p for p in (args.out, args.png) if p], "python -m sim_envs.cli_camera_calibration",
+                   ["sim_envs.cli_camera_calibration"], folders={args.real: folder_fingerprint(args.real)["sha256"]})
     return 0
 
 

@@ -32,5 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Render and write the sheet; print where it went."""
     path = make_contact_sheet(args.out, args.sequences, args.fractions, args.renderer, args.dpi)
+    from slamcommon.provenance import record_outputs  # what made the sheet: `cnnslam results status`
+
+    record_outputs([path], "cnnslam contact-sheet", ["sim_envs.contact_sheet"])
     print(f"wrote {path}")
     return 0

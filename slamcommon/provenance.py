@@ -234,8 +234,8 @@ def found_path(text: str, root: Path = REPOSITORY) -> Path:
 
 def invoked_command(prog: str, argv: Sequence[str] | None = None) -> str:
     """The command line that is running, as a person types it: ``cnnslam ...`` when run through the ``cnnslam``
-    command, ``python -m MODULE ...`` when run as a module, else ``prog`` and the arguments (``argv`` default:
-    ``sys.argv``)."""
+    command, ``python -m MODULE ...`` when run as a module of the project, else (called from other Python code,
+    whose arguments are not the command's) ``prog`` alone. ``argv`` default: ``sys.argv``."""
     argv = list(sys.argv if argv is None else argv)
     head, args = (argv[0], argv[1:]) if argv else ("", [])
     if Path(head).name == "cnnslam":
@@ -244,7 +244,7 @@ def invoked_command(prog: str, argv: Sequence[str] | None = None) -> str:
     spec = getattr(main, "__spec__", None)
     if spec is not None and spec.name and spec.name.split(".")[0] in PROJECT_PACKAGES:
         return shlex.join(["python", "-m", spec.name, *args])
-    return shlex.join([*shlex.split(prog), *args])
+    return prog
 
 
 # ------------------------------------------------------------------------------------------------ the manifest
@@ -294,3 +294,21 @@ def write_output_manifest(folder: str | Path, name: str, outputs: Sequence[str |
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
     return path
+
+
+def record_outputs(outputs: Sequence[str | Path], prog: str, modules: Sequence[str],
+                   inputs: Sequence[str | Path] = (), folders: Mapping[str | Path, str] | None = None,
+                   wall_s: float | None = None) -> list[Path]:
+    """Write the manifest of files a command just wrote (:func:`write_output_manifest`): one per folder of
+    ``outputs``, named after the first output there (``results/depthnet.json`` -> ``results/depthnet.provenance.json``),
+    recording the running command (:func:`invoked_command`, ``prog`` when it is not run from a command line) and
+    the inputs (files), data ``folders`` (path -> content fingerprint) and ``modules`` whose import closure decides
+    the files; returns the manifests' paths. Outputs that do not exist (a figure not drawn) are left out."""
+    by_folder: dict[Path, list[Path]] = {}
+    for path in map(Path, outputs):
+        if path.exists():
+            by_folder.setdefault(path.parent, []).append(path)
+    command = invoked_command(prog)
+    return [write_output_manifest(folder, files[0].name.split(".")[0], files, command, modules, inputs, folders,
+                                  wall_s=wall_s)
+            for folder, files in by_folder.items()]  # fmt: skip

@@ -246,6 +246,17 @@ def _fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _record(outputs: list[Path], action: str, modules: list[str], inputs: list[Path], folders: list[Path] = ()
+            ) -> None:
+    """The provenance manifest of files ``action`` wrote (:func:`slamcommon.provenance.record_outputs`): the code
+    of ``modules``, the ``inputs``' SHA-256 (the weights), the real ``folders``' content fingerprints."""
+    from sim_envs.folder_layouts import folder_fingerprint
+    from slamcommon.provenance import record_outputs
+
+    record_outputs(outputs, f"cnnslam train {action}", modules, inputs,
+                   {f: folder_fingerprint(f)["sha256"] for f in folders})
+
+
 def _validate_folder(args: argparse.Namespace) -> int:
     from cnnslam.depthnet.predict import load_predictor
     from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
@@ -266,6 +277,9 @@ def _validate_folder(args: argparse.Namespace) -> int:
     args.results.mkdir(parents=True, exist_ok=True)
     (args.results / "depthnet_real.md").write_text(folder_validation_markdown(results, simulated))
     (args.results / "depthnet_real.json").write_text(json.dumps([r.to_dict() for r in results], indent=2) + "\n")
+    _record([args.results / "depthnet_real.md", args.results / "depthnet_real.json"], "validate-folder",
+            ["cnnslam.depthnet.predict", "cnnslam.depthnet.validate", "sim_envs.datasets"],
+            [args.weights, *([sim_json] if sim_json.is_file() else [])], args.folders)
     print(f"wrote {args.results / 'depthnet_real.md'} and {args.results / 'depthnet_real.json'}")
     return 0
 
@@ -304,6 +318,9 @@ def _validate(args: argparse.Namespace) -> int:
         fig.tight_layout()
         fig.savefig(args.results / "depthnet_samples.png", dpi=80)
         plt.close(fig)
+    _record([args.results / f"depthnet.{s}" for s in ("json", "md")] + [args.results / "depthnet_samples.png"],
+            "validate", ["cnnslam.depthnet.bench", "cnnslam.depthnet.plots", "cnnslam.depthnet.predict",
+                         "cnnslam.depthnet.report", "cnnslam.depthnet.validate"], [args.weights])
     if args.update_manifest and manifest is not None:
         manifest["validation_test_sequences"] = {
             "overall": doc["validation"]["overall"],
@@ -353,6 +370,9 @@ def _data_statistics(args: argparse.Namespace) -> int:
     args.results.mkdir(parents=True, exist_ok=True)
     out = args.results / "depthnet_data.md"
     out.write_text(data_statistics_markdown(rows))
+    _record([out], "data-statistics", ["cnnslam.depthnet.data", "cnnslam.depthnet.data_report",
+                                       "cnnslam.depthnet.recipe", "cnnslam.depthnet.validate", "sim_envs.datasets",
+                                       "sim_envs.sequences", "sim_envs.simsource"], [], args.folders)
     print(f"wrote {out}")
     return 0
 

@@ -321,6 +321,12 @@ def run_perf(
     out.mkdir(parents=True, exist_ok=True)
     (out / "perf.json").write_text(json.dumps(report.to_dict(), indent=2, allow_nan=False) + "\n")
     (out / "perf.md").write_text(format_perf_markdown(report, command))
+    from slamcommon.provenance import write_output_manifest  # what the figures were measured on
+
+    shown = command + (f" --frames {n}" if frames is not None and "--frames" not in command.split() else "")
+    write_output_manifest(out, "perf", ["perf.json", "perf.md"], shown,
+                          ["eval.bench.perf", *(p.module for p in chosen)],
+                          inputs=[PROBES_FILE] if probes is None else [], wall_s=sum(r.wall_s for r in results))
     return report
 
 

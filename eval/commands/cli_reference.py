@@ -204,6 +204,12 @@ def run(args: argparse.Namespace) -> int:
     _write_reference(out, folder, reference, args.fixed_camera)  # first: kept whatever fails after it
     summary, metrics = _summary(args, folder, reference, seconds)
     _write_report(out, seq.name, summary, metrics if not args.no_plot else None)
+    from sim_envs.folder_layouts import folder_fingerprint
+    from slamcommon.provenance import record_outputs  # what made the files: `cnnslam results status`
+
+    record_outputs([out / n for n in ("reference.tum", "camera.toml", "reference.json", "reference.md",
+                                      "reference.png")], "cnnslam reference", ["eval.commands.cli_reference"],
+                   folders={seq.folder: folder_fingerprint(seq.folder)["sha256"]}, wall_s=seconds)
     print(_markdown(seq.name, summary))
     written = "reference.tum, camera.toml, reference.json, reference.md" + ("" if args.no_plot else ", reference.png")
     print(f"wrote {written} to {out}")

@@ -80,3 +80,26 @@ def test_simulated_validation_through_a_camera_preset():
         seen[camera] = stub.images[0].astype(np.float32)
     assert np.abs(seen["clean"] - seen["kinect"]).mean() > 1.0  # the kinect camera's noise, exposure, vignetting
     assert "seen through the world's `kinect` camera" in report_markdown(report, None, None, "stub")
+
+
+def test_the_command_writes_a_manifest_of_the_weights_and_the_folder(folder, tmp_path, monkeypatch):
+    """``cnnslam train validate-folder``: its files and, beside them, the weights' SHA-256 and the folder's content
+    fingerprint they were made from."""
+    import hashlib
+    import json
+
+    import cnnslam.depthnet.predict as predict
+    from cnnslam.cli import main
+    from sim_envs.folder_layouts import folder_fingerprint
+
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"stub weights")
+    monkeypatch.setattr(predict, "load_predictor", lambda path, num_threads=2: StubPredictor(1.0))
+    results = tmp_path / "results"
+    assert main(["train", "validate-folder", str(folder), "--weights", str(weights), "--frames", "3",
+                 "--results", str(results)]) == 0  # fmt: skip
+    manifest = json.loads((results / "depthnet_real.provenance.json").read_text())
+    assert manifest["outputs"] == ["depthnet_real.json", "depthnet_real.md"]
+    assert list(manifest["inputs"].values()) == [hashlib.sha256(b"stub weights").hexdigest()]
+    assert list(manifest["folders"].values()) == [folder_fingerprint(folder)["sha256"]]
+    assert "cnnslam.depthnet.validate" in manifest["code"]["modules"]

@@ -123,6 +123,10 @@ def test_map_command_end_to_end(tmp_path):
     props, _ = read_ply(out / "model.ply")
     assert len(props["x"]) == record["model"]["surfels"]
     assert (tmp_path / "fig.png").exists() and (out / "map.png").exists()
+    assert json.loads((tmp_path / "fig.json").read_text())["frames"] == 8  # the picture's metrics beside it
+    manifest = json.loads((tmp_path / "fig.provenance.json").read_text())  # and what made both
+    assert manifest["outputs"] == ["fig.json", "fig.png"] and manifest["command"].startswith("cnnslam map")
+    assert "cnnslam.baselines.laina" in manifest["code"]["modules"] and manifest["inputs"] == {}
     assert main(["map", "office0", "--agent-options", "[1]", "--out", str(out)]) == 2  # refused before the run
 
 

@@ -1,3 +1,5 @@
+import json
+
 import cv2
 import numpy as np
 import pytest
@@ -49,3 +51,5 @@ def test_command_writes_a_png_of_rendered_rooms(tmp_path):
     png = cv2.imread(str(out))
     assert png is not None and png.shape[0] > 300 and png.shape[1] > 300
     assert png.std() > 20.0  # images, not an empty canvas
+    manifest = json.loads((out.parent / "sheet.provenance.json").read_text())  # what made it
+    assert manifest["outputs"] == ["sheet.png"] and manifest["code"]["modules"] == ["sim_envs.contact_sheet"]

@@ -83,6 +83,10 @@ def test_run_perf_keeps_the_good_probes_and_reports_the_bad(tmp_path):
     md = (tmp_path / "results" / "perf.md").read_text()
     assert "## metrics on 2000 poses" in md and "| poses | 2000 |" in md
     assert "**failed**: no figures found in the output (metrics_text)" in md
+    manifest = json.loads((tmp_path / "results" / "perf.provenance.json").read_text())  # what it measured
+    assert manifest["outputs"] == ["perf.json", "perf.md"] and manifest["command"] == "cnnslam bench perf --frames 2000"
+    assert {"eval.bench.perf", "eval.metrics.bench_metrics", "json.tool"} <= set(manifest["code"]["modules"])
+    assert manifest["wall_s"] > 0
 
 
 def test_speed_baseline_is_the_median_of_its_runs_and_the_gate_judges_against_it(tmp_path):
