@@ -11,8 +11,10 @@ weights, config: :mod:`eval.bench.fingerprint`).
 of :data:`eval.bench.suites.SUITES`) and every other group of files, and judges each: a suite's result with a
 manifest is planned again as :func:`eval.bench.benchmark.run_bench` plans it (:func:`eval.bench.benchmark.prepare`
 with the recorded selection, then :func:`eval.bench.runner.plan_runs` per part; nothing runs, renders or builds an
-agent) and every run's fingerprint parts recomputed and compared, timings excluded. A result without a manifest is
-stale: its revisions (read from its long table or run file) are shown, never judged current.
+agent) and every run's fingerprint parts recomputed and compared, timings excluded. A result whose files the output
+manifests of its folder list (:func:`slamcommon.provenance.write_output_manifest`: perf, the depth network's reports,
+maps, camera calibration, contact sheet, SfM references) is judged by them (:func:`judge_outputs`). A result without a
+manifest is stale: its revisions (read from its long table or run file) are shown, never judged current.
 """
 
 from __future__ import annotations
