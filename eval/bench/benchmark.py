@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -52,7 +51,7 @@ from eval.bench.regress import GateAction, GateOutcome, apply_gate, check_gate
 from eval.bench.run import DONE_FILE
 from eval.bench.run_store import run_folder
 from eval.bench.runner import UNKNOWN_LENGTH, RunOutcome, SuiteRun, git_revision, plan_runs, run_suite
-from eval.bench.sequence_ref import dataset_list_file, parse_image_size
+from eval.bench.sequence_ref import check_frames, dataset_list_file, parse_image_size
 from eval.bench.suites import (
     SUITES,
     SWEEP_LENGTHS,
@@ -69,6 +68,7 @@ from eval.metrics.results import coverage
 from eval.reports.style import FIGURE_FORMATS
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import ProjectError
+from slamcommon.output_paths import OutputPathError, check_output_folder
 
 log = logging.getLogger(__name__)
 
@@ -357,6 +357,8 @@ def _prepare(suite: Suite | str, methods: Sequence[str | Method] | None, options
                 lengths[ref.name] = len(source)
             finally:
                 source.close()
+    if suite.kind is not SuiteKind.PERF:  # "the first N frames" must be what every run reads
+        check_frames(selected.sequences, selected.frames, lengths)
     parts = () if suite.kind is SuiteKind.PERF else tuple(KINDS[suite.kind].parts(selected, options))
     command = options.command or command_line(selected.name, options)
     builtin = load_methods()
@@ -395,31 +397,13 @@ def _check_entry_points(chosen: Mapping[str, Method], named: bool, allow_skips: 
 
 
 def check_writable(folder: str | Path, flag: str) -> None:
-    """Refuse a folder the benchmark could not write into (a file where the folder should be, a folder this user
-    may not write): try to create it and a temporary file in it, then remove what the try created.
+    """Refuse a folder the benchmark could not write into (a file where the folder or one of its parents should be,
+    a folder this user may not write), by trying (:func:`slamcommon.output_paths.check_output_folder`):
     :class:`~eval.errors.InputError` naming ``flag`` (the option that gave it) and the folder."""
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{flag} {folder}: a file, not a folder; name a folder (it is created when missing)")
-    created = []
-    probe = folder
-    while not probe.exists() and probe.parent != probe:
-        created.append(probe)  # deepest first, removed in that order
-        probe = probe.parent
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".cnnslam-write-check-"):
-            pass
-    except OSError as exc:
-        raise InputError(f"{flag} {folder}: cannot write there ({exc.strerror or type(exc).__name__}"
-                         f"{f': {exc.filename}' if exc.filename and str(exc.filename) != str(folder) else ''}); "
-                         "name a folder this user can create and write") from None  # fmt: skip
-    finally:
-        for path in created:
-            try:
-                path.rmdir()
-            except OSError:
-                break
+        check_output_folder(folder, flag)
+    except OutputPathError as exc:
+        raise InputError(str(exc)) from None
 
 
 def _check_outputs(suite: Suite, parts: Sequence[Part], methods: Mapping[str, Method], options: BenchOptions,

@@ -260,15 +260,15 @@ def test_unwritable_outputs_are_refused_before_any_run(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("not a folder\n")
     for changes, message in ((dict(results=afile), f"--results {afile}: a file, not a folder"),
-                             (dict(results=afile / "sub"), f"--results {afile / 'sub'}: cannot write there"),
-                             (dict(out=afile / "runs"), f"--out {afile / 'runs'}: cannot write there")):  # fmt: skip
+                             (dict(results=afile / "sub"), f"--results {afile / 'sub'}: {afile} is a file, not a folder"),
+                             (dict(out=afile / "runs"), f"--out {afile / 'runs'}: {afile} is a file, not a folder")):  # fmt: skip
         with pytest.raises(InputError, match=message):
             run_bench("table1", ["oracle"], options(tmp_path, **changes))
         assert run_folders(tmp_path) == [] and not (tmp_path / "runs").exists() and afile.is_file()
     if os.geteuid() != 0:  # root writes into read-only folders
         locked = tmp_path / "locked"
         locked.mkdir(mode=0o555)
-        with pytest.raises(InputError, match=f"--results {locked / 'r'}: cannot write there"):
+        with pytest.raises(InputError, match=f"--results {locked / 'r'}: cannot write in"):
             run_bench("table1", ["oracle"], options(tmp_path, results=locked / "r"))
     plan = prepare("table1", ["oracle"], options(tmp_path, results=tmp_path / "deep" / "er"))
     assert plan.results_dir == tmp_path / "deep" / "er" and not (tmp_path / "deep").exists()  # tried, then removed

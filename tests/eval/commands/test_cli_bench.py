@@ -147,7 +147,7 @@ def test_bad_input_of_issue_60_exits_2_with_one_line_before_any_run(tmp_path, ca
     cases = [
         (["--methods", "oracle", "Mine", "--method-file", str(methods)], "has no 'MySlma'"),
         (["--results", str(afile)], f"--results {afile}: a file, not a folder"),
-        (["--out", str(afile / "runs")], f"--out {afile / 'runs'}: cannot write there"),
+        (["--out", str(afile / "runs")], f"--out {afile / 'runs'}: {afile} is a file, not a folder"),
         (["--report-only", "--out", str(tmp_path / "none")], f"--out {tmp_path / 'none'}: no such folder"),
         (["--frames", "0"], "--frames takes a number of frames >= 2"),
         (["--runs", "0"], "--runs takes a number of runs per cell >= 1"),
