@@ -259,9 +259,10 @@ def test_unwritable_outputs_are_refused_before_any_run(tmp_path):
 
     afile = tmp_path / "afile"
     afile.write_text("not a folder\n")
+    in_the_way = f"{afile} is a file, not a folder"
     for changes, message in ((dict(results=afile), f"--results {afile}: a file, not a folder"),
-                             (dict(results=afile / "sub"), f"--results {afile / 'sub'}: {afile} is a file, not a folder"),
-                             (dict(out=afile / "runs"), f"--out {afile / 'runs'}: {afile} is a file, not a folder")):  # fmt: skip
+                             (dict(results=afile / "sub"), f"--results {afile / 'sub'}: {in_the_way}"),
+                             (dict(out=afile / "runs"), f"--out {afile / 'runs'}: {in_the_way}")):  # fmt: skip
         with pytest.raises(InputError, match=message):
             run_bench("table1", ["oracle"], options(tmp_path, **changes))
         assert run_folders(tmp_path) == [] and not (tmp_path / "runs").exists() and afile.is_file()
