@@ -31,8 +31,8 @@ seed spread of the default (``LainaConfig.icp_downsample``), so the Table-1 colu
 
 Speed (one core): the per-pixel work of every frame (the model rendered for ICP, the surface pyramids, the ICP
 normal equations, and the measurements, association and merging of the fusion) runs in numba kernels: ICP's in
-:mod:`cnnslam.baselines.laina_kernels` (they compute what :mod:`cnnslam.icp` computes; the tests compare them), the
-model's in :mod:`cnnslam.surfel_kernels` (the global model's only implementation, shared with CNN-SLAM);
+:mod:`cnnslam.icp` (the one ICP, its compiled path), the model's in :mod:`cnnslam.surfel_kernels` (the global
+model's only implementation, shared with CNN-SLAM);
 with the convergence test the agent takes 53-59 instead of 142-162 ms per frame (200 frames of office0, living1 and
 tum_long_office, 3 seeds, one core; about 23 ms of it is the network).
 
@@ -59,13 +59,12 @@ import cv2
 import numpy as np
 
 from cnnslam.baselines.base import BaselineAgent
-from cnnslam.baselines.laina_kernels import depth_surface_pyramid, evaluate_icp, maps_surface_pyramid
 from cnnslam.config import TrackingConfig
 from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, pyramid_intrinsics, rotation_angle_deg, se3_inverse
 from cnnslam.global_model import GlobalModel, GlobalModelConfig
-from cnnslam.icp import IcpConfig, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
+from cnnslam.icp import IcpConfig, depth_pyramid, icp_point_to_plane, reference_pyramid
 from cnnslam.predictors import make_predictor
 from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
 from slamcommon.config import Configurable, configure
@@ -287,17 +286,11 @@ class LainaAgent(BaselineAgent):
         reference = self._model.render_surface(self._T_world_prev, intrinsics, size, cfg.render_min_confidence)
         if cfg.render_min_confidence > 0 and reference.valid.mean() < cfg.stable_min_coverage:  # too few stable yet
             reference = self._model.render_surface(self._T_world_prev, intrinsics, size)
-        ref_pyramid = maps_surface_pyramid(reference, icp.levels, icp.max_relative_depth_jump)
-        if icp.smoothing_px > 0:
-            cur_pyramid = surface_pyramid(surface_maps_from_depth(depth, intrinsics, icp.max_relative_depth_jump,
-                                                                  icp.smoothing_px, icp.smoothing_relative),
-                                          icp.levels, icp.max_relative_depth_jump)
-        else:
-            cur_pyramid = depth_surface_pyramid(depth, intrinsics, icp.levels, icp.max_relative_depth_jump)
+        ref_pyramid = reference_pyramid(reference, icp)
+        cur_pyramid = depth_pyramid(depth, intrinsics, icp)
         t1 = time.perf_counter()
         self._seconds["render"] += t1 - t0
-        res = icp_point_to_plane(ref_pyramid, cur_pyramid, se3_inverse(self._T_world_prev) @ T_world_pred, icp,
-                                 evaluate=evaluate_icp)
+        res = icp_point_to_plane(ref_pyramid, cur_pyramid, se3_inverse(self._T_world_prev) @ T_world_pred, icp)
         self._seconds["icp"] += time.perf_counter() - t1
         if not res.tracked:
             return T_world_pred, False

@@ -8,9 +8,14 @@ from cnnslam.global_model import GlobalModel, GlobalModelConfig
 from cnnslam.icp import (
     IcpConfig,
     SurfaceMaps,
+    _evaluate,
+    depth_pyramid,
+    depth_surface_pyramid,
     icp_point_to_plane,
+    maps_surface_pyramid,
     normal_map,
     point_to_plane_residuals,
+    reference_pyramid,
     surface_maps_from_depth,
     surface_pyramid,
 )
@@ -105,3 +110,58 @@ def test_nothing_to_align_is_reported_lost_and_bad_config_is_rejected(depths):
         IcpConfig(levels=2, iterations=(10, 5, 4))
     with pytest.raises(CnnSlamError, match="max_distance"):
         IcpConfig(max_distance=0.0)
+
+
+def _normal_equations_numpy(cur: SurfaceMaps, ref: SurfaceMaps, T: np.ndarray, cfg: IcpConfig):
+    """The normal equations written out in numpy (the definition the kernel follows): (H, g, sum r^2, inliers)."""
+    R, t = T[:3, :3], T[:3, 3]
+    p = cur.vertices[cur.valid].astype(np.float64) @ R.T + t
+    n_cur = cur.normals[cur.valid].astype(np.float64) @ R.T
+    fx, fy, cx, cy = ref.intrinsics
+    front = p[:, 2] > 1e-6
+    z = np.where(front, p[:, 2], 1.0)
+    u = np.floor(fx * p[:, 0] / z + cx + 0.5).astype(int)
+    v = np.floor(fy * p[:, 1] / z + cy + 0.5).astype(int)
+    h, w = ref.valid.shape
+    ok = front & (u >= 0) & (v >= 0) & (u < w) & (v < h)
+    ok[ok] &= ref.valid[v[ok], u[ok]]
+    p, n_cur, u, v = p[ok], n_cur[ok], u[ok], v[ok]
+    d = p - ref.vertices[v, u]
+    n = ref.normals[v, u].astype(np.float64)
+    keep = ((d**2).sum(axis=1) <= cfg.max_distance**2) & \
+        ((n_cur * n).sum(axis=1) >= np.cos(np.radians(cfg.max_normal_angle_deg)))
+    p, d, n = p[keep], d[keep], n[keep]
+    r = (n * d).sum(axis=1)
+    J = np.hstack([n, np.cross(p, n)])
+    wgt = np.where(np.abs(r) <= cfg.huber_delta, 1.0, cfg.huber_delta / np.maximum(np.abs(r), 1e-300))
+    return (J * wgt[:, None]).T @ J, (J * wgt[:, None]).T @ r, float(r @ r), len(r)
+
+
+def test_the_normal_equations_kernel_is_the_numpy_definition(depths):
+    cfg = IcpConfig()
+    ref = surface_maps_from_depth(depths[0], INTRINSICS_320)
+    cur = surface_maps_from_depth(depths[1], INTRINSICS_320)
+    T = relative_pose(T0, T1) @ pose((0.004, -0.002, 0.003), (0.3, -0.2, 0.1))  # near the answer, not at it
+    H, g, err, n = _evaluate(cur, ref, T, cfg)
+    H_np, g_np, err_np, n_np = _normal_equations_numpy(cur, ref, T, cfg)
+    assert n == n_np and n > 0.5 * cur.valid.sum()
+    assert np.allclose(H, H_np, rtol=1e-9, atol=1e-9) and np.allclose(g, g_np, rtol=1e-9, atol=1e-12)
+    assert err == pytest.approx(err_np, rel=1e-9) and np.array_equal(H, H.T)
+
+
+def test_the_pyramids_take_the_compiled_path_unless_the_depth_is_smoothed(depths):
+    raw, smoothed = IcpConfig(smoothing_px=0.0), IcpConfig()
+    fast = depth_pyramid(depths[0], INTRINSICS_320, raw)
+    numpy_form = surface_pyramid(surface_maps_from_depth(depths[0], INTRINSICS_320, 0.05, 0.0), 3, 0.05)
+    for a, b, c in zip(fast, depth_surface_pyramid(depths[0], INTRINSICS_320, 3, 0.05), numpy_form, strict=True):
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.valid, b.valid)
+        assert np.array_equal(a.valid, c.valid) and np.allclose(a.vertices, c.vertices, atol=1e-6)
+        assert np.allclose(a.normals, c.normals, atol=1e-6) and np.allclose(a.intrinsics, c.intrinsics)
+    slow = depth_pyramid(depths[0], INTRINSICS_320, smoothed)  # pre-smoothing: the numpy path itself
+    expected = surface_pyramid(surface_maps_from_depth(depths[0], INTRINSICS_320, 0.05, 2.0, 0.05), 3, 0.05)
+    assert all(np.array_equal(a.vertices, b.vertices) and np.array_equal(a.valid, b.valid)
+               for a, b in zip(slow, expected, strict=True))
+    maps = numpy_form[0]
+    for a, b, c in zip(reference_pyramid(maps, raw), maps_surface_pyramid(maps, 3, 0.05), numpy_form, strict=True):
+        assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.valid, c.valid)
+        assert np.allclose(a.vertices, c.vertices, atol=1e-6) and np.allclose(a.normals, c.normals, atol=1e-6)
