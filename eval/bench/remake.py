@@ -136,13 +136,17 @@ def seconds_per_frame(root: Path) -> dict[str, float]:
     return _RATES[key]
 
 
-_LENGTHS: dict[str, int] = {}
+_LENGTHS: dict[str, int | None] = {}
 
 
-def _folder_length(ref: Any, frames: int | None) -> int:
-    """The frames a run of a folder sequence ``ref`` goes through (its length, read once per process)."""
-    from eval.bench.runner import UNKNOWN_LENGTH
+def run_length(spec: Any) -> int | None:
+    """How many frames ``spec`` runs (:func:`eval.bench.runner.run_frames`; a folder's length read once per
+    process); None when a folder cannot be read."""
+    from eval.bench.runner import run_frames
 
+    ref = spec.sequence
+    if ref.folder is None:
+        return run_frames(spec)
     if ref.name not in _LENGTHS:
         try:
             source = ref.make_source()
@@ -151,39 +155,39 @@ def _folder_length(ref: Any, frames: int | None) -> int:
             finally:
                 source.close()
         except Exception:  # noqa: BLE001 - an estimate: a folder that cannot be read has no length
-            _LENGTHS[ref.name] = UNKNOWN_LENGTH
+            _LENGTHS[ref.name] = None
     length = _LENGTHS[ref.name]
-    return length if frames is None or length == UNKNOWN_LENGTH else min(length, int(frames))
+    return length if spec.frames is None or length is None else min(length, int(spec.frames))
 
 
 def estimate_runs(specs: Sequence[Any], walls: Mapping[str, tuple[str, float]],
                   rates: Mapping[str, float] | None = None) -> float | None:
     """Seconds of one core for ``specs`` (module docstring): the run's recorded ``wall_s``, else its method's
-    seconds per frame (``rates``, :func:`seconds_per_frame`) times its frames, else its method's median in
-    ``walls``, else the median of ``walls``; None when no run has any."""
-    from eval.bench.runner import UNKNOWN_LENGTH, run_frames
-
-    rates = rates or {}
+    seconds per frame (``rates``, :func:`seconds_per_frame`; else the median method's) times its frames, else its
+    method's median in ``walls``, else the median of ``walls``; None when nothing is known of any run."""
+    rates = dict(rates or {})
     per_method: dict[str, list[float]] = {}
     for method, wall in walls.values():
         per_method.setdefault(method, []).append(wall)
     overall = statistics.median(w for _, w in walls.values()) if walls else None
+    typical = statistics.median(rates.values()) if rates else None
     total = 0.0
+    known = 0
     for spec in specs:
-        frames = run_frames(spec)
-        if frames == UNKNOWN_LENGTH and spec.sequence.folder is not None:  # a folder: its length read once
-            frames = _folder_length(spec.sequence, spec.frames)
+        frames = run_length(spec)
+        rate = rates.get(spec.method.name, typical)
         if spec.key in walls:
             total += walls[spec.key][1]
-        elif spec.method.name in rates and frames != UNKNOWN_LENGTH:
-            total += rates[spec.method.name] * frames
+        elif rate is not None and frames is not None:
+            total += rate * frames
         elif spec.method.name in per_method:
             total += statistics.median(per_method[spec.method.name])
         elif overall is not None:
             total += overall
         else:
-            return None
-    return total
+            continue
+        known += 1
+    return total if known or not specs else None
 
 
 def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence[Path], out: Path, jobs: int,

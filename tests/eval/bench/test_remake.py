@@ -155,3 +155,19 @@ def test_a_result_without_manifest_is_remade_by_the_command_its_report_quotes(tm
     assert plans["map_office0"].commands == (f"cnnslam map office0 --figure {shown}/map_office0.png",)
     assert plans["map_office0"].estimate_s == 30.0 and not plans["map_office0"].bench
     assert remake.command_argv("python -m x --y")[:2] == [sys.executable, "-m"]
+
+
+def test_the_estimate_takes_a_runs_recorded_time_else_its_methods_seconds_per_frame():
+    from types import SimpleNamespace
+
+    def spec(key: str, method: str, frames: int) -> SimpleNamespace:
+        ref = SimpleNamespace(folder=None, start=0, spec=lambda: SimpleNamespace(n_frames=1000))
+        return SimpleNamespace(key=key, sequence=ref, frames=frames, method=SimpleNamespace(name=method))
+
+    walls = {"s/a/A/seed0": ("A", 30.0), "s/b/A/seed0": ("A", 50.0)}
+    rates = {"A": 0.5, "B": 0.1}
+    specs = [spec("s/a/A/seed0", "A", 10), spec("s/c/A/seed0", "A", 10), spec("s/c/B/seed0", "B", 100),
+             spec("s/c/C/seed0", "C", 100)]  # C: no rate of its own, the median method's (0.3 s a frame)
+    assert remake.estimate_runs(specs, walls, rates) == pytest.approx(30.0 + 5.0 + 10.0 + 30.0)
+    assert remake.estimate_runs(specs[1:2], walls, {}) == pytest.approx(40.0)  # its method's median wall
+    assert remake.estimate_runs(specs[1:2], {}, {}) is None
