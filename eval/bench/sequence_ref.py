@@ -475,6 +475,34 @@ def window_refs(ref: SequenceRef, length: int, total: int | None = None) -> tupl
                  for start in range(0, int(total) - int(length) + 1, int(length)))  # fmt: skip
 
 
+def sequence_length(ref: SequenceRef) -> int:
+    """The number of frames of ``ref`` from its first frame: a folder's as its index reads now (the frames that have
+    what they need), a simulated sequence's from its definition."""
+    if ref.folder is None:
+        return max(0, int(ref.spec().n_frames) - int(ref.start))
+    source = ref.make_source()
+    try:
+        return len(source)
+    finally:
+        source.close()
+
+
+def check_frames(refs: Sequence[SequenceRef], frames: int | None, lengths: Mapping[str, int] | None = None) -> None:
+    """Every sequence of ``refs`` has at least ``frames`` frames (None: whole sequences, nothing to check), so that
+    "the first N frames" is what each run reads; :class:`SuiteError` naming the shortest and what is valid
+    otherwise. ``lengths``: sequence name -> frames, where already known (:func:`sequence_length` for the rest)."""
+    if frames is None:
+        return
+    known = dict(lengths or {})
+    short = [(n, ref.name) for ref in refs
+             if (n := known[ref.name] if ref.name in known else sequence_length(ref)) < frames]
+    if short:
+        n, name = min(short)
+        more = f" (and {len(short) - 1} more sequence(s) shorter than {frames})" if len(short) > 1 else ""
+        raise SuiteError(f"--frames {frames}: sequence {name!r} has {n} frames{more}; give --frames {n} or less, or "
+                         "--frames all (each sequence whole)")  # fmt: skip
+
+
 def rotation_ref(axes: str, speed_deg_s: float) -> SequenceRef:
     """The rotation stress sequence ``rot_<axes>_<speed>`` (registered ones are used as registered)."""
     names = parse_axes(axes)

@@ -191,6 +191,23 @@ def test_a_dataset_reference_that_is_missing_or_malformed_is_refused_before_any_
     assert load_dataset_list()["seven"].reference == (tmp_path / "ok.tum").resolve()
 
 
+def test_more_frames_than_a_sequence_has_is_refused_before_any_run(folders, tmp_path, capsys):
+    """``--frames 99999`` on a 6-frame folder (or a simulated sequence) is exit 2, naming the sequence and its
+    length: a report would have said "the first 99999 frames" of runs that read 6."""
+    path = str(folders["7scenes"])
+    assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", *SMALL[2:], "--frames", "99999") == 2
+    err = capsys.readouterr().err
+    assert "--frames 99999: sequence 'seq_7scenes' has 6 frames; give --frames 6 or less, or --frames all" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "runs").exists()
+    assert bench(tmp_path, "table1", "--sequences", path, "office0", "--methods", "oracle", *SMALL[2:],
+                 "--frames", "7") == 2  # fmt: skip
+    assert "sequence 'seq_7scenes' has 6 frames; give --frames 6" in capsys.readouterr().err
+    assert bench(tmp_path, "table1", "--sequences", "office0", "--methods", "oracle", *SMALL[2:], "--frames",
+                 "99999") == 2  # fmt: skip
+    assert "--frames 99999: sequence 'office0@kinect' has" in capsys.readouterr().err
+    assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", *SMALL[2:], "--frames", "6") == 0
+
+
 def test_the_shipped_list_names_the_shared_7scenes_folder(monkeypatch):
     monkeypatch.delenv(DATASETS_ENV, raising=False)
     entries = load_dataset_list()
