@@ -212,15 +212,9 @@ class DepthConfig:
     # the first key-frame's units) and target the reference below: the key-frame's own swing of scale no longer
     # enters the map and the trajectory, while the CNN still sets the absolute scale. 0 = the paper, 1 = the
     # reference's scale.
-    # Off by default (the paper). Round 38 turned it on (0.5, towards the running median, on the stereo pixels) from
-    # the 9 Table-1 analogues at 400 frames (kinect camera, the shipped network, seeds 0 and 1: SE(3) ATE 0.0953 /
-    # 0.0949 m -> 0.0854 / 0.0852, correct depth 47.7 / 47.4 -> 48.9 / 48.9 %); at whole length, the paper's
-    # protocol and the committed table's, it did the opposite (make bench, seed 0, the 9 sequences: SE(3) ATE 0.159
-    # off against 0.180 m on, correct depth 49.3 against 40.1 %, CNN-SLAM behind Laina's 41.8 % on it; tum_long_office
-    # 0.078 against 0.242 m and 70.8 against 35.0 %; why it hurts over 900-1800 frames is not measured yet). Real
-    # frames played no part in either choice; what it does on them is in docs/benchmarks.md. A
-    # gain of 1 moved SE(3) further at 400 frames (0.083) but cost correct depth (46.4 %); gain 1 towards the map on
-    # the stereo pixels: 0.079 m, 43.1 %; on every pixel both see (``"all"``) the same as "stereo" within 0.001 m.
+    # Off by default (the paper): on the simulated Table-1 analogues at whole length (the paper's protocol) it costs
+    # ATE and correct depth, though it helps at 400 frames (docs/investigations/kitchen-scale.md has the figures);
+    # real frames played no part in the choice.
     prediction_scale_alignment: float = 0.0
     # What the CNN is aligned towards: "map", the nearest key-frame's scale; or "running_median", the median of the
     # CNN's scales at every key-frame so far (in the first key-frame's units), so that the absolute scale follows

@@ -396,8 +396,8 @@ def _normal_equations_core(
     flat buffer, which the compiler vectorises (a point behind the camera or outside the image gets a safe pixel and
     weight 0); (b) the bilinear samples are scalar loads (gathers are slow on the CPUs we measured); then each entry
     of H and b is one dot product over the block (:func:`_accumulate_block`). Per-point Jacobians never outlive
-    their block. Round 28's scalar kernel took 37.6 ns per point on a 2-core EPYC, this one 11.6 ns; sums are in a
-    different order, so figures agree to ~1e-14 relative, not to the byte.
+    their block. Sums are in another order than a scalar loop's, so figures agree with it to ~1e-14 relative, not
+    to the byte.
 
     Returns (H (n, n), b (n,), energy = sum rho(r / sigma) (eq. 1), points used, good, bad, usage); usage sums
     min(z_kf / z_cur, 1) over the used points (LSD-SLAM's pointUsage numerator).

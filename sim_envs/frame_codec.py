@@ -7,7 +7,7 @@ Zstandard (level :data:`ZSTD_LEVEL`). The encoder tries every transform that app
 the shortest result (the choice is stored). For an array of :data:`SAMPLE_MIN_BYTES` or more it compresses a sample
 of each transform's bytes first (:func:`estimated_sizes`: evenly spaced chunks, 1/8 of them) and compresses in full
 only the transforms within :data:`SAMPLE_MARGIN` of the best estimate, so that a frame is not compressed four times
-over (encoding and decoding a kinect frame: 13.1 -> 10.3 ms). A :class:`FrameEncoder` (the frame cache keeps one per
+over. A :class:`FrameEncoder` (the frame cache keeps one per
 sequence) remembers each array's choice and makes it again only every :data:`RECHOOSE_EVERY` frames: consecutive
 frames of a sequence pick the same transforms. The choice never changes what comes back, only how short it is:
 

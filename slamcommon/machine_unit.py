@@ -23,12 +23,9 @@ T = TypeVar("T")
 # not move the unit), and editing it invalidates results/baselines/perf.json (bump UNIT_VERSION, remake the baseline).
 # Its mix is tracking's: a rigid warp, bilinear samples of an interleaved float32 image, divisions, a square root and
 # the 21 products of a 6x6 normal equation per point, in a numba loop.
-# /2: timed in the calling thread's CPU time (time.thread_time) and summarised by the median. /1 timed it in the
-# process's CPU time (time.process_time), which also counts the library thread pools of the process spinning after a
-# run (torch's OpenMP workers after the network): on a quiet 2-core EPYC the unit read 1.31 ms in the speed probe
-# against 0.65 ms in the calling thread, on a loaded one 0.82 ms, so the gate's figures moved by 1.8x with no change
-# to the code (round 38's CI failure); in the thread's CPU time, the median, the probe's tracking figure reads
-# 0.0774 and 0.0778 quiet and 0.0687 with two busy processes beside it (results/perf_history.md, round 39).
+# /2: timed in the calling thread's CPU time (time.thread_time) and summarised by the median: the process's CPU time
+# (/1) also counts the library thread pools spinning after a run (torch's OpenMP workers after the network), which
+# moved the gate's figures with no change to the code (measurements: results/perf_history.md).
 
 UNIT_VERSION = "warp-bilinear-6x6/2"
 _UNIT_POINTS = 20000

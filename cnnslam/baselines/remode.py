@@ -40,14 +40,11 @@ a parallel kernel measured 3x slower than a serial one). The search reads each s
 tables made once a frame (:func:`search_tables`: box sums of the image and of its neighbour products) and its sum of
 I T from the template's correlation at the sample's integer corners, which consecutive samples share
 (:func:`_best_match`): the ZNCC of its definition with the additions in another order (tests: against the
-pixel-by-pixel definition). A filter update took 18.6 ms with the sums tap by tap and 15.1 ms with the tables (120
-updates captured on office0, the same outcomes and seeds, bit for bit), plus 0.8 ms a frame for the tables. Camera
-images are grey levels, so the template's correlations are integers: summed two corners at a time in one 64-bit
-integer (:func:`search_pairs`), the same 120 updates (35-px segments, another machine) take 16.9 instead of 18.3 ms,
-bit for bit again. Numba reads an array at a signed index with a wraparound (a negative index counts from the end):
-a compare and a select per read. The search's indices are never negative (its patches lie inside the image: seeds
-at least a half patch from the border, positions checked before they are read), so its reads cast them to unsigned
-(``np.uintp``), which numba reads directly: the same 120 updates 16.5 -> 14.6 ms, bit for bit.
+pixel-by-pixel definition). Camera images are grey levels, so the template's correlations are integers, summed two
+corners at a time in one 64-bit integer (:func:`search_pairs`). The search's indices are never negative (its patches
+lie inside the image: seeds at least a half patch from the border, positions checked before they are read), so its
+reads use unsigned indices (``np.uintp``), which numba reads without a wraparound test. Timings of these choices:
+``results/perf_history.md``.
 """
 
 from __future__ import annotations
@@ -80,9 +77,8 @@ class RemodeConfig(Configurable):
     # REMODE: 5x5 ZNCC patches (RMD_CORR_PATCH_SIDE), samples every 0.7 px along the epipolar segment.
     patch_size: int = 5
     search_step_px: float = 0.7
-    # REMODE caps the searched segment (MAX_EXTENT_EPIPOLAR_SEARCH); ours: 35 px at 320x240. It was 50 until round
-    # 48: at 35 the 27 runs of the 3-run table (whole sequences, seeds 0-2) took 17 % less time and their correct
-    # depth moved by at most 0.07 points per seed (results/perf_history.md, "Round 48").
+    # REMODE caps the searched segment (MAX_EXTENT_EPIPOLAR_SEARCH); ours: 35 px at 320x240, chosen by a three-run
+    # comparison against 50 px (results/perf_history.md: less time, correct depth within the seeds' spread).
     max_search_px: float = 35.0
     # REMODE: a match needs ZNCC >= 0.5, else NO_MATCH.
     min_zncc: float = 0.5
@@ -634,7 +630,7 @@ def _tv_dual_px(px: np.ndarray, py: np.ndarray, y: int, x: int, gx: float, gy: f
     """The dual step at one pixel: ascent with the Huber prox (``den`` = 1 + sig eps / gg), then the projection
     onto |p| <= gg: p / n with n = |p| / gg where n > 1. ``inner`` = gg^2 (1 - 1e-9): below it |p|^2 cannot give
     n > 1 (the margin is far above the rounding of n), so the square root and division are spared there and every
-    result is the same (REMODE's 8 smoothings of office0: 178 -> 131 ms each, equal bit for bit)."""
+    result is the same."""
     qx = (px[y, x] + sig * gx) / den
     qy = (py[y, x] + sig * gy) / den
     n2 = qx * qx + qy * qy

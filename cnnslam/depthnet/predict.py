@@ -117,8 +117,8 @@ class DepthNetPredictor:
         self.onednn = bool(onednn)
         self.model = model.eval()
         # what runs: the batch norms folded into the convolutions and, with oneDNN, the feature maps channels-last
-        # (oneDNN's native layout: no reorder around each convolution); 18.4 -> 14.0 ms a 160x120 frame on one
-        # thread, outputs within a few float32 ulps of ``model``'s (tests/cnnslam/test_depthnet_predict.py)
+        # (oneDNN's native layout: no reorder around each convolution); outputs within a few float32 ulps of
+        # ``model``'s (tests/cnnslam/test_depthnet_predict.py)
         self._net = fold_batch_norms(self.model)
         if self.onednn:
             self._net = self._net.to(memory_format=torch.channels_last)
