@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from eval.bench.provenance import RESULTS_ROOT, ResultStatus, covering_manifests, results_status
+from eval.bench.provenance import RESULTS_ROOT, ResultStatus, covering_manifests, output_changes, results_status
 from eval.errors import InputError
 from slamcommon.provenance import REPOSITORY, found_path
 
@@ -292,12 +292,17 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
             return plan_bench(row.name, [str(data["command"])], folder, files, out, jobs, rates_root=root)
     covering = covering_manifests(folder, files)
     if covering:
-        commands = list(dict.fromkeys(str(d["command"]) for d in covering.values()))
-        cwd = found_path(next(iter(covering.values())).get("cwd") or ".")
-        walls = [d.get("wall_s") for d in covering.values()]
         listed = {str(o).split("/")[0] for d in covering.values() for o in d.get("outputs") or ()}
-        unlisted = [p.name for p in files if p.name not in listed]
-        notes = (f"no recorded command for {', '.join(unlisted)}",) if unlisted else ()
+        unlisted = [p for p in files if p.name not in listed]
+        if not row.current:  # a stale result: the commands of its stale manifests only
+            covering = {p: d for p, d in covering.items() if d.get("dirty") or output_changes(d)}
+        commands = list(dict.fromkeys(str(d["command"]) for d in covering.values()))
+        extra = [c for c in known_commands(row.name, root, unlisted) if c not in commands]
+        notes = tuple(f"no manifest for {p.name}: the known command" for p in unlisted if extra) or tuple(
+            f"no recorded command for {p.name}" for p in unlisted)
+        commands += extra
+        cwd = found_path(next(iter(covering.values())).get("cwd") or ".") if covering else REPOSITORY
+        walls = [d.get("wall_s") for d in covering.values()]
         if row.suite is not None and all(c.startswith("cnnslam bench ") for c in commands):
             return plan_bench(row.name, commands, folder, files, out, jobs, notes, root)
         seconds = sum(w for w in walls if isinstance(w, int | float)) if any(walls) else recorded_seconds(files)
