@@ -10,7 +10,8 @@ Where a result's command comes from, first found wins:
    suite as defined (``cnnslam bench SUITE``);
 4. the other outputs the project's commands make (:data:`KNOWN_COMMANDS`).
 
-A ``cnnslam bench`` line is planned and run in this process (:func:`eval.bench.benchmark.prepare`, then
+A ``cnnslam bench`` line is parsed as that command parses it (:func:`eval.commands.cli_results.bench_args`), planned
+and run in this process (:func:`eval.bench.benchmark.prepare`, then
 :func:`eval.commands.cli_bench.run`) with ``--results`` the result's folder and ``--out`` the runs folder, where the
 runner reuses every finished run whose fingerprint is current; any other command runs as a subprocess. The estimate
 adds, per run to make, the ``wall_s`` its result recorded for that run (else the median of its method's there, else
@@ -20,7 +21,6 @@ the seconds its files record.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import re
@@ -75,27 +75,6 @@ class Remake:
     def possible(self) -> bool:
         """Whether there is a command to run (an unplannable bench line has a note and no runs)."""
         return bool(self.commands) and not (self.bench and self.runs is None)
-
-
-def bench_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``cnnslam bench`` (:mod:`eval.commands.cli_bench`)."""
-    from eval.commands.cli_bench import add_arguments
-
-    parser = argparse.ArgumentParser(prog="cnnslam bench", exit_on_error=False)
-    add_arguments(parser)
-    return parser
-
-
-def bench_args(command: str, folder: Path, out: Path, extra: Sequence[str] = ()) -> argparse.Namespace:
-    """The parsed arguments of a ``cnnslam bench`` line run into ``folder`` with runs under ``out``; ``extra``:
-    further options (``--jobs 2``). :class:`InputError` when the line does not parse."""
-    words = shlex.split(command)
-    if words[:2] != ["cnnslam", "bench"]:
-        raise InputError(f"{command!r} is no cnnslam bench line")
-    try:
-        return bench_parser().parse_args([*words[2:], "--results", str(folder), "--out", str(out), *extra])
-    except (argparse.ArgumentError, SystemExit) as exc:
-        raise InputError(f"{command!r} does not parse as cnnslam bench options: {exc}") from None
 
 
 def recorded_walls(files: Sequence[Path]) -> dict[str, tuple[str, float]]:
@@ -201,6 +180,7 @@ def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence
     from eval.bench.run_store import is_finished
     from eval.bench.runner import plan_runs
     from eval.commands.cli_bench import options_of
+    from eval.commands.cli_results import bench_args
 
     planned = reused = 0
     specs_to_make: list[Any] = []
@@ -371,12 +351,12 @@ def _duration(seconds: float) -> str:
 
 
 def command_argv(command: str) -> list[str]:
-    """The argv of an output command: ``cnnslam ...`` through the ``cnnslam`` script beside this Python (its name
-    recorded again in the manifest), ``python -m ...`` with this Python."""
+    """The argv of an output command: ``cnnslam ...`` through the ``cnnslam`` script beside this Python (else the
+    one on the PATH; its name is recorded again in the manifest), ``python -m ...`` with this Python."""
     words = shlex.split(command)
     if words and words[0] == "cnnslam":
         script = Path(sys.executable).parent / "cnnslam"
-        return [str(script), *words[1:]] if script.is_file() else [sys.executable, "-m", "cnnslam.cli", *words[1:]]
+        return [str(script) if script.is_file() else "cnnslam", *words[1:]]  # else the one on the PATH
     if words and words[0] in ("python", "python3"):
         return [sys.executable, *words[1:]]
     return words
@@ -386,6 +366,7 @@ def remake(plan: Remake, out: Path, extra: Sequence[str] = ()) -> int:
     """Run ``plan``'s commands (module docstring); ``extra``: options added to ``cnnslam bench`` lines (``--jobs``,
     ``--executor``). Returns the worst exit status (0: all made)."""
     from eval.commands.cli_bench import run
+    from eval.commands.cli_results import bench_args
 
     status = 0
     for command in plan.commands:

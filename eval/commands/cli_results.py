@@ -14,13 +14,36 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from eval.bench.benchmark import DEFAULT_JOBS
 from eval.bench.executors import EXECUTORS
 from eval.bench.provenance import RESULTS_ROOT, format_status, results_status
 from eval.errors import InputError
+
+
+def bench_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``cnnslam bench`` (:mod:`eval.commands.cli_bench`)."""
+    from eval.commands.cli_bench import add_arguments
+
+    parser = argparse.ArgumentParser(prog="cnnslam bench", exit_on_error=False)
+    add_arguments(parser)
+    return parser
+
+
+def bench_args(command: str, folder: Path, out: Path, extra: Sequence[str] = ()) -> argparse.Namespace:
+    """The parsed arguments of a ``cnnslam bench`` line run into ``folder`` with runs under ``out``; ``extra``:
+    further options (``--jobs 2``). :class:`InputError` when the line does not parse."""
+    words = shlex.split(command)
+    if words[:2] != ["cnnslam", "bench"]:
+        raise InputError(f"{command!r} is no cnnslam bench line")
+    try:
+        return bench_parser().parse_args([*words[2:], "--results", str(folder), "--out", str(out), *extra])
+    except (argparse.ArgumentError, SystemExit) as exc:
+        raise InputError(f"{command!r} does not parse as cnnslam bench options: {exc}") from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
