@@ -80,6 +80,32 @@ Builder = Callable[[np.random.Generator, MaterialBank], Assembly]
 LARGE, SMALL = SemanticClass.LARGE_STRUCTURE, SemanticClass.SMALL_STRUCTURE
 
 
+def _solid_box(kind: str, hx: float, hy: float, hz: float, material: Material) -> Assembly:
+    """A small object that is one box ("body") of half sizes (hx, hy, hz) (m) standing on its bottom."""
+    a = Assembly(kind, [], (hx, hy), 2 * hz, SMALL)
+    a.add_box("body", (0, 0, hz), (hx, hy, hz), material)
+    return a
+
+
+def _solid_cylinder(kind: str, r: float, h: float, material: Material) -> Assembly:
+    """A small object that is one upright cylinder ("body") of radius ``r`` and height ``h`` (m) standing on its
+    bottom."""
+    a = Assembly(kind, [], (r, r), h, SMALL)
+    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, material)
+    return a
+
+
+def _variant(base: Callable[..., Assembly], name: str, doc: str, **options: object) -> Builder:
+    """The builder ``base(rng, bank, **options)`` under its own name and docstring (a variant of a piece)."""
+
+    def build(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
+        return base(rng, bank, **options)
+
+    build.__name__ = build.__qualname__ = name
+    build.__doc__ = doc
+    return build
+
+
 # ---------------------------------------------------------------------------------------------------------- furniture
 def _legs(a: Assembly, hx: float, hy: float, height: float, t: float, mat: Material, inset: float = 0.03) -> None:
     """Four square legs of half thickness ``t`` under a top whose underside is at ``height``."""
@@ -115,10 +141,6 @@ def desk(rng: np.random.Generator, bank: MaterialBank, small: bool = False) -> A
     return a
 
 
-def small_desk(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A pupil's desk (classroom)."""
-    return desk(rng, bank, small=True)
-
 
 def table(rng: np.random.Generator, bank: MaterialBank, coffee: bool = False) -> Assembly:
     """A dining table (rectangular on legs, or round on a pedestal) or a low coffee table."""
@@ -143,10 +165,6 @@ def table(rng: np.random.Generator, bank: MaterialBank, coffee: bool = False) ->
     a.supports.append(Support((0, 0), (w / 2 - 0.05, d / 2 - 0.05), h))
     return a
 
-
-def coffee_table(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A low table in front of a sofa."""
-    return table(rng, bank, coffee=True)
 
 
 def chair(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -190,10 +208,6 @@ def sofa(rng: np.random.Generator, bank: MaterialBank, seats: int | None = None)
     a.supports.append(Support((0, 0.1), (w / 2 - 0.2, d / 2 - 0.28), 0.42, "seat"))
     return a
 
-
-def armchair(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A one-seat sofa."""
-    return sofa(rng, bank, seats=1)
 
 
 def bookshelf(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -241,10 +255,6 @@ def cabinet(rng: np.random.Generator, bank: MaterialBank, tall: bool = False) ->
         a.supports.append(Support((0, -0.01), (w / 2 - 0.03, d / 2 - 0.04), h))
     return a
 
-
-def wardrobe(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A tall cabinet with doors (no support: too high for objects)."""
-    return cabinet(rng, bank, tall=True)
 
 
 def nightstand(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -328,35 +338,25 @@ def tv_stand(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     return a
 
 
-def teacher_desk(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A big desk (the classroom's front)."""
-    return desk(rng, bank)
-
 
 # ------------------------------------------------------------------------------------------------------ small objects
 def book(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A book lying flat (x: width, y: depth, z: thickness); its cover is unique."""
     w, d, t = rng.uniform(0.13, 0.22), rng.uniform(0.18, 0.28), rng.uniform(0.015, 0.05)
-    a = Assembly("book", [], (w / 2, d / 2), t, SMALL)
-    a.add_box("body", (0, 0, t / 2), (w / 2, d / 2, t / 2), bank.unique("book_cover"))
-    return a
+    return _solid_box("book", w / 2, d / 2, t / 2, bank.unique("book_cover"))
 
 
 def standing_book(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A book standing upright on a shelf, its spine to the front (+y)."""
     t, d, h = rng.uniform(0.02, 0.05), rng.uniform(0.15, 0.24), rng.uniform(0.18, 0.28)
-    a = Assembly("book", [], (t / 2, d / 2), h, SMALL)
-    a.add_box("body", (0, 0, h / 2), (t / 2, d / 2, h / 2), bank.unique("book_cover"), rpy=(0, 0, 0))
-    return a
+    return _solid_box("book", t / 2, d / 2, h / 2, bank.unique("book_cover"))
 
 
 def box(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A cardboard or plastic box."""
     hx, hy, hz = rng.uniform(0.06, 0.2), rng.uniform(0.06, 0.15), rng.uniform(0.04, 0.15)
     mat = bank.shared("cardboard") if rng.random() < 0.6 else bank.shared("plastic")
-    a = Assembly("box", [], (hx, hy), 2 * hz, SMALL)
-    a.add_box("body", (0, 0, hz), (hx, hy, hz), mat)
-    return a
+    return _solid_box("box", hx, hy, hz, mat)
 
 
 def cup(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -392,23 +392,15 @@ def monitor(rng: np.random.Generator, bank: MaterialBank, tv: bool = False) -> A
     return a
 
 
-def tv(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A television on its foot."""
-    return monitor(rng, bank, tv=True)
-
 
 def laptop(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A closed laptop."""
-    a = Assembly("laptop", [], (0.17, 0.12), 0.02, SMALL)
-    a.add_box("body", (0, 0, 0.01), (0.17, 0.12, 0.01), bank.shared("metal"))
-    return a
+    return _solid_box("laptop", 0.17, 0.12, 0.01, bank.shared("metal"))
 
 
 def keyboard(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A keyboard (a flat box) in front of a monitor."""
-    a = Assembly("keyboard", [], (0.22, 0.07), 0.025, SMALL)
-    a.add_box("body", (0, 0, 0.0125), (0.22, 0.07, 0.0125), bank.shared("dark"))
-    return a
+    return _solid_box("keyboard", 0.22, 0.07, 0.0125, bank.shared("dark"))
 
 
 def plant(rng: np.random.Generator, bank: MaterialBank, large: bool = False) -> Assembly:
@@ -423,10 +415,6 @@ def plant(rng: np.random.Generator, bank: MaterialBank, large: bool = False) -> 
         a.add_sphere(f"leaves_{k}", (off[0], off[1], h + 0.09 * s + 0.04 * s * k), 0.1 * s - 0.015 * s * k, leaves)
     return a
 
-
-def large_plant(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
-    """A floor-standing plant."""
-    return plant(rng, bank, large=True)
 
 
 def lamp(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -443,33 +431,25 @@ def lamp(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
 def vase(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A vase or pot-like ornament."""
     r, h = rng.uniform(0.04, 0.08), rng.uniform(0.12, 0.3)
-    a = Assembly("vase", [], (r, r), h, SMALL)
-    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, bank.shared("ceramic"))
-    return a
+    return _solid_cylinder("vase", r, h, bank.shared("ceramic"))
 
 
 def bowl(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A flat bowl or plate."""
     r, h = rng.uniform(0.08, 0.14), rng.uniform(0.02, 0.07)
-    a = Assembly("bowl", [], (r, r), h, SMALL)
-    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, bank.shared("ceramic"))
-    return a
+    return _solid_cylinder("bowl", r, h, bank.shared("ceramic"))
 
 
 def pillow(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A cushion for a sofa or bed."""
     hx, hy, hz = rng.uniform(0.18, 0.25), rng.uniform(0.18, 0.25), rng.uniform(0.04, 0.07)
-    a = Assembly("pillow", [], (hx, hy), 2 * hz, SMALL)
-    a.add_box("body", (0, 0, hz), (hx, hy, hz), bank.shared("cushion") if rng.random() < 0.5 else bank.unique("rug"))
-    return a
+    return _solid_box("pillow", hx, hy, hz, bank.shared("cushion") if rng.random() < 0.5 else bank.unique("rug"))
 
 
 def bin_(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A waste bin standing on the floor."""
     r, h = rng.uniform(0.12, 0.16), rng.uniform(0.3, 0.4)
-    a = Assembly("bin", [], (r, r), h, SMALL)
-    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, bank.shared("plastic"))
-    return a
+    return _solid_cylinder("bin", r, h, bank.shared("plastic"))
 
 
 def papers(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -490,17 +470,13 @@ def papers(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
 def tin(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A labelled tin, jar or can: a cylinder whose label wraps once around it."""
     r, h = rng.uniform(0.03, 0.055), rng.uniform(0.07, 0.18)
-    a = Assembly("tin", [], (r, r), h, SMALL)
-    a.add_cylinder("body", (0, 0, h / 2), r, h / 2, bank.unique("label"))
-    return a
+    return _solid_cylinder("tin", r, h, bank.unique("label"))
 
 
 def carton(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     """A printed carton (cereal, tissues, a parcel): a box with its own label on every face."""
     hx, hy, hz = rng.uniform(0.04, 0.13), rng.uniform(0.025, 0.08), rng.uniform(0.03, 0.13)
-    a = Assembly("carton", [], (hx, hy), 2 * hz, SMALL)
-    a.add_box("body", (0, 0, hz), (hx, hy, hz), bank.unique("label"))
-    return a
+    return _solid_box("carton", hx, hy, hz, bank.unique("label"))
 
 
 def pen_holder(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
@@ -587,6 +563,17 @@ def switch_plate(rng: np.random.Generator, bank: MaterialBank) -> Assembly:
     mat = bank.shared("plastic" if rng.random() < 0.3 else "appliance")
     a.add_box("plate", (0, 0.006, h / 2), (w / 2, 0.006, h / 2), mat)
     return a
+
+
+# --------------------------------------------------------------------------------------------------------- variants
+# One piece's builder with fixed options, under its own name (the registries below list them like the others).
+small_desk = _variant(desk, "small_desk", "A pupil's desk (classroom).", small=True)
+coffee_table = _variant(table, "coffee_table", "A low table in front of a sofa.", coffee=True)
+armchair = _variant(sofa, "armchair", "A one-seat sofa.", seats=1)
+wardrobe = _variant(cabinet, "wardrobe", "A tall cabinet with doors (no support: too high for objects).", tall=True)
+teacher_desk = _variant(desk, "teacher_desk", "A big desk (the classroom's front).")
+tv = _variant(monitor, "tv", "A television on its foot.", tv=True)
+large_plant = _variant(plant, "large_plant", "A floor-standing plant.", large=True)
 
 
 def part_corners(part: Part) -> np.ndarray:
