@@ -28,7 +28,9 @@ import pytest
 # weights by repetition: the benign mutations (a comment, a blank line, a small change of a number) come more often,
 # so that about half of the inputs are still valid files and the reader's checks past the first line are reached
 MUTATIONS: tuple[str, ...] = (
-    "insert_blank", "insert_comment", "tweak_number", "tweak_number", "tweak_number", "tweak_number",
+    "insert_blank", "insert_blank", "insert_comment", "insert_comment", "insert_comment",
+    "tweak_number", "tweak_number", "tweak_number", "tweak_number", "tweak_number", "tweak_number", "tweak_number",
+    "tweak_number", "insert_blank",
     "drop_line", "dup_line", "swap_lines", "insert_unicode", "insert_junk", "truncate",
     "drop_token", "dup_token", "swap_tokens", "replace_token", "replace_token", "add_token", "scale_number",
     "crlf", "tabs", "bad_byte",
