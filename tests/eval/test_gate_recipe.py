@@ -123,6 +123,8 @@ def test_the_built_in_baseline_is_found_from_another_folder_and_refuses_another_
 def test_a_baseline_for_a_suite_without_a_gate_of_runs_is_refused(tmp_path, capsys):
     baseline = tmp_path / "b.json"
     baseline.write_text('{"metrics": {"x/A/ate_rmse": 0.1}}')
-    assert _bench(tmp_path, "lengths", "--methods", "oracle", "--baseline", str(baseline)) == 2
+    code = main(["bench", "lengths", "--methods", "oracle", "--lengths", "6", "--runs", "1", "--executor", "serial",
+                 "--no-plots", "--no-progress", "--out", str(tmp_path / "runs"), "--baseline", str(baseline)])
+    assert code == 2
     _refused(capsys, "has no gate of runs")
     assert not (tmp_path / "runs").exists()
