@@ -26,6 +26,7 @@ parses each file once.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ from slamcommon.provenance import file_sha256, files_digest, imported_modules, p
 
 __all__ = ["PARTS", "PROJECT_PACKAGES", "RunParts", "agent_files", "agent_modules", "closure_sha256", "file_sha256",
            "files_digest", "import_closure", "imported_modules", "judge_files", "module_file", "package_root",
-           "project_packages", "run_parts", "world_files", "world_roots"]
+           "project_packages", "run_parts", "source_sha256", "world_files", "world_roots"]
 
 # the packages whose files a closure follows (and hashes); modules of any other package are left out
 PROJECT_PACKAGES: tuple[str, ...] = _closure.PROJECT_PACKAGES
@@ -148,11 +149,38 @@ class RunParts:
         return [p for p in sorted(set(self.digests) | set(other)) if self.digests.get(p) != other.get(p)]
 
 
+def source_sha256(module: str) -> str | None:
+    """SHA-256 of the source ``module`` runs: for a module of the project's packages (:data:`PROJECT_PACKAGES`), the
+    files of its import closure (:func:`closure_sha256`); for a module of any other package (a user's agent), the
+    ``.py`` files of its top-level package (every file below its folder, by relative path and content, in sorted
+    order) or its single file, found with :func:`importlib.util.find_spec` without importing it. None when it cannot
+    be found."""
+    if module.split(".")[0] in project_packages():
+        return closure_sha256(module)
+    module = module.split(".")[0]
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        return None
+    if spec is None:
+        return None
+    roots = list(spec.submodule_search_locations or [])
+    digest = hashlib.sha256()
+    if roots:
+        root = Path(roots[0])
+        for path in sorted(root.rglob("*.py")):
+            digest.update(path.relative_to(root).as_posix().encode() + b"\0")
+            digest.update(file_sha256(path).encode())
+    elif spec.origin and Path(spec.origin).is_file():
+        digest.update(file_sha256(Path(spec.origin)).encode())
+    else:
+        return None
+    return digest.hexdigest()
+
+
 def _outside_sources(method: Any, packages: Sequence[str]) -> dict[str, str | None]:
     """``{module: sha256}`` of the agent's modules outside ``packages`` (a user's agent package: all its files,
-    :func:`eval.bench.methods.source_sha256`)."""
-    from eval.bench.methods import source_sha256
-
+    :func:`source_sha256`)."""
     return {m: source_sha256(m) for m in agent_modules(method) if m.split(".")[0] not in packages}
 
 

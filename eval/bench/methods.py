@@ -35,6 +35,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
+from eval.bench.fingerprint import agent_modules, source_sha256  # source_sha256: beside the closures it hashes
 from eval.errors import InputError
 from slamcommon.alignment import AlignmentMethod
 from slamcommon.config import config_keys, has_key
@@ -219,8 +220,6 @@ class Method:
         names the agent it wraps), the files of its import closure (:func:`source_sha256`), keyed by the module's
         top-level package. Editing a file the agent imports thus redoes its runs; editing another method's files does
         not. External methods: none (their output files are read afresh every run)."""
-        from eval.bench.fingerprint import agent_modules
-
         tops: dict[str, list[str]] = {}
         for module in agent_modules(self):
             tops.setdefault(module.split(".")[0], []).append(module)
@@ -279,38 +278,6 @@ def resolve_input(name: str, method: str = "?") -> Path:
 
 
 _HASHES: dict[tuple[str, int, int], str] = {}
-
-
-def source_sha256(module: str) -> str | None:
-    """SHA-256 of the source ``module`` runs: for a module of the project's packages
-    (:data:`eval.bench.fingerprint.PROJECT_PACKAGES`), the files of its import closure
-    (:func:`eval.bench.fingerprint.closure_sha256`); for a module of any other package (a user's agent), the ``.py``
-    files of its top-level package (every file below its folder, by relative path and content, in sorted order) or
-    its single file, found with :func:`importlib.util.find_spec` without importing it. None when it cannot be
-    found."""
-    from eval.bench.fingerprint import closure_sha256, project_packages
-
-    if module.split(".")[0] in project_packages():
-        return closure_sha256(module)
-    module = module.split(".")[0]
-    try:
-        spec = importlib.util.find_spec(module)
-    except (ImportError, ValueError):
-        return None
-    if spec is None:
-        return None
-    roots = list(spec.submodule_search_locations or [])
-    digest = hashlib.sha256()
-    if roots:
-        root = Path(roots[0])
-        for path in sorted(root.rglob("*.py")):
-            digest.update(path.relative_to(root).as_posix().encode() + b"\0")
-            digest.update(_file_sha256(path).encode())
-    elif spec.origin and Path(spec.origin).is_file():
-        digest.update(_file_sha256(Path(spec.origin)).encode())
-    else:
-        return None
-    return digest.hexdigest()
 
 
 def _file_sha256(path: Path) -> str:
