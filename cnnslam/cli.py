@@ -27,6 +27,7 @@ DEVELOPER_TOOLS: tuple[tuple[str, str], ...] = (
     ("cnnslam.depthnet.bench", "the depth network's warm milliseconds per 320x240 frame"),
     ("eval.metrics.bench_metrics", "time the trajectory metrics on 100 000 poses"),
     ("thirdparty.orb_vocabulary", "build ORB-SLAM3's vocabulary from simulated training frames"),
+    ("eval.commands.cli_readme", "render the README's generated blocks from the committed results (--check)"),
 )  # fmt: skip
 
 

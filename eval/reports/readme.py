@@ -4,13 +4,13 @@ the figures were made at.
 
 A block is delimited in the Markdown by two HTML comments that Markdown viewers do not show::
 
-    <!-- generated: table1 (python -m eval.reports.readme) -->
+    <!-- generated: table1 (python -m eval.commands.cli_readme) -->
     ... what :data:`BLOCKS` ``["table1"]`` renders ...
     <!-- end generated -->
 
-:func:`render_readme` replaces every block's body with what the files give now; ``python -m eval.reports.readme``
+:func:`render_readme` replaces every block's body with what the files give now; ``python -m eval.commands.cli_readme``
 rewrites ``README.md`` and ``--check`` exits 1 when a block differs from the files (``make test`` runs the check,
-``tests/eval/reports/test_readme.py``). The figures are quoted from the reports the suites wrote (their tables'
+``tests/eval/reports/test_readme_blocks.py``). The figures are quoted from the reports the suites wrote (their tables'
 cells, verbatim), so the README shows exactly what the report shows, failure marks included. Staleness (whether the
 current code would give the same figures) is the business of ``cnnslam results status``; a block names the
 revisions its figures were made at.
@@ -18,11 +18,9 @@ revisions its figures were made at.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import re
-import sys
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +28,7 @@ from pathlib import Path
 from eval.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (results/, README.md, cnnslam/ beside eval/)
-BEGIN = re.compile(r"^<!-- generated: (?P<name>[a-z0-9_]+) \(python -m eval\.reports\.readme\) -->$")
+BEGIN = re.compile(r"^<!-- generated: (?P<name>[a-z0-9_]+) \(python -m eval\.commands\.cli_readme\) -->$")
 END = "<!-- end generated -->"
 
 
@@ -242,7 +240,15 @@ def _find_key(data: object, key: str) -> Iterator[object]:
             yield from _find_key(v, key)
 
 
+def block_failure_rule(root: Path) -> str:
+    """The failure rule every report states (:data:`eval.metrics.results.FAILURE_RULE`, its threshold the code's)."""
+    from eval.metrics.results import FAILURE_RULE
+
+    return FAILURE_RULE + " (`eval/metrics/results.py`)"
+
+
 BLOCKS: dict[str, Callable[[Path], str]] = {
+    "failure_rule": block_failure_rule,
     "table1": block_table1,
     "bench": block_bench,
     "real": block_real,
@@ -253,6 +259,12 @@ BLOCKS: dict[str, Callable[[Path], str]] = {
 
 
 # ------------------------------------------------------------------------------------------------ the README
+def changed_blocks(text: str, root: Path = ROOT) -> list[str]:
+    """The names of the README text's generated blocks whose body differs from what the files under ``root`` give."""
+    lines = text.splitlines()
+    return [name for name, start, end in blocks_of(text) if lines[start:end] != BLOCKS[name](root).splitlines()]
+
+
 def blocks_of(text: str) -> list[tuple[str, int, int]]:
     """The generated blocks of a README text: (name, first body line, end line) as 0-based line indices."""
     lines = text.splitlines()
@@ -301,34 +313,3 @@ def outside_blocks(text: str) -> str:
         elif fenced:
             keep[i] = False
     return "\n".join(line for line, k in zip(lines, keep, strict=True) if k)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m eval.reports.readme [--check] [README]``: rewrite the README's generated blocks from the
-    committed results (exit 0), or with ``--check`` exit 1 when one differs (2 on a missing or malformed file)."""
-    parser = argparse.ArgumentParser(prog="python -m eval.reports.readme", description=__doc__.split("\n\n")[0])
-    parser.add_argument("readme", nargs="?", type=Path, default=ROOT / "README.md")
-    parser.add_argument("--check", action="store_true", help="exit 1 when a block differs from the files")
-    args = parser.parse_args(argv)
-    try:
-        text = args.readme.read_text(encoding="utf-8")
-        rendered = render_readme(text, args.readme.resolve().parent)
-    except (OSError, ReadmeError) as exc:
-        print(f"readme: error: {exc}", file=sys.stderr)
-        return 2
-    if args.check:
-        if rendered != text:
-            lines, root = text.splitlines(), args.readme.resolve().parent
-            names = [n for n, s, e in blocks_of(text) if lines[s:e] != BLOCKS[n](root).splitlines()]
-            print(f"{args.readme}: generated blocks differ from the results files ({', '.join(names) or 'layout'}); "
-                  "run: python -m eval.reports.readme", file=sys.stderr)
-            return 1
-        print(f"{args.readme}: every generated block matches the results files")
-        return 0
-    args.readme.write_text(rendered, encoding="utf-8")
-    print(f"wrote {args.readme} ({len(blocks_of(rendered))} generated blocks)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
