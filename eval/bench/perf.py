@@ -228,6 +228,15 @@ def machine_info() -> dict[str, Any]:
     return info
 
 
+def format_table(table: Mapping[str, Any]) -> str:
+    """A ``columns`` / ``rows`` table (:func:`eval.bench.profile.profile_table`) as Markdown."""
+    columns = list(table["columns"])
+    lines = ["| " + " | ".join(columns) + " |", "|" + "|".join(["---"] + ["---:"] * (len(columns) - 1)) + "|"]
+    for row in table["rows"]:
+        lines.append("| " + " | ".join(f"{v:.2f}" if isinstance(v, float) else str(v) for v in row) + " |")
+    return "\n".join(lines)
+
+
 def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf") -> str:
     """perf.md: the machine, then one table per probe (figure, value), then the failures."""
     m = report.machine
@@ -246,8 +255,6 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
             continue
         figures = dict(probe.figures)
         if isinstance(figures.get("columns"), list) and isinstance(figures.get("rows"), list):  # a table probe
-            from eval.bench.profile import format_table
-
             lines += [format_table({"columns": figures.pop("columns"), "rows": figures.pop("rows")}), ""]
         lines += ["| figure | value |", "|---|---:|"]
         for key, value in figures.items():

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from eval.bench.perf import format_table  # noqa: F401  (defined in perf, whose table probes print it)
 from eval.bench.run import STAGES
 
 DEFAULT_SEQUENCES = ("office0@kinect",)
@@ -74,15 +75,6 @@ def profile_table(profiles: Sequence[MethodProfile]) -> dict[str, Any]:
     rows = [[p.method, p.runs, p.frames, round(p.fps, 2), round(p.wall_s, 2),
              *(round(p.ms_per_frame(s), 2) for s in STAGES)] for p in profiles]
     return {"columns": columns, "rows": rows}
-
-
-def format_table(table: Mapping[str, Any]) -> str:
-    """A ``columns`` / ``rows`` table (:func:`profile_table`) as Markdown."""
-    columns = list(table["columns"])
-    lines = ["| " + " | ".join(columns) + " |", "|" + "|".join(["---"] + ["---:"] * (len(columns) - 1)) + "|"]
-    for row in table["rows"]:
-        lines.append("| " + " | ".join(f"{v:.2f}" if isinstance(v, float) else str(v) for v in row) + " |")
-    return "\n".join(lines)
 
 
 def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_FRAMES,
