@@ -683,7 +683,7 @@ def check_selection(baseline: Baseline, cells: Iterable[tuple[str, str]], frames
                 if extra else f"lacks {len(lacking)} sequence/method cell(s) these runs make (e.g. {lacking[0]}), "
                 "which would pass ungated")  # fmt: skip
         raise GateError(f"{source}: the baseline is of another suite or selection: it {what}; run the selection it "
-                        "was made of, name your own --baseline, or make one with --update-baseline")
+                        "was made of, name your own --baseline (made with --update-baseline), or --no-gate")
     if frames is not None:
         longer = sorted(n for n, v in baseline.metrics.items() if n.endswith("/frames") and math.isfinite(v)
                         and v > frames)  # fmt: skip
