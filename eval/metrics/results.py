@@ -15,23 +15,15 @@ object, not a dict edited in place) is written as the JSON object::
 ``alignment`` (:meth:`eval.metrics.trajectory_metrics.TrajectoryMetrics.describe_alignment`): ``requested``, ``used``
 (what was done:
 ``se3``, ``sim3``, ``origin``, ``none`` or ``rotation_only``), ``title`` (the same in words), ``scale``,
-``degenerate``, ``fallback``, ``warning``, the fits behind ``ate_se3_rmse`` / ``ate_sim3_rmse`` under ``se3`` and
-``sim3``, and the orientation-only alignment's definition under ``orientation``. ``alignment``, ``association``,
-``rpe``, ``warnings`` and the trajectory part of ``metrics`` have the same names and meaning in
-``cnnslam eval --json`` (:mod:`eval.commands.cli_eval`).
+``degenerate``, ``fallback``, ``warning``, the fits behind the SE(3) and Sim(3) ATE under ``se3`` and ``sim3``, and
+the orientation-only alignment's definition under ``orientation``. ``alignment``, ``association``, ``rpe``,
+``warnings`` and the trajectory part of ``metrics`` have the same names and meaning in ``cnnslam eval --json``
+(:mod:`eval.commands.cli_eval`).
 
-Metric names (all values numbers; definitions in :mod:`eval.metrics.trajectory_metrics`):
-``ate_{rmse,mean,median,std,min,max,pairs}`` (m, after the run's alignment, default SE(3)), ``ate_se3_rmse`` (m,
-metric ATE, SE(3) Umeyama = evo_ape -a),
-``ate_sim3_rmse`` (m, scale-aligned ATE, Sim(3) Umeyama = evo_ape -as), ``ate_alignment_degenerate`` and
-``ate_alignment_fallback`` (0/1: positions determine the fit badly / not at all), ``rot_deg_*`` (deg, after the
-run's alignment), ``rot_deg_orient_{rmse,mean,median,std,min,max}`` (deg, after orientation-only alignment: read
-this, and ``rpe_rot_deg_*``, for rotation verdicts), ``rpe_trans_*`` (m), ``rpe_rot_deg_*`` (deg, alignment-free),
-``scale``, ``scale_error``, ``length_gt_m``, ``length_est_m``, ``tracked_share`` (0..1),
-``depth_percent_correct`` (pooled over key-frames; the Table-1 figure), ``depth_percent_correct_mean`` (mean over
-key-frames), ``depth_density``, ``depth_abs_rel``, ``depth_rmse``, ``depth_delta_1_25``, ``depth_keyframes``,
-``semantic_pixel_accuracy``, ``semantic_mean_iou``, ``semantic_iou_<class>``, ``step_ms_{mean,median,max}``,
-``fps``, ``frames``.
+Metric names (all values numbers): the catalogue, :mod:`eval.metrics.catalogue`, gives each its name, unit, direction
+and range; the trajectory figures are defined in :mod:`eval.metrics.trajectory_metrics`, the key-frame depth figures
+(pooled over key-frames, the Table-1 figure, and their mean over key-frames) and the label figures here
+(:func:`evaluate_episode`), the step times in :func:`_timing_metrics`.
 
 What a run used (:attr:`RunRecord.resources`, :data:`RESOURCE_FIGURES`): wall time, frames per second end to end and
 of the agent's step, peak resident memory. They are measured, not computed: the same run gives other values, so they
@@ -59,7 +51,26 @@ import numpy as np
 import pandas as pd
 
 from eval.errors import EvalError
+from eval.metrics import catalogue
 from eval.metrics.association import AssociationRule
+from eval.metrics.catalogue import (
+    ATE_PAIRS,
+    DEPTH_ABS_REL,
+    DEPTH_DELTA_1_25,
+    DEPTH_DENSITY,
+    DEPTH_KEYFRAMES,
+    DEPTH_PERCENT_CORRECT,
+    DEPTH_PERCENT_CORRECT_MEAN,
+    DEPTH_RMSE,
+    FPS,
+    FPS_END_TO_END,
+    FRAMES,
+    STEP_MS_MAX,
+    STEP_MS_MEAN,
+    STEP_MS_MEDIAN,
+    TRACKED_SHARE,
+    WALL_S,
+)
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import RpeUnit, evaluate_trajectory
 from sim_envs.frames import NUM_CLASSES
@@ -76,11 +87,11 @@ from slamcommon.strict_json import json_ready
 RUN_SCHEMA = "cnnslam-run/1"
 LONG_COLUMNS = ["sequence", "method", "metric", "value"]
 TIMING_FILE = "timing.json"  # a run folder's measured figures, beside its metrics.json
-# A run's resource figures (RunRecord.resources; the names of timing.json): wall_s (s, the whole run: frames rendered
-# or read, the agent, scoring, plots), fps_end_to_end (frames / wall_s), fps (the agent's step alone: 1 / mean step
-# time), peak_rss_mib (MiB, peak resident memory of the process that ran it; a system run in a process of its own,
-# ORB-SLAM3, is not in it), method_wall_s (s, an external system's own run time)
-RESOURCE_FIGURES: tuple[str, ...] = ("wall_s", "fps_end_to_end", "fps", "peak_rss_mib", "method_wall_s")
+# A run's resource figures (RunRecord.resources; the names of timing.json; the catalogue's resource specs): the wall
+# time of the whole run (frames rendered or read, the agent, scoring, plots), frames per second end to end (frames /
+# wall time) and of the agent's step alone (1 / mean step time), the peak resident memory of the process that ran it
+# (a system run in a process of its own, ORB-SLAM3, is not in it), and an external system's own run time
+RESOURCE_FIGURES: tuple[str, ...] = catalogue.keys(resource=True)
 
 
 class ResultsError(EvalError):
@@ -220,11 +231,12 @@ def failure_text(share: float) -> str:
 
 def failure_of(metrics: Mapping[str, float]) -> str | None:
     """Whether a run's record is a failure, and why: ``"never initialised"`` when it tracked none of its frames
-    (``tracked_share`` 0) or scored no pose (``ate_pairs`` 0, e.g. an SfM run registering none of its images),
-    ``"tracked 22 % < 90 %"`` when its ``tracked_share`` is below :data:`MIN_TRACKED_SHARE`; None for a run that is
-    not a failure, or whose record has neither figure (a method scored without a trajectory)."""
-    share = metrics.get("tracked_share")
-    pairs = metrics.get("ate_pairs")
+    (tracked share, :data:`~eval.metrics.catalogue.TRACKED_SHARE`, 0) or scored no pose (pose pairs,
+    :data:`~eval.metrics.catalogue.ATE_PAIRS`, 0, e.g. an SfM run registering none of its images),
+    ``"tracked 22 % < 90 %"`` when its tracked share is below :data:`MIN_TRACKED_SHARE`; None for a run that is not
+    a failure, or whose record has neither figure (a method scored without a trajectory)."""
+    share = metrics.get(TRACKED_SHARE.key)
+    pairs = metrics.get(ATE_PAIRS.key)
     share_known = share is not None and math.isfinite(float(share))
     if (share_known and float(share) <= 0.0) or (pairs is not None and math.isfinite(float(pairs))
                                                  and float(pairs) <= 0.0):  # fmt: skip
@@ -241,21 +253,21 @@ def is_failure(metrics: Mapping[str, float]) -> bool:
 
 def resources_of(timing: Mapping[str, Any], frames: float | None = None) -> dict[str, float]:
     """A run's :data:`RESOURCE_FIGURES` from its ``timing.json`` content (those it has, as floats); a record from
-    before ``fps_end_to_end`` was written gets it as ``frames`` / ``wall_s`` where both are known."""
+    before the end-to-end frame rate was written gets it as ``frames`` / wall time where both are known."""
     out = {k: float(timing[k]) for k in RESOURCE_FIGURES if isinstance(timing.get(k), int | float)
            and not isinstance(timing.get(k), bool)}  # fmt: skip
-    wall = out.get("wall_s")
-    if "fps_end_to_end" not in out and frames is not None and wall and math.isfinite(frames) and wall > 0:
-        out["fps_end_to_end"] = float(frames) / wall
+    wall = out.get(WALL_S.key)
+    if FPS_END_TO_END.key not in out and frames is not None and wall and math.isfinite(frames) and wall > 0:
+        out[FPS_END_TO_END.key] = float(frames) / wall
     return out
 
 
 def coverage(metrics: Mapping[str, float]) -> tuple[int, int] | None:
     """How much of its sequence a run's trajectory covers, from its metrics: ``(poses scored, frames)`` (the ATE's
-    pose pairs, ``ate_pairs``, and the sequence's frames the run was given, ``frames``) when the run scored fewer poses
-    than its frames (an external system's trajectory with frames missing); None for a whole run or one without
-    trajectory metrics. A partial run's figures are over the poses it has, not its sequence: tables say so."""
-    pairs, frames = metrics.get("ate_pairs"), metrics.get("frames")
+    pose pairs and the sequence's frames the run was given) when the run scored fewer poses than its frames (an
+    external system's trajectory with frames missing); None for a whole run or one without trajectory metrics. A
+    partial run's figures are over the poses it has, not its sequence: tables say so."""
+    pairs, frames = metrics.get(ATE_PAIRS.key), metrics.get(FRAMES.key)
     if pairs is None or frames is None or not (math.isfinite(pairs) and math.isfinite(frames)) or pairs >= frames:
         return None
     return int(pairs), int(frames)
@@ -299,7 +311,7 @@ def evaluate_episode(
     )
     warnings = list(traj.warnings)
     metrics: dict[str, float] = traj.flat_metrics()
-    metrics["frames"] = float(len(timestamps))
+    metrics[FRAMES.key] = float(len(timestamps))
     metrics.update(_timing_metrics(np.asarray(getattr(result, "step_seconds", []), dtype=np.float64)))
     t_keyframes = time.perf_counter()
     per_kf, kf_rows, conf = _score_keyframes(result.keyframes, result.keyframe_gt, depth_threshold, warnings)
@@ -307,13 +319,13 @@ def evaluate_episode(
     mean = aggregate_depth_metrics(per_kf, "mean")
     metrics.update(
         {
-            "depth_percent_correct": pooled.percent_correct,
-            "depth_percent_correct_mean": mean.percent_correct,
-            "depth_density": pooled.density,
-            "depth_abs_rel": pooled.abs_rel,
-            "depth_rmse": pooled.rmse,
-            "depth_delta_1_25": pooled.delta_1_25,
-            "depth_keyframes": float(len(per_kf)),
+            DEPTH_PERCENT_CORRECT.key: pooled.percent_correct,
+            DEPTH_PERCENT_CORRECT_MEAN.key: mean.percent_correct,
+            DEPTH_DENSITY.key: pooled.density,
+            DEPTH_ABS_REL.key: pooled.abs_rel,
+            DEPTH_RMSE.key: pooled.rmse,
+            DEPTH_DELTA_1_25.key: pooled.delta_1_25,
+            DEPTH_KEYFRAMES.key: float(len(per_kf)),
         }
     )
     if conf is not None:
@@ -344,10 +356,10 @@ def _timing_metrics(step_seconds: np.ndarray) -> dict[str, float]:
     if s.size == 0:
         return {}
     return {
-        "step_ms_mean": 1000.0 * float(s.mean()),
-        "step_ms_median": 1000.0 * float(np.median(s)),
-        "step_ms_max": 1000.0 * float(s.max()),
-        "fps": float(1.0 / s.mean()) if s.mean() > 0 else math.nan,
+        STEP_MS_MEAN.key: 1000.0 * float(s.mean()),
+        STEP_MS_MEDIAN.key: 1000.0 * float(np.median(s)),
+        STEP_MS_MAX.key: 1000.0 * float(s.max()),
+        FPS.key: float(1.0 / s.mean()) if s.mean() > 0 else math.nan,
     }
 
 
@@ -415,7 +427,7 @@ def load_run(path: str | Path) -> RunRecord:
             timing = json.loads(timing_path.read_text())
         except (OSError, json.JSONDecodeError) as exc:
             raise ResultsError(f"{timing_path}: not readable JSON: {exc}") from exc
-        record = record.replace(resources=resources_of(timing, record.metrics.get("frames")))
+        record = record.replace(resources=resources_of(timing, record.metrics.get(FRAMES.key)))
     return record
 
 

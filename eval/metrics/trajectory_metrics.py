@@ -54,6 +54,17 @@ import numpy as np
 
 from eval.errors import BrokenRunError, EvalError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, Association, AssociationRule, associate, associated_pair
+from eval.metrics.catalogue import (
+    ATE_ALIGNMENT_DEGENERATE,
+    ATE_ALIGNMENT_FALLBACK,
+    ATE_SE3_RMSE,
+    ATE_SIM3_RMSE,
+    LENGTH_EST_M,
+    LENGTH_GT_M,
+    SCALE,
+    SCALE_ERROR,
+    TRACKED_SHARE,
+)
 from eval.metrics.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
 from slamcommon.alignment import (
     Alignment,
@@ -397,14 +408,14 @@ class TrajectoryMetrics:
                 m[f"{block}_{key}"] = float(value)
         m.update(
             {
-                "ate_se3_rmse": self.ate_se3_rmse,
-                "ate_sim3_rmse": self.ate_sim3_rmse,
-                "ate_alignment_degenerate": float(self.degenerate),
-                "ate_alignment_fallback": float(self.fallback),
-                "scale": self.scale,
-                "scale_error": self.scale_error,
-                "length_gt_m": self.length_gt,
-                "length_est_m": self.length_est,
+                ATE_SE3_RMSE.key: self.ate_se3_rmse,
+                ATE_SIM3_RMSE.key: self.ate_sim3_rmse,
+                ATE_ALIGNMENT_DEGENERATE.key: float(self.degenerate),
+                ATE_ALIGNMENT_FALLBACK.key: float(self.fallback),
+                SCALE.key: self.scale,
+                SCALE_ERROR.key: self.scale_error,
+                LENGTH_GT_M.key: self.length_gt,
+                LENGTH_EST_M.key: self.length_est,
             }
         )
         for rel in self.relative:
@@ -412,7 +423,7 @@ class TrajectoryMetrics:
             m[f"rpe_trans_rmse_p{rel.share}"] = error_statistics(rel.translation).rmse
             m[f"rpe_rot_deg_rmse_p{rel.share}"] = error_statistics(rel.rotation_deg).rmse
         if self.tracked_share is not None:
-            m["tracked_share"] = self.tracked_share
+            m[TRACKED_SHARE.key] = self.tracked_share
         return {prefix + k: v for k, v in m.items()}
 
 

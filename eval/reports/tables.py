@@ -40,21 +40,14 @@ import numpy as np
 import pandas as pd
 
 from eval.errors import EvalError
+from eval.metrics import catalogue
+from eval.metrics.catalogue import ATE_PAIRS, TRACKED_SHARE
 from eval.metrics.results import FAILURE_MARK, coverage, failure_of, failure_text, share_text
 
-TABLE1_BLOCKS: tuple[tuple[str, str], ...] = (
-    ("Abs. Trajectory Error [m]", "ate_rmse"),
-    ("Perc. Correct Depth [%]", "depth_percent_correct"),
-)
+TABLE1_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.TABLE1)  # (title, metric): ATE, correct depth
 AVG_LABEL = "Avg."
 MISSING = "-"
-# which way is better, by metric name prefix (the first that matches): higher for shares and rates, lower for errors
-HIGHER_IS_BETTER: tuple[str, ...] = ("depth_percent_correct", "depth_density", "depth_delta_1_25", "tracked_share",
-                                     "map_accuracy_within", "map_completeness_within", "map_label_accuracy",
-                                     "semantic_", "fps")  # fmt: skip
-LOWER_IS_BETTER: tuple[str, ...] = ("ate_", "rot_deg_", "rpe_trans_", "rpe_rot_deg_", "scale_error", "depth_abs_rel",
-                                    "depth_rmse", "map_accuracy_median", "map_completeness_median", "wall_s",
-                                    "peak_rss_")  # fmt: skip
+_SHARE, _PAIRS = TRACKED_SHARE.key, ATE_PAIRS.key  # what a run's failure is judged by (failure_of)
 STATISTICS: tuple[str, ...] = ("median", "q1", "q3", "min", "max")
 _QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 
@@ -92,30 +85,30 @@ Failures = dict[tuple[str, str], CellFailure]
 
 
 def _run_metrics(frame: pd.DataFrame) -> pd.DataFrame:
-    """One row per run (``sequence``, ``method``, ``run``) with its ``tracked_share`` and ``ate_pairs`` (NaN where
-    absent); without a ``run`` column each ``tracked_share`` row is a run of its own."""
-    rows = frame[frame["metric"].isin(["tracked_share", "ate_pairs"])]
+    """One row per run (``sequence``, ``method``, ``run``) with its tracked share and pose pairs (columns named by
+    their keys, NaN where absent); without a ``run`` column each tracked-share row is a run of its own."""
+    rows = frame[frame["metric"].isin([_SHARE, _PAIRS])]
     if rows.empty:
-        return pd.DataFrame(columns=["sequence", "method", "run", "tracked_share", "ate_pairs"])
+        return pd.DataFrame(columns=["sequence", "method", "run", _SHARE, _PAIRS])
     rows = rows.assign(value=pd.to_numeric(rows["value"], errors="coerce"))
     if "run" not in rows.columns:
-        rows = rows[rows["metric"] == "tracked_share"]
+        rows = rows[rows["metric"] == _SHARE]
         rows = rows.assign(run=np.arange(len(rows)).astype(str))
     wide = rows.pivot_table(index=["sequence", "method", "run"], columns="metric", values="value", aggfunc="first",
                             dropna=False).reset_index()  # fmt: skip
-    for col in ("tracked_share", "ate_pairs"):
+    for col in (_SHARE, _PAIRS):
         if col not in wide.columns:
             wide[col] = np.nan
-    return wide.dropna(subset=["tracked_share", "ate_pairs"], how="all")
+    return wide.dropna(subset=[_SHARE, _PAIRS], how="all")
 
 
 def failed_runs(frame: pd.DataFrame) -> set[tuple[str, str, str]]:
     """(sequence, method, run) of every run of the long ``frame`` that is a failure
-    (:func:`eval.metrics.results.failure_of` of its ``tracked_share`` and ``ate_pairs``)."""
+    (:func:`eval.metrics.results.failure_of` of its tracked share and pose pairs)."""
     out = set()
-    for row in _run_metrics(frame).itertuples(index=False):
-        if failure_of({"tracked_share": row.tracked_share, "ate_pairs": row.ate_pairs}) is not None:
-            out.add((str(row.sequence), str(row.method), str(row.run)))
+    for row in _run_metrics(frame).to_dict("records"):
+        if failure_of({_SHARE: row[_SHARE], _PAIRS: row[_PAIRS]}) is not None:
+            out.add((str(row["sequence"]), str(row["method"]), str(row["run"])))
     return out
 
 
@@ -129,7 +122,7 @@ def cell_failures(frame: pd.DataFrame) -> Failures:
     out: Failures = {}
     for (sequence, method), cell in runs.groupby(["sequence", "method"], sort=False):
         bad = np.array([(str(sequence), str(method), str(r)) in failed for r in cell["run"]])
-        shares = pd.to_numeric(cell["tracked_share"], errors="coerce").to_numpy(dtype=float)
+        shares = pd.to_numeric(cell[_SHARE], errors="coerce").to_numpy(dtype=float)
         info = CellFailure(len(cell), int(bad.sum()), math.nan)
         pick = bad if info.is_failure else ~bad
         chosen = shares[pick][np.isfinite(shares[pick])]
@@ -183,11 +176,11 @@ class Spread(NamedTuple):
 
 def partial_cells(frame: pd.DataFrame) -> Cells:
     """(sequence, method) -> ``(poses scored, frames)`` of the cell's least covered run, for every cell with a run
-    that covers less than its sequence (:func:`eval.metrics.results.coverage` of the run's ``ate_pairs`` and
-    ``frames`` rows; runs told apart by the ``run`` column). Empty without a ``run`` column."""
+    that covers less than its sequence (:func:`eval.metrics.results.coverage` of the run's pose-pair and frame
+    rows; runs told apart by the ``run`` column). Empty without a ``run`` column."""
     if frame.empty or "run" not in frame.columns:
         return {}
-    rows = frame[frame["metric"].isin(["ate_pairs", "frames"])]
+    rows = frame[frame["metric"].isin([_PAIRS, catalogue.FRAMES.key])]
     out: Cells = {}
     for (sequence, method, _), run in rows.groupby(["sequence", "method", "run"], sort=False):
         covered = coverage(dict(zip(run["metric"], pd.to_numeric(run["value"], errors="coerce"), strict=True)))
@@ -273,13 +266,9 @@ def table1(
 
 
 def better_direction(metric: str) -> str | None:
-    """``"higher"`` or ``"lower"``: which values of ``metric`` are better (:data:`HIGHER_IS_BETTER`,
-    :data:`LOWER_IS_BETTER`); None when neither is (a scale, a count, a length)."""
-    if metric.startswith(HIGHER_IS_BETTER):
-        return "higher"
-    if metric.startswith(LOWER_IS_BETTER):
-        return "lower"
-    return None
+    """``"higher"`` or ``"lower"``: which values of ``metric`` are better (its catalogue spec,
+    :func:`eval.metrics.catalogue.better_direction`); None when neither is (a scale, a count, a length)."""
+    return catalogue.better_direction(metric)
 
 
 def best_cells(table: pd.DataFrame, blocks: Sequence[tuple[str, str]], digits: int = 3,
