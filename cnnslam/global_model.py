@@ -96,13 +96,13 @@ from cnnslam.surfel_kernels import (
     render_kernel,
     sampled_normals,
 )
+from cnnslam.surfel_keys import N_NORMAL_DIRECTIONS as N_NORMAL_DIRECTIONS  # re-exported: keys live in surfel_keys
+from cnnslam.surfel_keys import radial_confidence as radial_confidence
+from cnnslam.surfel_keys import voxel_keys as voxel_keys
 from cnnslam.surfel_store import SurfelStore
 from slamcommon.labels import NO_LABEL  # noqa: F401 - re-exported: an element without label evidence
 
 NO_ANCHOR: int = -1
-N_NORMAL_DIRECTIONS: int = 6  # +-x, +-y, +-z: the dominant axis of a surfel normal, part of its voxel key
-_KEY_BITS: int = 20  # bits per voxel coordinate in the 64-bit key: +-2^19 voxels per axis (10 km at 2 cm)
-_KEY_OFFSET: int = 1 << (_KEY_BITS - 1)
 
 
 @dataclass(frozen=True)
@@ -172,34 +172,6 @@ class ModelView:
     vertices: np.ndarray
     normals: np.ndarray
     confidence: np.ndarray
-
-
-# ------------------------------------------------------------------------------------------- keys, weights
-
-
-def voxel_keys(positions: np.ndarray, normals: np.ndarray, voxel_size: float) -> np.ndarray:
-    """The (N,) int64 hash keys of points (N, 3) metres with normals (N, 3): 20 bits per voxel coordinate and 3 bits
-    for the normal's dominant axis and sign (0..5)."""
-    vox = np.floor(np.asarray(positions, dtype=np.float64) / voxel_size).astype(np.int64) + _KEY_OFFSET
-    vox = np.clip(vox, 0, (1 << _KEY_BITS) - 1)
-    n = np.asarray(normals)
-    axis = np.argmax(np.abs(n), axis=1)
-    negative = n[np.arange(n.shape[0]), axis] < 0
-    direction = (2 * axis + negative).astype(np.int64)
-    return (vox[:, 0] << (2 * _KEY_BITS + 3)) | (vox[:, 1] << (_KEY_BITS + 3)) | (vox[:, 2] << 3) | direction
-
-
-def radial_confidence(image_size: tuple[int, int], intrinsics: np.ndarray, sigma: float = 0.6) -> np.ndarray:
-    """Keller et al.'s measurement confidence alpha = exp(-gamma^2 / (2 sigma^2)) per pixel, (H, W) float32; gamma is
-    the pixel's distance from the principal point divided by the distance of the farthest image corner."""
-    h, w = image_size
-    _, _, cx, cy = np.asarray(intrinsics, dtype=np.float64).reshape(4)
-    du = np.arange(w) - cx
-    dv = np.arange(h) - cy
-    r2 = dv[:, None] ** 2 + du[None, :] ** 2
-    corner2 = max(cx, w - 1 - cx) ** 2 + max(cy, h - 1 - cy) ** 2
-    return np.exp(-(r2 / max(corner2, 1e-12)) / (2.0 * sigma**2)).astype(np.float32)
-
 
 
 # ------------------------------------------------------------------------------------------------- the model
