@@ -39,6 +39,7 @@ from cnnslam.config import CnnSlamConfig
 from cnnslam.depth_prediction import GroundTruthHint
 from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam
+from slamcommon.agent_keys import TRACKED_SHARE
 from slamcommon.machine_unit import UNIT_VERSION, units_around
 from slamcommon.resources import peak_rss_mib  # the one reading of peak memory (also the judge's)
 
@@ -187,7 +188,7 @@ def benchmark(sequence: str = "office0", n_frames: int = 300, predictor: str = "
         "frame_thread_median_ms": 1000 * float(np.median(steps_2)),
         "frame_thread_median_ms_without_model": 1000 * float(np.median(steps_off)),
         "frame_thread_max_ms": 1000 * float(np.max(steps_2)),
-        "tracked_share": stats_2["tracked_share"],
+        TRACKED_SHARE: stats_2[TRACKED_SHARE],
         "unit_version": UNIT_VERSION,
         # machine-speed units in CPU time (frozen reference workload, this process): frames per CPU second x unit
         # CPU seconds = frames per unit
@@ -256,7 +257,7 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
     if result.model is not None:  # the global model the key-frame thread fused (Sec. 3.5)
         figures["model_surfels"] = len(result.model)
         figures["model_mib"] = result.model.nbytes / 2**20
-    figures["tracked_share"] = result.stats["tracked_share"]
+    figures[TRACKED_SHARE] = result.stats[TRACKED_SHARE]
     figures.update(numba_cache_counts())  # a cold cache compiles in this process: its memory is in the peak
     figures["wall_s"] = time.perf_counter() - start
     first, last = marks[0], marks[-1]

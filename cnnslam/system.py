@@ -90,6 +90,7 @@ from cnnslam.tracking import (
     to_gray,
     track_frame,
 )
+from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
 
 
 @dataclass(frozen=True)
@@ -670,8 +671,8 @@ class CnnSlam:
         ]
         edges = [(e.i, e.j, e.kind) for e in self._graph.edges]
         stats: dict[str, Any] = {
-            "frames": n,
-            "tracked_share": float(tracked.mean()) if n else 0.0,
+            FRAMES: n,
+            TRACKED_SHARE: float(tracked.mean()) if n else 0.0,
             "keyframes": len(keyframes),
             "edges": len(edges),
             "loop_edges": sum(1 for e in edges if e[2] == "loop"),

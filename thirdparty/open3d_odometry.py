@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 import open3d as o3d
 
+from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
+
 JACOBIANS = ("hybrid", "color")
 
 
@@ -160,8 +162,8 @@ class Open3dOdometryAgent:
         n = len(self._tracked)
         secs = np.asarray(self._seconds)
         extras: dict[str, Any] = {
-            "frames": n,
-            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            FRAMES: n,
+            TRACKED_SHARE: float(np.mean(self._tracked)) if n else 0.0,
             "keyframes": self._keyframes,
             "fallbacks_to_previous_frame": self._fallbacks,
             "depth_source": dict(self._depth_source),

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
 from slamcommon.config import Configurable, configure
 from slamcommon.errors import ConfigError
 from thirdparty.orb_vocabulary import DEFAULT_VOCABULARY
@@ -282,8 +283,8 @@ class OrbSlam3Agent:
         n = len(self._tracked)
         secs = np.asarray(self._seconds)
         extras: dict[str, Any] = {
-            "frames": n,
-            "tracked_share": float(np.mean(self._tracked)) if n else 0.0,
+            FRAMES: n,
+            TRACKED_SHARE: float(np.mean(self._tracked)) if n else 0.0,
             "states": dict(sorted(self._states.items())),
             "maps": self._maps,
             "init_frame": self._init_frame,

@@ -11,8 +11,8 @@
   them (``self._timestamps``, ``self._poses``, ``self._tracked``) and answers ``{"T_world_cam": (4, 4),
   "tracked": 0|1}``;
 - ``finish()``: refuses a finish before ``reset`` and returns the baseline's :meth:`~BaselineAgent._finish`, an
-  ``AgentOutput``; :meth:`~BaselineAgent.episode_extras` gives the extras every baseline reports (``frames``,
-  ``tracked_share``).
+  ``AgentOutput``; :meth:`~BaselineAgent.episode_extras` gives the extras every baseline reports (frames stepped,
+  share tracked: :mod:`slamcommon.agent_keys`).
 
 A new baseline is one module with a subclass (``name``, ``uses_ground_truth`` and the three hooks) plus one
 ``[methods."NAME"]`` table in ``eval/methods.toml`` naming it ``"module:Class"`` (with ``warmup`` there when it has
@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from cnnslam.errors import CnnSlamError
+from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
 
 
 def checked_intrinsics(intrinsics: Any) -> np.ndarray:
@@ -97,10 +98,10 @@ class BaselineAgent(ABC):
         return self._finish()
 
     def episode_extras(self) -> dict[str, Any]:
-        """The extras every baseline reports: ``frames`` stepped and ``tracked_share`` (their share tracked, 0 for
-        none)."""
+        """The extras every baseline reports (:mod:`slamcommon.agent_keys`): the frames stepped and their share
+        tracked (0 for none)."""
         n = len(self._tracked)
-        return {"frames": n, "tracked_share": float(np.mean(self._tracked)) if n else 0.0}
+        return {FRAMES: n, TRACKED_SHARE: float(np.mean(self._tracked)) if n else 0.0}
 
     # --------------------------------------------------------------------------------------- what a baseline does
     @abstractmethod
