@@ -338,8 +338,8 @@ def planned_specs(data: Mapping[str, Any], table: Mapping[str, Any] | None = Non
     """The run specs the current code plans for a manifest's suite and selection (key -> RunSpec), as
     :func:`eval.bench.benchmark.run_bench` plans them; methods the manifest records as skipped are left out.
     Raises :class:`InputError` when the selection cannot be planned any more (a suite or sequence gone)."""
-    from eval.bench.benchmark import BenchOptions, ExecutorOptions, prepare
     from eval.bench.methods import Method, load_methods
+    from eval.bench.plan import BenchOptions, ExecutorOptions, prepare
     from eval.bench.runner import plan_runs
 
     sel = dict(data.get("selection") or {})
