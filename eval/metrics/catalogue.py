@@ -47,17 +47,19 @@ ANGLE: tuple[float, float] = (0.0, 180.0)  # degrees between two orientations
 TABLE1, ROTATION, SIM3, MAP, QUICK, SWEEP, DEPTH_QUALITY = (
     "table1", "rotation", "sim3", "map", "quick", "sweep", "depth_quality")
 RUN_FACTS, RESOURCES, TRANSFER, SENSITIVITY, DECISIVE = "run_facts", "resources", "transfer", "sensitivity", "decisive"
-RUNS_FIGURE, SWEEP_FIGURE = "runs_figure", "sweep_figure"
+RUNS_FIGURE, SWEEP_FIGURE, SECOND_REFERENCE = "runs_figure", "sweep_figure", "second_reference"
 
 
 @dataclass(frozen=True)
 class Shown:
     """One place a metric is shown: ``place`` (a table's block list or a plot, the names above), ``at`` (its
-    position there, 0 first) and ``label`` (the heading or axis label there; empty: the spec's :attr:`label`)."""
+    position there, 0 first), ``label`` (the heading or axis label there; empty: the spec's :attr:`label`) and
+    ``factor`` (the figure is multiplied by it there: 100 shows a share as percent)."""
 
     place: str
     at: int
     label: str = ""
+    factor: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,10 @@ class MetricSpec:
         """The label this metric is shown under at ``place`` (:attr:`label` unless the place gives its own)."""
         return next((s.label or self.label for s in self.shown if s.place == place), self.label)
 
+    def factor_at(self, place: str) -> float:
+        """What the figure is multiplied by where it is shown at ``place`` (1 unless the place says otherwise)."""
+        return next((s.factor for s in self.shown if s.place == place), 1.0)
+
 
 def _shown(*places: tuple) -> tuple[Shown, ...]:
     return tuple(Shown(*p) for p in places)
@@ -135,11 +141,12 @@ ATE_RMSE = MetricSpec("ate_rmse", _ATE_LABEL, "m", "lower", "trajectory", 4, (0.
                       shown=_shown((TABLE1, 0), (QUICK, 0), (SWEEP, 0), (RUN_FACTS, 0, "ATE (headline)"),
                                    (RUNS_FIGURE, 0, "ATE RMSE, SE(3) [m]"), (SWEEP_FIGURE, 0, "ATE RMSE [m]")))
 ATE_SE3_RMSE = MetricSpec("ate_se3_rmse", "ATE, SE(3) [m]", "m", "lower", "trajectory", 4, _ERR, NON_NEGATIVE,
-                          shown=_shown((RUN_FACTS, 1, "ATE SE(3)"), (TRANSFER, 0), (DECISIVE, 0)))
+                          shown=_shown((RUN_FACTS, 1, "ATE SE(3)"), (TRANSFER, 0), (DECISIVE, 0),
+                                       (SECOND_REFERENCE, 0, "SE(3) ATE [m]")))
 ATE_SIM3_RMSE = MetricSpec("ate_sim3_rmse", "ATE, Sim(3) [m]", "m", "lower", "trajectory", 4, _ERR, NON_NEGATIVE,
                            shown=_shown((SIM3, 0, "ATE after Sim(3) alignment [m]"),
                                         (QUICK, 2, "ATE after Sim(3) alignment [m]"), (RUN_FACTS, 2, "ATE Sim(3)"),
-                                        (TRANSFER, 1)))
+                                        (TRANSFER, 1), (SECOND_REFERENCE, 1, "Sim(3) ATE [m]")))
 ATE_PAIRS = MetricSpec("ate_pairs", "pose pairs scored", "count", "match", "trajectory", 0, (0.0, 0.0), NON_NEGATIVE)
 ATE_ALIGNMENT_DEGENERATE = MetricSpec("ate_alignment_degenerate", "alignment degenerate (0/1)", "", "lower",
                                       "trajectory", 0, _ERR, SHARE)
@@ -156,14 +163,15 @@ RPE_TRANS_PAIRS = MetricSpec("rpe_trans_pairs", "RPE pairs", "count", "match", "
 ROT_DEG_ORIENT_RMSE = MetricSpec("rot_deg_orient_rmse", "Rotation error, orientation-aligned [deg]", "deg", "lower",
                                  "trajectory", 2, _FINE, ANGLE, gated=True,
                                  shown=_shown((ROTATION, 1), (RUN_FACTS, 4, "rotation, orientation-aligned"),
-                                              (TRANSFER, 2, "rotation error, orientation-aligned [deg]")))
+                                              (TRANSFER, 2, "rotation error, orientation-aligned [deg]"),
+                                              (SECOND_REFERENCE, 3, "rotation, orientation-aligned [deg]")))
 ROT_DEG_RMSE = MetricSpec("rot_deg_rmse", "Rotation error [deg]", "deg", "lower", "trajectory", 2, _FINE, ANGLE,
                           gated=True, shown=_shown((DEPTH_QUALITY, 3)))
 ROT_DEG_PAIRS = MetricSpec("rot_deg_pairs", "rotation pairs", "count", "match", "trajectory", 0, (0.0, 0.0),
                            NON_NEGATIVE)
 SCALE = MetricSpec("scale", "Sim(3) scale", "", "match", "trajectory", 4, (0.02, 0.0), NON_NEGATIVE)
 SCALE_ERROR = MetricSpec("scale_error", "scale error", "", "lower", "trajectory", 3, (0.01, 0.10), NON_NEGATIVE,
-                         shown=_shown((RUN_FACTS, 3)))
+                         shown=_shown((RUN_FACTS, 3), (SECOND_REFERENCE, 2, "scale error [%]", 100.0)))
 LENGTH_GT_M = MetricSpec("length_gt_m", "ground-truth path length [m]", "m", "match", "trajectory", 3, (0.0, 0.10),
                          NON_NEGATIVE)
 LENGTH_EST_M = MetricSpec("length_est_m", "estimated path length [m]", "m", "match", "trajectory", 3, (0.0, 0.10),

@@ -31,6 +31,7 @@ import pandas as pd
 
 from eval.bench.run import FAILED_FILE, RunSpec
 from eval.bench.runner import SuiteRun
+from eval.metrics import catalogue
 from eval.metrics.aligned import ALIGNED_FILES
 from eval.metrics.results import FAILURE_RULE, RunRecord, failure_of
 from eval.reports.html import Cell, image_data_uri, markdown_to_html, page, sortable_table, svg_track, text_cell
@@ -142,20 +143,8 @@ def _fmt(value: float | None, digits: int, unit: str = "") -> str:
     return f"{value:.{digits}f}{unit}"
 
 
-RUN_FACTS: tuple[tuple[str, str, int, str], ...] = (  # (label, metric or resource, decimals, unit)
-    ("ATE (headline)", "ate_rmse", 4, " m"),
-    ("ATE SE(3)", "ate_se3_rmse", 4, " m"),
-    ("ATE Sim(3)", "ate_sim3_rmse", 4, " m"),
-    ("scale error", "scale_error", 3, ""),
-    ("rotation, orientation-aligned", "rot_deg_orient_rmse", 2, " deg"),
-    ("tracked share", "tracked_share", 3, ""),
-    ("correct depth", "depth_percent_correct", 2, " %"),
-    ("map accuracy, median", "map_accuracy_median", 3, " m"),
-    ("wall time", "wall_s", 1, " s"),
-    ("frames per second, end to end", "fps_end_to_end", 1, ""),
-    ("frames per second, agent's step", "fps", 1, ""),
-    ("peak memory", "peak_rss_mib", 0, " MiB"),
-)
+RUN_FACTS: tuple[tuple[str, str, int, str], ...] = tuple(  # (label, metric or resource, decimals, unit)
+    (s.label_at(catalogue.RUN_FACTS), s.key, s.digits, s.unit_suffix) for s in catalogue.shown_at(catalogue.RUN_FACTS))
 
 
 def run_html(spec: RunSpec, run: SuiteRun, record: RunRecord | None, track: RunTrack | None) -> str:

@@ -25,11 +25,12 @@ from collections.abc import Sequence
 import pandas as pd
 
 from eval.errors import EvalError
+from eval.metrics import catalogue
 from eval.reports.transfer import TRANSFER_METRICS, TransferMetric, domain_scores, rank_methods, ranking_agreement
 
 WHOLE = "whole"
 # the metrics the bench length must rank as whole sequences do: the paper's Table 1 (trajectory and depth)
-DECISIVE_METRICS: tuple[str, ...] = ("ate_se3_rmse", "depth_percent_correct")
+DECISIVE_METRICS: tuple[str, ...] = tuple(s.key for s in catalogue.shown_at(catalogue.DECISIVE))
 
 
 def length_label(frames: int | None) -> str:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from eval.bench.runner import SuiteRun
+from eval.metrics.catalogue import ATE_RMSE, FPS_END_TO_END, PEAK_RSS_MIB, TRACKED_SHARE
 from eval.metrics.results import failure_of, failure_text
 from eval.reports.plots import save_relative_error_figure, save_resources_figure, save_sequence_figure
 from eval.reports.run_data import RunTrack, ate_bands, median_track, missing_reasons
@@ -60,7 +61,7 @@ def sequence_figures(run: SuiteRun, tracks: dict[str, dict[str, list[RunTrack]]]
         by_method, failed = without_failed_tracks(run, ref.name, by_method)
         if not by_method:
             continue
-        missing = {m: why for m, why in missing_reasons(run, "ate_rmse", sequence=ref.name).items()
+        missing = {m: why for m, why in missing_reasons(run, ATE_RMSE.key, sequence=ref.name).items()
                    if m not in by_method}  # fmt: skip
         missing.update(failed)
         longest = max((t for ts in by_method.values() for t in ts), key=lambda t: t.stamps.size)
@@ -103,7 +104,7 @@ def without_failed_tracks(run: SuiteRun, sequence: str, by_method: dict[str, lis
         records = [r for r in run.records if r.sequence == sequence and r.method == method]
         lost = [r for r in records if failure_of(r.metrics) is not None]
         if lost and 2 * len(lost) >= len(records):
-            share = float(np.median([r.metrics.get("tracked_share", 0.0) for r in lost]))
+            share = float(np.median([r.metrics.get(TRACKED_SHARE.key, 0.0) for r in lost]))
             failed[method] = (f"{failure_text(share if np.isfinite(share) else 0.0)}: a failure (never initialised, "
                               "or tracked too little)")  # fmt: skip
             continue
@@ -118,13 +119,13 @@ def resources_figure(run: SuiteRun, results_dir: str | Path,
     """``<suite>_resources.<fmt>``: frames per second end to end and peak memory per method, one dot per run; None
     when no run recorded either."""
     methods = [m for m in run.suite.methods if any(r.method == m for r in run.records)]
-    fps = {m: np.array([r.resources.get("fps_end_to_end", np.nan) for r in run.records if r.method == m])
+    fps = {m: np.array([r.resources.get(FPS_END_TO_END.key, np.nan) for r in run.records if r.method == m])
            for m in methods}  # fmt: skip
-    memory = {m: np.array([r.resources.get("peak_rss_mib", np.nan) for r in run.records if r.method == m])
+    memory = {m: np.array([r.resources.get(PEAK_RSS_MIB.key, np.nan) for r in run.records if r.method == m])
               for m in methods}  # fmt: skip
     if not any(np.isfinite(v).any() for v in (*fps.values(), *memory.values())):
         return None
-    missing = missing_reasons(run, "peak_rss_mib", methods)
+    missing = missing_reasons(run, PEAK_RSS_MIB.key, methods)
     path = save_resources_figure(Path(results_dir) / f"{run.suite.name}_resources.{figure_format}", methods, fps,
                                  memory, missing, f"{run.suite.name}: speed and memory, every run")  # fmt: skip
     return ReportFigure(path, "speed and memory per method: frames per second end to end and peak resident memory, "

@@ -13,6 +13,8 @@ import math
 
 import pandas as pd
 
+from eval.metrics import catalogue
+
 PAPER_SEQUENCES: tuple[str, ...] = (
     "ICL/office0",
     "ICL/office1",
@@ -69,12 +71,18 @@ PAPER_AVG_CORRECT_DEPTH: dict[str, float] = {
 }
 
 
+# metric (the catalogue's Table-1 blocks: ATE, correct depth) -> (the paper's per-sequence figures, its Avg. row)
+PAPER_TABLES: dict[str, tuple[dict[str, tuple[float, ...]], dict[str, float]]] = dict(
+    zip((key for _, key in catalogue.blocks(catalogue.TABLE1)),
+        ((PAPER_ATE, PAPER_AVG_ATE), (PAPER_CORRECT_DEPTH, PAPER_AVG_CORRECT_DEPTH)), strict=True))  # fmt: skip
+
+
 def paper_table1_frame(method_suffix: str = "") -> pd.DataFrame:
-    """The paper's per-sequence numbers in long form (``sequence, method, metric, value, run``), metrics
-    ``ate_rmse`` and ``depth_percent_correct``; missing cells are left out. ``method_suffix`` (e.g. " (paper)")
+    """The paper's per-sequence numbers in long form (``sequence, method, metric, value, run``), metrics ATE RMSE
+    and correct depth (:data:`PAPER_TABLES`); missing cells are left out. ``method_suffix`` (e.g. " (paper)")
     keeps the paper's methods apart from ours in a combined table."""
     rows = []
-    for metric, table in (("ate_rmse", PAPER_ATE), ("depth_percent_correct", PAPER_CORRECT_DEPTH)):
+    for metric, (table, _) in PAPER_TABLES.items():
         for method, values in table.items():
             for sequence, value in zip(PAPER_SEQUENCES, values, strict=True):
                 if not math.isnan(value):
@@ -104,18 +112,19 @@ def paper_name(label: object, default: str) -> str:
 
 
 def paper_value(label: object, method: str, metric: str, all_sequences: bool = False) -> float:
-    """The paper's Table-1 value beside ours: ``metric`` (``ate_rmse`` or ``depth_percent_correct``) of ``method`` on
-    the paper's sequence our row ``label`` stands for (:func:`paper_name`), or its printed Avg. for the row ``Avg.``
-    when ``all_sequences`` (ours averages all nine of its sequences: an average over fewer is another figure); NaN
-    where the paper has none."""
-    if metric not in ("ate_rmse", "depth_percent_correct"):
+    """The paper's Table-1 value beside ours: ``metric`` (one of :data:`PAPER_TABLES`: ATE RMSE or correct depth)
+    of ``method`` on the paper's sequence our row ``label`` stands for (:func:`paper_name`), or its printed Avg. for
+    the row ``Avg.`` when ``all_sequences`` (ours averages all nine of its sequences: an average over fewer is another
+    figure); NaN where the paper has none."""
+    if metric not in PAPER_TABLES:
         return math.nan
+    per_sequence, average = PAPER_TABLES[metric]
     if str(label) == "Avg.":
         if not all_sequences:
             return math.nan
-        return (PAPER_AVG_ATE if metric == "ate_rmse" else PAPER_AVG_CORRECT_DEPTH).get(method, math.nan)
+        return average.get(method, math.nan)
     name = paper_name(label, "")
-    values = (PAPER_ATE if metric == "ate_rmse" else PAPER_CORRECT_DEPTH).get(method)
+    values = per_sequence.get(method)
     if not name or values is None:
         return math.nan
     return float(values[PAPER_SEQUENCES.index(name)])

@@ -39,6 +39,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from eval.errors import EvalError
+from eval.metrics import catalogue
+from eval.metrics.catalogue import ATE_PERCENT_LENGTH, DEPTH_PERCENT_CORRECT, TRACKED_SHARE
 from eval.metrics.results import FAILURE_MARK, failure_of, share_text
 from eval.reports.style import GROUND_TRUTH_STYLE, MethodStyle, method_style
 from slamcommon.depth_metrics import CORRECT_THRESHOLD, correct_depth_mask, relative_depth_error, valid_depth
@@ -243,15 +245,17 @@ def save_sweep_figure(
     """ATE and correct depth (a pair of rows) against each difficulty axis (columns, at most ``per_row`` axes to a
     pair of rows), one line per method.
 
-    ``points``: one row per run with columns axis, x, method, ate_rmse, depth_percent_correct (and
-    ``tracked_share``); ``axes_titles``: axis name -> x-axis label, in column order. Each line is the median over
-    the runs at an x that did not fail (:func:`eval.metrics.results.failure_of` of their ``tracked_share``); an x
+    ``points``: one row per run with columns axis, x, method, the keys of the catalogue's sweep-figure metrics (ATE
+    RMSE, correct depth) and of the tracked share; ``axes_titles``: axis name -> x-axis label, in column order. Each
+    line is the median over the runs at an x that did not fail (:func:`eval.metrics.results.failure_of` of their
+    tracked share); an x
     where at least half of a method's runs failed has no point: the failure mark with the median share of its
     failed runs at the foot of the panel (:func:`draw_failures`).
     """
-    if "tracked_share" in points.columns:
-        failed = np.array([failure_of({"tracked_share": v}) is not None
-                           for v in points["tracked_share"].to_numpy(dtype=float)], dtype=bool)  # fmt: skip
+    share = TRACKED_SHARE.key
+    if share in points.columns:
+        failed = np.array([failure_of({share: v}) is not None
+                           for v in points[share].to_numpy(dtype=float)], dtype=bool)  # fmt: skip
     else:
         failed = np.zeros(len(points), dtype=bool)
     points = points.assign(_failed=failed)
@@ -263,8 +267,7 @@ def save_sweep_figure(
     for i, axis in enumerate(names):
         band, col = divmod(i, per_row)
         sub = points[points["axis"] == axis]
-        for row, (metric, label) in enumerate((("ate_rmse", "ATE RMSE [m]"),
-                                               ("depth_percent_correct", "correct depth [%]"))):  # fmt: skip
+        for row, (label, metric) in enumerate(catalogue.blocks(catalogue.SWEEP_FIGURE)):
             ax = grid[2 * band + row, col]
             for method in methods:  # each method's own colour and marker (eval.reports.style)
                 own = sub[sub["method"] == method]
@@ -276,7 +279,7 @@ def save_sweep_figure(
                     ax.plot(line.index, line.to_numpy(), marker=look.marker, label=method, color=look.color)
                 if lost.any() and own[metric].notna().any():
                     at = [x for x in lost[lost].index]
-                    draw_failures(ax, at, [float(own[own["_failed"] & (own["x"] == x)]["tracked_share"].median())
+                    draw_failures(ax, at, [float(own[own["_failed"] & (own["x"] == x)][share].median())
                                            for x in at], look.color)  # fmt: skip
             ax.set_xlabel(axes_titles[axis])
             ax.set_ylabel(label)
@@ -304,18 +307,19 @@ def save_accuracy_scatter(
 ) -> Path:
     """ATE / path length (%) against key-frame correct depth (%), one point per run in its method's colour and
     marker, each labelled with its sequence (the name up to any ``@camera``), and a dashed line at ``ate_target``.
-    ``points``: columns sequence, method, ate_percent_length, depth_percent_correct."""
+    ``points``: columns sequence, method and the keys of :data:`~eval.metrics.catalogue.ATE_PERCENT_LENGTH` and
+    :data:`~eval.metrics.catalogue.DEPTH_PERCENT_CORRECT`."""
+    x, y = DEPTH_PERCENT_CORRECT.key, ATE_PERCENT_LENGTH.key
     fig = Figure(figsize=(7.2, 5.2), layout="constrained")
     ax = fig.subplots()
     for method in methods:
-        sub = points[points["method"] == method].dropna(subset=["ate_percent_length", "depth_percent_correct"])
+        sub = points[points["method"] == method].dropna(subset=[y, x])
         if sub.empty:
             continue
         look = method_style(method)
-        ax.scatter(sub["depth_percent_correct"], sub["ate_percent_length"], color=look.color, marker=look.marker,
-                   label=method, zorder=3)  # fmt: skip
-        for row in sub.itertuples():
-            ax.annotate(str(row.sequence).split("@")[0], (row.depth_percent_correct, row.ate_percent_length),
+        ax.scatter(sub[x], sub[y], color=look.color, marker=look.marker, label=method, zorder=3)
+        for row in sub.to_dict("records"):
+            ax.annotate(str(row["sequence"]).split("@")[0], (row[x], row[y]),
                         xytext=(4, 3), textcoords="offset points", fontsize=6, color=look.color)  # fmt: skip
     if ate_target is not None:
         ax.axhline(ate_target, color="0.4", linestyle="--", linewidth=1, label=f"target {ate_target:g} %")
@@ -346,15 +350,15 @@ def plot_runs_strip(ax: Axes, frame: pd.DataFrame, metric: str, methods: Sequenc
     """Every run's ``metric`` as a dot, one column group per method (its name in its colour) and a colour per
     sequence, with each cell's median as a short black bar: the spread over runs that a table's single number
     hides. ``frame``: the long frame (``sequence, method, metric, value``); ``missing``: method -> why it has no
-    value (written in its column as ``n/a``). A failed run (with a ``run`` column: its ``tracked_share`` and
-    ``ate_pairs`` rows, :func:`eval.metrics.results.failure_of`) is the failure mark with its share at the foot of
+    value (written in its column as ``n/a``). A failed run (with a ``run`` column: its tracked-share and pose-pair
+    rows, :func:`eval.metrics.results.failure_of`) is the failure mark with its share at the foot of
     its place (:func:`draw_failures`), not a dot; a cell's bar is the median of its runs that did not fail, none
     when at least half failed."""
     from eval.reports.tables import failed_runs
 
     failed = failed_runs(frame) if "run" in frame.columns else set()
     shares = ({(str(r.sequence), str(r.method), str(r.run)): r.value for r in
-               frame[frame["metric"] == "tracked_share"].itertuples()} if failed else {})  # fmt: skip
+               frame[frame["metric"] == TRACKED_SHARE.key].itertuples()} if failed else {})  # fmt: skip
     sub = frame[frame["metric"] == metric]
     cmap = colormaps["tab10"]
     width = 0.8 / max(len(sequences), 1)

@@ -27,7 +27,7 @@ from eval.metrics.trajectory_metrics import RelativeErrors
 class RunTrack:
     """One finished run's trajectory as scored: ``key``, ``method``, ``seed``; ``stamps`` (M,) seconds of its scored
     poses; ``gt`` and ``est`` (M, 3) positions in metres, the estimate aligned to the ground truth with the run's
-    alignment; ``ate`` (M,) metres per pose; ``ate_rmse`` metres; ``relative``: its relative errors at several
+    alignment; ``ate`` (M,) metres per pose; ``rmse`` their RMSE, metres; ``relative``: its relative errors at several
     distances (:func:`eval.metrics.trajectory_metrics.relative_errors`); ``alignment``: the alignment used."""
 
     key: str
@@ -37,7 +37,7 @@ class RunTrack:
     gt: np.ndarray
     est: np.ndarray
     ate: np.ndarray
-    ate_rmse: float
+    rmse: float
     relative: tuple[RelativeErrors, ...]
     alignment: str
 
@@ -75,7 +75,7 @@ def suite_tracks(run: SuiteRun) -> dict[str, dict[str, list[RunTrack]]]:
 def median_track(tracks: Sequence[RunTrack]) -> RunTrack:
     """The run whose ATE RMSE is the median of ``tracks`` (the lower of the two middle ones for an even count): the
     one a figure shows for its method."""
-    order = sorted(tracks, key=lambda t: (math.inf if math.isnan(t.ate_rmse) else t.ate_rmse, t.seed))
+    order = sorted(tracks, key=lambda t: (math.inf if math.isnan(t.rmse) else t.rmse, t.seed))
     return order[(len(order) - 1) // 2]
 
 

@@ -15,16 +15,14 @@ import numpy as np
 import pandas as pd
 
 from eval.bench.runner import SuiteRun
+from eval.metrics import catalogue
+from eval.metrics.catalogue import TRACKED_SHARE
 from eval.metrics.results import failure_of, failure_text
 from eval.metrics.trajectory_metrics import RELATIVE_PATH_SHARES, RELATIVE_TOLERANCE
 from eval.reports.run_data import missing_reasons
 
-RESOURCE_COLUMNS: tuple[tuple[str, str, int], ...] = (  # (resource figure, heading, decimals)
-    ("wall_s", "wall time per run [s]", 1),
-    ("fps_end_to_end", "frames per second, end to end", 1),
-    ("fps", "frames per second, the agent's step", 1),
-    ("peak_rss_mib", "peak memory [MiB]", 0),
-)
+RESOURCE_COLUMNS: tuple[tuple[str, str, int], ...] = tuple(  # (resource figure, heading, decimals)
+    (s.key, s.label_at(catalogue.RESOURCES), s.digits) for s in catalogue.shown_at(catalogue.RESOURCES))
 
 
 def _cell(median: float, lo: float, hi: float, digits: int) -> str:
@@ -110,7 +108,7 @@ def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SH
             failed_cell = bool(lost) and 2 * len(lost) >= len(every)
             count = {"runs": len(every), "failed": len(lost), "failure": ""}
             if failed_cell:
-                share = float(np.median([r.metrics.get("tracked_share", 0.0) for r in lost]))
+                share = float(np.median([r.metrics.get(TRACKED_SHARE.key, 0.0) for r in lost]))
                 count["failure"] = failure_text(share if math.isfinite(share) else 0.0)
                 records = []
             for share in shares:

@@ -21,14 +21,20 @@ from __future__ import annotations
 import pandas as pd
 
 from eval.errors import EvalError
-from eval.reports.transfer import TRANSFER_METRICS, TransferMetric, domain_scores, rank_methods, ranking_agreement
+from eval.metrics import catalogue
+from eval.metrics.catalogue import TRACKED_SHARE
+from eval.reports.transfer import (
+    TRANSFER_METRICS,
+    TransferMetric,
+    domain_scores,
+    rank_methods,
+    ranking_agreement,
+    transfer_metrics,
+)
 
 DEFAULT = "default"
 TRACKED_SHARE_CHANGE = 0.2  # a change of the share of frames tracked that changes a verdict (20 points; ours)
-SENSITIVITY_METRICS: tuple[TransferMetric, ...] = (
-    *TRANSFER_METRICS,
-    TransferMetric("tracked_share", "tracked share", True),
-)
+SENSITIVITY_METRICS: tuple[TransferMetric, ...] = (*TRANSFER_METRICS, *transfer_metrics(catalogue.SENSITIVITY))
 
 
 def choice_order(choices: list[str]) -> list[str]:
@@ -71,7 +77,7 @@ def changed_verdicts(ranks: pd.DataFrame) -> pd.DataFrame:
     other = ranks[ranks["choice"] != DEFAULT].merge(base, on=["folder", "metric", "method"],
                                                      suffixes=("", "_default"))  # fmt: skip
     moved = other["rank"] != other["rank_default"]
-    tracked = other["metric"] == "tracked_share"
+    tracked = other["metric"] == TRACKED_SHARE.key
     moved = (moved & ~tracked) | (tracked & ((other["score"] - other["score_default"]).abs() > TRACKED_SHARE_CHANGE))
     out = other[moved].rename(columns={"score_default": "default_score", "rank_default": "default_rank"})
     return out[["folder", "choice", "metric", "method", "default_score", "score", "default_rank", "rank"]].reset_index(

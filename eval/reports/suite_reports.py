@@ -36,6 +36,20 @@ import pandas as pd
 from eval.bench.environment import machine_label
 from eval.bench.runner import SuiteRun, suite_records_json
 from eval.bench.suites import SWEEP_AXES
+from eval.metrics import catalogue
+from eval.metrics.catalogue import (
+    ATE_ALIGNMENT_DEGENERATE,
+    ATE_ALIGNMENT_FALLBACK,
+    ATE_PERCENT_LENGTH,
+    ATE_RMSE,
+    DEPTH_PERCENT_CORRECT,
+    FRAMES,
+    LENGTH_GT_M,
+    SCALE_ERROR,
+    SCALE_ERROR_PERCENT,
+    TRACKED_SHARE,
+    WALL_S,
+)
 from eval.metrics.results import FAILURE_RULE, MIN_TRACKED_SHARE, RunRecord, failure_of, failure_text, runs_frame
 from eval.reports.html_report import write_html_report
 from eval.reports.paper_figures import figures_dir, resources_figure, sequence_figures
@@ -60,36 +74,21 @@ from eval.reports.tables import (
 )
 from sim_envs.driver import match_timestamp
 
-ROTATION_BLOCKS: tuple[tuple[str, str], ...] = (
-    ("Tracked share", "tracked_share"),
-    ("Rotation error, orientation-aligned [deg]", "rot_deg_orient_rmse"),
-    ("RPE rotation, 1 s [deg]", "rpe_rot_deg_rmse"),
-    ("Perc. Correct Depth [%]", "depth_percent_correct"),
-)
-SIM3_BLOCK: tuple[tuple[str, str], ...] = (("ATE after Sim(3) alignment [m]", "ate_sim3_rmse"),)
+# Each table's (title, metric) column blocks, in order: the catalogue's places (eval.metrics.catalogue)
+ROTATION_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.ROTATION)
+SIM3_BLOCK: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.SIM3)
 # The global model (Sec. 3.5) of the agents that hand one back (eval.metrics.map_metrics)
-MAP_BLOCKS: tuple[tuple[str, str], ...] = (
-    ("Map accuracy, median [m]", "map_accuracy_median"),
-    ("Map completeness within 5 cm", "map_completeness_within"),
-    ("Map label accuracy", "map_label_accuracy"),
-)
-QUICK_BLOCKS: tuple[tuple[str, str], ...] = (*TABLE1_BLOCKS, *SIM3_BLOCK, ("Tracked share", "tracked_share"),
-                                             *MAP_BLOCKS)
-DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = (
-    ("ATE / length [%]", "ate_percent_length"),
-    ("Scale error [%]", "scale_error_percent"),
-    ("Perc. Correct Depth [%]", "depth_percent_correct"),
-    ("Rotation error [deg]", "rot_deg_rmse"),
-)
+MAP_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.MAP)
+QUICK_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.QUICK)
+SWEEP_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.SWEEP)
+DEPTH_QUALITY_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.DEPTH_QUALITY)
 # The SLAM issue's targets on the office and living sequences: absolute-scale ATE (SE(3) alignment) at most 2 % of
 # the path length, scale error at most 5 %, key-frame correct depth above the raw CNN's.
 # A run that tracked less than this share of its frames is lost: a failure (the one rule,
 # eval.metrics.results.failure_of; the threshold and its source: eval.metrics.results.MIN_TRACKED_SHARE)
 LOST_BELOW_TRACKED_SHARE = MIN_TRACKED_SHARE
-RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = (
-    ("ate_rmse", "ATE RMSE, SE(3) [m]"),
-    ("depth_percent_correct", "correct depth [%]"),
-)
+RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = tuple((key, label) for label, key in
+                                                          catalogue.blocks(catalogue.RUNS_FIGURE))  # fmt: skip
 TARGET_ATE_PERCENT_LENGTH = 2.0
 TARGET_SCALE_ERROR_PERCENT = 5.0
 def camera_sentence(suite: Any) -> str:
@@ -109,9 +108,10 @@ def camera_sentence(suite: Any) -> str:
 
 # --------------------------------------------------------------------------------------------------- long form
 def long_frame(run: SuiteRun) -> pd.DataFrame:
-    """All finished runs in long form (:func:`eval.metrics.results.runs_frame`) with ``wall_s`` from each run's
+    """All finished runs in long form (:func:`eval.metrics.results.runs_frame`) with the wall time of each run's
     timing."""
-    records = [r.replace(metadata={**r.metadata, "wall_s": run.timings.get(r.run, {}).get("wall_s", math.nan)})
+    wall = WALL_S.key
+    records = [r.replace(metadata={**r.metadata, wall: run.timings.get(r.run, {}).get(wall, math.nan)})
                for r in run.records]  # fmt: skip
     return runs_frame(records)
 
@@ -229,12 +229,14 @@ def alignment_markdown(run: SuiteRun, frame: pd.DataFrame) -> str:
     :mod:`eval.metrics.trajectory_metrics`), with how many of their runs."""
     lines = [f"- **{m.name}**: ATE after {m.align.upper()} alignment (the method's own)" for m in run.methods
              if m.align and m.align != run.suite.alignment]  # fmt: skip
-    flags = frame[frame["metric"].isin(["ate_alignment_fallback", "ate_alignment_degenerate"])] if len(frame) else frame
+    flags = (frame[frame["metric"].isin([ATE_ALIGNMENT_FALLBACK.key, ATE_ALIGNMENT_DEGENERATE.key])] if len(frame)
+             else frame)  # fmt: skip
     if len(flags):
         counts = flags.groupby(["sequence", "method", "metric"], sort=False)["value"].agg(["sum", "count"])
         for (seq, method, metric), row in counts.iterrows():
             if row["sum"] > 0:
-                what = ("rotation-only fallback (evo cannot fit: positions one point)" if metric.endswith("fallback")
+                fallback = metric == ATE_ALIGNMENT_FALLBACK.key
+                what = ("rotation-only fallback (evo cannot fit: positions one point)" if fallback
                         else "poorly conditioned fit (positions nearly collinear or tiny), kept and flagged")
                 lines.append(f"- {seq} / {method}: {what} in {int(row['sum'])} of {int(row['count'])} runs")
     if not lines:
@@ -271,18 +273,20 @@ def _one_line(text: str, limit: int = 300) -> str:
 
 
 def with_relative_errors(frame: pd.DataFrame) -> pd.DataFrame:
-    """The long frame plus two rows per run: ``ate_percent_length`` = 100 ATE RMSE / ground-truth path length (the
-    drift figure of odometry papers; none for a zero-length path) and ``scale_error_percent`` = 100 scale error."""
+    """The long frame plus two rows per run: :data:`~eval.metrics.catalogue.ATE_PERCENT_LENGTH` = 100 ATE RMSE /
+    ground-truth path length (the drift figure of odometry papers; none for a zero-length path) and
+    :data:`~eval.metrics.catalogue.SCALE_ERROR_PERCENT` = 100 scale error."""
     if frame.empty:
         return frame
     wide = frame.pivot_table(index=["run", "sequence", "method"], columns="metric", values="value", aggfunc="first")
     extra = []
-    if {"ate_rmse", "length_gt_m"} <= set(wide.columns):
-        length = wide["length_gt_m"].where(wide["length_gt_m"] > 0)
-        extra.append((100.0 * wide["ate_rmse"] / length).rename("value").reset_index()
-                     .assign(metric="ate_percent_length"))  # fmt: skip
-    if "scale_error" in wide.columns:
-        extra.append((100.0 * wide["scale_error"]).rename("value").reset_index().assign(metric="scale_error_percent"))
+    if {ATE_RMSE.key, LENGTH_GT_M.key} <= set(wide.columns):
+        length = wide[LENGTH_GT_M.key].where(wide[LENGTH_GT_M.key] > 0)
+        extra.append((100.0 * wide[ATE_RMSE.key] / length).rename("value").reset_index()
+                     .assign(metric=ATE_PERCENT_LENGTH.key))  # fmt: skip
+    if SCALE_ERROR.key in wide.columns:
+        extra.append((100.0 * wide[SCALE_ERROR.key]).rename("value").reset_index()
+                     .assign(metric=SCALE_ERROR_PERCENT.key))  # fmt: skip
     extra = [rows.dropna(subset=["value"]) for rows in extra]
     return pd.concat([frame, *extra], ignore_index=True) if extra else frame
 
@@ -533,7 +537,7 @@ def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
             for method in methods:
                 kf = keyframes[method]
                 stamps = kf["timestamps"]
-                frames = int(found[method].metrics.get("frames", len(source)))
+                frames = int(found[method].metrics.get(FRAMES.key, len(source)))
                 middle = float(source.timestamps[min(frames // 2, len(source) - 1)])
                 k = int(np.argmin(np.abs(stamps - middle)))  # the key-frame shown: the one nearest the middle
                 i = match_timestamp(source.timestamps, float(stamps[k]))
@@ -551,9 +555,14 @@ def save_ablation_figure(run: SuiteRun, path: Path) -> Path | None:
 
 
 # ------------------------------------------------------------------------------------------------------ sweep
+SWEEP_TABLE_METRICS: tuple[str, ...] = tuple(key for _, key in catalogue.blocks(catalogue.SWEEP_FIGURE))
+_SWEEP_COLUMNS: tuple[str, ...] = (*SWEEP_TABLE_METRICS, TRACKED_SHARE.key)  # a sweep point's figures
+
+
 def sweep_points(run: SuiteRun) -> pd.DataFrame:
     """One row per finished sweep run: axis, x (the axis value; for the rotation axis the measured rotation
-    share), method, ``ate_rmse``, ``depth_percent_correct``, ``tracked_share`` and ``failure`` (why the run is a
+    share), method, the sweep figure's metrics (:data:`SWEEP_TABLE_METRICS`), the tracked share (columns named by
+    their keys) and ``failure`` (why the run is a
     failure, :func:`eval.metrics.results.failure_of`, e.g. ``tracked 22 % < 90 %``; empty when it is not: its figures
     count in no median, table or line)."""
     rows = []
@@ -571,14 +580,11 @@ def sweep_points(run: SuiteRun) -> pd.DataFrame:
                 "setting": meta.get("axis_value"),
                 "sequence": record.sequence,
                 "method": record.method,
-                "ate_rmse": metrics.get("ate_rmse", math.nan),
-                "depth_percent_correct": metrics.get("depth_percent_correct", math.nan),
-                "tracked_share": metrics.get("tracked_share", math.nan),
+                **{key: metrics.get(key, math.nan) for key in _SWEEP_COLUMNS},
                 "failure": failure_of(metrics) or "",
             }
         )
-    columns = ["axis", "x", "setting", "sequence", "method", "ate_rmse", "depth_percent_correct", "tracked_share",
-               "failure"]
+    columns = ["axis", "x", "setting", "sequence", "method", *_SWEEP_COLUMNS, "failure"]
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -610,10 +616,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
             continue
         text.append(f"### {title}\n\n" + sweep_markdown(sub))
     return _write_report(run, results_dir, "sweep", text, [csv, figure],
-                         blocks=(*TABLE1_BLOCKS, ("Tracked share", "tracked_share")), figure_format=figure_format)
-
-
-SWEEP_TABLE_METRICS: tuple[str, ...] = ("ate_rmse", "depth_percent_correct")
+                         blocks=SWEEP_BLOCKS, figure_format=figure_format)
 
 
 def sweep_cells(points: pd.DataFrame) -> dict[tuple[Any, Any, str, str], str]:
@@ -623,8 +626,8 @@ def sweep_cells(points: pd.DataFrame) -> dict[tuple[Any, Any, str, str], str]:
     share where below 100 %; ``-`` without a value."""
     out: dict[tuple[Any, Any, str, str], str] = {}
     for (setting, x, method), cell in points.groupby(["setting", "x", "method"], sort=True, dropna=False):
-        shares = cell["tracked_share"].to_numpy(dtype=float)
-        failed = np.array([failure_of({"tracked_share": v}) is not None for v in shares])
+        shares = cell[TRACKED_SHARE.key].to_numpy(dtype=float)
+        failed = np.array([failure_of({TRACKED_SHARE.key: v}) is not None for v in shares])
         n, k = len(cell), int(failed.sum())
         for metric in SWEEP_TABLE_METRICS:
             if k and 2 * k >= n:
@@ -684,7 +687,7 @@ def report_depth_quality(run: SuiteRun, results_dir: str | Path, command: str,
     paths = _write_tables(table, results_dir / "depth_quality", "CNN-SLAM and the accuracy of key-frame depth.",
                           spread=spread, blocks=DEPTH_QUALITY_BLOCKS, run=run)  # fmt: skip
     scored = without_failures(frame)  # a failed run is no point of the scatter
-    points = (scored[scored["metric"].isin(["ate_percent_length", "depth_percent_correct"])]
+    points = (scored[scored["metric"].isin([ATE_PERCENT_LENGTH.key, DEPTH_PERCENT_CORRECT.key])]
               .pivot_table(index=["sequence", "method"], columns="metric", values="value").reset_index())  # fmt: skip
     figure = save_accuracy_scatter(points, results_dir / f"depth_quality.{figure_format}", list(run.suite.methods),
                                    TARGET_ATE_PERCENT_LENGTH)  # fmt: skip
@@ -746,12 +749,9 @@ def report_generic(run: SuiteRun, results_dir: str | Path, command: str,
                          blocks=QUICK_BLOCKS, figure_format=figure_format)  # fmt: skip
 
 
-SECOND_REFERENCE_METRICS: tuple[tuple[str, str, float], ...] = (  # (metric, heading, factor)
-    ("ate_se3_rmse", "SE(3) ATE [m]", 1.0),
-    ("ate_sim3_rmse", "Sim(3) ATE [m]", 1.0),
-    ("scale_error", "scale error [%]", 100.0),
-    ("rot_deg_orient_rmse", "rotation, orientation-aligned [deg]", 1.0),
-)
+SECOND_REFERENCE_METRICS: tuple[tuple[str, str, float], ...] = tuple(  # (metric, heading, factor)
+    (s.key, s.label_at(catalogue.SECOND_REFERENCE), s.factor_at(catalogue.SECOND_REFERENCE))
+    for s in catalogue.shown_at(catalogue.SECOND_REFERENCE))  # fmt: skip
 GROUND_TRUTH_ROW = "(the folder's ground truth)"
 
 
@@ -801,7 +801,7 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
             if record.sequence != name:
                 continue
             folder = run.outcomes[str(record.run)].folder
-            own_trajectory = "ate_rmse" in record.metrics  # REMODE: LSD-BS's poses, not its own
+            own_trajectory = ATE_RMSE.key in record.metrics  # REMODE: LSD-BS's poses, not its own
             try:
                 if GROUND_TRUTH_ROW not in rows:
                     rows[GROUND_TRUTH_ROW] = [evaluate_trajectory(reference, trajectory(folder / "groundtruth.tum"))

@@ -39,6 +39,7 @@ import pandas as pd
 from scipy import stats
 
 from eval.errors import EvalError
+from eval.metrics import catalogue
 
 SIM_PREFIX, REAL_PREFIX, WINDOW_PREFIX = "sim:", "real:", "win:"
 _WINDOW_SUFFIX = re.compile(r"\.from\d+$")
@@ -58,12 +59,12 @@ class TransferMetric:
     higher_is_better: bool
 
 
-TRANSFER_METRICS: tuple[TransferMetric, ...] = (
-    TransferMetric("ate_se3_rmse", "ATE, SE(3) [m]", False),
-    TransferMetric("ate_sim3_rmse", "ATE, Sim(3) [m]", False),
-    TransferMetric("rot_deg_orient_rmse", "rotation error, orientation-aligned [deg]", False),
-    TransferMetric("depth_percent_correct", "correct depth [%]", True),
-)
+def transfer_metrics(place: str) -> tuple[TransferMetric, ...]:
+    """The metrics the catalogue shows at ``place`` (:mod:`eval.metrics.catalogue`), as :class:`TransferMetric`."""
+    return tuple(TransferMetric(s.key, s.label_at(place), s.higher_is_better) for s in catalogue.shown_at(place))
+
+
+TRANSFER_METRICS: tuple[TransferMetric, ...] = transfer_metrics(catalogue.TRANSFER)
 
 
 FRAME_COLUMNS = ("domain", "sequence", "method", "metric", "value")  # a transfer frame: one row per run and metric

@@ -16,7 +16,7 @@ def test_tracks_are_the_runs_as_their_records_score_them(folder_run):
     for by_method in tracks.values():
         for runs in by_method.values():
             for track in runs:
-                assert track.ate_rmse == pytest.approx(records[track.key].metrics["ate_rmse"], abs=1e-9)
+                assert track.rmse == pytest.approx(records[track.key].metrics["ate_rmse"], abs=1e-9)
                 assert track.est.shape == track.gt.shape == (60, 3) and track.alignment == "se3"
                 rel = track.relative[0]
                 assert rel.share == 10 and rel.distance_m == pytest.approx(records[track.key].metrics["rpe_dist_m_p10"])
