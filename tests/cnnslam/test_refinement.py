@@ -11,6 +11,10 @@ from cnnslam.geometry import relative_pose
 from cnnslam.refinement import (
     OK,
     StereoObservation,
+    StereoSettings,
+    _search_range,
+    _subpixel_match,
+    _triangulate,
     fuse_observation_depth,
     fuse_observation_uncertainty,
     refine_keyframe,
@@ -157,3 +161,38 @@ def test_semi_dense_drops_hypotheses_beyond_the_inverse_depth_variance_limit() -
     assert (stats.observed, stats.fused, stats.created, stats.dropped) == (1, 0, 1, 2)
     kept, _, kept_stats = refine_keyframe(d, u, obs, cfg, keep_without_observation=True)
     assert kept_stats.dropped == 0 and kept[0, 1] == 1.0
+
+
+def test_stereo_settings_name_every_numeric_config_field() -> None:
+    cfg = RefinementConfig(border=5.0, subpixel=False, min_depth=0.1)
+    s = StereoSettings.from_config(cfg)
+    assert s.border == 5.0 and s.subpixel is False and s.max_idepth_create == pytest.approx(10.0)
+    for name in s._fields:
+        if name != "max_idepth_create":
+            assert getattr(s, name) == getattr(cfg, name), name
+    with pytest.raises(AttributeError):
+        s.border = 3.0  # type: ignore[misc]
+
+
+def test_search_range_is_prior_plus_minus_sigmas_or_the_whole_range() -> None:
+    s = StereoSettings.from_config(RefinementConfig(search_sigmas=2.0, min_depth=0.05))
+    prior, lo, hi = _search_range.py_func(np.float32(2.0), np.float32(0.04), s)
+    # sigma of the inverse depth = sqrt(0.04) / 2^2 = 0.05 (1/m): 0.5 +- 2 * 0.05
+    assert (prior, lo, hi) == pytest.approx((0.5, 0.4, 0.6))
+    assert _search_range.py_func(np.float32(0.0), np.float32(1.0), s) == pytest.approx((1.0, 0.0, 20.0))
+
+
+def test_subpixel_match_moves_to_the_parabola_minimum() -> None:
+    # errors 4, 1, 2 at steps -1, 0, +1: the parabola 2 s^2 - s + 1 is lowest at s = 1/4, where it is 0.875
+    x, y, err, refined = _subpixel_match.py_func(10.0, 5.0, 1.0, 4.0, 2.0, 1.0, 0.0)
+    assert refined and x == pytest.approx(10.25) and y == 5.0 and err == pytest.approx(0.875)
+    assert _subpixel_match.py_func(10.0, 5.0, 1.0, 0.5, 0.5, 1.0, 0.0)[3] is False  # opens downwards: unchanged
+
+
+def test_triangulate_a_sideways_translation() -> None:
+    # current camera 0.1 m to the right of the key-frame (T_cur_kf: t = (-0.1, 0, 0)), f = 100, c = 0: a key-frame
+    # ray through the centre whose match is 5 px to the left lies at depth 100 * 0.1 / 5 = 2 m
+    fx = 100.0
+    idepth, alpha = _triangulate.py_func(-5.0, 0.0, -1.0, 0.0, 0.0, 0.0, np.eye(3), np.array([-0.1, 0.0, 0.0]),
+                                         1.0 / fx, 1.0 / fx, 0.0, 0.0)
+    assert idepth == pytest.approx(0.5) and abs(alpha) == pytest.approx(1.0 / (fx * 0.1))  # 1 / (f * baseline)
