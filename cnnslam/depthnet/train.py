@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from cnnslam.depthnet.data import AugmentConfig, RenderedDataset, collate, training_batch
-from cnnslam.depthnet.loss import total_loss
+from cnnslam.depthnet.loss import LossTerms, total_loss
 from cnnslam.depthnet.model import DepthSemanticNet, ModelConfig, count_parameters, normalize_rgb
 from cnnslam.depthnet.weights_io import MANIFEST_FORMAT, file_sha256, load_weights, save_weights
 from cnnslam.errors import CnnSlamError
@@ -228,6 +228,55 @@ def _val_indices(n: int, k: int) -> list[int]:
     return sorted({int(i) for i in np.linspace(0, n - 1, min(k, n)).round()})
 
 
+def _resume_or_start(cfg: TrainConfig, model: DepthSemanticNet, opt: torch.optim.Optimizer, ckpt_path: Path,
+                     log_path: Path, resume: bool) -> tuple[int, float, list[dict[str, Any]]]:
+    """(step, training seconds, validation history) to go on from: the checkpoint's, with the model, optimiser and
+    torch generator restored from it (``resume`` and a checkpoint there; its architecture must be ``cfg.model``);
+    otherwise (0, 0.0, []) after removing an old log, the model starting from ``cfg.init_weights`` where given."""
+    if resume and ckpt_path.is_file():
+        ckpt = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        if ckpt.get("format") != CHECKPOINT_FORMAT:
+            raise CnnSlamError(f"{ckpt_path} is not a training checkpoint")
+        saved = TrainConfig.from_dict(ckpt["config"])
+        if saved.model != cfg.model:
+            raise CnnSlamError(f"{ckpt_path} was trained with {saved.model}, not {cfg.model}; use another out_dir")
+        model.load_state_dict(ckpt["model"])
+        opt.load_state_dict(ckpt["optimizer"])  # its state follows the parameters' device
+        torch.set_rng_state(ckpt["torch_rng"])
+        return int(ckpt["step"]), float(ckpt["elapsed_s"]), list(ckpt["val_history"])
+    if log_path.exists():
+        log_path.unlink()
+    if cfg.init_weights is not None:
+        start = load_weights(cfg.init_weights)
+        if start.config != cfg.model:
+            raise CnnSlamError(f"{cfg.init_weights} holds a {start.config} network, not the configured "
+                               f"{cfg.model}; pass the matching architecture")
+        model.load_state_dict(start.model.state_dict())
+    return 0, 0.0, []
+
+
+def _optimiser_step(cfg: TrainConfig, model: DepthSemanticNet, opt: torch.optim.Optimizer, autocast: Any,
+                    batch: tuple[torch.Tensor, ...], step: int) -> tuple[LossTerms, float]:
+    """One optimiser step on ``batch`` (rgb, depth, labels) at the schedule's learning rate of ``step``: the loss
+    terms (:func:`total_loss`; raises on a non-finite loss) and the learning rate used. Gradients are clipped to
+    ``cfg.grad_clip``."""
+    rgb, depth, labels = batch
+    lr = learning_rate(step, cfg)
+    for group in opt.param_groups:
+        group["lr"] = lr
+    with autocast:
+        pred, logits = model(normalize_rgb(rgb))
+    terms = total_loss(pred.float(), logits.float(), depth, labels, cfg.semantic_weight, cfg.depth_space,
+                       cfg.silog_weight, cfg.gradient_weight)
+    if not torch.isfinite(terms.total):
+        raise CnnSlamError(f"non-finite loss at step {step}; lower lr (now {lr:.2e})")
+    opt.zero_grad(set_to_none=True)
+    terms.total.backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+    opt.step()
+    return terms, lr
+
+
 def train(
     cfg: TrainConfig,
     resume: bool = True,
@@ -257,27 +306,7 @@ def train(
     torch.manual_seed(cfg.seed)
     model = DepthSemanticNet(cfg.model).to(device)
     opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    step, elapsed, history = 0, 0.0, []
-    if resume and ckpt_path.is_file():
-        ckpt = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        if ckpt.get("format") != CHECKPOINT_FORMAT:
-            raise CnnSlamError(f"{ckpt_path} is not a training checkpoint")
-        saved = TrainConfig.from_dict(ckpt["config"])
-        if saved.model != cfg.model:
-            raise CnnSlamError(f"{ckpt_path} was trained with {saved.model}, not {cfg.model}; use another out_dir")
-        model.load_state_dict(ckpt["model"])
-        opt.load_state_dict(ckpt["optimizer"])  # its state follows the parameters' device
-        torch.set_rng_state(ckpt["torch_rng"])
-        step, elapsed, history = int(ckpt["step"]), float(ckpt["elapsed_s"]), list(ckpt["val_history"])
-    else:
-        if log_path.exists():
-            log_path.unlink()
-        if cfg.init_weights is not None:
-            start = load_weights(cfg.init_weights)
-            if start.config != cfg.model:
-                raise CnnSlamError(f"{cfg.init_weights} holds a {start.config} network, not the configured "
-                                   f"{cfg.model}; pass the matching architecture")
-            model.load_state_dict(start.model.state_dict())
+    step, elapsed, history = _resume_or_start(cfg, model, opt, ckpt_path, log_path, resume)
     model.train()
     autocast = torch.autocast("cuda", dtype=torch.bfloat16, enabled=cfg.device == "cuda")
 
@@ -311,20 +340,8 @@ def train(
     loader = _BatchStream(cfg, train_set, step)
     t_last = time.perf_counter()
     while step < cfg.steps:
-        rgb, depth, labels = (t.to(device, non_blocking=True) for t in loader.next())
-        lr = learning_rate(step, cfg)
-        for group in opt.param_groups:
-            group["lr"] = lr
-        with autocast:
-            pred, logits = model(normalize_rgb(rgb))
-        terms = total_loss(pred.float(), logits.float(), depth, labels, cfg.semantic_weight, cfg.depth_space,
-                           cfg.silog_weight, cfg.gradient_weight)
-        if not torch.isfinite(terms.total):
-            raise CnnSlamError(f"non-finite loss at step {step}; lower lr (now {lr:.2e})")
-        opt.zero_grad(set_to_none=True)
-        terms.total.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
-        opt.step()
+        batch = tuple(t.to(device, non_blocking=True) for t in loader.next())
+        terms, lr = _optimiser_step(cfg, model, opt, autocast, batch, step)
         step += 1
         now = time.perf_counter()
         elapsed += now - t_last
