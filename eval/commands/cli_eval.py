@@ -16,12 +16,9 @@ as a TUM file (the associated poses at the estimate's timestamps, in the ground 
 
 ``alignment``, ``association``, ``rpe``, ``warnings`` and ``metrics`` have the names and meaning of the same keys
 of a run record (``metrics.json``, schema ``cnnslam-run/1``, :mod:`eval.metrics.results`); ``metrics`` holds its
-trajectory metrics (``ate_rmse``, ``ate_se3_rmse``, ``ate_sim3_rmse``, ``rot_deg_orient_rmse``, ``rpe_rot_deg_rmse``,
-``scale``, ... as defined in :mod:`eval.metrics.trajectory_metrics`), without the run-only ones (``tracked_share``,
-``frames``, depth, semantic, timing). NaN is written as null. Before this schema the ATE statistics sat at the top
-level (``rmse`` is now
-``metrics.ate_rmse``, ``rotation_deg.rmse`` is ``metrics.rot_deg_rmse``, ``rpe.translation.rmse`` is
-``metrics.rpe_trans_rmse``).
+trajectory metrics under the names of the metric catalogue (:mod:`eval.metrics.catalogue`; each statistic of the
+ATE, the rotation errors and the RPE under its block's prefix; defined in :mod:`eval.metrics.trajectory_metrics`),
+without the run-only ones (the tracked share, frames, depth, semantic, timing). NaN is written as null.
 
 Exit status: 0 on success; 2 on bad input, found before anything is computed (an option out of its range, a file
 that is missing or malformed, an output path that cannot be written), with one line naming the value and what is
@@ -50,6 +47,7 @@ if "numpy" not in sys.modules:
 
 from eval.errors import EvalError, InputError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
+from eval.metrics.catalogue import ATE_SE3_RMSE, ATE_SIM3_RMSE
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import (
     RELATIVE_TOLERANCE,
@@ -220,6 +218,7 @@ def format_report(m: TrajectoryMetrics, gt_path: str, est_path: str) -> str:
     """The text report printed by ``cnnslam eval`` (evo_ape-like)."""
     a = m.association
     fit = m.alignment
+    flat = m.flat_metrics()
     flag = "fallback" if fit.fallback else "ill-conditioned" if fit.degenerate else ""
     lines = [
         f"ground truth: {gt_path}",
@@ -235,8 +234,9 @@ def format_report(m: TrajectoryMetrics, gt_path: str, est_path: str) -> str:
         *(
             f"{label:<58}{rmse:.6f} m" + (" (rotation-only fallback)" if f.fallback else "")
             for label, rmse, f in (
-                ("ATE RMSE after SE(3) alignment (metric, = evo_ape -a):", m.ate_se3_rmse, m.se3_alignment),
-                ("ATE RMSE after Sim(3) alignment (scaled, = evo_ape -as):", m.ate_sim3_rmse, m.sim3_alignment),
+                ("ATE RMSE after SE(3) alignment (metric, = evo_ape -a):", flat[ATE_SE3_RMSE.key], m.se3_alignment),
+                ("ATE RMSE after Sim(3) alignment (scaled, = evo_ape -as):", flat[ATE_SIM3_RMSE.key],
+                 m.sim3_alignment),
             )
         ),
         "",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from eval.metrics.catalogue import ATE_SE3_RMSE, ATE_SIM3_RMSE
 from eval.metrics.trajectory_metrics import TrajectoryMetrics
 from sim_envs.formats import format_tum_trajectory
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
@@ -32,7 +33,8 @@ def aligned_tum_text(metrics: TrajectoryMetrics, alignment: str, title: str = ""
     aligned = metrics.aligned(method)
     fit = metrics.alignment if method == metrics.alignment.requested else (
         metrics.se3_alignment if method == AlignmentMethod.SE3 else metrics.sim3_alignment)
-    rmse = {AlignmentMethod.SE3: metrics.ate_se3_rmse, AlignmentMethod.SIM3: metrics.ate_sim3_rmse}.get(
+    flat = metrics.flat_metrics()
+    rmse = {AlignmentMethod.SE3: flat[ATE_SE3_RMSE.key], AlignmentMethod.SIM3: flat[ATE_SIM3_RMSE.key]}.get(
         method, metrics.ate.rmse)
     lines = [title] if title else []
     lines.append(f"aligned onto the ground truth: {ALIGNMENT_TITLES.get(fit.used, fit.used)}"
