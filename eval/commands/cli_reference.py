@@ -35,6 +35,16 @@ import numpy as np
 from tqdm import tqdm
 
 from eval.errors import EvalError, InputError
+from eval.metrics.catalogue import (
+    ATE_MAX,
+    ATE_SE3_RMSE,
+    ATE_SIM3_RMSE,
+    ROT_DEG_ORIENT_RMSE,
+    RPE_ROT_DEG_RMSE,
+    RPE_TRANS_RMSE,
+    SCALE,
+    MetricSpec,
+)
 from eval.metrics.results import json_ready
 from eval.metrics.sfm_reference import (
     CAMERA_MODELS,
@@ -75,20 +85,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
 
 
+# the figures of the ground truth scored against the reference (the maximum ATE among them)
+REFERENCE_FIGURES: tuple[MetricSpec, ...] = (ATE_SE3_RMSE, ATE_SIM3_RMSE, ATE_MAX, SCALE, ROT_DEG_ORIENT_RMSE,
+                                             RPE_TRANS_RMSE, RPE_ROT_DEG_RMSE)  # fmt: skip
+
+
 def compare_with_ground_truth(gt: PoseTrajectory, reference: SfmReference,
                               rpe_delta: float = 1.0) -> tuple[dict[str, Any], TrajectoryMetrics]:  # fmt: skip
     """The folder's ground truth ``gt`` scored against the SfM reference (the reference plays the ground truth's
-    role: errors are in the reference's metres). Returns the figures, keys ``ate_se3_rmse``, ``ate_sim3_rmse``,
-    ``scale`` (Sim(3) scale mapping the ground truth onto the reference), ``rot_deg_orient_rmse``,
-    ``rpe_trans_rmse``, ``rpe_rot_deg_rmse``, ``rotation_ratio`` (ground-truth angle / reference angle over 0.5 s),
-    ``pairs``; and the metrics behind them (SE(3)-aligned ground truth and ATE per pose, for the plot)."""
+    role: errors are in the reference's metres). Returns the figures of :data:`REFERENCE_FIGURES` under their
+    catalogue keys (the Sim(3) scale maps the ground truth onto the reference), ``rotation_ratio`` (ground-truth
+    angle / reference angle over 0.5 s), ``pairs``; and the metrics behind them (SE(3)-aligned ground truth and ATE
+    per pose, for the plot)."""
     ref = PoseTrajectory(reference.timestamps, reference.T_world_cam)
     metrics = evaluate_trajectory(ref, gt, rpe_delta=rpe_delta)
     flat = metrics.flat_metrics()
     ratio, ratio_pairs = rotation_angle_ratio(metrics.gt, metrics.est_aligned, 0.5)  # angles: alignment-free
-    keys = ("ate_se3_rmse", "ate_sim3_rmse", "ate_max", "scale", "rot_deg_orient_rmse", "rpe_trans_rmse",
-            "rpe_rot_deg_rmse")  # fmt: skip
-    out = {k: float(flat[k]) for k in keys if k in flat}
+    out = {s.key: float(flat[s.key]) for s in REFERENCE_FIGURES if s.key in flat}
     out.update(rotation_ratio=ratio, rotation_ratio_pairs=ratio_pairs, pairs=len(metrics.gt))
     return out, metrics
 
@@ -121,8 +134,8 @@ def _markdown(name: str, summary: dict[str, Any]) -> str:
             "| SE(3) ATE [m] | Sim(3) ATE [m] | scale | rotation RMSE, orientation-aligned [deg] | RPE rot [deg] "
             "| RPE trans [m] | rotation ratio (GT / SfM, 0.5 s) |",
             "|---:|---:|---:|---:|---:|---:|---:|",
-            f"| {cmp['ate_se3_rmse']:.4f} | {cmp['ate_sim3_rmse']:.4f} | {cmp['scale']:.4f} "
-            f"| {cmp['rot_deg_orient_rmse']:.3f} | {cmp['rpe_rot_deg_rmse']:.3f} | {cmp['rpe_trans_rmse']:.4f} "
+            f"| {cmp[ATE_SE3_RMSE.key]:.4f} | {cmp[ATE_SIM3_RMSE.key]:.4f} | {cmp[SCALE.key]:.4f} "
+            f"| {cmp[ROT_DEG_ORIENT_RMSE.key]:.3f} | {cmp[RPE_ROT_DEG_RMSE.key]:.3f} | {cmp[RPE_TRANS_RMSE.key]:.4f} "
             f"| {cmp['rotation_ratio']:.4f} ({cmp['rotation_ratio_pairs']} pairs) |",
         ]
     return "\n".join(lines) + "\n"

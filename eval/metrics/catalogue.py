@@ -147,6 +147,7 @@ ATE_SIM3_RMSE = MetricSpec("ate_sim3_rmse", "ATE, Sim(3) [m]", "m", "lower", "tr
                            shown=_shown((SIM3, 0, "ATE after Sim(3) alignment [m]"),
                                         (QUICK, 2, "ATE after Sim(3) alignment [m]"), (RUN_FACTS, 2, "ATE Sim(3)"),
                                         (TRANSFER, 1), (SECOND_REFERENCE, 1, "Sim(3) ATE [m]")))
+ATE_MAX = MetricSpec("ate_max", "ATE, max [m]", "m", "lower", "trajectory", 4, _ERR, NON_NEGATIVE)
 ATE_PAIRS = MetricSpec("ate_pairs", "pose pairs scored", "count", "match", "trajectory", 0, (0.0, 0.0), NON_NEGATIVE)
 ATE_ALIGNMENT_DEGENERATE = MetricSpec("ate_alignment_degenerate", "alignment degenerate (0/1)", "", "lower",
                                       "trajectory", 0, _ERR, SHARE)
@@ -247,7 +248,7 @@ MAP_SCORING_S = MetricSpec("map_scoring_s", "map scoring time [s]", "s", None, "
 
 # The exact specs, in the gate's order (no rule may shadow a later one: a name ending in another's key goes first).
 CATALOGUE: tuple[MetricSpec, ...] = (
-    ATE_RMSE, ATE_SE3_RMSE, ATE_SIM3_RMSE, ATE_PAIRS, ATE_ALIGNMENT_DEGENERATE, ATE_ALIGNMENT_FALLBACK,
+    ATE_RMSE, ATE_SE3_RMSE, ATE_SIM3_RMSE, ATE_MAX, ATE_PAIRS, ATE_ALIGNMENT_DEGENERATE, ATE_ALIGNMENT_FALLBACK,
     RPE_ROT_DEG_RMSE, RPE_ROT_DEG_PAIRS, RPE_TRANS_RMSE, RPE_TRANS_PAIRS,
     ROT_DEG_ORIENT_RMSE, ROT_DEG_RMSE, ROT_DEG_PAIRS,
     SCALE_ERROR_PERCENT, SCALE_ERROR, SCALE, LENGTH_GT_M, LENGTH_EST_M, TRACKED_SHARE, ATE_PERCENT_LENGTH,
