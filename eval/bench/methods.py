@@ -37,6 +37,7 @@ import numpy as np
 
 from eval.bench.fingerprint import agent_modules, source_sha256  # source_sha256: beside the closures it hashes
 from eval.errors import InputError
+from eval.metrics.runs import GROUP_ABSENT, METRIC_GROUPS, metric_group  # noqa: F401  (the judge's groups)
 from slamcommon.alignment import AlignmentMethod
 from slamcommon.config import config_keys, has_key
 from slamcommon.errors import ProjectError
@@ -45,27 +46,7 @@ MethodKind = Literal["agent", "external"]
 METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
 METHODS_FILE: Path = Path(__file__).resolve().parents[1] / "methods.toml"  # eval/methods.toml, data beside code
 
-# metric name prefixes (eval.metrics.results' flat names) of each group
-METRIC_GROUPS: dict[str, tuple[str, ...]] = {
-    "trajectory": ("ate_", "rot_deg_", "rpe_", "scale", "length_", "tracked_share"),
-    "depth": ("depth_",),
-    "semantic": ("semantic_",),
-    "map": ("map_",),
-}
 ALWAYS_KEPT: tuple[str, ...] = ("frames",)
-# what a method without a group does not give, as the reports say it ("n/a: no trajectory of its own")
-GROUP_ABSENT: dict[str, str] = {
-    "trajectory": "no trajectory of its own",
-    "depth": "no key-frame depth",
-    "semantic": "no semantic labels",
-    "map": "no global model",
-}
-
-
-def metric_group(metric: str) -> str | None:
-    """The metric group (:data:`METRIC_GROUPS`) a flat metric name belongs to; None for one of no group
-    (``frames``, a resource figure)."""
-    return next((g for g, prefixes in METRIC_GROUPS.items() if any(metric.startswith(p) for p in prefixes)), None)
 # wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
 TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps", "map_scoring_s")
 

@@ -60,8 +60,13 @@ from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_file
 from eval.metrics.association import associate
 from eval.metrics.map_metrics import map_metrics
 from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
+from eval.metrics.runs import (  # a run folder's record files and its trajectory's scoring: the judge's, so that
+    DONE_FILE,  # noqa: F401  the reports read them back without importing the benchmark (names kept here)
+    FAILED_FILE,  # noqa: F401
+    run_trajectory_metrics,
+)
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
-from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory
+from eval.metrics.trajectory_metrics import TrajectoryMetrics
 from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds, unit_summary
 from slamcommon.resources import peak_rss_mib
@@ -77,8 +82,6 @@ RUN_FILES: tuple[str, ...] = (
     "trajectory.png",
     "depth.png",
 )
-DONE_FILE = "metrics.json"
-FAILED_FILE = "failed.json"
 FRAME_CACHE_DIR = ".frames"  # under a suite's output root: simulated frames rendered once, read by its other runs
 RunStatus = Literal["done", "cached", "failed", "not_run"]
 DEPTH_PNG_SCALE = 5000.0  # TUM depth PNGs: 5000 = 1 m (external systems' depth maps)
@@ -352,15 +355,6 @@ def resource_figures(frames: int, wall_s: float) -> dict[str, float]:
 def run_title(spec: RunSpec) -> str:
     """How a run's figures and files name it: method, sequence and seed."""
     return f"{spec.method.name} on {spec.sequence.name} (seed {spec.seed})"
-
-
-def run_trajectory_metrics(timestamps: np.ndarray, T_gt: np.ndarray, T_est: np.ndarray,
-                           alignment: str) -> TrajectoryMetrics:
-    """A run's trajectory scored as its record scores it: poses paired by index (the driver's, or an external
-    trajectory already associated), aligned with the run's ``alignment``."""
-    stamps = np.asarray(timestamps)
-    return evaluate_trajectory(PoseTrajectory(stamps, T_gt), PoseTrajectory(stamps, T_est), alignment=alignment,
-                               association="index")  # fmt: skip
 
 
 def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | None = None,

@@ -5,7 +5,6 @@ collected as a :class:`SuiteRun` (the records of the finished runs, how each run
 
 from __future__ import annotations
 
-import io
 import json
 import logging
 import subprocess
@@ -33,7 +32,8 @@ from eval.bench.run_store import complete_run, is_finished, remove_stale_tempora
 from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
-from eval.metrics.results import RunRecord, json_ready, load_run
+from eval.metrics.results import RunRecord, load_run
+from eval.metrics.runs import suite_records_json  # noqa: F401  (the judge's; its name kept here)
 
 logger = logging.getLogger(__name__)
 
@@ -264,10 +264,3 @@ def suite_task(item: FramesJob | RunSpec, progress: bool = False) -> int | RunRe
     if isinstance(item, FramesJob):
         return render_frames(item)
     return execute_run(item, progress=progress)
-
-
-def suite_records_json(records: Sequence[RunRecord]) -> str:
-    """The run records as one JSON list, in run order, each with its run key (the run file of ``cnnslam regress``)."""
-    buffer = io.StringIO()
-    json.dump(json_ready([r.to_json(include_run=True) for r in records]), buffer, indent=1, allow_nan=False)
-    return buffer.getvalue() + "\n"
