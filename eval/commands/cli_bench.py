@@ -108,7 +108,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add("--results", type=Path, help="tables and plots (default: results/ for a suite as defined, else "
         "<out>/reports/<suite>-<selection>/; a selection of other sequences or methods never writes into results/)")
     add("--align", choices=ALIGNMENTS, help="alignment of the headline ATE (default: the suite's, se3 as in the "
-        "paper; a method's own align wins); every run records ate_se3_rmse and ate_sim3_rmse")
+        "paper; a method's own align wins); every run records the SE(3) and the Sim(3) ATE")
     add("--figure-format", choices=FIGURE_FORMATS, default=DEFAULT_FIGURE_FORMAT, help="the report's figures: png "
         "(default), pdf (with a PNG twin for the Markdown and HTML) or svg")
     add("--no-plots", action="store_true", help="no per-run plots (faster)")
