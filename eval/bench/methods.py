@@ -37,6 +37,7 @@ import numpy as np
 
 from eval.bench.fingerprint import agent_modules, source_sha256  # source_sha256: beside the closures it hashes
 from eval.errors import InputError
+from eval.metrics import catalogue
 from eval.metrics.runs import GROUP_ABSENT, METRIC_GROUPS, metric_group  # noqa: F401  (the judge's groups)
 from slamcommon.alignment import AlignmentMethod
 from slamcommon.config import config_keys, has_key
@@ -46,9 +47,9 @@ MethodKind = Literal["agent", "external"]
 METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
 METHODS_FILE: Path = Path(__file__).resolve().parents[1] / "methods.toml"  # eval/methods.toml, data beside code
 
-ALWAYS_KEPT: tuple[str, ...] = ("frames",)
+ALWAYS_KEPT: tuple[str, ...] = (catalogue.FRAMES.key,)
 # wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
-TIMING_METRICS: tuple[str, ...] = ("step_ms_mean", "step_ms_median", "step_ms_max", "fps", "map_scoring_s")
+TIMING_METRICS: tuple[str, ...] = catalogue.keys("timing")
 
 EXTERNAL_LAYOUT = """\
 FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps
@@ -215,7 +216,7 @@ class Method:
         """Whether the metric (a flat name of :mod:`eval.metrics.results`) belongs to one of the method's groups."""
         if metric in ALWAYS_KEPT:
             return True
-        return any(metric.startswith(p) for g in self.metrics for p in METRIC_GROUPS[g])
+        return metric_group(metric) in self.metrics
 
     def select_metrics(self, metrics: Mapping[str, float]) -> dict[str, float]:
         """The metrics that apply to this method (its groups), timing figures left out."""

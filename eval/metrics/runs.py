@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from eval.metrics import catalogue
 from eval.metrics.results import RunRecord, json_ready
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajectory
@@ -19,13 +20,8 @@ from eval.metrics.trajectory_metrics import TrajectoryMetrics, evaluate_trajecto
 DONE_FILE = "metrics.json"  # a finished run's record (eval.metrics.results.RunRecord.to_json)
 FAILED_FILE = "failed.json"  # a failed run's error, traceback and wall time: the only file of its folder
 
-# metric name prefixes (eval.metrics.results' flat names) of each group
-METRIC_GROUPS: dict[str, tuple[str, ...]] = {
-    "trajectory": ("ate_", "rot_deg_", "rpe_", "scale", "length_", "tracked_share"),
-    "depth": ("depth_",),
-    "semantic": ("semantic_",),
-    "map": ("map_",),
-}
+# the metric groups a method declares (each metric's group: its spec in eval.metrics.catalogue)
+METRIC_GROUPS: tuple[str, ...] = catalogue.GROUPS
 # what a method without a group does not give, as the reports say it ("n/a: no trajectory of its own")
 GROUP_ABSENT: dict[str, str] = {
     "trajectory": "no trajectory of its own",
@@ -36,9 +32,9 @@ GROUP_ABSENT: dict[str, str] = {
 
 
 def metric_group(metric: str) -> str | None:
-    """The metric group (:data:`METRIC_GROUPS`) a flat metric name belongs to; None for one of no group
-    (``frames``, a resource figure)."""
-    return next((g for g, prefixes in METRIC_GROUPS.items() if any(metric.startswith(p) for p in prefixes)), None)
+    """The metric group (:data:`METRIC_GROUPS`) a flat metric name belongs to (its catalogue spec's,
+    :func:`eval.metrics.catalogue.group_of`); None for one of no group (the frame count, a resource figure)."""
+    return catalogue.group_of(metric)
 
 
 def run_trajectory_metrics(timestamps: np.ndarray, T_gt: np.ndarray, T_est: np.ndarray,
