@@ -17,6 +17,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from eval.reports.inputs import machine_label  # noqa: F401  (a report's line for a description; its name kept here)
+
 # The packages whose versions decide a run's floating-point results or its images.
 PACKAGES = ("numpy", "scipy", "torch", "opencv-python-headless", "opencv-python", "mujoco", "pyrender")
 # Instruction-set extensions that select different floating-point kernels (widest first).
@@ -60,10 +62,3 @@ def machine_description() -> dict[str, Any]:
         "python": platform.python_version(),
         "packages": packages,
     }
-
-
-def machine_label(env: dict[str, Any]) -> str:
-    """One line naming a machine description: CPU, widest ISA, torch and numpy versions."""
-    pk = env.get("packages") or {}
-    isa = (env.get("isa") or ["-"])[0]
-    return f"{env.get('cpu', '?')} ({isa}), torch {pk.get('torch', '-')}, numpy {pk.get('numpy', '-')}"

@@ -245,6 +245,11 @@ class Suite:
             skipped=skipped,
         )
 
+    @property
+    def axis_titles(self) -> Mapping[str, str]:
+        """The title of each sweep axis (:data:`SWEEP_AXES`, axis name -> title), as the sweep report shows it."""
+        return SWEEP_AXES
+
     def selection_note(self) -> str:
         """How this suite's cells differ from the suite as defined (:func:`get_suite`), in words: the sequences and
         methods it leaves out or adds (any frames, seeds or alignment are the same cells); empty when it holds
