@@ -58,6 +58,7 @@ from eval.bench.sequence_ref import SequenceRef
 from eval.errors import RunnerError
 from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
 from eval.metrics.association import associate
+from eval.metrics.catalogue import TRACKED_SHARE
 from eval.metrics.map_metrics import map_metrics
 from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
 from eval.metrics.runs import (  # a run folder's record files and its trajectory's scoring: the judge's, so that
@@ -279,7 +280,7 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         metrics["map_scoring_s"] = stages["map_metrics"] = time.perf_counter() - t_map
     if method.kind == "external":
         metrics["frames"] = float(n_frames)
-        metrics["tracked_share"] = float(len(episode.timestamps)) / n_frames
+        metrics[TRACKED_SHARE.key] = float(len(episode.timestamps)) / n_frames
         # the poses were matched by timestamp before scoring (TUM rule): record that, not the index pairing after it
         record = record.replace(association=episode.extras["association"],
                                 uses_ground_truth=bool(method.uses_ground_truth),
