@@ -1,4 +1,4 @@
-"""Tests of the training data: view sampling, shard rendering (deterministic, training split only), augmentation."""
+"""Tests of the training data: shard rendering (deterministic, training split only), augmentation."""
 
 from __future__ import annotations
 
@@ -14,36 +14,19 @@ from cnnslam.depthnet.data import (
     GenerationConfig,
     RenderedDataset,
     Sample,
-    ViewConfig,
     augment,
     camera_pipeline,
-    camera_rotation,
     camera_velocity,
     downsample_ground_truth,
     downsample_rgb,
     generate_dataset,
     half_resolution_arrays,
     jpeg_roundtrip,
-    sample_view_pose,
     scene_seeds,
     shard_jobs,
     training_batch,
-    view_is_usable,
 )
 from cnnslam.errors import CnnSlamError
-
-
-def test_camera_rotation_axes() -> None:
-    R = camera_rotation(np.array([1.0, 0.0, 0.0]), 0.0)
-    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
-    assert np.linalg.det(R) == pytest.approx(1.0)
-    np.testing.assert_allclose(R[:, 2], [1, 0, 0], atol=1e-12)  # optical axis forward
-    np.testing.assert_allclose(R[:, 0], [0, -1, 0], atol=1e-12)  # image x to the right of +x, z up: -y
-    np.testing.assert_allclose(R[:, 1], [0, 0, -1], atol=1e-12)  # image y down
-    R_roll = camera_rotation(np.array([1.0, 0.0, 0.0]), np.radians(90))
-    np.testing.assert_allclose(R_roll[:, 2], [1, 0, 0], atol=1e-12)
-    with pytest.raises(CnnSlamError):
-        camera_rotation(np.array([0.0, 0.0, -1.0]), 0.0)
 
 
 def test_split_seeds_are_training_seeds_and_disjoint() -> None:
@@ -60,39 +43,6 @@ def test_jobs_use_training_styles_only(tmp_path: Path) -> None:
     jobs = shard_jobs(tmp_path, "train", GenerationConfig(n_scenes=8))
     assert {j.style for j in jobs} == set(TRAIN_STYLES)
     assert not {j.style for j in jobs} & set(TEST_STYLES)
-
-
-def test_sampled_views_are_in_free_space_and_hand_held() -> None:
-    from sim_envs.scenegen import generate_scene
-
-    scene = generate_scene("study", 10_007, texture_density=0.5)
-    cfg = ViewConfig()
-    rng = np.random.default_rng(0)
-    for _ in range(40):
-        T, mode = sample_view_pose(scene, rng, cfg)
-        assert mode in ("interest", "free", "look_down")
-        assert scene.free_space(T[None, :3, 3], margin=cfg.margin_m)[0]
-        assert cfg.low_height_m[0] <= T[2, 3] <= cfg.height_m[1]
-        R = T[:3, :3]
-        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-9)
-        pitch = np.degrees(np.arcsin(R[2, 2]))
-        bounds = {
-            "free": cfg.free_pitch_deg,
-            "look_down": cfg.look_down_pitch_deg,
-            "interest": (-cfg.max_pitch_down_deg, 90.0),  # aimed at a target, which may sit above the camera
-        }[mode]
-        assert bounds[0] - 1e-9 <= pitch <= bounds[1] + 1e-9
-        # roll: image x stays within max_roll of horizontal
-        assert abs(np.degrees(np.arcsin(np.clip(R[2, 0], -1, 1)))) <= cfg.max_roll_deg + 1e-6
-
-
-def test_view_usability() -> None:
-    cfg = ViewConfig()
-    assert view_is_usable(np.full((10, 10), 2.0, np.float32), cfg)
-    assert not view_is_usable(np.full((10, 10), 0.3, np.float32), cfg)  # pressed against a surface
-    d = np.full((10, 10), 2.0, np.float32)
-    d[:2] = 0
-    assert not view_is_usable(d, cfg)  # 20 % without a surface
 
 
 def test_generation_is_deterministic_resumable_and_readable(tmp_path: Path) -> None:
