@@ -27,9 +27,8 @@ from __future__ import annotations
 
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
-import cv2
 import numpy as np
 
 from sim_envs import furniture as fur
@@ -37,278 +36,43 @@ from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import SemanticClass
 from sim_envs.materials import RICH_WALL_STRENGTH, MaterialBank, enrich_material
 from sim_envs.physics import FreeBody, settle_bodies
+from sim_envs.room_layout import CLEARANCE as CLEARANCE  # re-exported: the floor plan is sim_envs.room_layout
+from sim_envs.room_layout import Drop, Layout, Opening, Placed, Rect
+from sim_envs.room_layout import inward as _inward
+from sim_envs.room_layout import wall_frame as _wall_frame
+from sim_envs.room_layout import yaw_facing as _yaw_facing
+from sim_envs.room_layout import yaw_pose as _T
+from sim_envs.room_styles import (
+    MAX_OBJECTS_PER_SUPPORT,
+    OBJECTS_ON,
+    RICH_CLUTTER,
+    RICH_FLOOR_MAX_HEIGHT,
+    RICH_FLOOR_OBJECTS,
+    RICH_FLOOR_TABLE,
+    RICH_MAX_PER_SEAT,
+    RICH_MAX_PER_SUPPORT,
+    RICH_OBJECTS_ON,
+    RICH_STREAM,
+    RICH_TRIES,
+    RICH_WALL_ITEMS,
+    RICH_WALL_TABLE,
+    ROOM_STYLES,
+    SHELF_OBJECTS,
+    STYLES,
+    TUMBLE_PROBABILITY,
+    TUMBLING,
+    Style,
+)
+from sim_envs.room_styles import TEST_STYLES as TEST_STYLES  # re-exported: the styles' data is sim_envs.room_styles
+from sim_envs.room_styles import TRAIN_STYLES as TRAIN_STYLES
+from sim_envs.room_styles import Item as Item
 from sim_envs.scene import DETAILS, LIGHTINGS, Light, Material, Primitive, Scene
 
-TEST_STYLES: tuple[str, ...] = ("office", "living")
-TRAIN_STYLES: tuple[str, ...] = ("bedroom", "kitchen", "classroom", "study")
-ROOM_STYLES: tuple[str, ...] = TEST_STYLES + TRAIN_STYLES
-
 WALL_THICKNESS = 0.1  # metres (ours)
-CLEARANCE = 0.04  # metres kept free between pieces of furniture (ours)
 DROP_HEIGHT = 0.004  # metres above its support an object starts falling from (ours)
 VERT, FLOOR = SemanticClass.VERTICAL_STRUCTURE, SemanticClass.FLOOR
 
 
-@dataclass(frozen=True)
-class Item:
-    """A kind of furniture a style places: FURNITURE builder name, (min, max) count, "wall" or "free", and a group.
-
-    group: "" (alone), "chair" (a chair in front, facing it), "chairs" (chairs around a table), "coffee" (a coffee
-    table in front of a sofa), "rows" (a grid of pupils' desks with chairs, all facing wall 0).
-    """
-
-    builder: str
-    count: tuple[int, int]
-    place: str = "wall"
-    group: str = ""
-
-
-@dataclass(frozen=True)
-class Style:
-    """Everything a room style decides: size ranges (m), floor/wall material slots, openings, furniture, clutter."""
-
-    name: str
-    size_xy: tuple[float, float]
-    height: tuple[float, float]
-    floors: tuple[str, ...]
-    walls: tuple[str, ...]
-    items: tuple[Item, ...]
-    windows: tuple[int, int] = (1, 2)
-    doors: tuple[int, int] = (1, 2)
-    posters: tuple[int, int] = (1, 3)
-    whiteboard: bool = False
-    rug: float = 0.0  # probability of a rug in the middle of the room
-    clutter: float = 6.0  # objects per square metre of support (furniture tops), before caps
-    floor_objects: tuple[int, int] = (1, 3)
-
-
-_OFFICE_WALLS = ("wall_paint", "wall_paint", "wall_wallpaper")
-STYLES: dict[str, Style] = {
-    "office": Style(
-        name="office", size_xy=(4.5, 6.0), height=(2.6, 2.8),
-        floors=("floor_carpet", "floor_tiles"), walls=_OFFICE_WALLS,
-        items=(
-            Item("desk", (2, 4), "wall", "chair"), Item("bookshelf", (1, 2)), Item("cabinet", (1, 2)),
-            Item("desk", (0, 1), "free", "chair"), Item("table", (0, 1), "free", "chairs"),
-        ),
-        windows=(1, 2), posters=(1, 3), whiteboard=True, clutter=7.0,
-    ),
-    "living": Style(
-        name="living", size_xy=(4.5, 6.0), height=(2.5, 2.7),
-        floors=("floor_wood", "floor_wood", "floor_carpet"), walls=("wall_paint", "wall_wallpaper"),
-        items=(
-            Item("sofa", (1, 1), "wall", "coffee"), Item("tv_stand", (1, 1)), Item("bookshelf", (1, 2)),
-            Item("armchair", (0, 1)), Item("cabinet", (0, 1)), Item("table", (0, 1), "free", "chairs"),
-        ),
-        windows=(1, 3), posters=(1, 3), rug=0.7, clutter=5.0,
-    ),
-    "bedroom": Style(
-        name="bedroom", size_xy=(3.5, 5.0), height=(2.4, 2.7),
-        floors=("floor_wood", "floor_carpet"), walls=("wall_paint", "wall_wallpaper"),
-        items=(
-            Item("bed", (1, 1)), Item("nightstand", (1, 2)), Item("wardrobe", (1, 1)),
-            Item("desk", (0, 1), "wall", "chair"), Item("bookshelf", (0, 1)), Item("cabinet", (0, 1)),
-        ),
-        windows=(1, 2), posters=(0, 2), rug=0.5,
-    ),
-    "kitchen": Style(
-        name="kitchen", size_xy=(3.5, 5.0), height=(2.4, 2.7),
-        floors=("floor_tiles", "floor_concrete"), walls=("wall_tiles", "wall_paint"),
-        items=(
-            Item("counter", (1, 2)), Item("fridge", (1, 1)), Item("table", (1, 1), "free", "chairs"),
-            Item("cabinet", (0, 1)),
-        ),
-        windows=(1, 2), posters=(0, 1), clutter=8.0, floor_objects=(0, 2),
-    ),
-    "classroom": Style(
-        name="classroom", size_xy=(6.0, 8.0), height=(2.8, 3.2),
-        floors=("floor_tiles", "floor_concrete"), walls=("wall_paint",),
-        items=(
-            Item("small_desk", (6, 16), "free", "rows"), Item("teacher_desk", (1, 1), "wall", "chair"),
-            Item("bookshelf", (1, 2)), Item("cabinet", (1, 2)),
-        ),
-        windows=(2, 3), posters=(1, 3), whiteboard=True, clutter=4.0,
-    ),
-    "study": Style(
-        name="study", size_xy=(3.5, 5.0), height=(2.5, 2.8),
-        floors=("floor_wood", "floor_carpet"), walls=("wall_wallpaper", "wall_paint"),
-        items=(
-            Item("bookshelf", (2, 3)), Item("desk", (1, 1), "wall", "chair"), Item("armchair", (1, 1)),
-            Item("coffee_table", (0, 1), "free"), Item("cabinet", (0, 1)),
-        ),
-        windows=(1, 2), posters=(1, 2), rug=0.6,
-    ),
-}  # fmt: skip
-
-# What stands on what: furniture kind (or "floor") -> (object builder, weight); support kind "shelf" uses SHELF_OBJECTS
-OBJECTS_ON: dict[str, tuple[tuple[str, float], ...]] = {
-    "desk": (("book", 3), ("cup", 2), ("lamp", 1), ("plant", 1), ("box", 1), ("laptop", 1), ("bottle", 1)),
-    "table": (("cup", 3), ("bowl", 2), ("bottle", 2), ("vase", 1), ("book", 1), ("plant", 1)),
-    "coffee_table": (("book", 3), ("cup", 2), ("vase", 1), ("bowl", 1), ("plant", 1)),
-    "cabinet": (("vase", 2), ("plant", 2), ("book", 2), ("box", 2), ("lamp", 1)),
-    "nightstand": (("lamp", 3), ("book", 2), ("cup", 1)),
-    "counter": (("cup", 2), ("bottle", 3), ("bowl", 2), ("box", 1), ("plant", 1)),
-    "tv_stand": (("box", 1), ("vase", 1), ("book", 1)),
-    "sofa": (("pillow", 1),),
-    "armchair": (("pillow", 1),),
-    "floor": (("large_plant", 3), ("bin", 2), ("box", 2)),
-}
-SHELF_OBJECTS: tuple[tuple[str, float], ...] = (("box", 1), ("vase", 1), ("book", 1))
-MAX_OBJECTS_PER_SUPPORT = 7  # (ours)
-TUMBLING = frozenset({"book", "box", "pillow", "bottle", "cup", "bowl", "vase"})  # may be tossed (ours)
-TUMBLE_PROBABILITY = 0.35  # share of those tossed from a few cm with a random tilt rather than set down (ours)
-
-# Rich rooms (module docstring): what the rich pass adds, by support kind (fur.Support.kind)
-RICH_STREAM = 23  # the rich pass's generators are seeded from (seed, style, RICH_STREAM) (ours)
-_RICH_TOP: tuple[tuple[str, float], ...] = (
-    ("papers", 4), ("book", 3), ("cup", 2), ("tin", 2), ("carton", 2), ("pen_holder", 1), ("bush", 1), ("bowl", 1),
-    ("bottle", 1),
-)  # fmt: skip
-RICH_OBJECTS_ON: dict[str, tuple[tuple[str, float], ...]] = {
-    "top": _RICH_TOP,
-    "tv": _RICH_TOP,
-    "shelf": (("tin", 2), ("carton", 2), ("book", 2), ("cup", 1), ("bush", 1), ("papers", 1)),
-    "seat": (("pillow", 2), ("papers", 1), ("book", 1)),
-}
-RICH_CLUTTER = 30.0  # extra objects per square metre of support, before the caps (ours)
-RICH_MAX_PER_SUPPORT = 14  # extra objects per support at most (ours)
-RICH_TRIES = 30  # random spots tried per extra object (ours; the standard pass tries 12)
-RICH_MAX_PER_SEAT = 2  # extra objects per seat at most (ours)
-RICH_FLOOR_OBJECTS: tuple[int, int] = (3, 6)  # extra floor objects along the walls (ours)
-RICH_FLOOR_TABLE: tuple[tuple[str, float], ...] = (("box", 3), ("carton", 2), ("bin", 1), ("bush", 1))
-RICH_FLOOR_MAX_HEIGHT = 0.45  # metres: a rich room's floor objects are at most this high (ours: below cameras)
-RICH_WALL_ITEMS: tuple[int, int] = (18, 30)  # wall decorations tried (ours, fitted: results/camera_calibration.md)
-RICH_WALL_TABLE: tuple[tuple[str, float], ...] = (
-    ("frame", 6), ("pinboard", 1), ("clock", 0.5), ("calendar", 1), ("switch", 1.5),
-)  # fmt: skip
-
-
-@dataclass(frozen=True)
-class Rect:
-    """An oriented footprint: centre (cx, cy), yaw (rad), half sizes (hx, hy) in metres; occupies z in [z0, z1]."""
-
-    cx: float
-    cy: float
-    yaw: float
-    hx: float
-    hy: float
-    z0: float = 0.0
-    z1: float = np.inf
-
-    def cv(self, grow: float = 0.0) -> tuple[tuple[float, float], tuple[float, float], float]:
-        """The rectangle in OpenCV's RotatedRect form, grown by ``grow`` metres on each side."""
-        return ((self.cx, self.cy), (2 * (self.hx + grow), 2 * (self.hy + grow)), float(np.degrees(self.yaw)))
-
-    def corners(self) -> np.ndarray:
-        """(4, 2) corner points (m)."""
-        c, s = np.cos(self.yaw), np.sin(self.yaw)
-        local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [self.hx, self.hy]
-        return local @ np.array([[c, s], [-s, c]]) + [self.cx, self.cy]
-
-    def overlaps(self, other: Rect, grow: float = 0.0) -> bool:
-        """Whether the two footprints intersect (after growing this one by ``grow``) and their heights overlap."""
-        if self.z1 <= other.z0 or other.z1 <= self.z0:
-            return False
-        if (
-            np.hypot(self.cx - other.cx, self.cy - other.cy)
-            > np.hypot(self.hx, self.hy) + np.hypot(other.hx, other.hy) + 2 * grow
-        ):
-            return False
-        return cv2.rotatedRectangleIntersection(self.cv(grow), other.cv())[0] != cv2.INTERSECT_NONE
-
-
-@dataclass(frozen=True)
-class Drop:
-    """A small object about to be dropped.
-
-    assembly: the object; T_world: (4, 4) upright pose ``lift`` metres above its resting place; tilt: (roll, pitch)
-    in radians it is tumbled by before falling (0 for objects set down upright), used only with physics.
-    """
-
-    assembly: fur.Assembly
-    T_world: np.ndarray
-    lift: float
-    tilt: tuple[float, float] = (0.0, 0.0)
-
-    def start_pose(self) -> np.ndarray:
-        """(4, 4) initial pose for physics: tilted about the object's origin, raised so no corner starts lower."""
-        if not any(self.tilt):
-            return self.T_world
-        R = fur.pose((0.0, 0.0, 0.0), (self.tilt[0], self.tilt[1], 0.0))
-        corners = np.concatenate([fur.part_corners(p) for p in self.assembly.parts])
-        low = (corners @ R[:3, :3].T)[:, 2].min()  # <= 0: how far the tilted object reaches below its origin
-        return self.T_world @ _T(0.0, 0.0, -low, 0.0) @ R
-
-
-@dataclass
-class Placed:
-    """An assembly placed in the room: its pose (yaw about z, translation) and footprint."""
-
-    assembly: fur.Assembly
-    T_world: np.ndarray
-    rect: Rect
-
-
-class Layout:
-    """The room's floor plan: what occupies which footprint (furniture, door clearances, window zones)."""
-
-    def __init__(self, size: np.ndarray) -> None:
-        self.size = size
-        self.rects: list[Rect] = []
-
-    def inside(self, rect: Rect, margin: float = 0.0) -> bool:
-        """Whether a footprint lies inside the room, ``margin`` metres from the walls."""
-        c = rect.corners()
-        return bool((c >= margin - 1e-9).all() and (c[:, 0] <= self.size[0] - margin + 1e-9).all()
-                    and (c[:, 1] <= self.size[1] - margin + 1e-9).all())  # fmt: skip
-
-    def fits(self, rects: list[Rect]) -> bool:
-        """Whether all ``rects`` lie inside the room, clear of everything placed and of each other."""
-        for k, r in enumerate(rects):
-            if not self.inside(r) or any(r.overlaps(o, CLEARANCE) for o in self.rects + rects[:k]):
-                return False
-        return True
-
-
-def _wall_frame(wall: int, size: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Wall ``wall`` (0: y = 0, 1: x = Lx, 2: y = Ly, 3: x = 0): (origin (2,), tangent (2,), length).
-
-    The tangent runs so that the inward normal is its left-hand perpendicular: n = (-t_y, t_x).
-    """
-    Lx, Ly = size[0], size[1]
-    return {
-        0: (np.array([0.0, 0.0]), np.array([1.0, 0.0]), Lx),
-        1: (np.array([Lx, 0.0]), np.array([0.0, 1.0]), Ly),
-        2: (np.array([Lx, Ly]), np.array([-1.0, 0.0]), Lx),
-        3: (np.array([0.0, Ly]), np.array([0.0, -1.0]), Ly),
-    }[wall]
-
-
-def _inward(tangent: np.ndarray) -> np.ndarray:
-    """The inward normal (2,) of a wall with unit ``tangent`` (its left-hand perpendicular)."""
-    return np.array([-tangent[1], tangent[0]])
-
-
-def _yaw_facing(direction: np.ndarray) -> float:
-    """The yaw that turns an assembly's front (+y) towards ``direction`` (2,)."""
-    return float(np.arctan2(-direction[0], direction[1]))
-
-
-def _T(x: float, y: float, z: float, yaw: float) -> np.ndarray:
-    """(4, 4) pose: yaw about z (radians), then translation (x, y, z) metres."""
-    return fur.pose((x, y, z), (0.0, 0.0, yaw))
-
-
-@dataclass(frozen=True)
-class Opening:
-    """A door or window on a wall: wall index, centre along the wall s (m), width, bottom and top heights (m)."""
-
-    kind: str
-    wall: int
-    s: float
-    width: float
-    z0: float
-    z1: float
 
 
 class _Builder:
