@@ -78,15 +78,16 @@ from typing import Any, Literal
 import pandas as pd
 
 from eval.errors import InputError
+from eval.metrics import catalogue
+from eval.metrics.catalogue import TRACKED_SHARE
 from eval.metrics.results import ResultsError, RunRecord, failure_of, json_ready, share_text
 
 BASELINE_SCHEMA = "cnnslam-baseline/2"
 BASELINE_SCHEMAS: tuple[str, ...] = ("cnnslam-baseline/1", BASELINE_SCHEMA)  # what load_baseline reads
 # rotation twice: after the SE(3) fit (catches an error in the camera frame, which an orientation-only fit absorbs
 # on short runs) and after the orientation-only fit (which no ill-posed position fit can decide)
-GATED: tuple[str, ...] = ("ate_rmse", "depth_percent_correct", "tracked_share", "rot_deg_rmse", "rot_deg_orient_rmse",
-                          "map_accuracy_median", "map_completeness_within", "map_label_accuracy")
-GATED_COUNTS: tuple[str, ...] = ("frames",)  # gated too (a run without metrics is "missing"), not averaged
+GATED: tuple[str, ...] = catalogue.keys(gated=True)  # the catalogue's specs with gated=True
+GATED_COUNTS: tuple[str, ...] = (catalogue.FRAMES.key,)  # gated too (a run without metrics is "missing"), not averaged
 AVERAGE_PREFIX = "avg"
 ADDED_KEY = "added_after_calibration"  # the baseline's figures written by update_baseline(only_new=True)
 # the baseline's figures given new values by update_baseline(merge=True): like the added ones, in no machine record
@@ -129,62 +130,13 @@ class Tolerance:
 
 # Floors of the allowed change: a calibrated metric may never be held tighter than these (the figure's own rounding
 # and a margin for configurations the matrix did not try); uncalibrated metrics get them as their tolerance.
-DEFAULT_TOLERANCES: tuple[Tolerance, ...] = (
-    Tolerance("*pairs", "match"),
-    Tolerance("*keyframes", "match", abs=2.0),  # before "*frames", which matches every name it matches
-    Tolerance("*frames", "match"),
-    Tolerance("*ate_rmse", "lower", abs=0.0005, rel=0.03),
-    Tolerance("*rot_deg_rmse", "lower", abs=0.02, rel=0.03),
-    Tolerance("*rot_deg_orient_rmse", "lower", abs=0.02, rel=0.03),
-    Tolerance("*depth_percent_correct", "higher", abs=0.3, rel=0.0),
-    Tolerance("*tracked_share", "higher", abs=0.005),
-    Tolerance("*ate_*", "lower", abs=0.002, rel=0.10),
-    Tolerance("*rpe_*", "lower", abs=0.002, rel=0.10),
-    Tolerance("*rot_deg_*", "lower", abs=0.1, rel=0.10),
-    Tolerance("*scale_error", "lower", abs=0.01, rel=0.10),
-    Tolerance("*length_*", "match", rel=0.10),
-    Tolerance("*scale", "match", abs=0.02),
-    Tolerance("*percent_correct*", "higher", abs=1.0, rel=0.05),
-    Tolerance("*density", "higher", abs=1.0, rel=0.05),
-    Tolerance("*delta_1_25", "higher", abs=1.0, rel=0.05),
-    Tolerance("*abs_rel", "lower", abs=0.005, rel=0.05),
-    Tolerance("*depth_rmse", "lower", abs=0.005, rel=0.05),
-    Tolerance("*semantic_*", "higher", abs=0.01, rel=0.02),
-    Tolerance("*map_points", "match", rel=0.10),
-    Tolerance("*map_accuracy_median", "lower", abs=0.005, rel=0.05),
-    Tolerance("*map_completeness_median", "lower", abs=0.005, rel=0.05),
-    Tolerance("*map_*_within", "higher", abs=0.01, rel=0.03),
-    Tolerance("*map_label_accuracy", "higher", abs=0.01, rel=0.02),
-    Tolerance("*step_ms_*", "lower", rel=0.50),
-    Tolerance("*fps", "higher", rel=0.33),
-)
+DEFAULT_TOLERANCES: tuple[Tolerance, ...] = tuple(  # each metric's (abs, rel): its catalogue spec's tolerance
+    Tolerance(pattern, direction, abs=low, rel=rel) for pattern, direction, low, rel in catalogue.gate_rules())
 FALLBACK_TOLERANCE = Tolerance("*", "lower", rel=0.05)
 
 # The range each metric can take (first matching pattern wins; a metric no pattern matches is unbounded): a
 # tolerance must leave the figure room to fail inside it (:func:`uncrossable`).
-METRIC_BOUNDS: tuple[tuple[str, float, float], ...] = (
-    ("*rot_deg*", 0.0, 180.0),  # degrees: an angle between two orientations
-    ("*percent_correct*", 0.0, 100.0),  # percent of pixels
-    ("*density", 0.0, 100.0),
-    ("*delta_1_25", 0.0, 100.0),
-    ("*tracked_share", 0.0, 1.0),  # shares of frames, pixels, points
-    ("*map_*_within", 0.0, 1.0),
-    ("*map_label_accuracy", 0.0, 1.0),
-    ("*semantic_*", 0.0, 1.0),
-    ("*ate_alignment_*", 0.0, 1.0),  # 0/1 flags
-    ("*ate_*", 0.0, math.inf),  # metres, counts, rates, times: never negative
-    ("*rpe_*", 0.0, math.inf),
-    ("*scale*", 0.0, math.inf),
-    ("*length_*", 0.0, math.inf),
-    ("*abs_rel", 0.0, math.inf),
-    ("*depth_rmse", 0.0, math.inf),
-    ("*map_*", 0.0, math.inf),
-    ("*frames", 0.0, math.inf),
-    ("*pairs", 0.0, math.inf),
-    ("*keyframes", 0.0, math.inf),
-    ("*step_ms_*", 0.0, math.inf),
-    ("*fps", 0.0, math.inf),
-)
+METRIC_BOUNDS: tuple[tuple[str, float, float], ...] = catalogue.bound_rules()  # each spec's bounds, same order
 # A tolerance that cannot be crossed is capped to this share of the room between the figure and its worst value
 # (ours: the worst tenth of that room still fails), by the writers of a baseline (calibration, --update-baseline);
 # a file read with one is refused.
@@ -363,11 +315,12 @@ def lost(name: str, baseline: float, run: float) -> str | None:
     initialised, or below :data:`eval.metrics.results.MIN_TRACKED_SHARE`), e.g. ``"tracked 100 % -> never
     initialised"``; None when ``name`` is no tracked share, the baseline was a failure already, or the run is none.
     Such a change is a regression whatever the tolerance."""
-    if name.rsplit("/", 1)[-1] != "tracked_share" or not (math.isfinite(baseline) and math.isfinite(run)):
+    share = TRACKED_SHARE.key
+    if name.rsplit("/", 1)[-1] != share or not (math.isfinite(baseline) and math.isfinite(run)):
         return None
-    if failure_of({"tracked_share": baseline}) is not None:
+    if failure_of({share: baseline}) is not None:
         return None
-    why = failure_of({"tracked_share": run})
+    why = failure_of({share: run})
     return None if why is None else f"tracked {share_text(baseline)} -> {why}"
 
 

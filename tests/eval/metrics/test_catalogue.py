@@ -1,7 +1,15 @@
 """eval.metrics.catalogue: one spec per metric, read by the record, the tables and the gate."""
 
+import json
 import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from eval.metrics import catalogue
@@ -93,3 +101,106 @@ def test_gate_rules_follow_the_catalogue_order_with_families_last():
     # a spec that is neither lower- nor higher-better is gated as lower (the gate's fallback direction)
     assert ("*rpe_dist_m_*", "lower", 0.002, 0.10) in rules
     assert all(lo <= hi for _, lo, hi in catalogue.bound_rules())
+
+
+# ------------------------------------------------------------------------------------------ a new metric, end to end
+REPO = Path(__file__).resolve().parents[3]
+NEW_KEY = "path_ratio"
+NEW_SPEC = f'''
+PATH_RATIO = MetricSpec("{NEW_KEY}", "Path ratio", "", "match", "trajectory", 3, (0.0, 0.05), NON_NEGATIVE,
+                        gated=True, shown=_shown((QUICK, 7)))
+'''
+NEW_COMPUTATION = f'''        m["{NEW_KEY}"] = self.length_est / self.length_gt if self.length_gt > 0 else math.nan
+'''
+PROBE = f'''
+import json, math
+from types import SimpleNamespace
+import numpy as np
+from eval.bench import regress
+from eval.metrics.results import evaluate_episode, runs_frame
+from eval.reports.suite_reports import QUICK_BLOCKS
+from eval.reports.tables import table1, table_to_markdown
+
+n = 6
+gt = np.repeat(np.eye(4)[None], n, axis=0)
+gt[:, 0, 3] = np.linspace(0.0, 1.0, n)
+est = gt.copy()
+est[:, 0, 3] *= 1.25
+episode = SimpleNamespace(sequence="s", agent="a", timestamps=np.arange(n) / 30.0, T_world_cam_est=est,
+                          T_world_cam_gt=gt, tracked=np.ones(n, bool), keyframes=[], keyframe_gt=[],
+                          step_seconds=np.full(n, 0.01), uses_ground_truth=False, extras={{}})
+record = evaluate_episode(episode, method="m")
+markdown = table_to_markdown(table1(runs_frame([record]), blocks=QUICK_BLOCKS))
+figures = regress.gate_metrics([record])
+name = "s/m/{NEW_KEY}"
+baseline = regress.Baseline(dict(figures))
+moved = regress.compare(baseline, {{**figures, name: figures[name] * 1.2}})
+print(json.dumps({{"record": record.metrics.get("{NEW_KEY}"), "table": "Path ratio" in markdown,
+                  "rule": baseline.tolerance_for(name).pattern,
+                  "status": next(r.status for r in moved.rows if r.metric == name)}}))
+'''
+
+
+def _insert(path: Path, anchor: str, text: str, before: bool = True) -> None:
+    source = path.read_text()
+    assert source.count(anchor) == 1, f"{path.name}: anchor {anchor!r} not found once"
+    path.write_text(source.replace(anchor, text + anchor if before else anchor + text))
+
+
+def _changed_files(copy: Path) -> list[str]:
+    changed = []
+    for package in ("eval", "slamcommon"):
+        for path in sorted((copy / package).rglob("*.py")):
+            original = REPO / path.relative_to(copy)
+            if not original.is_file() or original.read_bytes() != path.read_bytes():
+                changed.append(str(path.relative_to(copy)))
+    return changed
+
+
+@pytest.mark.slow
+def test_a_new_metric_is_one_spec_and_one_computation(tmp_path):
+    """The CONTRIBUTING recipe "a new metric", done in a copy of the judge: its spec in the catalogue (gated, shown
+    in the quick table) and its computation in the trajectory metrics. The run record holds it, the quick table
+    shows it, and the gate compares it under its own rule; no other file changes."""
+    copy = tmp_path / "tree"
+    for package in ("eval", "slamcommon"):
+        shutil.copytree(REPO / package, copy / package, ignore=shutil.ignore_patterns("__pycache__"))
+    catalogue_py = copy / "eval" / "metrics" / "catalogue.py"
+    _insert(catalogue_py, "\n# The exact specs, in the gate's order", NEW_SPEC)
+    _insert(catalogue_py, "\n)\n# The families", " PATH_RATIO,")
+    _insert(copy / "eval" / "metrics" / "trajectory_metrics.py", "        for rel in self.relative:\n",
+            NEW_COMPUTATION)
+    assert _changed_files(copy) == ["eval/metrics/catalogue.py", "eval/metrics/trajectory_metrics.py"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(REPO)])}
+    done = subprocess.run([sys.executable, "-c", PROBE], cwd=copy, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen["record"] == pytest.approx(1.25)
+    assert seen["table"] is True
+    assert seen["rule"] == f"*{NEW_KEY}"
+    assert seen["status"] == "regressed"
+
+
+def test_the_gates_rules_judge_every_figure_as_the_committed_baselines_rules_do():
+    """The default rules derived from the catalogue give every figure of the committed quick baseline, and every
+    metric of a scored run, the direction and allowed change that the baseline's own rule list gives it."""
+    from eval.bench.regress import Baseline, load_baseline
+    from eval.metrics.results import evaluate_episode
+
+    path = REPO / "results" / "baselines" / "quick.json"
+    if not path.is_file():
+        pytest.skip(f"{path} is absent")
+    committed = load_baseline(path, crossable=False)
+    derived = Baseline({})
+    n = 5
+    gt = np.repeat(np.eye(4)[None], n, axis=0)
+    gt[:, 0, 3] = np.linspace(0.0, 1.0, n)
+    episode = SimpleNamespace(sequence="s", agent="a", timestamps=np.arange(n) / 30.0, T_world_cam_est=gt.copy(),
+                              T_world_cam_gt=gt, tracked=np.ones(n, bool), keyframes=[], keyframe_gt=[],
+                              step_seconds=np.full(n, 0.01))
+    names = {*committed.metrics, *(f"s/m/{k}" for k in evaluate_episode(episode).metrics)}
+    assert len(names) > 50
+    for name in sorted(names):
+        old, new = committed.tolerance_for(name), derived.tolerance_for(name)
+        assert (new.direction, new.abs, new.rel) == (old.direction, old.abs, old.rel), name
