@@ -47,7 +47,7 @@ if "numpy" not in sys.modules:
 
 from eval.errors import EvalError, InputError
 from eval.metrics.association import DEFAULT_MAX_DIFFERENCE, AssociationRule
-from eval.metrics.catalogue import ATE_SE3_RMSE, ATE_SIM3_RMSE
+from eval.metrics.catalogue import ATE_SE3_RMSE, ATE_SIM3_RMSE, SCALE_ERROR
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import (
     RELATIVE_TOLERANCE,
@@ -257,7 +257,7 @@ def format_report(m: TrajectoryMetrics, gt_path: str, est_path: str) -> str:
           f"{error_statistics(r.translation).rmse:.6f} m  rotation RMSE {error_statistics(r.rotation_deg).rmse:.4f} deg"
           for r in m.relative),
         "",
-        f"Sim(3) scale {m.scale:.4f} (scale error |1/s - 1| = {m.scale_error:.4f})",
+        f"Sim(3) scale {m.scale:.4f} (scale error |1/s - 1| = {flat[SCALE_ERROR.key]:.4f})",
         f"length: ground truth {m.length_gt:.3f} m, aligned estimate {m.length_est:.3f} m",
     ]
     return "\n".join(lines)

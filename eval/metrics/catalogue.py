@@ -275,6 +275,16 @@ FAMILIES: tuple[MetricSpec, ...] = (
     MetricSpec("map_*", "map figure", "", None, "map", 3, None, NON_NEGATIVE),
 )
 _BY_KEY: dict[str, MetricSpec] = {s.key: s for s in CATALOGUE}
+# The relative errors at a share of the path (rpg_trajectory_evaluation's distances; families above): the distance
+# (m), the translation RMSE (m) and the rotation RMSE (deg) at ``share`` percent
+RELATIVE_TEMPLATES: tuple[str, str, str] = ("rpe_dist_m_p{share}", "rpe_trans_rmse_p{share}",
+                                            "rpe_rot_deg_rmse_p{share}")
+
+
+def relative_keys(share: int) -> tuple[str, str, str]:
+    """The keys ``(distance, translation RMSE, rotation RMSE)`` of the relative errors at ``share`` % of the path."""
+    distance, translation, rotation = (t.format(share=share) for t in RELATIVE_TEMPLATES)
+    return distance, translation, rotation
 
 
 class CatalogueError(ValueError):

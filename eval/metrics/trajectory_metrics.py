@@ -64,6 +64,7 @@ from eval.metrics.catalogue import (
     SCALE,
     SCALE_ERROR,
     TRACKED_SHARE,
+    relative_keys,
 )
 from eval.metrics.trajectory import PoseTrajectory, distances_along_path, path_length, so3_angle
 from slamcommon.alignment import (
@@ -419,9 +420,10 @@ class TrajectoryMetrics:
             }
         )
         for rel in self.relative:
-            m[f"rpe_dist_m_p{rel.share}"] = rel.distance_m
-            m[f"rpe_trans_rmse_p{rel.share}"] = error_statistics(rel.translation).rmse
-            m[f"rpe_rot_deg_rmse_p{rel.share}"] = error_statistics(rel.rotation_deg).rmse
+            distance, translation, rotation = relative_keys(rel.share)
+            m[distance] = rel.distance_m
+            m[translation] = error_statistics(rel.translation).rmse
+            m[rotation] = error_statistics(rel.rotation_deg).rmse
         if self.tracked_share is not None:
             m[TRACKED_SHARE.key] = self.tracked_share
         return {prefix + k: v for k, v in m.items()}
