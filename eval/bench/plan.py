@@ -22,6 +22,7 @@ from eval.bench.run_store import run_folder
 from eval.bench.runner import UNKNOWN_LENGTH, SuiteRun, plan_runs
 from eval.bench.sequence_ref import check_frames, parse_image_size
 from eval.bench.suites import (
+    PREPROCESSING_CHOICES,
     SWEEP_LENGTHS,
     Suite,
     SuiteKind,
@@ -213,7 +214,8 @@ def _preprocessing_parts(suite: Suite, options: BenchOptions) -> list[Part]:
 def _preprocessing_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str, fmt: str) -> list[Path]:
     from eval.reports.sensitivity_report import report_preprocessing
 
-    return report_preprocessing([(part.label, run, part.detail) for part, run in parts], folder, command, fmt)
+    return report_preprocessing([(part.label, run, part.detail) for part, run in parts], PREPROCESSING_CHOICES, folder,
+                                command, fmt)  # fmt: skip
 
 
 # the one table of what each kind of suite is made of and how it is reported (PERF runs probes, no parts)

@@ -250,6 +250,12 @@ class Suite:
         """The title of each sweep axis (:data:`SWEEP_AXES`, axis name -> title), as the sweep report shows it."""
         return SWEEP_AXES
 
+    def second_references(self) -> dict[str, Path]:
+        """Dataset name -> its second reference trajectory (a TUM file: the dataset list's ``reference``), for every
+        entry of the dataset list that has one; the reports score the runs of such a sequence against it too.
+        :class:`SuiteError` when the list cannot be read."""
+        return {n: e.reference for n, e in load_dataset_list().items() if e.reference is not None}
+
     def selection_note(self) -> str:
         """How this suite's cells differ from the suite as defined (:func:`get_suite`), in words: the sequences and
         methods it leaves out or adds (any frames, seeds or alignment are the same cells); empty when it holds

@@ -29,12 +29,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from eval.bench.run import FAILED_FILE, RunSpec
-from eval.bench.runner import SuiteRun
 from eval.metrics import catalogue
 from eval.metrics.aligned import ALIGNED_FILES
 from eval.metrics.results import FAILURE_RULE, RunRecord, failure_of
+from eval.metrics.runs import FAILED_FILE
 from eval.reports.html import Cell, image_data_uri, markdown_to_html, page, sortable_table, svg_track, text_cell
+from eval.reports.inputs import RunSpec, SuiteRun
 from eval.reports.paper_figures import file_slug
 from eval.reports.paper_table1 import covers_paper_sequences, paper_value
 from eval.reports.run_data import RunTrack, missing_reasons

@@ -20,7 +20,8 @@ from eval.metrics.results import RunRecord
 class Suite(Protocol):
     """A suite as a report names it: its name and description, sequences (each with a ``name``), methods (names),
     frames (None: whole sequences), seeds, alignment, report layout, the sequences skipped here (name, reason), the
-    titles of its sweep axes, and a note when the selection differs from the suite as defined."""
+    titles of its sweep axes, the second references of the dataset list (name -> TUM file) and a note when the
+    selection differs from the suite as defined."""
 
     @property
     def name(self) -> str: ...
@@ -42,6 +43,7 @@ class Suite(Protocol):
     def skipped(self) -> Sequence[tuple[str, str]]: ...
     @property
     def axis_titles(self) -> Mapping[str, str]: ...
+    def second_references(self) -> Mapping[str, Path]: ...
     def selection_note(self) -> str: ...
 
 

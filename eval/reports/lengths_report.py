@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from eval.bench.runner import SuiteRun
 from eval.reports.html_report import markdown_page
+from eval.reports.inputs import SuiteRun
 from eval.reports.lengths import (
     DECISIVE_METRICS,
     WHOLE,

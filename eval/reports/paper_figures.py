@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from eval.bench.runner import SuiteRun
 from eval.metrics.catalogue import ATE_RMSE, FPS_END_TO_END, PEAK_RSS_MIB, TRACKED_SHARE
 from eval.metrics.results import failure_of, failure_text
+from eval.reports.inputs import SuiteRun
 from eval.reports.plots import save_relative_error_figure, save_resources_figure, save_sequence_figure
 from eval.reports.run_data import RunTrack, ate_bands, median_track, missing_reasons
 from eval.reports.style import DEFAULT_FIGURE_FORMAT

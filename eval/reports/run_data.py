@@ -1,6 +1,6 @@
 """What the reports read from a suite's run folders besides the run records: each finished run's trajectory aligned
 to its ground truth, its ATE per pose and its relative errors (from the folder's ``trajectory.tum`` and
-``groundtruth.tum``, scored as the run's record scores them: :func:`eval.bench.run.run_trajectory_metrics`), and why
+``groundtruth.tum``, scored as the run's record scores them: :func:`eval.metrics.runs.run_trajectory_metrics`), and why
 a method has no value for a metric (:func:`missing_reasons`).
 
 The per-sequence figures of a suite (:mod:`eval.reports.paper_figures`) and its HTML report
@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from eval.bench.methods import GROUP_ABSENT, metric_group
-from eval.bench.run import RunSpec, run_trajectory_metrics
-from eval.bench.runner import SuiteRun
 from eval.errors import EvalError
+from eval.metrics.runs import GROUP_ABSENT, metric_group, run_trajectory_metrics
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import RelativeErrors
+from eval.reports.inputs import RunSpec, SuiteRun
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,11 +14,11 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from eval.bench.runner import SuiteRun
 from eval.metrics import catalogue
 from eval.metrics.catalogue import TRACKED_SHARE
 from eval.metrics.results import failure_of, failure_text
 from eval.metrics.trajectory_metrics import RELATIVE_PATH_SHARES, RELATIVE_TOLERANCE
+from eval.reports.inputs import SuiteRun
 from eval.reports.run_data import missing_reasons
 
 RESOURCE_COLUMNS: tuple[tuple[str, str, int], ...] = tuple(  # (resource figure, heading, decimals)

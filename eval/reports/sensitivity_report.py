@@ -14,9 +14,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from eval.bench.runner import SuiteRun
-from eval.bench.suites import PREPROCESSING_CHOICES
 from eval.reports.html_report import markdown_page
+from eval.reports.inputs import PreprocessingChoice, SuiteRun
 from eval.reports.sensitivity import (
     SENSITIVITY_METRICS,
     TRACKED_SHARE_CHANGE,
@@ -42,10 +41,11 @@ def preprocessing_frame(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, st
 
 
 def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, str], ...]]],
-                         results_dir: str | Path, command: str,
+                         choices: Sequence[PreprocessingChoice], results_dir: str | Path, command: str,
                          figure_format: str = DEFAULT_FIGURE_FORMAT) -> list[Path]:
     """Write the preprocessing report (module docstring) into ``results_dir``, and ``preprocessing.html`` (the same,
-    one self-contained page, tables sortable); returns the files written. It draws no figure
+    one self-contained page, tables sortable); returns the files written. ``choices``: every preprocessing choice
+    (:data:`eval.bench.suites.PREPROCESSING_CHOICES`), listed with what it does. It draws no figure
     (``figure_format`` is taken for the same call as the other reports)."""
     results_dir = Path(results_dir)
     results_dir.mkdir(parents=True, exist_ok=True)
@@ -57,7 +57,7 @@ def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, s
     changes_csv = results_dir / "preprocessing_changes.csv"
     changes.to_csv(changes_csv, index=False, float_format="%.6g")
     labels = {m.name: m.label for m in SENSITIVITY_METRICS}
-    described = {c.name: c.description for c in PREPROCESSING_CHOICES}
+    described = {c.name: c.description for c in choices}
     text = [
         "# Preprocessing: does a choice of how the files become frames decide a verdict?\n",
         f"Made by `{command}`. Each folder runs under the loader's defaults (undistortion cropped to what the lens "
@@ -68,7 +68,7 @@ def report_preprocessing(parts: Sequence[tuple[str, SuiteRun, tuple[tuple[str, s
         "Choices:\n",
         "- `default`: the loader's defaults",
         *[f"- `{c.name}`: {c.description} (applies to a folder whose camera is {c.applies})"
-          for c in PREPROCESSING_CHOICES],  # fmt: skip
+          for c in choices],  # fmt: skip
     ]
     for folder in sorted(ranks["folder"].unique()):
         sub = ranks[ranks["folder"] == folder]

@@ -33,9 +33,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from eval.bench.environment import machine_label
-from eval.bench.runner import SuiteRun, suite_records_json
-from eval.bench.suites import SWEEP_AXES
 from eval.metrics import catalogue
 from eval.metrics.catalogue import (
     ATE_ALIGNMENT_DEGENERATE,
@@ -51,7 +48,9 @@ from eval.metrics.catalogue import (
     WALL_S,
 )
 from eval.metrics.results import FAILURE_RULE, MIN_TRACKED_SHARE, RunRecord, failure_of, failure_text, runs_frame
+from eval.metrics.runs import suite_records_json
 from eval.reports.html_report import write_html_report
+from eval.reports.inputs import SuiteRun, machine_label
 from eval.reports.paper_figures import figures_dir, resources_figure, sequence_figures
 from eval.reports.paper_table1 import PAPER_NAMES, covers_paper_sequences, paper_name, paper_value  # noqa: F401
 from eval.reports.plots import save_accuracy_scatter, save_depth_error_row_figure, save_runs_figure, save_sweep_figure
@@ -596,7 +595,8 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
     csv = results_dir / "sweep.csv"
     csv.parent.mkdir(parents=True, exist_ok=True)
     points.to_csv(csv, index=False, float_format="%.6g")
-    figure = save_sweep_figure(points, results_dir / f"sweep.{figure_format}", list(run.suite.methods), SWEEP_AXES)
+    figure = save_sweep_figure(points, results_dir / f"sweep.{figure_format}", list(run.suite.methods),
+                               run.suite.axis_titles)
     text = [
         header_markdown(run, "Difficulty sweep: one axis at a time", command),
         "Axes: texture density of the room (share of textured surfaces); share of rotation in the motion (the "
@@ -610,7 +610,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
         "undistorted and cropped to what the lens saw before the agent sees it).\n",
         markdown_image(figure, "ATE and correct depth against each axis", results_dir),
     ]
-    for axis, title in SWEEP_AXES.items():
+    for axis, title in run.suite.axis_titles.items():
         sub = points[points["axis"] == axis]
         if sub.empty:
             continue
@@ -757,11 +757,10 @@ GROUND_TRUTH_ROW = "(the folder's ground truth)"
 
 def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None = None) -> str:
     """Every finished run of a sequence that has a second reference (``references``: sequence name -> TUM file;
-    default: the dataset list's ``reference`` entries) scored against it as against ground truth (SE(3) alignment,
-    TUM association), beside the folder's own ground truth scored against it: how far the two references disagree
-    is the floor below which no error can be read. Cells: median [min, max] over runs. Empty when no sequence of
-    the suite has one."""
-    from eval.bench.sequence_ref import load_dataset_list
+    default: the dataset list's ``reference`` entries, :meth:`eval.reports.inputs.Suite.second_references`)
+    scored against it as against ground truth (SE(3) alignment, TUM association), beside the folder's own ground
+    truth scored against it: how far the two references disagree is the floor below which no error can be read.
+    Cells: median [min, max] over runs. Empty when no sequence of the suite has one."""
     from eval.errors import EvalError, SuiteError
     from eval.metrics.trajectory import PoseTrajectory
     from eval.metrics.trajectory_metrics import evaluate_trajectory
@@ -769,7 +768,7 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
 
     if references is None:
         try:
-            references = {n: e.reference for n, e in load_dataset_list().items() if e.reference is not None}
+            references = dict(run.suite.second_references())
         except SuiteError:
             return ""
     names = [s.name for s in run.suite.sequences if s.name in references]

@@ -28,9 +28,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from eval.bench.runner import SuiteRun
-from eval.bench.suites import TransferPart
 from eval.reports.html_report import markdown_page
+from eval.reports.inputs import SuiteRun, TransferPart
 from eval.reports.plots import save_transfer_figure
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
 from eval.reports.suite_reports import long_frame, markdown_image, status_markdown
