@@ -160,7 +160,8 @@ def read_tum_trajectory(
     for k, (number, fields) in enumerate(rows):
         values[k] = _parse_numbers(path, number, fields, 8, layout)
         numbers.append(number)
-    norms = np.linalg.norm(values[:, 4:8], axis=1)
+    with np.errstate(over="ignore"):  # a component near 1e308: its norm is inf, refused below
+        norms = np.linalg.norm(values[:, 4:8], axis=1)
     bad = np.flatnonzero(np.abs(norms - 1.0) > quaternion_tol)
     if bad.size:
         k = int(bad[0])
@@ -259,11 +260,13 @@ def read_kitti_poses(path: str | Path, *, rotation_tol: float = ROTATION_TOL) ->
     for k, (number, fields) in enumerate(rows):
         T[k, :3, :] = np.reshape(_parse_numbers(path, number, fields, 12, layout), (3, 4))
         R = T[k, :3, :3]
-        deviation = float(np.abs(R.T @ R - np.eye(3)).max())
-        if deviation > rotation_tol or np.linalg.det(R) < 0:
+        with np.errstate(over="ignore", invalid="ignore"):  # entries near 1e308: inf or nan, refused below
+            deviation = float(np.abs(R.T @ R - np.eye(3)).max())
+            det = float(np.linalg.det(R))
+        if not deviation <= rotation_tol or not det > 0:
             raise FormatError(
                 f"{path}:{number}: the 3x3 block is not a rotation (|R^T R - I| = {deviation:.3g}, det = "
-                f"{np.linalg.det(R):.6g}); a pose needs an orthonormal R with det +1 (tolerance {rotation_tol:g})"
+                f"{det:.6g}); a pose needs an orthonormal R with det +1 (tolerance {rotation_tol:g})"
             )
     return T
 
