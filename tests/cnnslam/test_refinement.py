@@ -196,3 +196,41 @@ def test_triangulate_a_sideways_translation() -> None:
     idepth, alpha = _triangulate.py_func(-5.0, 0.0, -1.0, 0.0, 0.0, 0.0, np.eye(3), np.array([-0.1, 0.0, 0.0]),
                                          1.0 / fx, 1.0 / fx, 0.0, 0.0)
     assert idepth == pytest.approx(0.5) and abs(alpha) == pytest.approx(1.0 / (fx * 0.1))  # 1 / (f * baseline)
+
+
+def _shifted_texture_pair() -> tuple[np.ndarray, ...]:
+    """A key-frame and a current image 2 px apart (exact float32 arithmetic: 3x3 box sums of random integers / 9),
+    with the key-frame's gradients."""
+    rng = np.random.default_rng(5)
+    h, w = 48, 64
+    raw = rng.integers(0, 256, (h + 2, w + 6)).astype(np.float32)
+    wide = sum(raw[dy:dy + h, dx:dx + w + 4] for dy in range(3) for dx in range(3)) / np.float32(9.0)
+    kf, cur = wide[:, 2:w + 2].copy(), wide[:, 4:w + 4].copy()  # the scene moved 2 px to the left
+    gx, gy = np.zeros_like(kf), np.zeros_like(kf)
+    gx[:, 1:-1] = 0.5 * (kf[:, 2:] - kf[:, :-2])
+    gy[1:-1] = 0.5 * (kf[2:] - kf[:-2])
+    return kf, cur, gx, gy
+
+
+def test_stereo_observation_finds_the_disparity_and_its_bytes_are_pinned() -> None:
+    # f = 50 px, the current camera 8 cm to the right, 2 px of disparity: depth 50 * 0.08 / 2 = 2 m. The sha256 of
+    # every observation below pins the stereo's bytes (computed before its kernel was split into named steps).
+    import hashlib
+    from dataclasses import replace
+
+    kf, cur, gx, gy = _shifted_texture_pair()
+    depth = np.full(kf.shape, 2.0, np.float32)
+    depth[::5, ::3] = 0.0  # some pixels search the whole inverse-depth range
+    var = np.full(kf.shape, 0.05, np.float32)
+    T_kf_cur = np.eye(4)
+    T_kf_cur[0, 3] = 0.08
+    digest = hashlib.sha256()
+    for density in ("dense", "semi_dense"):
+        for subpixel in (True, False):
+            cfg = replace(CFG, density=density, subpixel=subpixel)
+            obs = stereo_observation(kf, gx, gy, depth, var, cur, T_kf_cur, np.array([50.0, 50.0, 32.0, 24.0]), cfg)
+            ok = obs.status == OK
+            assert ok.sum() > 1000 and np.median(obs.depth[ok]) == pytest.approx(2.0, abs=1e-3)
+            for a in (obs.depth, obs.variance, obs.status):
+                digest.update(a.tobytes())
+    assert digest.hexdigest() == "5cabf97d150052899cb4a67f67591dded22db732142faa88c63e32b82382f590"
