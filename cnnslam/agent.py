@@ -36,6 +36,7 @@ from cnnslam.depth_prediction import GroundTruthHint
 from cnnslam.errors import CnnSlamError
 from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam, SlamResult
+from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
 PRESETS: tuple[str, ...] = tuple(dict.fromkeys(BASELINES + ABLATIONS))
 
@@ -117,7 +118,7 @@ class CnnSlamAgent:
             raise CnnSlamError("call reset(intrinsics, image_size) before step()")
         stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
         out = self._system.process(observation["rgb"], stamp, ground_truth)
-        return {"T_world_cam": out.T_world_cam, "tracked": int(out.tracked)}
+        return {T_WORLD_CAM: out.T_world_cam, TRACKED: int(out.tracked)}
 
     def finish(self) -> Any:
         """End the episode: an ``AgentOutput`` with the refined key-frames, the global model (its surfels' positions,

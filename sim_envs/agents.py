@@ -16,6 +16,7 @@ import numpy as np
 
 from sim_envs.agent import AgentOutput, KeyframeDepth
 from sim_envs.errors import SimEnvError
+from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 from slamcommon.config import Configurable, configure
 
 
@@ -75,7 +76,7 @@ class OracleAgent:
                 )
             )
         self._n += 1
-        return {"T_world_cam": T, "tracked": 1}
+        return {T_WORLD_CAM: T, TRACKED: 1}
 
     def finish(self) -> AgentOutput:
         """The key-frames collected (ground-truth depth and pose) and the number of frames seen."""
@@ -101,7 +102,7 @@ class ConstantPoseAgent:
     def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]:
         """The identity pose."""
         self._n += 1
-        return {"T_world_cam": np.eye(4), "tracked": int(self.tracked)}
+        return {T_WORLD_CAM: np.eye(4), TRACKED: int(self.tracked)}
 
     def finish(self) -> AgentOutput:
         """No key-frames; the number of frames seen."""
@@ -138,7 +139,7 @@ class BiasedPoseAgent:
     def step(self, observation: dict[str, np.ndarray], info: dict[str, Any] | None = None) -> dict[str, Any]:
         """The wrapped agent's answer with the pose turned by the bias."""
         out = dict(self.inner.step(observation, info) if self.uses_ground_truth else self.inner.step(observation))
-        out["T_world_cam"] = np.asarray(out["T_world_cam"], dtype=np.float64) @ self._bias
+        out[T_WORLD_CAM] = np.asarray(out[T_WORLD_CAM], dtype=np.float64) @ self._bias
         return out
 
     def finish(self) -> AgentOutput:

@@ -23,6 +23,7 @@ from sim_envs.camera import Intrinsics
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
 from sim_envs.source import FrameSource
+from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
 logger = logging.getLogger(__name__)
 
@@ -116,7 +117,7 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
             gt.append(np.array(info["gt_T_world_cam"], dtype=np.float64))
             tracked.append(ok)
             bar.update(1)
-            obs, _, terminated, truncated, info = env.step({"T_world_cam": T, "tracked": int(ok)})
+            obs, _, terminated, truncated, info = env.step({T_WORLD_CAM: T, TRACKED: int(ok)})
             if terminated or truncated or len(est) >= total:
                 break
 
@@ -175,7 +176,7 @@ def apply_final_trajectory(trajectory: FinalTrajectory, timestamps: np.ndarray, 
         if i is None:
             unmatched.append(float(t))
             continue
-        out[i], _ = _check_action({"T_world_cam": T}, agent, i, i)  # named by the step it replaces
+        out[i], _ = _check_action({T_WORLD_CAM: T}, agent, i, i)  # named by the step it replaces
         tracked[i] = bool(flags[k])
         matched += 1
     return out, tracked, matched, unmatched
@@ -184,14 +185,14 @@ def apply_final_trajectory(trajectory: FinalTrajectory, timestamps: np.ndarray, 
 def _check_action(action: Any, agent: str, step: int, frame: int) -> tuple[np.ndarray, bool]:
     """(pose (4, 4) float64, tracked) of an action, or :class:`SimEnvError` saying what is wrong and where."""
     where = f"agent {agent!r}, step {step} (frame {frame})"
-    if not isinstance(action, dict) or "T_world_cam" not in action:
+    if not isinstance(action, dict) or T_WORLD_CAM not in action:
         raise SimEnvError(
             f"{where}: step() must return a dict with 'T_world_cam' ((4, 4) float64 camera-to-world) and 'tracked' "
             f"(0 or 1), got {type(action).__name__}"
             + (f" with keys {sorted(action)}" if isinstance(action, dict) else "")
         )
     try:
-        T = np.array(action["T_world_cam"], dtype=np.float64)
+        T = np.array(action[T_WORLD_CAM], dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise SimEnvError(f"{where}: T_world_cam is not numeric: {exc}") from exc
     if T.shape != (4, 4):
@@ -207,7 +208,7 @@ def _check_action(action: Any, agent: str, step: int, frame: int) -> tuple[np.nd
         )
     if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
         raise SimEnvError(f"{where}: the last row of T_world_cam must be [0, 0, 0, 1], got {T[3].tolist()}")
-    tracked = action.get("tracked", 1)
+    tracked = action.get(TRACKED, 1)
     try:
         tracked_int = int(np.asarray(tracked).item())
     except (TypeError, ValueError):

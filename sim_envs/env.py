@@ -21,6 +21,7 @@ from sim_envs.frames import Frame
 from sim_envs.sequences import TEST_SEED_LIMIT, TRAIN_SEED_BASE, SequenceSpec, get_sequence
 from sim_envs.simsource import RENDERER_BACKENDS, SimulatedSequence
 from sim_envs.source import FrameSource
+from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
 GroundTruth = Literal["pose", "full"]
 GROUND_TRUTH_MODES: tuple[str, ...] = get_args(GroundTruth)
@@ -177,7 +178,7 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
             }
         )
         self.action_space = spaces.Dict(
-            {"T_world_cam": spaces.Box(-np.inf, np.inf, (4, 4), np.float64), "tracked": spaces.Discrete(2)}
+            {T_WORLD_CAM: spaces.Box(-np.inf, np.inf, (4, 4), np.float64), TRACKED: spaces.Discrete(2)}
         )
         self._episode_gt: GroundTruth = self.ground_truth
         self._index: int | None = None  # frame of the current observation; None before reset
@@ -367,17 +368,17 @@ def _check_ground_truth(value: str) -> GroundTruth:
 
 def _action_pose(action: Any, index: int) -> np.ndarray:
     """The (4, 4) float64 pose of an action; :class:`SimEnvError` naming the frame when it is malformed."""
-    if not isinstance(action, dict) or "T_world_cam" not in action:
+    if not isinstance(action, dict) or T_WORLD_CAM not in action:
         raise SimEnvError(
             f"frame {index}: the action must be a dict with 'T_world_cam' (4, 4) and 'tracked' (0 or 1), "
             f"got {type(action).__name__}"
         )
-    T = np.asarray(action["T_world_cam"], dtype=np.float64)
+    T = np.asarray(action[T_WORLD_CAM], dtype=np.float64)
     if T.shape != (4, 4):
         raise SimEnvError(f"frame {index}: action T_world_cam must be (4, 4), got shape {T.shape}")
     if not np.isfinite(T).all():
         raise SimEnvError(f"frame {index}: action T_world_cam holds NaN or inf")
-    tracked = action.get("tracked", 1)
+    tracked = action.get(TRACKED, 1)
     if int(np.asarray(tracked).reshape(-1)[0]) not in (0, 1):
         raise SimEnvError(f"frame {index}: action 'tracked' must be 0 or 1, got {tracked!r}")
     return T.copy()

@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 
 from sim_envs.agent import AgentOutput, FinalTrajectory
+from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 from slamcommon.config import Configurable, configure
 from slamcommon.errors import ConfigError
 from slamcommon.sfm import COLMAP_PIXEL_OFFSET, DEFAULT_OVERLAP, SfmError, SfmUnavailableError, model_poses, reconstruct
@@ -111,7 +112,7 @@ class ColmapAgent:
         cv2.imwrite(str(path), cv2.cvtColor(np.asarray(observation["rgb"]), cv2.COLOR_RGB2BGR))
         self._paths.append(path)
         self._stamps.append(float(np.asarray(observation["timestamp"]).reshape(-1)[0]))
-        return {"T_world_cam": np.eye(4), "tracked": 0}
+        return {T_WORLD_CAM: np.eye(4), TRACKED: 0}
 
     def finish(self) -> AgentOutput:
         """Run COLMAP on the stored frames; the poses as a :class:`FinalTrajectory` (module docstring)."""

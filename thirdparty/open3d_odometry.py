@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 import open3d as o3d
 
-from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
+from slamcommon.agent_keys import FRAMES, T_WORLD_CAM, TRACKED, TRACKED_SHARE
 
 JACOBIANS = ("hybrid", "color")
 
@@ -153,7 +153,7 @@ class Open3dOdometryAgent:
         self._prev = (cur, pose)
         self._seconds.append(time.perf_counter() - t0)
         self._tracked.append(bool(tracked))
-        return {"T_world_cam": pose.copy(), "tracked": int(tracked)}
+        return {T_WORLD_CAM: pose.copy(), TRACKED: int(tracked)}
 
     def finish(self) -> Any:
         """An ``AgentOutput`` without key-frame depth; counts and the configuration in ``extras``."""

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
+from slamcommon.agent_keys import FRAMES, T_WORLD_CAM, TRACKED, TRACKED_SHARE
 from slamcommon.config import Configurable, configure
 from slamcommon.errors import ConfigError
 from thirdparty.orb_vocabulary import DEFAULT_VOCABULARY
@@ -267,7 +267,7 @@ class OrbSlam3Agent:
         self._states[state] = self._states.get(state, 0) + 1
         self._tracked.append(tracked)
         self._seconds.append(float(ans["seconds"]))
-        return {"T_world_cam": self._pose.copy(), "tracked": int(tracked)}
+        return {T_WORLD_CAM: self._pose.copy(), TRACKED: int(tracked)}
 
     def finish(self) -> Any:
         """Stop ORB-SLAM3; an ``AgentOutput`` without key-frame depth, with ORB-SLAM3's counts in ``extras``."""

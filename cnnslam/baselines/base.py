@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from cnnslam.errors import CnnSlamError
-from slamcommon.agent_keys import FRAMES, TRACKED_SHARE
+from slamcommon.agent_keys import FRAMES, T_WORLD_CAM, TRACKED, TRACKED_SHARE
 
 
 def checked_intrinsics(intrinsics: Any) -> np.ndarray:
@@ -89,7 +89,7 @@ class BaselineAgent(ABC):
         self._timestamps.append(stamp)
         self._poses.append(T_world_cam)
         self._tracked.append(bool(tracked))
-        return {"T_world_cam": T_world_cam, "tracked": int(tracked)}
+        return {T_WORLD_CAM: T_world_cam, TRACKED: int(tracked)}
 
     def finish(self) -> Any:
         """End the episode: the baseline's ``AgentOutput`` (:meth:`_finish`)."""
