@@ -172,9 +172,10 @@ def run_html(spec: RunSpec, run: SuiteRun, record: RunRecord | None, track: RunT
     facts = [f"<tr><td>{html.escape(label)}</td><td class='num'>{_fmt(values.get(key), d, unit)}</td></tr>"
              for label, key, d, unit in RUN_FACTS if key in values]  # fmt: skip
     for share in (10, 30, 50):
-        t, q = values.get(f"rpe_trans_rmse_p{share}"), values.get(f"rpe_rot_deg_rmse_p{share}")
+        distance, translation, rotation = catalogue.relative_keys(share)
+        t, q = values.get(translation), values.get(rotation)
         if t is not None:
-            facts.append(f"<tr><td>relative error at {share} % ({_fmt(values.get(f'rpe_dist_m_p{share}'), 2, ' m')})"
+            facts.append(f"<tr><td>relative error at {share} % ({_fmt(values.get(distance), 2, ' m')})"
                          f"</td><td class='num'>{_fmt(t, 4, ' m')}, {_fmt(q, 2, ' deg')}</td></tr>")
     files = [name for name in ALIGNED_FILES.values() if (folder / name).is_file()]
     notes = "".join(f"<li>{html.escape(w)}</li>" for w in record.warnings)

@@ -112,16 +112,17 @@ def relative_error_frame(run: SuiteRun, shares: Sequence[int] = RELATIVE_PATH_SH
                 count["failure"] = failure_text(share if math.isfinite(share) else 0.0)
                 records = []
             for share in shares:
+                distance, translation, rotation = catalogue.relative_keys(share)
                 if failed_cell:
-                    if any(f"rpe_trans_rmse_p{share}" in r.metrics for r in lost):
-                        d = np.array([r.metrics.get(f"rpe_dist_m_p{share}", math.nan) for r in lost], dtype=float)
+                    if any(translation in r.metrics for r in lost):
+                        d = np.array([r.metrics.get(distance, math.nan) for r in lost], dtype=float)
                         rows.append({"sequence": sequence, "method": method, "share": share,
                                      "distance_m": float(np.median(d[np.isfinite(d)])) if np.isfinite(d).any()
                                      else math.nan, **count})  # fmt: skip
                     continue
-                t = np.array([r.metrics.get(f"rpe_trans_rmse_p{share}", math.nan) for r in records], dtype=float)
-                q = np.array([r.metrics.get(f"rpe_rot_deg_rmse_p{share}", math.nan) for r in records], dtype=float)
-                d = [r.metrics.get(f"rpe_dist_m_p{share}", math.nan) for r in records]
+                t = np.array([r.metrics.get(translation, math.nan) for r in records], dtype=float)
+                q = np.array([r.metrics.get(rotation, math.nan) for r in records], dtype=float)
+                d = [r.metrics.get(distance, math.nan) for r in records]
                 if not np.isfinite(t).any():
                     continue
                 ft, fq = t[np.isfinite(t)], q[np.isfinite(q)]
