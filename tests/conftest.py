@@ -9,7 +9,8 @@ A fuzzed input is a valid file (one of the reader's seeds) changed by up to thre
 repeated, swapped or replaced (by nan, inf, huge, negative, text, unicode, brackets, quotes: :data:`REPLACEMENTS`),
 numbers changed a little or a lot, separators changed, the text cut short, a byte that is not UTF-8. The property: the
 reader returns a result that passes the test's check, or raises the project's error
-(:class:`slamcommon.errors.ProjectError`) with one line that names the file; anything else (a traceback) fails.
+(:class:`slamcommon.errors.ProjectError`) with one line that names the file; anything else (a traceback, or a
+numpy RuntimeWarning such as an overflow the reader did not expect) fails.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import math
 import os
 import time
 import tomllib
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -228,7 +230,9 @@ def run_fuzz(
         report.parsed += 1
 
     start, cpu = time.perf_counter(), time.process_time()
-    property_()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # numpy's overflow, say: a value the reader did not look at
+        property_()
     report.seconds, report.cpu_seconds = time.perf_counter() - start, time.process_time() - cpu
     print(f"fuzz {read!r}: {report}")
     return report
