@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from fnmatch import fnmatchcase
 from typing import Literal
 
+from eval.errors import EvalError
 from slamcommon import agent_keys
 
 Better = Literal["lower", "higher", "match"]
@@ -287,7 +288,7 @@ def relative_keys(share: int) -> tuple[str, str, str]:
     return distance, translation, rotation
 
 
-class CatalogueError(ValueError):
+class CatalogueError(EvalError):
     """A catalogue that contradicts itself (a key twice, a family given as an exact spec)."""
 
 
