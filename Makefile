@@ -25,6 +25,7 @@ venv: $(STAMP)
 
 lint: venv
 	$(BIN)/ruff check .
+	$(BIN)/lint-imports --no-cache  # the layering: pyproject.toml's [tool.importlinter] contracts
 
 test: venv lint
 	$(BIN)/python -m pytest -n $(JOBS) --dist loadfile -q

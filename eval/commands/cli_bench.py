@@ -35,6 +35,7 @@ import argparse
 import logging
 import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from eval.bench.benchmark import DEFAULT_JOBS, BenchOptions, BenchOutcome, ExecutorOptions, describe_suites, run_bench
@@ -123,6 +124,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add("--calibrate", action="store_true", help="run the suite under the perturbation matrix (eval/bench/"
         "calibrate.py) and write the baseline with tolerances from the spread it measures")
     add("--no-gate", action="store_true", help="do not compare with the baseline")
+
+
+def bench_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``cnnslam bench`` (:func:`add_arguments`), as ``cnnslam results make`` parses the
+    ``cnnslam bench`` lines that results record."""
+    parser = argparse.ArgumentParser(prog="cnnslam bench", exit_on_error=False)
+    add_arguments(parser)
+    return parser
+
+
+def bench_args(command: str, folder: Path, out: Path, extra: Sequence[str] = ()) -> argparse.Namespace:
+    """The parsed arguments of a ``cnnslam bench`` line run into ``folder`` with runs under ``out``; ``extra``:
+    further options (``--jobs 2``). :class:`InputError` when the line does not parse."""
+    words = shlex.split(command)
+    if words[:2] != ["cnnslam", "bench"]:
+        raise InputError(f"{command!r} is no cnnslam bench line")
+    try:
+        return bench_parser().parse_args([*words[2:], "--results", str(folder), "--out", str(out), *extra])
+    except (argparse.ArgumentError, SystemExit) as exc:
+        raise InputError(f"{command!r} does not parse as cnnslam bench options: {exc}") from None
 
 
 def _command(args: argparse.Namespace) -> str:

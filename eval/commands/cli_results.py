@@ -3,7 +3,7 @@ the current code would give the same (:func:`eval.bench.provenance.results_statu
 recomputed for the same run specs, nothing run; timings excluded).
 
 ``cnnslam results make [NAME ...] [--dry-run]``: remake every stale result (or those named) with the command that
-made it, reusing the finished runs under ``--out`` whose fingerprint is current (:mod:`eval.bench.remake`);
+made it, reusing the finished runs under ``--out`` whose fingerprint is current (:mod:`eval.commands.remake`);
 ``--dry-run`` prints the plan (commands, runs reused and to make, estimated time) and runs nothing.
 
 Exit status: 0 when every listed result is current (make: every remade result current afterwards; a dry run: the
@@ -14,36 +14,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 from eval.bench.benchmark import DEFAULT_JOBS
 from eval.bench.executors import EXECUTORS
 from eval.bench.provenance import RESULTS_ROOT, format_status, results_status
+from eval.commands.cli_bench import bench_args, bench_parser  # noqa: F401  (the bench command's parser, names kept here)
 from eval.errors import InputError
-
-
-def bench_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``cnnslam bench`` (:mod:`eval.commands.cli_bench`)."""
-    from eval.commands.cli_bench import add_arguments
-
-    parser = argparse.ArgumentParser(prog="cnnslam bench", exit_on_error=False)
-    add_arguments(parser)
-    return parser
-
-
-def bench_args(command: str, folder: Path, out: Path, extra: Sequence[str] = ()) -> argparse.Namespace:
-    """The parsed arguments of a ``cnnslam bench`` line run into ``folder`` with runs under ``out``; ``extra``:
-    further options (``--jobs 2``). :class:`InputError` when the line does not parse."""
-    words = shlex.split(command)
-    if words[:2] != ["cnnslam", "bench"]:
-        raise InputError(f"{command!r} is no cnnslam bench line")
-    try:
-        return bench_parser().parse_args([*words[2:], "--results", str(folder), "--out", str(out), *extra])
-    except (argparse.ArgumentError, SystemExit) as exc:
-        raise InputError(f"{command!r} does not parse as cnnslam bench options: {exc}") from None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
 def make(args: argparse.Namespace) -> int:
     """``results make``: the plan, then (unless ``--dry-run``) each result remade and judged again."""
-    from eval.bench.remake import format_plan, plan_remakes, remake
+    from eval.commands.remake import format_plan, plan_remakes, remake
 
     if args.jobs < 1:
         print(f"cnnslam results: error: --jobs takes a number of runs in parallel >= 1, got {args.jobs}",

@@ -1,4 +1,8 @@
-"""The judge never imports the agent package (CONTRIBUTING: agents are named by "module:Class" strings)."""
+"""The judge never imports the agent package (CONTRIBUTING: agents are named by "module:Class" strings).
+
+The import arrow is also an import-linter contract (pyproject.toml's ``flow``: eval, cnnslam and thirdparty
+independent; run by ``lint-imports`` in ``make lint`` and by tests/test_layering.py); this file keeps its quick check
+beside what import-linter cannot see: an agent module named in a string, and argparse outside the command lines."""
 
 import ast
 import pathlib

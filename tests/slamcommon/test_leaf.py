@@ -1,4 +1,8 @@
-"""The import graph reads world -> agent -> judge, with the shared concepts as a leaf below all three."""
+"""The import graph reads world -> agent -> judge, with the shared concepts as a leaf below all three.
+
+The arrows are also import-linter contracts (pyproject.toml's ``leaf`` and ``flow``, run by ``lint-imports`` in
+``make lint`` and by tests/test_layering.py), which see every import the same way; this file keeps its own quick check
+of them beside what no contract says: each shared concept defined once."""
 
 import ast
 import pathlib

@@ -10,7 +10,7 @@ Where a result's command comes from, first found wins:
    suite as defined (``cnnslam bench SUITE``);
 4. the other outputs the project's commands make (:data:`KNOWN_COMMANDS`).
 
-A ``cnnslam bench`` line is parsed as that command parses it (:func:`eval.commands.cli_results.bench_args`), planned
+A ``cnnslam bench`` line is parsed as that command parses it (:func:`eval.commands.cli_bench.bench_args`), planned
 and run in this process (:func:`eval.bench.benchmark.prepare`, then
 :func:`eval.commands.cli_bench.run`) with ``--results`` the result's folder and ``--out`` the runs folder, where the
 runner reuses every finished run whose fingerprint is current; any other command runs as a subprocess. The estimate
@@ -179,8 +179,7 @@ def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence
     from eval.bench.methods import method_table
     from eval.bench.run_store import is_finished
     from eval.bench.runner import plan_runs
-    from eval.commands.cli_bench import options_of
-    from eval.commands.cli_results import bench_args
+    from eval.commands.cli_bench import bench_args, options_of
 
     planned = reused = 0
     specs_to_make: list[Any] = []
@@ -365,8 +364,7 @@ def command_argv(command: str) -> list[str]:
 def remake(plan: Remake, out: Path, extra: Sequence[str] = ()) -> int:
     """Run ``plan``'s commands (module docstring); ``extra``: options added to ``cnnslam bench`` lines (``--jobs``,
     ``--executor``). Returns the worst exit status (0: all made)."""
-    from eval.commands.cli_bench import run
-    from eval.commands.cli_results import bench_args
+    from eval.commands.cli_bench import bench_args, run
 
     status = 0
     for command in plan.commands:

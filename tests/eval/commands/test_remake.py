@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from eval.bench import fingerprint, provenance, remake
+from eval.bench import fingerprint, provenance
 from eval.bench.provenance import MANIFEST_SUFFIX, TreeState
+from eval.commands import remake
 from slamcommon import provenance as shared
 
 FIRST = "from fakemake.shared import OracleAgent\n\n\nclass First(OracleAgent):\n    pass\n"
