@@ -208,6 +208,18 @@ def test_more_frames_than_a_sequence_has_is_refused_before_any_run(folders, tmp_
     assert bench(tmp_path, "table1", "--sequences", path, "--methods", "oracle", *SMALL[2:], "--frames", "6") == 0
 
 
+def test_a_camera_file_for_other_images_is_refused_before_any_run(tmp_path, capsys):
+    """A folder whose camera.toml is for 640x480 images while its images are 64x48: exit 2 naming the file and
+    both sizes, before any run (it was rescaled silently, fx 600 -> 60)."""
+    folder = write_folder(tiny_source(3), tmp_path / "seq", "7scenes")
+    (folder / "camera.toml").write_text("fx = 600.0\nfy = 600.0\ncx = 319.5\ncy = 239.5\nwidth = 640\nheight = 480\n")
+    assert bench(tmp_path, "table1", "--sequences", str(folder), "--methods", "oracle", *SMALL[2:], "--frames",
+                 "3") == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "camera.toml: the camera is for 640x480 images but the images are 64x48" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "runs").exists()
+
+
 def test_the_shipped_list_names_the_shared_7scenes_folder(monkeypatch):
     monkeypatch.delenv(DATASETS_ENV, raising=False)
     entries = load_dataset_list()
