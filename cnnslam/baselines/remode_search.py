@@ -1,7 +1,8 @@
 """REMODE's depth filter, its per-pixel core (:class:`cnnslam.baselines.remode.DepthFilter` drives it): the
 Vogiatzis-Hernandez posterior update (:func:`vogiatzis_update`), SVO's triangulation uncertainty
 (:func:`triangulation_uncertainty`), the epipolar ZNCC search (:func:`search_image`, :func:`best_match`) and one
-update of every seed of a reference frame (:func:`_update_seeds`).
+update of every seed of a reference frame (:func:`_update_seeds`, with REMODE's seedCheck
+:func:`_seed_check`).
 
 Hot loops are serial numba kernels (on two shared cores a parallel kernel measured 3x slower than a serial one). The
 search reads each sampled patch's sum of I and I^2 from tables made once a frame (:func:`search_tables`: box sums of
@@ -506,7 +507,17 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tab: np.ndarray, tmpl_mean: 
                 continue
             mu[y, x], sigma2[y, x], a[y, x], b[y, x] = nm, ns, na, nb
             outcome[y, x] = UPDATED
-    # REMODE seedCheck
+    _seed_check(mu, sigma2, a, b, state, eta_in, eta_out, sig_ratio)
+    return outcome
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seed_check(mu: np.ndarray, sigma2: np.ndarray, a: np.ndarray, b: np.ndarray, state: np.ndarray, eta_in: float,
+                eta_out: float, sig_ratio: float) -> None:
+    """REMODE's seedCheck of every seed in state UPDATE, ``state`` changed in place: CONVERGED when its inlier ratio
+    a / (a + b) > ``eta_in`` and sqrt(sigma2) < ``sig_ratio`` mu, else DIVERGED when (a - 1) / (a + b - 2) <
+    ``eta_out``. mu, sigma2, a, b: (H, W) float64 seed parameters; state: (H, W) uint8."""
+    h, w = state.shape
     for y in range(h):
         for x in range(w):
             if state[y, x] != UPDATE:
@@ -516,7 +527,6 @@ def _update_seeds(ref: np.ndarray, cur: np.ndarray, tab: np.ndarray, tmpl_mean: 
                 state[y, x] = CONVERGED
             elif (aa - 1.0) / (aa + bb - 2.0) < eta_out:
                 state[y, x] = DIVERGED
-    return outcome
 
 
 def _gray(image: np.ndarray) -> np.ndarray:

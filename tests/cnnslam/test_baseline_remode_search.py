@@ -12,6 +12,11 @@ import pytest
 
 from cnnslam.baselines.remode import DepthFilter, RemodeConfig
 from cnnslam.baselines.remode_search import (
+    BORDER,
+    CONVERGED,
+    DIVERGED,
+    UPDATE,
+    _seed_check,
     best_match,
     search_image,
     search_pairs,
@@ -203,3 +208,23 @@ def test_best_match_refuses_tables_pairs_or_template_of_another_size() -> None:
         with pytest.raises(CnnSlamError, match=message):
             best_match(cur, bad_tab, bad_tmpl, *args, pairs=bad_pairs)
 
+
+
+def test_seed_check_converges_diverges_or_keeps_each_seed() -> None:
+    """REMODE's seedCheck with eta_in 0.7, eta_out 0.05, sigma ratio 0.02, each seed by hand: converged needs both
+    a / (a + b) > 0.7 and sigma < 0.02 mu; diverged is (a - 1) / (a + b - 2) < 0.05; seeds not in UPDATE stay."""
+    #            inlier ratio, sigma / mu      -> expected
+    cases = [((30.0, 10.0, 0.01), UPDATE, CONVERGED),    # 0.75 > 0.7, sigma 0.01 < 0.02 * 2
+             ((30.0, 10.0, 0.05), UPDATE, UPDATE),       # sigma 0.05 >= 0.04: not yet
+             ((20.0, 10.0, 0.01), UPDATE, UPDATE),       # 0.667 <= 0.7: not yet (and 19 / 28 >= 0.05)
+             ((2.0, 30.0, 0.5), UPDATE, DIVERGED),       # (2 - 1) / 30 = 0.033 < 0.05
+             ((3.0, 30.0, 0.5), UPDATE, UPDATE),         # (3 - 1) / 31 = 0.065 >= 0.05
+             ((2.0, 30.0, 0.5), BORDER, BORDER),         # only seeds in UPDATE are checked
+             ((30.0, 10.0, 0.01), DIVERGED, DIVERGED)]
+    a = np.array([[c[0][0] for c in cases]])
+    b = np.array([[c[0][1] for c in cases]])
+    sigma2 = np.array([[c[0][2] ** 2 for c in cases]])
+    mu = np.full(a.shape, 2.0)
+    state = np.array([[c[1] for c in cases]], np.uint8)
+    _seed_check(mu, sigma2, a, b, state, 0.7, 0.05, 0.02)
+    assert state.tolist() == [[c[2] for c in cases]]
