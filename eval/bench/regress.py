@@ -41,8 +41,10 @@ A gate that cannot fail is refused when the baseline is loaded (:func:`check_tol
 rule that can never match (an earlier rule matches every name it does), a baseline of another schema or with no
 figures, and a figure whose allowed change reaches its metric's bound (:data:`METRIC_BOUNDS`: degrees 0..180,
 shares 0..1, percent 0..100, metres and counts >= 0), e.g. a rotation error of 51.9 deg +- 182 deg. The writers of a
-baseline (calibration, updates) cap such an allowance to :data:`CROSSABLE_SHARE` of the figure's room to fail
-(:func:`cap_to_cross`, listed in the calibration record's ``capped_to_cross``).
+baseline (calibration, updates) make it crossable (:func:`cap_to_cross`): a figure whose own measured noise (k x
+its spread) reaches the bound is left out of the gate (no tolerance both absorbs that noise and can fail; listed in
+the calibration record's ``ungated_as_noise``); otherwise the allowance is capped to :data:`CROSSABLE_SHARE` of the
+figure's room to fail (listed in ``capped_to_cross``).
 
 Run file: a JSON object with a ``metrics`` object (a run record of :mod:`eval.metrics.results`, or anything shaped
 so), a flat object of numbers, or a JSON list of run records (reduced to the gated figures by :func:`gate_metrics`).
@@ -142,6 +144,7 @@ METRIC_BOUNDS: tuple[tuple[str, float, float], ...] = catalogue.bound_rules()  #
 # a file read with one is refused.
 CROSSABLE_SHARE = 0.9
 CAPPED_KEY = "capped_to_cross"  # the calibration record's list of the figures whose allowed change was capped
+UNGATED_KEY = "ungated_as_noise"  # the figures left out of the gate: their measured noise leaves no room to fail
 
 
 def metric_bounds(metric: str) -> tuple[float, float]:
@@ -235,25 +238,41 @@ def check_tolerances(baseline: Baseline, source: str = "baseline", crossable: bo
                             f"{room_to_fail(metric, value, rule.direction):.6g}")  # fmt: skip
 
 
-def cap_to_cross(baseline: Baseline) -> Baseline:
-    """``baseline`` with every allowed change that cannot be crossed (:func:`uncrossable`) capped to
+def cap_to_cross(baseline: Baseline, k: float | None = None) -> Baseline:
+    """``baseline`` with every allowed change that cannot be crossed (:func:`uncrossable`) made crossable, figures
+    untouched. Where the figure's own measured noise leaves no room to fail (``k`` x its calibrated ``spread`` reaches
+    its metric's bound; ``k``: the calibration's, default :data:`CALIBRATION_K`), no tolerance both absorbs that
+    noise and can fail: the figure is left out of the gate and listed with its value, spread and room
+    (:data:`UNGATED_KEY`). Otherwise (a rule's floor above a figure near its bound) the allowance is capped to
     :data:`CROSSABLE_SHARE` of the figure's room to fail, as a calibrated entry (``capped_from``: the allowance it
-    replaced); the calibration record lists those figures (:data:`CAPPED_KEY`). Nothing else changes."""
-    calibrated = dict(baseline.calibrated)
-    capped = []
+    replaced), and listed (:data:`CAPPED_KEY`)."""
+    k = float(baseline.calibration.get("k", CALIBRATION_K)) if k is None else k
+    metrics, calibrated = dict(baseline.metrics), dict(baseline.calibrated)
+    capped, noisy = [], {}
     for metric, value in baseline.metrics.items():
         direction = baseline.tolerance_for(metric).direction
         allowed = baseline.allowed_change(metric)
-        if uncrossable(metric, value, direction, allowed):
-            entry = dict(calibrated.get(metric, {}))
-            entry.update(allowed=CROSSABLE_SHARE * room_to_fail(metric, value, direction), capped_from=allowed)
-            calibrated[metric] = entry
-            capped.append(metric)
-    if not capped:
+        if not uncrossable(metric, value, direction, allowed):
+            continue
+        room = room_to_fail(metric, value, direction)
+        spread = calibrated.get(metric, {}).get("spread")
+        if isinstance(spread, int | float) and math.isfinite(spread) and k * spread >= room:
+            noisy[metric] = {"value": value, "spread": float(spread), "room": room}
+            del metrics[metric]
+            calibrated.pop(metric)
+            continue
+        entry = dict(calibrated.get(metric, {}))
+        entry.update(allowed=CROSSABLE_SHARE * room, capped_from=allowed)
+        calibrated[metric] = entry
+        capped.append(metric)
+    if not capped and not noisy:
         return baseline
     calibration = dict(baseline.calibration)
-    _list_in(calibration, CAPPED_KEY, capped)
-    return replace(baseline, calibrated=calibrated, calibration=calibration)
+    if capped:
+        _list_in(calibration, CAPPED_KEY, capped)
+    if noisy:
+        calibration[UNGATED_KEY] = dict(sorted({**calibration.get(UNGATED_KEY, {}), **noisy}.items()))
+    return replace(baseline, metrics=metrics, calibrated=calibrated, calibration=calibration)
 
 
 @dataclass(frozen=True)
@@ -692,6 +711,7 @@ def calibrate(
     base = replace(_spread_baseline(configurations, reference, tolerances, k, runs), description=description)
     alarms = {name: _alarms(base, figures) for name, figures in configurations.items()}
     calibration = {
+        **base.calibration,  # what cap_to_cross recorded
         "how": how,
         "k": k,
         "reference": reference,
@@ -730,7 +750,7 @@ def _spread_baseline(configurations: Mapping[str, Mapping[str, float]], referenc
         calibrated[name] = {"spread": spread, "allowed": max(k * spread, rule.allowed(value))}
         if runs:
             calibrated[name].update(median_spread=median_spread, run_spread=run_spread)
-    return cap_to_cross(replace(base, calibrated=calibrated))
+    return cap_to_cross(replace(base, calibrated=calibrated), k)
 
 
 def _alarms(baseline: Baseline, figures: Mapping[str, float]) -> int:
