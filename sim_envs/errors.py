@@ -1,5 +1,6 @@
 """Exceptions of the simulated world. One base class; subclasses where callers need to tell cases apart."""
 
+from slamcommon.errors import FormatError as SharedFormatError
 from slamcommon.errors import ProjectError
 
 
@@ -18,5 +19,7 @@ class RendererUnavailableError(SimEnvError, RuntimeError):
     """No offscreen OpenGL backend could be created; the message names the missing system library."""
 
 
-class FormatError(SimEnvError):
-    """A file that does not follow its format; the message names the file and the line."""
+class FormatError(SimEnvError, SharedFormatError):
+    """A file that does not follow its format; the message names the file and the line. Also the shared
+    :class:`slamcommon.errors.FormatError`, which the readers of :mod:`slamcommon.formats` raise (the world's
+    re-exports in :mod:`sim_envs.formats` raise this one)."""

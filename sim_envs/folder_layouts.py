@@ -1,7 +1,11 @@
 """RGB-D folder layouts: detect a folder's layout and index its frames (timestamp, RGB file, depth file, pose).
 
-:func:`detect_layout` names the layout (a key of :data:`LAYOUTS`); :func:`index_folder` lists the frames that have
-what they need, associating RGB images, depth images and poses by time (or frame number):
+A layout is one registered :class:`FolderLayout` (its ``name``, ``description``, ``detect(folder) -> bool`` and
+``index(folder, max_difference) -> FolderIndex``): a new layout is one subclass here plus :func:`register_layout`.
+:func:`detect_layout` names the layout of a folder (the first registered layout, by ``priority``, that detects it; a
+key of :data:`LAYOUTS`); :func:`index_folder` lists the frames that have what they need, associating RGB images,
+depth images and poses by time (or frame number). The file formats they read are :mod:`slamcommon.formats` (through
+:mod:`sim_envs.formats`, which raises the world's errors). The layouts registered here:
 
 - ``tum``, TUM RGB-D: ``rgb.txt``, ``depth.txt``, ``groundtruth.txt``. Each RGB image is associated with a depth
   image and then with a ground-truth pose by the TUM tools' greedy rule (max difference 0.02 s); RGB images without
@@ -32,87 +36,148 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
-import re
-from collections.abc import Sequence
+from abc import ABC, abstractmethod
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from sim_envs.errors import FormatError, SimEnvError
-from sim_envs.formats import _data_lines, associate_greedy, read_tum_image_list, read_tum_trajectory
+from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
+from sim_envs.formats import (
+    associate_greedy,
+    read_icl_associations,
+    read_pose_matrix,
+    read_tum_image_list,
+    read_tum_trajectory,
+    world_errors,
+)
+from slamcommon.formats.icl import ICL_FPS
+from slamcommon.formats.seven_scenes import (  # noqa: F401 (POSE_ROTATION_TOL, SEVEN_SCENES_INVALID_DEPTH: re-exported)
+    POSE_ROTATION_TOL,
+    SEVEN_SCENES_COLOUR,
+    SEVEN_SCENES_DEPTH_SCALE,
+    SEVEN_SCENES_FPS,
+    SEVEN_SCENES_INVALID_DEPTH,
+)
 
 SIDE_FILE = "cnnslam.json"
 SIDE_FORMAT = "cnnslam-tum-rgbd/1"
 DEPTH_SCALE: float = 5000.0  # TUM RGB-D and ICL-NUIM: 16-bit PNG value 5000 = 1 m
-SEVEN_SCENES_DEPTH_SCALE: float = 1000.0  # 7-Scenes: millimetres
-SEVEN_SCENES_INVALID_DEPTH = 65535  # 7-Scenes marks no measurement by 0 and by 65535
-ICL_FPS: float = 30.0
-SEVEN_SCENES_FPS: float = 30.0  # 7-Scenes has no timestamps; the Kinect's nominal rate
-Layout = Literal["tum", "icl", "7scenes", "7scenes_split", "rgb_only"]
-LAYOUTS: dict[str, str] = {
-    "tum": "TUM RGB-D (rgb.txt, depth.txt, groundtruth.txt)",
-    "icl": "ICL-NUIM TUM-compatible (associations.txt, *.gt.freiburg)",
-    "7scenes": "7-Scenes (frame-XXXXXX.color.png|jpg, .depth.png in mm, .pose.txt in one folder)",
-    "7scenes_split": "7-Scenes split (rgb/, depth/, poses/ holding the 7-Scenes files)",
-    "rgb_only": "RGB only (rgb.txt, groundtruth.txt, no depth.txt)",
-}
+Layout = Literal["tum", "icl", "7scenes", "7scenes_split", "rgb_only"]  # the built-in layouts' names
 _LAYOUT_DEPTH_SCALE: dict[str, float] = {"7scenes": SEVEN_SCENES_DEPTH_SCALE, "7scenes_split": SEVEN_SCENES_DEPTH_SCALE}
-_SEVEN_SCENES_COLOUR = re.compile(r"^(frame-(\d+))\.color\.(png|jpg)$")
+_SEVEN_SCENES_COLOUR = SEVEN_SCENES_COLOUR
 MAX_DIFFERENCE: float = 0.02  # seconds, the TUM tools' default association tolerance
-POSE_ROTATION_TOL: float = 1e-2  # max |R - nearest rotation| of a 7-Scenes pose (ours: its matrices are within 4e-4)
 
 
 @dataclass(frozen=True)
-class _Index:
+class FolderIndex:
     """What a layout's files say: per kept frame its timestamp (s), RGB file, depth file (None: no depth), pose."""
 
-    timestamps: np.ndarray
-    rgb_files: list[Path]
-    depth_files: list[Path] | None
-    poses: np.ndarray
+    timestamps: np.ndarray  # (N,) float64 seconds, increasing
+    rgb_files: list[Path]  # N
+    depth_files: list[Path] | None  # N, or None for a layout without depth
+    poses: np.ndarray  # (N, 4, 4) float64 T_world_cam (ground truth)
     dropped: int  # frames listed but not kept (no depth or no pose)
     timing: str  # where the timestamps come from
 
 
+_Index = FolderIndex  # the name it had
+
+
+# ------------------------------------------------------------------------------------------------------- registry
+class FolderLayout(ABC):
+    """One layout of an RGB-D folder on disk. Subclasses set ``name`` (a key of :data:`LAYOUTS`), ``description``
+    (one line: the files that make it), ``priority`` (detection order, lower first: a layout whose files another
+    layout's folder may also hold goes first) and implement :meth:`detect` and :meth:`index`."""
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+    priority: ClassVar[int] = 100
+
+    @abstractmethod
+    def detect(self, folder: Path) -> bool:
+        """Whether ``folder`` (an existing folder) has this layout's files."""
+
+    @abstractmethod
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        """The frames of ``folder`` that have an RGB image, a depth image (unless the layout has none) and a pose;
+        ``max_difference``: seconds, the tolerance of an association by time or frame index. Bad files raise a
+        ``FormatError`` naming the file and line."""
+
+
+_REGISTRY: dict[str, FolderLayout] = {}
+
+
+def register_layout(layout: FolderLayout | type[FolderLayout]) -> Any:
+    """Register a layout (an instance, or a class, then instantiated; usable as a class decorator) under its
+    ``name``; returns its argument. :class:`SimEnvError` when the name is taken."""
+    instance = layout() if isinstance(layout, type) else layout
+    if instance.name in _REGISTRY:
+        raise SimEnvError(f"layout {instance.name!r} is registered already; taken names: {', '.join(_REGISTRY)}")
+    _REGISTRY[instance.name] = instance
+    return layout
+
+
+def unregister_layout(name: str) -> FolderLayout:
+    """Remove the layout ``name`` from the registry (for tests that register their own); returns it."""
+    folder_layout(name)
+    return _REGISTRY.pop(name)
+
+
+def folder_layout(name: str) -> FolderLayout:
+    """The registered layout ``name``; :class:`UnknownNameError` listing the registered names."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise UnknownNameError(f"unknown layout {name!r}; valid layouts: {', '.join(_REGISTRY)}") from None
+
+
+class _Descriptions(Mapping[str, str]):
+    """{layout name: description} of the registered layouts, in registration order (a live view)."""
+
+    def __getitem__(self, name: str) -> str:
+        return _REGISTRY[name].description
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(_REGISTRY))
+
+    def __len__(self) -> int:
+        return len(_REGISTRY)
+
+    def __repr__(self) -> str:
+        return repr(dict(self))
+
+
+LAYOUTS: Mapping[str, str] = _Descriptions()
+
+
 def detect_layout(folder: str | Path) -> str:
-    """The layout of an RGB-D folder, a key of :data:`LAYOUTS`; :class:`SimEnvError` (one line, listing the layouts)
-    when none matches. 7-Scenes file names win over TUM index files beside them."""
+    """The layout of an RGB-D folder, a key of :data:`LAYOUTS`: the first registered layout, by ``priority`` (then
+    registration order), whose ``detect`` accepts it; :class:`SimEnvError` (one line, listing the layouts) when none
+    does. 7-Scenes file names win over TUM index files beside them."""
     folder = Path(folder)
     if not folder.is_dir():
         raise SimEnvError(f"{folder} is not a folder")
-    if _has_seven_scenes_colour(folder):
-        return "7scenes"
-    if (folder / "poses").is_dir() and _has_seven_scenes_colour(folder / "rgb"):
-        return "7scenes_split"
-    if (folder / "rgb.txt").is_file():
-        return "tum" if (folder / "depth.txt").is_file() else "rgb_only"
-    if (folder / "associations.txt").is_file():
-        return "icl"
+    for layout in sorted(_REGISTRY.values(), key=lambda layout: layout.priority):
+        if layout.detect(folder):
+            return layout.name
     raise SimEnvError(
         f"{folder}: not an RGB-D folder of a known layout; expected one of: {'; '.join(LAYOUTS.values())}"
     )
 
 
-def index_folder(folder: str | Path, layout: str, max_difference: float = MAX_DIFFERENCE) -> _Index:
+def index_folder(folder: str | Path, layout: str, max_difference: float = MAX_DIFFERENCE) -> FolderIndex:
     """The frames of ``folder`` in ``layout`` (a key of :data:`LAYOUTS`, as :func:`detect_layout` names it) that have
     an RGB image, a depth image (unless the layout has none) and a pose; ``max_difference``: seconds, the tolerance of
-    the association by time (TUM, RGB-only) or by frame index (ICL-NUIM)."""
-    folder = Path(folder)
-    if layout == "tum":
-        return _index_tum(folder, max_difference)
-    if layout == "icl":
-        return _index_icl(folder, max_difference)
-    if layout == "rgb_only":
-        return _index_rgb_only(folder, max_difference)
-    if layout == "7scenes":
-        return _index_seven_scenes(folder, folder, folder)
-    return _index_seven_scenes(folder / "rgb", folder / "depth", folder / "poses")
+    the association by time (TUM, RGB-only) or by frame index (ICL-NUIM). A shared format error comes out as the
+    world's :class:`FormatError`."""
+    return world_errors(folder_layout(layout).index)(Path(folder), max_difference)
 
 
+# ----------------------------------------------------------------------------------------------- built-in layouts
 def _ground_truth_file(folder: Path) -> Path:
     for candidate in [folder / "groundtruth.txt", *sorted(folder.glob("*.gt.freiburg"))]:
         if candidate.exists():
@@ -120,67 +185,110 @@ def _ground_truth_file(folder: Path) -> Path:
     raise SimEnvError(f"{folder}: no ground truth (groundtruth.txt or *.gt.freiburg)")
 
 
-def _index_tum(folder: Path, max_difference: float) -> _Index:
-    rgb_t, rgb_names = read_tum_image_list(folder / "rgb.txt")
-    depth_t, depth_names = read_tum_image_list(folder / "depth.txt")
-    gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
-    ri, di = associate_greedy(rgb_t, depth_t, max_difference)
-    rj, gj = associate_greedy(rgb_t[ri], gt_t, max_difference)
-    keep_rgb, keep_depth = ri[rj], di[rj]
-    return _Index(
-        rgb_t[keep_rgb].copy(),
-        [folder / rgb_names[k] for k in keep_rgb],
-        [folder / depth_names[k] for k in keep_depth],
-        gt_T[gj],
-        len(rgb_t) - len(keep_rgb),
-        "rgb.txt",
-    )
+@register_layout
+class TumLayout(FolderLayout):
+    """TUM RGB-D: RGB images associated with depth images, then with ground-truth poses, by time."""
+
+    name = "tum"
+    description = "TUM RGB-D (rgb.txt, depth.txt, groundtruth.txt)"
+    priority = 30
+
+    def detect(self, folder: Path) -> bool:
+        return (folder / "rgb.txt").is_file() and (folder / "depth.txt").is_file()
+
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        rgb_t, rgb_names = read_tum_image_list(folder / "rgb.txt")
+        depth_t, depth_names = read_tum_image_list(folder / "depth.txt")
+        gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
+        ri, di = associate_greedy(rgb_t, depth_t, max_difference)
+        rj, gj = associate_greedy(rgb_t[ri], gt_t, max_difference)
+        keep_rgb, keep_depth = ri[rj], di[rj]
+        return FolderIndex(
+            rgb_t[keep_rgb].copy(),
+            [folder / rgb_names[k] for k in keep_rgb],
+            [folder / depth_names[k] for k in keep_depth],
+            gt_T[gj],
+            len(rgb_t) - len(keep_rgb),
+            "rgb.txt",
+        )
 
 
-def _index_rgb_only(folder: Path, max_difference: float) -> _Index:
-    rgb_t, rgb_names = read_tum_image_list(folder / "rgb.txt")
-    gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
-    ri, gi = associate_greedy(rgb_t, gt_t, max_difference)
-    return _Index(
-        rgb_t[ri].copy(), [folder / rgb_names[k] for k in ri], None, gt_T[gi], len(rgb_t) - len(ri), "rgb.txt"
-    )
+@register_layout
+class IclLayout(FolderLayout):
+    """ICL-NUIM TUM-compatible: frame indices matched with the trajectory's stamps (the same indices)."""
+
+    name = "icl"
+    description = "ICL-NUIM TUM-compatible (associations.txt, *.gt.freiburg)"
+    priority = 40
+
+    def detect(self, folder: Path) -> bool:
+        return (folder / "associations.txt").is_file()
+
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        index, rgb_names, depth_names = read_icl_associations(folder / "associations.txt")
+        gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
+        ai, gi = associate_greedy(index, gt_t, max_difference)
+        return FolderIndex(
+            index[ai] / ICL_FPS,
+            [folder / rgb_names[k] for k in ai],
+            [folder / depth_names[k] for k in ai],
+            gt_T[gi],
+            len(index) - len(ai),
+            f"frame index / {ICL_FPS:g} s",
+        )
 
 
-def _index_icl(folder: Path, max_difference: float) -> _Index:
-    path = folder / "associations.txt"
-    rows = []
-    layout = "index depth/N.png index rgb/N.png"
-    for number, fields in _data_lines(path):
-        if len(fields) != 4:
-            raise FormatError(
-                f"{path}:{number}: expected 4 columns ({layout}), found {len(fields)}: {' '.join(fields)!r}"
-            )
-        for column in (1, 3):
-            try:
-                value = float(fields[column - 1])
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value):
-                raise FormatError(f"{path}:{number}: column {column} is {fields[column - 1]!r}, not a frame index "
-                                  f"(a finite number); valid lines are '{layout}'")  # fmt: skip
-        rows.append((float(fields[2]), fields[3], fields[1]))
-    if not rows:
-        raise FormatError(f"{path}: no entries; expected lines '{layout}'")
-    rows.sort()
-    index = np.array([r[0] for r in rows])
-    gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
-    ai, gi = associate_greedy(index, gt_t, max_difference)
-    return _Index(
-        index[ai] / ICL_FPS,
-        [folder / rows[k][1] for k in ai],
-        [folder / rows[k][2] for k in ai],
-        gt_T[gi],
-        len(rows) - len(ai),
-        f"frame index / {ICL_FPS:g} s",
-    )
+@register_layout
+class SevenScenesLayout(FolderLayout):
+    """7-Scenes as it ships: colour, depth and pose files of each frame in one folder."""
+
+    name = "7scenes"
+    description = "7-Scenes (frame-XXXXXX.color.png|jpg, .depth.png in mm, .pose.txt in one folder)"
+    priority = 10
+
+    def detect(self, folder: Path) -> bool:
+        return _has_seven_scenes_colour(folder)
+
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        return _index_seven_scenes(folder, folder, folder)
 
 
-def _index_seven_scenes(colour_dir: Path, depth_dir: Path, pose_dir: Path) -> _Index:
+@register_layout
+class SevenScenesSplitLayout(FolderLayout):
+    """7-Scenes files split into ``rgb/``, ``depth/`` and ``poses/``."""
+
+    name = "7scenes_split"
+    description = "7-Scenes split (rgb/, depth/, poses/ holding the 7-Scenes files)"
+    priority = 20
+
+    def detect(self, folder: Path) -> bool:
+        return (folder / "poses").is_dir() and _has_seven_scenes_colour(folder / "rgb")
+
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        return _index_seven_scenes(folder / "rgb", folder / "depth", folder / "poses")
+
+
+@register_layout
+class RgbOnlyLayout(FolderLayout):
+    """TUM files without depth: RGB images associated with ground-truth poses by time; no depth files."""
+
+    name = "rgb_only"
+    description = "RGB only (rgb.txt, groundtruth.txt, no depth.txt)"
+    priority = 30
+
+    def detect(self, folder: Path) -> bool:
+        return (folder / "rgb.txt").is_file() and not (folder / "depth.txt").is_file()
+
+    def index(self, folder: Path, max_difference: float) -> FolderIndex:
+        rgb_t, rgb_names = read_tum_image_list(folder / "rgb.txt")
+        gt_t, gt_T = read_tum_trajectory(_ground_truth_file(folder), duplicate_timestamps="last")
+        ri, gi = associate_greedy(rgb_t, gt_t, max_difference)
+        return FolderIndex(
+            rgb_t[ri].copy(), [folder / rgb_names[k] for k in ri], None, gt_T[gi], len(rgb_t) - len(ri), "rgb.txt"
+        )
+
+
+def _index_seven_scenes(colour_dir: Path, depth_dir: Path, pose_dir: Path) -> FolderIndex:
     """7-Scenes frames: every ``frame-XXXXXX.color.png|jpg`` with its ``.depth.png`` and a finite ``.pose.txt``."""
     colour: dict[int, Path] = {}
     for path in colour_dir.iterdir():
@@ -200,7 +308,7 @@ def _index_seven_scenes(colour_dir: Path, depth_dir: Path, pose_dir: Path) -> _I
         rgb_files.append(colour[number])
         depth_files.append(depth)
         poses.append(T)
-    return _Index(
+    return FolderIndex(
         np.asarray(stamps, dtype=np.float64),
         rgb_files,
         depth_files,
@@ -212,37 +320,6 @@ def _index_seven_scenes(colour_dir: Path, depth_dir: Path, pose_dir: Path) -> _I
 
 def _has_seven_scenes_colour(folder: Path) -> bool:
     return folder.is_dir() and any(_SEVEN_SCENES_COLOUR.match(p.name) for p in folder.glob("frame-*.color.*"))
-
-
-def read_pose_matrix(path: str | Path) -> np.ndarray:
-    """A 7-Scenes ``frame-XXXXXX.pose.txt`` (4 rows of 4 numbers, camera-to-world, metres) -> (4, 4) float64
-    ``T_world_cam``, the rotation block replaced by the nearest rotation (SVD, U V^T): 7-Scenes' KinectFusion
-    matrices are orthonormal only to about 4e-4. A matrix with a non-finite entry (no pose) comes back all NaN.
-    :class:`FormatError` (one line naming the file) for anything else that is not a pose: not 4 rows of 4 numbers,
-    a last row other than 0 0 0 1, a reflection, a block farther than :data:`POSE_ROTATION_TOL` from a rotation."""
-    path = Path(path)
-    try:
-        M = np.loadtxt(path, dtype=np.float64, ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise FormatError(f"{path}: not a 4x4 matrix of numbers ({exc})") from exc
-    if M.shape != (4, 4):
-        raise FormatError(f"{path}: expected 4 rows of 4 numbers (a 4x4 camera-to-world matrix), got {M.shape}")
-    if not np.isfinite(M).all():
-        return np.full((4, 4), np.nan)
-    if not np.allclose(M[3], [0.0, 0.0, 0.0, 1.0], atol=1e-6):
-        raise FormatError(f"{path}: the last row of a pose must be 0 0 0 1, got {M[3].tolist()}")
-    U, _, Vt = np.linalg.svd(M[:3, :3])
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        raise FormatError(f"{path}: the 3x3 block is a reflection (det < 0), not a rotation")
-    deviation = float(np.abs(M[:3, :3] - R).max())
-    if deviation > POSE_ROTATION_TOL:
-        raise FormatError(f"{path}: the 3x3 block is {deviation:.3g} away from the nearest rotation; a pose needs a "
-                          f"rotation (orthonormal to within {POSE_ROTATION_TOL:g}, det +1)")  # fmt: skip
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = M[:3, 3]
-    return T
 
 
 def folder_fingerprint(folder: str | Path, extra_files: Sequence[str | Path] = ()) -> dict[str, Any]:

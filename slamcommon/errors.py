@@ -19,3 +19,9 @@ class MetricError(ProjectError):
 class ConfigError(ProjectError):
     """A configuration key or value that a configuration dataclass does not take (:mod:`slamcommon.config`): an
     unknown key, or a value of the wrong type; the message names the key, the value and what is valid."""
+
+
+class FormatError(ProjectError):
+    """A data file (a trajectory, an image list, a pose file) that does not follow its format
+    (:mod:`slamcommon.formats`); the message names the file, the line, what was found and what is valid. The world
+    raises it as ``sim_envs.errors.FormatError``, a subclass that is also a ``SimEnvError``."""

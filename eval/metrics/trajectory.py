@@ -14,7 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from eval.errors import EvalError
-from eval.metrics.tum_reader import DuplicatePolicy, TumFileError, read_tum_file
+from slamcommon.errors import FormatError
+from slamcommon.formats import (
+    DuplicatePolicy,
+    read_kitti_poses,
+    read_tum_trajectory,
+    write_kitti_poses,
+    write_tum_trajectory,
+)
 from slamcommon.se3 import relative_pose, se3_inverse, sim3_matrix, transform_poses  # noqa: F401 - shared, re-exported
 
 
@@ -105,21 +112,19 @@ class PoseTrajectory:
         duplicate_timestamps: DuplicatePolicy = "error",
         on_duplicates: Callable[[str], None] | None = None,
     ) -> PoseTrajectory:
-        """Read a TUM trajectory file (see :func:`sim_envs.formats.read_tum_trajectory`, read here by
-        :func:`eval.metrics.tum_reader.read_tum_file`: the same poses and errors, faster; ``on_duplicates`` gets one
+        """Read a TUM trajectory file (:func:`slamcommon.formats.read_tum_trajectory`; ``on_duplicates`` gets one
         message when poses of repeated timestamps were dropped)."""
         try:
-            stamps, T = read_tum_file(path, duplicate_timestamps=duplicate_timestamps, on_duplicates=on_duplicates)
-        except TumFileError as exc:
+            stamps, T = read_tum_trajectory(
+                path, duplicate_timestamps=duplicate_timestamps, on_duplicates=on_duplicates
+            )
+        except FormatError as exc:
             raise TrajectoryError(str(exc)) from exc
         return cls(stamps, T)
 
     @classmethod
     def from_kitti_file(cls, path: str | Path, *, rate_hz: float = 10.0) -> PoseTrajectory:
         """Read a KITTI pose file; KITTI has no timestamps, so pose i gets ``i / rate_hz`` seconds."""
-        from sim_envs.errors import FormatError
-        from sim_envs.formats import read_kitti_poses
-
         try:
             T = read_kitti_poses(path)
         except FormatError as exc:
@@ -128,14 +133,10 @@ class PoseTrajectory:
 
     def to_tum_file(self, path: str | Path, *, header: str | None = None) -> Path:
         """Write as a TUM trajectory file."""
-        from sim_envs.formats import write_tum_trajectory
-
         return write_tum_trajectory(path, self.timestamps, self.T_world_cam, header=header)
 
     def to_kitti_file(self, path: str | Path) -> Path:
         """Write as a KITTI pose file (timestamps are dropped)."""
-        from sim_envs.formats import write_kitti_poses
-
         return write_kitti_poses(path, self.T_world_cam)
 
 

@@ -1,5 +1,5 @@
-"""Property-based test of the TUM trajectory readers (``fuzz_reader``: tests/conftest.py): the judge's fast reader
-:func:`eval.metrics.tum_reader.read_tum_file` and the reference :func:`sim_envs.formats.read_tum_trajectory`, on
+"""Property-based test of the TUM trajectory readers (``fuzz_reader``: tests/conftest.py): the fast reader
+:func:`slamcommon.formats.tum.read_tum_trajectory` and the line-by-line :func:`read_tum_trajectory_by_line`, on
 mutated valid files, under both duplicate-timestamp policies the commands use. Each input: both give the same bits,
 or both refuse it with the same one line naming the file; a result is a valid trajectory."""
 
@@ -10,9 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eval.metrics.tum_reader import TumFileError, read_tum_file
-from sim_envs.errors import FormatError
-from sim_envs.formats import read_tum_trajectory
+from slamcommon.errors import FormatError
+from slamcommon.formats.tum import read_tum_trajectory as read_tum_file
+from slamcommon.formats.tum import read_tum_trajectory_by_line as read_tum_trajectory
+
+TumFileError = FormatError  # the fast reader's error: the same class
 
 pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 

@@ -1,5 +1,5 @@
-"""eval.metrics.tum_reader: the judge's fast TUM reader gives the reference reader's poses (bit for bit) and its
-errors."""
+"""slamcommon.formats.tum: the fast TUM reader (:func:`read_tum_trajectory`) gives the line-by-line reader's poses
+(bit for bit) and its errors; the old import paths (``eval.metrics.tum_reader``, ``sim_envs.formats``) are it."""
 
 import re
 
@@ -7,18 +7,31 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import sim_envs.formats as reference
+import eval.metrics.tum_reader
+import sim_envs.errors
+import sim_envs.formats
 from eval.metrics.trajectory import PoseTrajectory, TrajectoryError
-from eval.metrics.tum_reader import (
-    DUPLICATE_POLICIES,
+from slamcommon.errors import FormatError
+from slamcommon.formats.lines import data_line_numbers
+from slamcommon.formats.tum import (
     QUATERNION_TOL,
-    TumFileError,
-    data_line_numbers,
     parse_plain_tum_text,
     quaternions_to_matrices,
-    read_tum_file,
+    read_tum_trajectory_by_line,
 )
-from sim_envs.errors import FormatError
+from slamcommon.formats.tum import read_tum_trajectory as read_tum_file
+
+
+class reference:  # noqa: N801 - the line-by-line reader and scipy, what the fast path must equal
+    read_tum_trajectory = staticmethod(read_tum_trajectory_by_line)
+
+    @staticmethod
+    def quaternions_to_matrices(p, q):
+        T = np.tile(np.eye(4), (len(p), 1, 1))
+        if len(p):
+            T[:, :3, :3] = Rotation.from_quat(q).as_matrix()
+            T[:, :3, 3] = p
+        return T
 
 GOOD = [
     "1.0 0 0 0 0 0 0 1",
@@ -70,7 +83,7 @@ LEFT_TO_THE_REFERENCE = {  # (content, first words of the error; None: read by t
 def read_both(path, **kwargs):
     """(ours, reference's) result or error message for one file."""
     results = []
-    for read, error in ((read_tum_file, TumFileError), (reference.read_tum_trajectory, FormatError)):
+    for read, error in ((read_tum_file, FormatError), (reference.read_tum_trajectory, FormatError)):
         try:
             results.append(read(path, **kwargs))
         except error as exc:
@@ -87,9 +100,16 @@ def assert_same(ours, theirs):
             assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
-def test_constants_are_the_references():
-    assert DUPLICATE_POLICIES == reference.DUPLICATE_POLICIES
-    assert QUATERNION_TOL == reference.QUATERNION_TOL
+def test_the_old_import_paths_are_the_one_reader(tmp_path):
+    """eval.metrics.tum_reader re-exports it; sim_envs.formats wraps it, raising the world's FormatError."""
+    assert eval.metrics.tum_reader.read_tum_file is read_tum_file
+    assert eval.metrics.tum_reader.TumFileError is FormatError
+    assert sim_envs.formats.read_tum_trajectory.__wrapped__ is read_tum_file
+    path = tmp_path / "bad.txt"
+    path.write_text("1.0 0 0 0 0 0 0\n")
+    with pytest.raises(sim_envs.errors.FormatError, match=r"bad\.txt:1: expected 8 columns") as err:
+        sim_envs.formats.read_tum_trajectory(path)
+    assert isinstance(err.value, sim_envs.errors.SimEnvError) and isinstance(err.value, FormatError)
 
 
 def test_quaternions_to_matrices_are_scipys_bit_for_bit():
