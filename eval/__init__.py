@@ -5,8 +5,8 @@ Its parts, one subpackage each (as ``cnnslam/`` has one module per stage of the 
 only the parts below it, commands > bench > reports > metrics > :mod:`eval.errors`, with no circle (pyproject.toml's
 import-linter contracts, checked by ``lint-imports`` in ``make lint``):
 
-- :mod:`eval.metrics`: scoring one trajectory or episode: poses and TUM files (:mod:`eval.metrics.trajectory`,
-  :mod:`eval.metrics.tum_reader`), timestamp association (:mod:`eval.metrics.association`), ATE / RPE / rotation and
+- :mod:`eval.metrics`: scoring one trajectory or episode: poses and their files (:mod:`eval.metrics.trajectory`),
+  timestamp association (:mod:`eval.metrics.association`), ATE / RPE / rotation and
   scale error (:mod:`eval.metrics.trajectory_metrics`), the agent's global model (:mod:`eval.metrics.map_metrics`),
   a scored episode as a run record (:mod:`eval.metrics.results`), a run folder's files and a run's trajectory scored
   as its record scores it (:mod:`eval.metrics.runs`), a second reference for real folders
@@ -26,8 +26,7 @@ import-linter contracts, checked by ``lint-imports`` in ``make lint``):
   ``generate``, ``reference``, ``results``; ``results make`` remakes stale results with :mod:`eval.commands.remake`),
   the only users of argparse and print.
 
-File formats (TUM, KITTI) and dataset folders live in ``sim_envs.formats`` / ``sim_envs.datasets``: the world reads
-and writes them and must not import the judge. :mod:`eval.metrics.tum_reader` reads TUM trajectories for the judge
-with the same results and errors, faster and without importing the world (``cnnslam eval`` loads numpy and the judge
-only).
+File formats (TUM, KITTI, ICL-NUIM, 7-Scenes) and the TUM tools' association live once in :mod:`slamcommon.formats`,
+which the world (``sim_envs.formats``, ``sim_envs.datasets``: dataset folders) and the judge both read, so that
+``cnnslam eval`` loads numpy and the judge only, not the world.
 """

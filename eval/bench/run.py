@@ -496,7 +496,7 @@ def write_json(path: Path, data: Any) -> None:
 
 
 def _write_tum(path: Path, timestamps: np.ndarray, T: np.ndarray, header: str) -> None:
-    from sim_envs.formats import write_tum_trajectory
+    from slamcommon.formats import write_tum_trajectory
 
     write_tum_trajectory(path, np.asarray(timestamps), np.asarray(T), header=header)
 

@@ -57,9 +57,9 @@ from eval.metrics.trajectory_metrics import (
     error_statistics,
     evaluate_trajectory,
 )
-from eval.metrics.tum_reader import DUPLICATE_POLICIES
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
 from slamcommon.errors import MetricError, ProjectError
+from slamcommon.formats import DUPLICATE_POLICIES
 from slamcommon.output_paths import check_output_file
 from slamcommon.strict_json import json_ready
 

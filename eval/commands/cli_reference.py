@@ -294,7 +294,7 @@ def _write_reference(out: Path, folder: Any, reference: SfmReference, fixed: boo
     import pycolmap
 
     from sim_envs.datasets import camera_file_text
-    from sim_envs.formats import write_tum_trajectory
+    from slamcommon.formats import write_tum_trajectory
 
     how = "held fixed" if fixed else "self-calibrated"
     header = (

@@ -13,8 +13,8 @@ from collections.abc import Sequence
 
 from eval.metrics.catalogue import ATE_SE3_RMSE, ATE_SIM3_RMSE
 from eval.metrics.trajectory_metrics import TrajectoryMetrics
-from sim_envs.formats import format_tum_trajectory
 from slamcommon.alignment import ALIGNMENT_TITLES, AlignmentMethod
+from slamcommon.formats import format_tum_trajectory
 
 # the aligned files of a run folder, by alignment
 ALIGNED_FILES: dict[str, str] = {"se3": "trajectory_aligned_se3.tum", "sim3": "trajectory_aligned_sim3.tum"}

@@ -764,7 +764,7 @@ def second_reference_markdown(run: SuiteRun, references: dict[str, Path] | None 
     from eval.errors import EvalError, SuiteError
     from eval.metrics.trajectory import PoseTrajectory
     from eval.metrics.trajectory_metrics import evaluate_trajectory
-    from sim_envs.formats import read_tum_trajectory
+    from slamcommon.formats import read_tum_trajectory
 
     if references is None:
         try:

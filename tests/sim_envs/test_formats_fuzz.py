@@ -1,7 +1,7 @@
 """Property-based test of the KITTI pose reader of :mod:`sim_envs.formats` (``fuzz_reader``: tests/conftest.py):
-mutated valid files give valid poses or one :class:`FormatError` line naming the file. The TUM trajectory reader is
-fuzzed with the judge's, each input read by both (tests/eval/metrics/test_tum_reader_fuzz.py); the TUM image lists
-as a TUM RGB-D folder's (tests/sim_envs/test_folder_layouts_fuzz.py)."""
+mutated valid files give valid poses or one :class:`FormatError` line naming the file. The TUM trajectory reader's
+fast path is fuzzed against its line reader (tests/slamcommon/formats/test_tum_fuzz.py); the TUM image lists as a
+TUM RGB-D folder's (tests/sim_envs/test_folder_layouts_fuzz.py)."""
 
 from __future__ import annotations
 
