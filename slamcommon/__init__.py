@@ -10,6 +10,8 @@ the agent. What lives here is what both sides must agree on to the bit:
 - :mod:`slamcommon.strict_json`: strict JSON of records (NaN/inf as null, numpy values as Python ones);
 - :mod:`slamcommon.config`: every method's configuration changed by dotted keys, values checked against their types
   (the one ``with_overrides``);
+- :mod:`slamcommon.formats`: the file formats of the usual benchmarks (TUM, KITTI, ICL-NUIM, 7-Scenes) and the TUM
+  tools' timestamp association, read by the world's folders and the judge;
 - :mod:`slamcommon.errors`: the project's one exception root, :class:`~slamcommon.errors.ProjectError`, below which
   each package has its own base.
 """
