@@ -217,11 +217,12 @@ def tree_state(root: Path = REPOSITORY) -> TreeState:
 
 
 def shown_path(path: str | Path, root: Path = REPOSITORY) -> str:
-    """``path`` relative to the repository when it lies in the repository or beside it (``../shared/...``), so that
-    a manifest names no machine's folder; else absolute."""
+    """``path`` relative to the repository when it lies in the repository or in the shared data beside it
+    (``../shared/...``), so that a manifest names no machine's folder; else absolute."""
     resolved = Path(path).resolve()
     base = root.resolve()
-    if resolved == base or base in resolved.parents or base.parent in resolved.parents:
+    shared = base.parent / "shared"
+    if resolved in (base, shared) or base in resolved.parents or shared in resolved.parents:
         return Path(os.path.relpath(resolved, base)).as_posix()
     return str(resolved)
 
