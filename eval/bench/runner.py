@@ -212,7 +212,8 @@ def run_suite(
         elif not rerun and is_finished(out_root, spec):
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
-            todo.append(replace(spec, frame_cache=str(out_root / FRAME_CACHE_DIR)) if frame_cache else spec)
+            cache = str(out_root / FRAME_CACHE_DIR) if frame_cache else None
+            todo.append(replace(spec, frame_cache=cache, known_fingerprint=spec.fingerprint()))
     renders = frames_jobs(todo, out_root / FRAME_CACHE_DIR) if frame_cache and todo else []
     todo = run_order(todo)
     serial = isinstance(executor, SerialExecutor)

@@ -383,3 +383,20 @@ def test_a_run_waits_for_its_sequence_rendering_outside_its_clocks(tmp_path):
     timing = json.loads(result.files["timing.json"])
     assert timing["frame_renders"] == 0  # it read the writer's frames
     assert elapsed >= 0.9 and result.wall_s < elapsed - 0.5
+
+
+def test_a_run_is_fingerprinted_once_in_the_parent_not_again_in_its_worker(tmp_path, monkeypatch):
+    """The planner hands each run its fingerprint (RunSpec.known_fingerprint): the worker records it without parsing
+    the agent's import closure again, and the record's fingerprint is the planner's."""
+    import eval.bench.fingerprint as fingerprint
+
+    calls = []
+    real = fingerprint.run_parts
+    monkeypatch.setattr(fingerprint, "run_parts", lambda spec, *a, **k: calls.append(spec.key) or real(spec, *a, **k))
+    suite = get_suite("quick").select(["office0@clean"], ["oracle", "constant-pose"], frames=6, runs=1)
+    run = run_suite(suite, dict(METHODS), tmp_path, plots=False, progress=False, check=False)
+    assert run.counts() == {"done": 2} and sorted(calls) == sorted(s.key for s in run.specs)  # once a run
+    for spec in run.specs:
+        record = json.loads((run_folder(tmp_path, spec) / "metrics.json").read_text())
+        assert record["metadata"]["fingerprint"] == spec.fingerprint()
+    assert replace(run.specs[0], known_fingerprint="abc").fingerprint() == "abc"
