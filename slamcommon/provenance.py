@@ -221,9 +221,11 @@ def shown_path(path: str | Path, root: Path = REPOSITORY) -> str:
     (``../shared/...``), so that a manifest names no machine's folder; else absolute."""
     resolved = Path(path).resolve()
     base = root.resolve()
-    shared = (base.parent / "shared").resolve()
-    if resolved in (base, shared) or base in resolved.parents or shared in resolved.parents:
+    shared = (base.parent / "shared").resolve()  # a copy, or a link to one
+    if resolved == base or base in resolved.parents:
         return Path(os.path.relpath(resolved, base)).as_posix()
+    if resolved == shared or shared in resolved.parents:
+        return (Path("..") / "shared" / resolved.relative_to(shared)).as_posix()
     return str(resolved)
 
 
