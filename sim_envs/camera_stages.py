@@ -106,12 +106,16 @@ class CameraStage:
             if name in EFFECT_STAGES and EFFECT_STAGES[name].__qualname__ != cls.__qualname__:
                 raise SimEnvError(f"camera effect {name!r} is defined twice: {EFFECT_STAGES[name].__qualname__} and "
                                   f"{cls.__qualname__}")  # fmt: skip
+            if getattr(cls.alone, "__func__", None) is CameraStage.alone.__func__:
+                raise SimEnvError(f"camera effect {name!r} ({cls.__qualname__}) defines no alone(s): the stages of "
+                                  "the clean camera with the effect alone at strength s")  # fmt: skip
             EFFECT_STAGES[name] = cls
 
     @classmethod
     def alone(cls, s: float) -> tuple[CameraStage, ...]:
-        """The stages of the clean camera with this effect alone at strength ``s`` > 0 (checked by the caller)."""
-        raise NotImplementedError(f"{cls.__name__} is not a single effect")
+        """The stages of the clean camera with this effect alone at strength ``s`` > 0 (checked by the caller); a
+        stage that is no single effect (no ``effect`` name) has none."""
+        raise SimEnvError(f"{cls.__name__} is not a single effect; single effects: {', '.join(EFFECT_STAGES)}")
 
     @property
     def changes_image(self) -> bool:

@@ -224,3 +224,22 @@ def test_a_new_effect_in_a_copy_of_the_tree_touches_one_file(tmp_path):
     run = subprocess.run([sys.executable, "-c", _CHECK], cwd=tmp_path, capture_output=True, text=True, timeout=120,
                          env={"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin"})  # fmt: skip
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
+
+
+def test_an_effect_without_alone_is_refused_where_it_is_defined():
+    """A stage named as a single effect must say how it stands alone: refused when its class is defined, not when a
+    sweep first asks for it."""
+    import dataclasses
+
+    import pytest
+
+    from sim_envs.camera_stages import EFFECT_STAGES, CameraStage
+    from sim_envs.errors import SimEnvError
+
+    with pytest.raises(SimEnvError, match="'lonely'.*defines no alone"):
+        @dataclasses.dataclass(frozen=True)
+        class Lonely(CameraStage):
+            effect = "lonely"
+    assert "lonely" not in EFFECT_STAGES
+    with pytest.raises(SimEnvError, match="is not a single effect"):
+        CameraStage.alone(1.0)
