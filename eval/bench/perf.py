@@ -38,6 +38,7 @@ from tqdm import tqdm
 from eval.bench.executors import available_cores
 from eval.errors import EvalError
 from eval.metrics.results import json_ready
+from slamcommon.provenance import shown_path
 
 T = TypeVar("T")
 PROBES_FILE: Path = Path(__file__).resolve().parents[1] / "perf.toml"  # eval/perf.toml
@@ -264,7 +265,7 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
         lines.append("")
     gate = report.speed_gate
     if gate is not None:
-        lines.append(f"## speed gate: frames per machine unit against `{_shown_path(gate['baseline'])}`\n")
+        lines.append(f"## speed gate: frames per machine unit against `{shown_path(gate['baseline'])}`\n")
         if gate.get("error"):
             lines.append(f"not judged: {gate['error']}\n")
         else:
@@ -274,16 +275,8 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
                              f"{gate['max_slowdown']:g} |")
             lines.append("\n" + ("**failed**: " + "; ".join(gate["failures"]) if gate["failures"] else "passed") + "\n")
     if PERF_HISTORY.is_file():  # measured side by side at the revisions it names: linked, not copied
-        lines.append(f"Earlier measurements, side by side at the revisions they name: `{_shown_path(PERF_HISTORY)}`.\n")
+        lines.append(f"Earlier measurements, side by side at the revisions they name: `{shown_path(PERF_HISTORY)}`.\n")
     return "\n".join(lines) + "\n"
-
-
-def _shown_path(path: str | Path) -> str:
-    """``path`` relative to the repository when inside it (what a reader of results/ can follow)."""
-    try:
-        return Path(path).resolve().relative_to(PERF_HISTORY.parents[1]).as_posix()
-    except ValueError:
-        return str(path)
 
 
 def run_perf(
