@@ -17,8 +17,8 @@ $(STAMP): pyproject.toml constraints.txt
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -c constraints.txt -e '.[dev]'
 	# byte-compile on $(JOBS) cores (the installed packages' own test suites left out; status 1: a py3.12-only file)
 	$(BIN)/python -m compileall -qq -j $(JOBS) -x '/tests/' $(VENV)/lib cnnslam eval sim_envs slamcommon || true
-	# numba's kernels compiled once into its cache (cnnslam/warmup.py)
-	$(BIN)/python -m cnnslam.warmup --jobs $(JOBS) || echo "numba warm-up skipped: the first runs compile the kernels"
+	# numba's kernels compiled once into its cache (cnnslam/tools/warmup.py)
+	$(BIN)/python -m cnnslam.tools.warmup --jobs $(JOBS) || echo "numba warm-up skipped: the first runs compile the kernels"
 	touch $(STAMP)
 
 venv: $(STAMP)

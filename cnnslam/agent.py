@@ -3,7 +3,8 @@
 ``"cnnslam.agent:CnnSlamAgent"`` is the paper's system with the trained network; it sees only observations.
 ``"cnnslam.agent:GroundTruthAidedAgent"`` declares ``uses_ground_truth = True`` and so also receives the env's
 ``info``: it exists for development and for the baselines that need ground truth, and uses it ONLY for (a) the
-development depth predictor that degrades ground truth (:class:`cnnslam.depth_prediction.DegradedGroundTruthPredictor`)
+development depth predictor that degrades ground truth
+(:class:`cnnslam.depth.depth_prediction.DegradedGroundTruthPredictor`)
 on key-frame images, and (b) LSD-BS's ground-truth depth of the first key-frame (``preset="lsd_bs"``). Poses are
 never taken from ground truth.
 
@@ -32,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from cnnslam.config import ABLATIONS, BASELINES, CnnSlamConfig, ablation_config, baseline_config
-from cnnslam.depth_prediction import GroundTruthHint
+from cnnslam.depth.depth_prediction import GroundTruthHint
 from cnnslam.errors import CnnSlamError
 from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam, SlamResult
@@ -160,7 +161,7 @@ class CnnSlamAgent:
         online=False (default): the final trajectory, every frame through its key-frame's optimised pose;
         online=True: the poses answered frame by frame.
         """
-        from sim_envs.formats import write_tum_trajectory
+        from sim_envs.folders.formats import write_tum_trajectory
 
         if self._result is None:
             raise CnnSlamError("save_trajectory() needs finish() first")

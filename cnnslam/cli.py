@@ -21,9 +21,9 @@ GROUPS: tuple[str, ...] = ("run and score", "data", "the network", "speed")
 SUBCOMMANDS: dict[str, tuple[str, str, str]] = {}
 # `python -m` modules that are developer tools (they make the project's own files and figures), with what they do
 DEVELOPER_TOOLS: tuple[tuple[str, str], ...] = (
-    ("sim_envs.cli_camera_calibration", "measure real frames' image statistics against each simulated camera preset "
-                                        "(results/camera_calibration.md)"),
-    ("cnnslam.warmup", "compile the agent's numba kernels into numba's cache (make venv runs it)"),
+    ("sim_envs.tools.cli_camera_calibration",
+     "measure real frames' image statistics against each simulated camera preset (results/camera_calibration.md)"),
+    ("cnnslam.tools.warmup", "compile the agent's numba kernels into numba's cache (make venv runs it)"),
     ("cnnslam.depthnet.bench", "the depth network's warm milliseconds per 320x240 frame"),
     ("eval.metrics.bench_metrics", "time the trajectory metrics on 100 000 poses"),
     ("thirdparty.orb_vocabulary", "build ORB-SLAM3's vocabulary from simulated training frames"),
@@ -47,16 +47,17 @@ register("results", "eval.commands.cli_results", "the committed results: made at
          GROUPS[0])
 register("config", "eval.commands.cli_config", "print the exact configuration a method's runs use (with --set)",
          GROUPS[0])
-register("map", "cnnslam.cli_map", "run an agent, fuse its key-frames into the global model: PLY, pictures, metrics",
-         GROUPS[0])
+register("map", "cnnslam.tools.cli_map",
+         "run an agent, fuse its key-frames into the global model: PLY, pictures, metrics", GROUPS[0])
 register("export", "eval.commands.cli_export", "write a registered sequence as a TUM RGB-D folder", GROUPS[1])
 register("generate", "eval.commands.cli_generate", "generate rotation stress sequences (and export them)", GROUPS[1])
 register("reference", "eval.commands.cli_reference", "an SfM reference (COLMAP) for a real RGB-D folder", GROUPS[1])
-register("contact-sheet", "sim_envs.cli_contact_sheet", "render RGB / depth / labels of named sequences to a PNG",
+register("contact-sheet", "sim_envs.tools.cli_contact_sheet", "render RGB / depth / labels of named sequences to a PNG",
          GROUPS[1])
 register("train", "cnnslam.depthnet.cli_train", "depth network: generate data, train, validate, export", GROUPS[2])
-register("bench-slam", "cnnslam.bench_slam", "CNN-SLAM speed: tracking and whole-system frames per second", GROUPS[3])
-register("bench-render", "sim_envs.bench_render", "render throughput of the MuJoCo and pyrender renderers (fps)",
+register("bench-slam", "cnnslam.tools.bench_slam", "CNN-SLAM speed: tracking and whole-system frames per second",
+         GROUPS[3])
+register("bench-render", "sim_envs.tools.bench_render", "render throughput of the MuJoCo and pyrender renderers (fps)",
          GROUPS[3])
 
 

@@ -199,7 +199,8 @@ class DepthConfig:
     min_relative_sigma: float = 0.01
     # Ours, not in the paper: scale anchoring. Before eq. 6-9, the map carried over from the nearest key-frame is
     # rescaled towards the CNN by exp(gain * r), r = median log(D_cnn / D_kj) over the pixels both see
-    # (:func:`cnnslam.keyframes.scale_anchor`). Eq. 6 gives the CNN a large uncertainty exactly where the map's scale
+    # (:func:`cnnslam.keyframe.keyframes.scale_anchor`). Eq. 6 gives the CNN a large uncertainty exactly where the
+    # map's scale
     # has drifted away from it (they disagree everywhere), so eq. 8 alone lets the monocular scale drift; the paper
     # counts on the CNN for absolute scale. 0 = the paper (no anchoring), 1 = the CNN's median scale at every
     # key-frame. Off by default: with the shipped network over the 9 full Table-1 sequences, 1 moved ATE / length
@@ -374,7 +375,7 @@ LABEL_WEIGHTINGS: tuple[str, ...] = get_args(LabelWeighting)
 @dataclass(frozen=True)
 class GlobalModelConfig:
     """The global model (CNN-SLAM Sec. 3.5, Fig. 1c): surfel fusion of the key-frames' depth and class
-    probabilities (Keller et al. 3DV 2013 unless marked ours). :mod:`cnnslam.global_model` implements it."""
+    probabilities (Keller et al. 3DV 2013 unless marked ours). :mod:`cnnslam.model.global_model` implements it."""
 
     # Paper Sec. 3.5 / 4: the key-frame thread fuses every key-frame into the model live (at its switch, then
     # re-placed at the final pose-graph poses at the end). False: no model (the agent hands back none).
@@ -402,7 +403,8 @@ class GlobalModelConfig:
     # Ours, after KinectFusion's bilateral filter: where the raw normals are noisy, normals come from the depth
     # smoothed by a bilateral filter in log depth (spatial sigma in pixels; range sigma relative to depth) with
     # central differences ``normal_step_px`` apart; where they agree with their neighbours the raw ones are kept
-    # (:func:`cnnslam.icp.adaptive_normal_map`). Positions always use the raw depth. 0 px = raw normals only (exact
+    # (:func:`cnnslam.model.icp.adaptive_normal_map`). Positions always use the raw depth. 0 px = raw normals only
+    # (exact
     # depth). With 1 px and 2-pixel steps the median normal error of refined key-frame depth on the simulator drops
     # from 55 to 30 degrees, while 90 % of the normals of exact depth stay exact.
     normal_smoothing_px: float = 1.0

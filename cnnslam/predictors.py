@@ -1,7 +1,7 @@
 """Depth predictors by name: the trained network (:mod:`cnnslam.depthnet.predict`) or the development predictor
-(:class:`cnnslam.depth_prediction.DegradedGroundTruthPredictor`).
+(:class:`cnnslam.depth.depth_prediction.DegradedGroundTruthPredictor`).
 
-Kept apart from :mod:`cnnslam.depth_prediction` (eq. 5, the prediction contract), which the network's module
+Kept apart from :mod:`cnnslam.depth.depth_prediction` (eq. 5, the prediction contract), which the network's module
 imports: naming both here, above them, keeps the import graph free of cycles.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from cnnslam.depth_prediction import DegradedGroundTruthPredictor
+from cnnslam.depth.depth_prediction import DegradedGroundTruthPredictor
 from cnnslam.errors import CnnSlamError
 
 PREDICTOR_KINDS: tuple[str, ...] = ("network", "degraded_ground_truth")

@@ -5,13 +5,14 @@ One frame per call (:meth:`CnnSlam.process`), trajectory and key-frames at the e
 The two threads
 ---------------
 - Frame thread (the caller's thread, i.e. the agent's ``step``): builds the frame's image pyramid, tracks it
-  against the active key-frame (eq. 1-4, :mod:`cnnslam.tracking`), refines the active key-frame's depth with it
-  (eq. 10-11, :mod:`cnnslam.refinement`), and decides whether the frame becomes a new key-frame (LSD-SLAM's score).
+  against the active key-frame (eq. 1-4, :mod:`cnnslam.track.tracking`), refines the active key-frame's depth with it
+  (eq. 10-11, :mod:`cnnslam.keyframe.refinement`), and decides whether the frame becomes a new key-frame (LSD-SLAM's
+  score).
 - Key-frame thread (``cnnslam-keyframe``, a daemon thread): initialises new key-frames (CNN depth on that frame,
   eq. 5; uncertainty, eq. 6; fusion with the previous key-frame, eq. 7-9; or propagation without a CNN) and
   maintains the pose graph (edges by direct alignment to key-frames with a similar view, loop edges, global
   optimisation at each new key-frame), and fuses every frozen key-frame into the global model with its class
-  probabilities (Sec. 3.5, :mod:`cnnslam.global_model`; ``global_model.enabled``).
+  probabilities (Sec. 3.5, :mod:`cnnslam.model.global_model`; ``global_model.enabled``).
 
 Hand-over (who pushes, reads and clears what)
 ---------------------------------------------
@@ -20,7 +21,8 @@ Hand-over (who pushes, reads and clears what)
   with ``uses_ground_truth`` gave it) and WAITS for its result: the only time the frame thread waits for the other
   thread. From the switch on, the previous key-frame's maps are never written again (frozen); the key-frame thread
   READS them for eq. 6-9 and for later alignments.
-- The key-frame thread PUBLISHES the new :class:`~cnnslam.keyframes.Keyframe` through the job's future and appends
+- The key-frame thread PUBLISHES the new :class:`~cnnslam.keyframe.keyframes.Keyframe` through the job's future and
+appends
   it to the key-frame list (under a lock); the frame thread makes it the active key-frame and then PUSHES a pose-
   graph job for it, which runs while the frame thread goes on tracking. The pose-graph work is split into small
   jobs (add the key-frame, one alignment per candidate, one optimisation), and initialisation jobs jump the queue,
@@ -63,11 +65,11 @@ from typing import Any, Protocol
 import numpy as np
 
 from cnnslam.config import CnnSlamConfig
-from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
+from cnnslam.depth.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, se3_inverse
-from cnnslam.global_model import GlobalModel
-from cnnslam.keyframes import (
+from cnnslam.graph.pose_graph import PoseGraph, PoseGraphEdge, align_keyframes, field_of_view, neighbour_candidates
+from cnnslam.keyframe.keyframes import (
     Keyframe,
     KeyframeInit,
     KeyframeMaps,
@@ -78,9 +80,9 @@ from cnnslam.keyframes import (
     needs_new_keyframe,
     propagate_keyframe,
 )
-from cnnslam.pose_graph import PoseGraph, PoseGraphEdge, align_keyframes, field_of_view, neighbour_candidates
-from cnnslam.refinement import refine_keyframe, stereo_observation
-from cnnslam.tracking import (
+from cnnslam.keyframe.refinement import refine_keyframe, stereo_observation
+from cnnslam.model.global_model import GlobalModel
+from cnnslam.track.tracking import (
     ImagePyramid,
     TrackingResult,
     affine_brightness,
@@ -145,7 +147,7 @@ class SlamObserver(Protocol):
 
     - ``frame(timestamp, T_world_cam, tracked)``: frame thread, after each frame (the pose as answered);
     - ``keyframe_fused(index, T_world_kf, model)``: key-frame thread, after a key-frame was fused into the global
-      model (Sec. 3.5); ``model`` is the live :class:`~cnnslam.global_model.GlobalModel`: read it there (e.g.
+      model (Sec. 3.5); ``model`` is the live :class:`~cnnslam.model.global_model.GlobalModel`: read it there (e.g.
       ``model.snapshot()``), do not keep it for later;
     - ``finished(result)``: at the end, with the :class:`SlamResult`.
     """
@@ -172,7 +174,7 @@ class SlamResult:
     its key-frame's optimised pose: T_world_kf T_kf_cur); T_world_cam_online: (N, 4, 4) the poses answered frame by
     frame; tracked: (N,) bool; keyframes: list of :class:`KeyframeOutput`; edges: (i, j, kind) of the pose graph;
     stats: JSON-serialisable diagnostics (counts, timings); model: the global model fused live by the key-frame
-    thread (:class:`~cnnslam.global_model.GlobalModel`, ``global_model.enabled``).
+    thread (:class:`~cnnslam.model.global_model.GlobalModel`, ``global_model.enabled``).
     """
 
     timestamps: np.ndarray

@@ -27,6 +27,7 @@ import-linter contracts, checked by ``lint-imports`` in ``make lint``):
   the only users of argparse and print.
 
 File formats (TUM, KITTI, ICL-NUIM, 7-Scenes) and the TUM tools' association live once in :mod:`slamcommon.formats`,
-which the world (``sim_envs.formats``, ``sim_envs.datasets``: dataset folders) and the judge both read, so that
+which the world (``sim_envs.folders.formats``, ``sim_envs.folders.datasets``: dataset folders) and the judge both read,
+so that
 ``cnnslam eval`` loads numpy and the judge only, not the world.
 """

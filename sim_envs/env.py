@@ -19,8 +19,8 @@ from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
 from sim_envs.sequences import TEST_SEED_LIMIT, TRAIN_SEED_BASE, SequenceSpec, get_sequence
-from sim_envs.simsource import RENDERER_BACKENDS, SimulatedSequence
 from sim_envs.source import FrameSource
+from sim_envs.sources.simsource import RENDERER_BACKENDS, SimulatedSequence
 from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
 GroundTruth = Literal["pose", "full"]
@@ -273,8 +273,8 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
 class SceneEnv(SlamEnv):
     """:class:`SlamEnv` over a sequence built from arguments (registered as ``sim_envs/Scene-v0``).
 
-    Arguments: ``style`` (room style of ``sim_envs.scenegen``), ``seed`` (scene seed), ``trajectory`` (a kind of
-    :data:`sim_envs.trajectories.TRAJECTORY_KINDS`) with ``trajectory_params`` (its keyword parameters) and
+    Arguments: ``style`` (room style of ``sim_envs.scenes.scenegen``), ``seed`` (scene seed), ``trajectory`` (a kind of
+    :data:`sim_envs.motion.trajectories.TRAJECTORY_KINDS`) with ``trajectory_params`` (its keyword parameters) and
     ``trajectory_seed``, ``camera`` (a :func:`sim_envs.camera.preset` name) at ``width`` x ``height``, ``n_frames``
     at 30 Hz, ``texture_density`` in [0, 1], ``renderer``, ``ground_truth``, ``max_frames``, ``render_mode`` as in
     :class:`SlamEnv`. Everything else (spaces, reward, episode end) is :class:`SlamEnv`'s.
@@ -326,8 +326,9 @@ class ReplayEnv(SlamEnv):
     """:class:`SlamEnv` replaying a given frame source or an RGB-D folder (``sim_envs/Replay-v0``).
 
     Arguments: ``source``, a :class:`~sim_envs.source.FrameSource` or the path of an RGB-D folder of any layout of
-    :func:`sim_envs.datasets.detect_layout` (TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only; read by
-    :class:`sim_envs.datasets.RgbdFolder`); for a path only: ``camera`` (a preset name, camera file, ``Intrinsics``
+    :func:`sim_envs.folders.datasets.detect_layout` (TUM RGB-D, ICL-NUIM, 7-Scenes, RGB-only; read by
+    :class:`sim_envs.folders.datasets.RgbdFolder`); for a path only: ``camera`` (a preset name, camera file,
+    ``Intrinsics``
     or ``CameraModel``; default: detected) and ``size`` ((width, height) of the delivered frames, e.g. (320, 240)
     as the benchmark suites use; default None: the images' own); ``ground_truth``, ``max_frames``, ``render_mode``
     as in :class:`SlamEnv`. Everything else is :class:`SlamEnv`'s.
@@ -352,9 +353,9 @@ class ReplayEnv(SlamEnv):
 
 
 def _load_folder(path: str, camera: Any, size: tuple[int, int] | None) -> FrameSource:
-    """An RGB-D folder as a frame source (imported lazily: the folder reader lives in sim_envs.datasets)."""
+    """An RGB-D folder as a frame source (imported lazily: the folder reader lives in sim_envs.folders.datasets)."""
     try:
-        from sim_envs.datasets import RgbdFolder
+        from sim_envs.folders.datasets import RgbdFolder
     except ImportError as exc:
         raise SimEnvError(f"cannot replay the folder {path!r}: the folder reader is unavailable ({exc})") from exc
     return RgbdFolder(path, camera, size=size)

@@ -22,4 +22,4 @@ class RendererUnavailableError(SimEnvError, RuntimeError):
 class FormatError(SimEnvError, SharedFormatError):
     """A file that does not follow its format; the message names the file and the line. Also the shared
     :class:`slamcommon.errors.FormatError`, which the readers of :mod:`slamcommon.formats` raise (the world's
-    re-exports in :mod:`sim_envs.formats` raise this one)."""
+    re-exports in :mod:`sim_envs.folders.formats` raise this one)."""

@@ -27,7 +27,7 @@ class Frame:
     ``NO_LABEL`` where no surface; instances: (H, W) int32 instance ids, ``NO_INSTANCE`` where no surface.
     labels / instances are None when the source has none (a real TUM folder). sensor_depth: (H, W) float32 metres,
     0 = no measurement, a noisy depth as a depth sensor would give it (a simulated camera with Kinect-like depth noise,
-    :func:`sim_envs.camera_effects.kinect_depth`), None otherwise; ``depth`` stays the exact ground truth.
+    :func:`sim_envs.sensor.camera_effects.kinect_depth`), None otherwise; ``depth`` stays the exact ground truth.
     """
 
     index: int

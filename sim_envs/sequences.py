@@ -24,11 +24,11 @@ import numpy as np
 
 from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, Intrinsics, camera_presets, preset
 from sim_envs.errors import SimEnvError, UnknownNameError
-from sim_envs.scene import DETAILS, LIGHTINGS
-from sim_envs.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_params
+from sim_envs.motion.trajectories import FPS, TRAJECTORY_KINDS, parse_axes, trajectory_params
+from sim_envs.scenes.scene import DETAILS, LIGHTINGS
 
 if TYPE_CHECKING:
-    from sim_envs.camera_effects import CameraEffects
+    from sim_envs.sensor.camera_effects import CameraEffects
 
 Split = Literal["test", "train"]
 SPLITS: tuple[str, ...] = get_args(Split)
@@ -49,18 +49,19 @@ def _freeze(value: Any) -> Any:
 class SequenceSpec:
     """Everything a simulated sequence is made of. Frozen and hashable; same spec, same bytes.
 
-    name: registry name; style: room style (``sim_envs.scenegen``); scene_seed: room generator seed; trajectory:
-    a kind of :data:`sim_envs.trajectories.TRAJECTORY_KINDS`; trajectory_params: its keyword parameters as sorted
+    name: registry name; style: room style (``sim_envs.scenes.scenegen``); scene_seed: room generator seed; trajectory:
+    a kind of :data:`sim_envs.motion.trajectories.TRAJECTORY_KINDS`; trajectory_params: its keyword parameters as sorted
     ``(name, value)`` pairs (a mapping is accepted and converted); camera: a :func:`sim_envs.camera.preset` name;
     n_frames: frames at ``fps`` Hz; split: "test" or "train"; seed: seeds the trajectory and the per-frame sensor
     noise; texture_density: in [0, 1], passed to the room generator; width, height: image size in pixels;
     description: one line for listings; camera_effects: what the camera does to the image
-    (:mod:`sim_envs.camera_effects`): a preset name (``clean``, ``kinect``, ``hard``; kept as the name, so it is
+    (:mod:`sim_envs.sensor.camera_effects`): a preset name (``clean``, ``kinect``, ``hard``; kept as the name, so it is
     part of the spec's repr) or a ``CameraEffects``; default ``clean``, the renderer's bytes (see
     :func:`with_camera`); lighting:
     ``flat`` (every registered sequence) or ``lit`` (lamps, shadows, bright windows, highlights:
-    :mod:`sim_envs.lighting`; MuJoCo renderer only); the trajectory does not depend on it; detail: ``standard``
-    (every registered sequence) or ``rich`` (the same room with clutter and texture detail: :mod:`sim_envs.scenegen`);
+    :mod:`sim_envs.scenes.lighting`; MuJoCo renderer only); the trajectory does not depend on it; detail: ``standard``
+    (every registered sequence) or ``rich`` (the same room with clutter and texture detail:
+    :mod:`sim_envs.scenes.scenegen`);
     the trajectory does not depend on it either (it is the standard room's).
     """
 
@@ -126,7 +127,7 @@ class SequenceSpec:
         value = self.camera_effects
         if isinstance(value, str) and value == "clean":
             return
-        from sim_envs.camera_effects import CameraEffects, camera_effects_preset
+        from sim_envs.sensor.camera_effects import CameraEffects, camera_effects_preset
 
         if isinstance(value, str):
             try:
@@ -139,8 +140,8 @@ class SequenceSpec:
             )
 
     def camera_effects_model(self) -> CameraEffects:
-        """The spec's camera effects as a :class:`~sim_envs.camera_effects.CameraEffects` (a preset resolved)."""
-        from sim_envs.camera_effects import resolve_camera_effects
+        """The spec's camera effects as a :class:`~sim_envs.sensor.camera_effects.CameraEffects` (a preset resolved)."""
+        from sim_envs.sensor.camera_effects import resolve_camera_effects
 
         return resolve_camera_effects(self.camera_effects)
 
@@ -170,7 +171,8 @@ class SequenceSpec:
 
 def with_camera(spec: SequenceSpec, camera_effects: str | CameraEffects) -> SequenceSpec:
     """``spec`` seen through another camera (a preset name of
-    :func:`sim_envs.camera_effects.camera_effect_presets` or a ``CameraEffects``); same name, trajectory and room.
+    :func:`sim_envs.sensor.camera_effects.camera_effect_presets` or a ``CameraEffects``); same name, trajectory and
+    room.
 
     The hook for suites: ``with_camera(get_sequence("office0"), "kinect")``. Registered sequences keep ``clean``
     until the benchmark switches its default (which changes every committed result).
@@ -361,12 +363,12 @@ _TRAIN_KINDS = ("handheld", "handheld", "handheld", "loop", "far_structure", "pl
 def training_specs(n: int, seed: int = 0, n_frames: int = 600, prefix: str | None = None) -> list[SequenceSpec]:
     """``n`` training sequences drawn with ``numpy.random.default_rng(seed)``.
 
-    Rooms of the training styles only (``sim_envs.scenegen.TRAIN_STYLES``), NYU intrinsics, scene seeds
+    Rooms of the training styles only (``sim_envs.scenes.scenegen.TRAIN_STYLES``), NYU intrinsics, scene seeds
     >= :data:`TRAIN_SEED_BASE` (test scenes use seeds below :data:`TEST_SEED_LIMIT`), mostly hand-held trajectories
     with some of every other kind, speeds and texture densities varied. Named ``<prefix>_<i:03d>``, prefix
     ``train`` for seed 0 and ``train<seed>`` otherwise.
     """
-    from sim_envs.scenegen import TRAIN_STYLES
+    from sim_envs.scenes.scenegen import TRAIN_STYLES
 
     if n < 0:
         raise SimEnvError(f"n must be >= 0, got {n}")

@@ -2,7 +2,7 @@
 figures from machines of other speeds, or under other loads, compare: a frames-per-second figure times the unit's
 seconds is frames per unit, the currency of the speed gates (``eval.bench.perf.speed_regressions`` for CNN-SLAM's
 benchmark, ``eval.bench.suite_speed`` for every run of a suite). Defined once here, where the agent's benchmark
-(``cnnslam.bench_slam``) and the judge's runs (``eval.bench.run``) both time it.
+(``cnnslam.tools.bench_slam``) and the judge's runs (``eval.bench.run``) both time it.
 """
 
 from __future__ import annotations

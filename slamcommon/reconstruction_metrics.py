@@ -1,7 +1,7 @@
 """Reconstruction and semantic-fusion metrics of a global 3D model against the simulator's ground-truth surfaces.
 
 Inputs are plain arrays (the judge never imports ``cnnslam``): the model as points (N, 3) with optional labels, the
-ground truth as labelled surface samples (M, 3) with outward normals (``sim_envs.surface_sampling``), all in the
+ground truth as labelled surface samples (M, 3) with outward normals (``sim_envs.scenes.surface_sampling``), all in the
 ground-truth world frame and in metres. The caller aligns the model first (``slamcommon.alignment``).
 
 Reconstruction (as in the multi-view-stereo benchmarks, e.g. Middlebury / DTU "accuracy" and "completeness"):

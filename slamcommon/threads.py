@@ -1,5 +1,5 @@
 """How many threads a process's math libraries may use: set by the judge's pool workers (:mod:`eval.bench.executors`)
-and the agent's install-time warm-up (:mod:`cnnslam.warmup`) alike."""
+and the agent's install-time warm-up (:mod:`cnnslam.tools.warmup`) alike."""
 
 from __future__ import annotations
 

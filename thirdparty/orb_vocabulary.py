@@ -221,11 +221,11 @@ def orb_descriptors(images: Iterable[np.ndarray], n_features: int = 1000,
 def training_frames(sequences: Sequence[str] = TRAINING_SEQUENCES, per_sequence: int = 30,
                     camera: str = "kinect") -> Iterator[np.ndarray]:
     """``per_sequence`` evenly spaced RGB frames of each sequence seen through ``camera`` (a camera preset of
-    :mod:`sim_envs.camera_effects`). Only sequences of the TRAINING split: ValueError for any other."""
+    :mod:`sim_envs.sensor.camera_effects`). Only sequences of the TRAINING split: ValueError for any other."""
     from dataclasses import replace
 
     from sim_envs.sequences import get_sequence
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     for name in sequences:
         spec = get_sequence(name)

@@ -10,7 +10,7 @@
 Each is built on :class:`cnnslam.baselines.base.BaselineAgent`, the shell of the agent contract (``reset``'s checks,
 ``step``'s record of timestamps, poses and tracked flags, ``finish``'s guard); a new baseline is one module with a
 subclass plus one ``[methods."NAME"]`` table in ``eval/methods.toml`` (``table1 = true``: a Table-1 method;
-``warmup``: compiled at install by :mod:`cnnslam.warmup`). Their ``"module:Class"`` names are the ones above.
+``warmup``: compiled at install by :mod:`cnnslam.tools.warmup`). Their ``"module:Class"`` names are the ones above.
 
 LSD and LSD-BS are presets of ``"cnnslam.agent:CnnSlamAgent"`` / ``"cnnslam.agent:GroundTruthAidedAgent"``
 (``preset="lsd"``, ``preset="lsd_bs"``), not separate code.

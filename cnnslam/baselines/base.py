@@ -16,7 +16,7 @@
 
 A new baseline is one module with a subclass (``name``, ``uses_ground_truth`` and the three hooks) plus one
 ``[methods."NAME"]`` table in ``eval/methods.toml`` naming it ``"module:Class"`` (with ``warmup`` there when it has
-numba kernels for :mod:`cnnslam.warmup` to compile, and ``table1 = true`` when it is a column of the Table-1
+numba kernels for :mod:`cnnslam.tools.warmup` to compile, and ``table1 = true`` when it is a column of the Table-1
 suite). ``info`` (the env's ground truth) reaches ``_track`` only for a class with ``uses_ground_truth = True``: the
 driver passes it to no other agent.
 """

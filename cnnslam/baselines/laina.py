@@ -5,12 +5,13 @@ As the paper ran it (Sec. 4.1: "the CNN-predicted depth maps as input for a stat
 (point-based fusion [11, 27])"):
 
 - every frame (``cnn_every = 1``, the default) gets a CNN depth map with the focal-length adjustment of eq. 5
-  (:func:`cnnslam.depth_prediction.predict_keyframe_depth`) and nothing else: no uncertainty, no refinement, no
+  (:func:`cnnslam.depth.depth_prediction.predict_keyframe_depth`) and nothing else: no uncertainty, no refinement, no
   key-frame fusion;
-- tracking is frame-to-model, projective point-to-plane ICP coarse to fine (:mod:`cnnslam.icp`), against the global
+- tracking is frame-to-model, projective point-to-plane ICP coarse to fine (:mod:`cnnslam.model.icp`), against the
+global
   model rendered at the previous pose (KinectFusion / Keller et al.), from a constant-velocity guess; a pyramid level
   ends after KinFu's iterations or, earlier, at InfiniTAM's convergence test (``LainaConfig.icp``);
-- each tracked frame is fused into the global model (:class:`cnnslam.global_model.GlobalModel`, the same model and
+- each tracked frame is fused into the global model (:class:`cnnslam.model.global_model.GlobalModel`, the same model and
   fusion as CNN-SLAM's global model), with the CNN's class probabilities (label fusion comes free); unconfirmed
   surfels are pruned (Keller's unstable points);
 - the baseline has no pose graph and no loop closure.
@@ -21,7 +22,8 @@ every ``keyframe_every`` frames, or earlier when the camera moved ``keyframe_tra
 its tracked pose and the CNN's class probabilities.
 
 Option ``cnn_every = k > 1`` (ours, to save CPU): the CNN runs on every k-th frame only. Frames in between have no
-depth, so ICP cannot track them; they are tracked photometrically (:func:`cnnslam.tracking.track_frame`, LSD-SLAM's
+depth, so ICP cannot track them; they are tracked photometrically (:func:`cnnslam.track.tracking.track_frame`,
+LSD-SLAM's
 direct alignment) against the last predicted frame: its image with its CNN depth ("the last prediction's model"),
 and they are not fused.
 
@@ -31,14 +33,16 @@ seed spread of the default (``LainaConfig.icp_downsample``), so the Table-1 colu
 
 Speed (one core): the per-pixel work of every frame (the model rendered for ICP, the surface pyramids, the ICP
 normal equations, and the measurements, association and merging of the fusion) runs in numba kernels: ICP's in
-:mod:`cnnslam.icp` (the one ICP, its compiled path), the model's in :mod:`cnnslam.surfel_kernels` (the global
+:mod:`cnnslam.model.icp` (the one ICP, its compiled path), the model's in :mod:`cnnslam.model.surfel_kernels` (the
+global
 model's only implementation, shared with CNN-SLAM);
 with the convergence test the agent takes 53-59 instead of 142-162 ms per frame (200 frames of office0, living1 and
 tum_long_office, 3 seeds, one core; about 23 ms of it is the network).
 
 ``"cnnslam.baselines.laina:LainaAgent"`` uses the trained network and sees only observations.
 ``"cnnslam.baselines.laina:GroundTruthAidedLainaAgent"`` is a DEVELOPMENT tool (``uses_ground_truth = True``): its
-default predictor is :class:`cnnslam.depth_prediction.DegradedGroundTruthPredictor`, which imitates the CNN from the
+default predictor is :class:`cnnslam.depth.depth_prediction.DegradedGroundTruthPredictor`, which imitates the CNN from
+the
 frame's ground-truth depth and labels; ground truth reaches nothing else (never the poses).
 
 Keyword arguments (both classes; all optional)::
@@ -60,13 +64,13 @@ import numpy as np
 
 from cnnslam.baselines.base import BaselineAgent
 from cnnslam.config import TrackingConfig
-from cnnslam.depth_prediction import GroundTruthHint, predict_keyframe_depth
+from cnnslam.depth.depth_prediction import GroundTruthHint, predict_keyframe_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import orthonormalize, pyramid_intrinsics, rotation_angle_deg, se3_inverse
-from cnnslam.global_model import GlobalModel, GlobalModelConfig
-from cnnslam.icp import IcpConfig, depth_pyramid, icp_point_to_plane, reference_pyramid
+from cnnslam.model.global_model import GlobalModel, GlobalModelConfig
+from cnnslam.model.icp import IcpConfig, depth_pyramid, icp_point_to_plane, reference_pyramid
 from cnnslam.predictors import make_predictor
-from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
+from cnnslam.track.tracking import build_image_pyramid, build_tracking_reference, to_gray, track_frame
 from slamcommon.config import Configurable, configure
 
 

@@ -343,7 +343,7 @@ class RemodeAgent(BaselineAgent):
                info: dict[str, Any] | None) -> tuple[np.ndarray, bool]:
         """Track the frame with LSD-BS (``info["gt_depth"]`` bootstraps its first key-frame), update the active
         REMODE reference frames with it, and start one on each new LSD-BS key-frame. Answers LSD-BS's pose."""
-        from cnnslam.depth_prediction import GroundTruthHint
+        from cnnslam.depth.depth_prediction import GroundTruthHint
 
         hint = GroundTruthHint.from_info(info)
         out = self._system.process(observation["rgb"], timestamp, hint)

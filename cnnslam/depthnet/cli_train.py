@@ -56,7 +56,7 @@ from cnnslam.depthnet.model import ModelConfig
 from cnnslam.depthnet.train import TrainConfig, train
 from cnnslam.depthnet.weights_io import DEFAULT_MANIFEST, DEFAULT_WEIGHTS, export_weights
 from cnnslam.errors import CnnSlamError
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -250,7 +250,7 @@ def _record(outputs: list[Path], action: str, modules: list[str], inputs: list[P
             ) -> None:
     """The provenance manifest of files ``action`` wrote (:func:`slamcommon.provenance.record_outputs`): the code
     of ``modules``, the ``inputs``' SHA-256 (the weights), the real ``folders``' content fingerprints."""
-    from sim_envs.folder_layouts import folder_fingerprint
+    from sim_envs.folders.folder_layouts import folder_fingerprint
     from slamcommon.provenance import record_outputs
 
     record_outputs(outputs, f"cnnslam train {action}", modules, inputs,
@@ -260,8 +260,8 @@ def _record(outputs: list[Path], action: str, modules: list[str], inputs: list[P
 def _validate_folder(args: argparse.Namespace) -> int:
     from cnnslam.depthnet.predict import load_predictor
     from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
-    from sim_envs.datasets import load_rgbd_folder
     from sim_envs.errors import SimEnvError
+    from sim_envs.folders.datasets import load_rgbd_folder
 
     predictor = load_predictor(args.weights, num_threads=args.threads)
     results = []
@@ -278,7 +278,7 @@ def _validate_folder(args: argparse.Namespace) -> int:
     (args.results / "depthnet_real.md").write_text(folder_validation_markdown(results, simulated))
     (args.results / "depthnet_real.json").write_text(json.dumps([r.to_dict() for r in results], indent=2) + "\n")
     _record([args.results / "depthnet_real.md", args.results / "depthnet_real.json"], "validate-folder",
-            ["cnnslam.depthnet.predict", "cnnslam.depthnet.validate", "sim_envs.datasets"],
+            ["cnnslam.depthnet.predict", "cnnslam.depthnet.validate", "sim_envs.folders.datasets"],
             [args.weights, *([sim_json] if sim_json.is_file() else [])], args.folders)
     print(f"wrote {args.results / 'depthnet_real.md'} and {args.results / 'depthnet_real.json'}")
     return 0
@@ -348,10 +348,10 @@ def _data_statistics(args: argparse.Namespace) -> int:
     )
     from cnnslam.depthnet.recipe import SHIPPED
     from cnnslam.depthnet.validate import VALIDATION_SEQUENCES
-    from sim_envs.datasets import load_rgbd_folder
     from sim_envs.errors import SimEnvError
+    from sim_envs.folders.datasets import load_rgbd_folder
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     try:
         folders = [load_rgbd_folder(f) for f in args.folders]
@@ -371,8 +371,9 @@ def _data_statistics(args: argparse.Namespace) -> int:
     out = args.results / "depthnet_data.md"
     out.write_text(data_statistics_markdown(rows))
     _record([out], "data-statistics", ["cnnslam.depthnet.data", "cnnslam.depthnet.data_report",
-                                       "cnnslam.depthnet.recipe", "cnnslam.depthnet.validate", "sim_envs.datasets",
-                                       "sim_envs.sequences", "sim_envs.simsource"], [], args.folders)
+                                       "cnnslam.depthnet.recipe", "cnnslam.depthnet.validate",
+                                       "sim_envs.folders.datasets", "sim_envs.sequences", "sim_envs.sources.simsource"],
+            [], args.folders)
     print(f"wrote {out}")
     return 0
 

@@ -1,7 +1,7 @@
 """Training data for the depth network: rendered once to disk from the simulator's TRAINING split, then read back
 with augmentation.
 
-Generation (:func:`generate_dataset`): rooms of ``sim_envs.scenegen.TRAIN_STYLES`` only (never the test styles
+Generation (:func:`generate_dataset`): rooms of ``sim_envs.scenes.scenegen.TRAIN_STYLES`` only (never the test styles
 office / living), scene seeds >= ``sim_envs.sequences.TRAIN_SEED_BASE`` (test sequences use seeds below 1000), NYU
 Kinect intrinsics at 320x240 (the paper's network was trained on NYU Depth v2), texture density varied per room. Per
 room, camera views are sampled like a hand-held Kinect (:func:`sample_view`). One shard per room: a folder
@@ -74,19 +74,23 @@ class GenerationConfig:
     # depth the nominal camera would report for the same image, which is eq. 5's premise (an image seen at a focal
     # length s f_tr must predict D / s). (1, 1): every room with the nominal camera (the first stage's data).
     focal_scale: tuple[float, float] = (1.0, 1.0)
-    # Ours: the world's camera (sim_envs.camera_effects presets or "EFFECT:S"), one drawn per room: each view is then
+    # Ours: the world's camera (sim_envs.sensor.camera_effects presets or "EFFECT:S"), one drawn per room: each view is
+    # then
     # the sensor image a moving camera of that preset would deliver (exposure, vignetting, noise, response, motion
     # blur and rolling shutter; :func:`camera_view`). ("clean",): the renderer's bytes (the shipped stages' data).
     camera_effects: tuple[str, ...] = ("clean",)
     # Camera motion during a view's exposure (camera_effects other than clean): speed and angular speed drawn
-    # uniformly up to these, in random directions; sim_envs.trajectories.handheld's limits (0.6 m/s, 35 deg/s).
+    # uniformly up to these, in random directions; sim_envs.motion.trajectories.handheld's limits (0.6 m/s, 35 deg/s).
     max_speed: float = 0.6
     max_angular_speed_deg: float = 35.0
-    # Ours: the rooms' lighting (sim_envs.scene.LIGHTINGS), one drawn per room: "flat" (the same colour from every
-    # view; the shipped stages' data) or "lit" (lamps with shadows, bright windows, highlights; sim_envs.lighting,
+    # Ours: the rooms' lighting (sim_envs.scenes.scene.LIGHTINGS), one drawn per room: "flat" (the same colour from
+    # every
+    # view; the shipped stages' data) or "lit" (lamps with shadows, bright windows, highlights;
+    # sim_envs.scenes.lighting,
     # MuJoCo renderer only). The room's geometry, textures and labels are the same either way.
     lighting: tuple[str, ...] = ("flat",)
-    # Ours: the rooms' detail (sim_envs.scene.DETAILS), one drawn per room: "standard" (the shipped stages' data) or
+    # Ours: the rooms' detail (sim_envs.scenes.scene.DETAILS), one drawn per room: "standard" (the shipped stages'
+    # data) or
     # "rich" (the same room with clutter on its surfaces and texture detail at several scales).
     detail: tuple[str, ...] = ("standard",)
 
@@ -96,15 +100,15 @@ class GenerationConfig:
             raise CnnSlamError(f"focal_scale must be a range 0 < lo <= hi, got {self.focal_scale!r}")
         if not self.camera_effects:
             raise CnnSlamError("camera_effects must name at least one camera preset (e.g. 'clean')")
-        from sim_envs.camera_effects import camera_effects_preset
+        from sim_envs.sensor.camera_effects import camera_effects_preset
 
         for name in self.camera_effects:
             camera_effects_preset(name)  # one clear error for an unknown preset, before any rendering
-        from sim_envs.scene import LIGHTINGS
+        from sim_envs.scenes.scene import LIGHTINGS
 
         if not self.lighting or not set(self.lighting) <= set(LIGHTINGS):
             raise CnnSlamError(f"lighting must name one or more of {', '.join(LIGHTINGS)}, got {self.lighting!r}")
-        from sim_envs.scene import DETAILS
+        from sim_envs.scenes.scene import DETAILS
 
         if not self.detail or not set(self.detail) <= set(DETAILS):
             raise CnnSlamError(f"detail must name one or more of {', '.join(DETAILS)}, got {self.detail!r}")
@@ -167,18 +171,18 @@ def camera_view(
     max_speed: float,
     max_angular_speed_deg: float,
 ) -> np.ndarray:
-    """The (H, W, 3) uint8 image the world's camera ``effects`` (a :class:`sim_envs.camera_effects.CameraEffects`
+    """The (H, W, 3) uint8 image the world's camera ``effects`` (a :class:`sim_envs.sensor.camera_effects.CameraEffects`
     without lens distortion) delivers of a view whose centre of exposure is ``T_world_cam``, the camera moving at a
     constant twist drawn by :func:`camera_velocity` (motion blur, rolling shutter). The exposure is what the camera's
     auto-exposure settles at for this view, times its per-frame jitter (the exposure otherwise).
 
     render_rgb: a pinhole render of ``intrinsics`` at a ``T_world_cam`` (4, 4); own_render: the render at
-    ``T_world_cam``; geometry: :func:`sim_envs.camera_effects.sensor_geometry` of ``intrinsics`` and ``effects``
+    ``T_world_cam``; geometry: :func:`sim_envs.sensor.camera_effects.sensor_geometry` of ``intrinsics`` and ``effects``
     (one per room). Ground truth (depth, labels) stays the render's at ``T_world_cam``.
     """
     from scipy.spatial.transform import Rotation
 
-    from sim_envs.camera_effects import auto_exposure, mean_brightness, sensor_image
+    from sim_envs.sensor.camera_effects import auto_exposure, mean_brightness, sensor_image
 
     twist = camera_velocity(rng, max_speed, max_angular_speed_deg)
 
@@ -215,7 +219,7 @@ def scene_seeds(split: str, n_scenes: int) -> list[int]:
 
 def shard_jobs(root: str | Path, split: str, cfg: GenerationConfig) -> list[ShardJob]:
     """Every shard of a split, styles cycling through ``TRAIN_STYLES`` so each appears equally often."""
-    from sim_envs.scenegen import TRAIN_STYLES
+    from sim_envs.scenes.scenegen import TRAIN_STYLES
 
     out = Path(root) / split
     return [
@@ -229,9 +233,9 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
 
     Deterministic: texture density and views are drawn from ``default_rng((cfg.data_seed, job.scene_seed))``.
     """
-    from sim_envs.camera_effects import camera_effects_preset, sensor_geometry
     from sim_envs.render import make_renderer
-    from sim_envs.scenegen import generate_scene
+    from sim_envs.scenes.scenegen import generate_scene
+    from sim_envs.sensor.camera_effects import camera_effects_preset, sensor_geometry
 
     rng = np.random.default_rng((cfg.data_seed, job.scene_seed))
     density = float(rng.uniform(*cfg.texture_density))
@@ -568,7 +572,7 @@ def augment(sample: Sample, rng: np.random.Generator, cfg: AugmentConfig) -> Sam
 
 
 def camera_pipeline(rgb: np.ndarray, rng: np.random.Generator, cfg: AugmentConfig) -> np.ndarray:
-    """A real camera's effects on an (H, W, 3) float32 image in [0, 1] (ours, after ``sim_envs.camera_effects``
+    """A real camera's effects on an (H, W, 3) float32 image in [0, 1] (ours, after ``sim_envs.sensor.camera_effects``
     but cheap enough for every training sample): vignetting ``1 - v q`` (q = 0 at the centre, 1 at the corners: the
     squared distance from the centre in half-widths and half-heights, halved), a linear motion
     blur of length ``motion_blur_px`` at a uniform angle (with probability ``p_motion_blur``), and shot noise of std

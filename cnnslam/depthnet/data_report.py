@@ -1,8 +1,8 @@
 """The training data against the frames the network is used on: image statistics and depth distributions.
 
-Each domain is described by :func:`sim_envs.camera_calibration.camera_statistics` (noise, gradient energy, focus,
+Each domain is described by :func:`sim_envs.sensor.camera_calibration.camera_statistics` (noise, gradient energy, focus,
 brightness, vignetting; medians over frames) plus the mean saturation, and by
-:func:`sim_envs.camera_calibration.depth_statistics` (10th, 50th, 90th percentile of the valid depths, metres).
+:func:`sim_envs.sensor.camera_calibration.depth_statistics` (10th, 50th, 90th percentile of the valid depths, metres).
 Domains: the network's training rooms (a sample of the recipe's shards, at the stored 320x240), the simulated test
 sequences through the world's camera, and real RGB-D folders (their sensor depth). Real frames are only measured
 here, never trained or tuned on. ``cnnslam train data-statistics`` writes ``results/depthnet_data.md``.
@@ -17,7 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from sim_envs.camera_calibration import CameraStatistics, DepthStatistics, camera_statistics, depth_statistics
+from sim_envs.sensor.camera_calibration import CameraStatistics, DepthStatistics, camera_statistics, depth_statistics
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,8 @@ def data_statistics_markdown(rows: Sequence[DomainStatistics]) -> str:
     )
     return (
         "# Depth network: its training data against the frames it is used on\n\n"
-        "Image statistics (`sim_envs.camera_calibration`: Immerkaer noise on the flattest quarter of the pixels, "
+        "Image statistics (`sim_envs.sensor.camera_calibration`: Immerkaer noise on the flattest quarter of the "
+        "pixels, "
         "mean Sobel gradient, variance of the Laplacian (focus), mean grey level, mean HSV saturation, corner over "
         "centre brightness; medians over frames) and the depths seen (percentiles of every valid depth pixel pooled), "
         "at 320x240. Training rooms: evenly spaced frames of the recipe's shards (the depth asked of the network). "

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 from numba import njit
 
-from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
+from cnnslam.depth.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
 from cnnslam.depthnet.model import DepthSemanticNet, fold_batch_norms, normalize_rgb
 from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
 from cnnslam.errors import CnnSlamError

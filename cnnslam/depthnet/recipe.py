@@ -11,7 +11,7 @@ What the recipe is made of, and why (ours; real frames are never used: they are 
 
 - Data: rooms of the training styles only (never the test styles office / living), each drawn flat or lit (lamps,
   shadows, highlights: shading is a depth cue real images always have), standard or rich (clutter and texture at
-  several scales), through a clean or a Kinect-like moving camera (``sim_envs.camera_effects``), at the NYU focal
+  several scales), through a clean or a Kinect-like moving camera (``sim_envs.sensor.camera_effects``), at the NYU focal
   length times a log-uniform factor in [0.8, 1.25] (the network sees many focal lengths and learns eq. 5's premise,
   CAM-Convs' finding that a network trained on one camera does not transfer to another).
 - Augmentation: the colour jitter of the first networks plus a camera pipeline on half the samples (vignetting,

@@ -51,7 +51,7 @@ def report_markdown(report: ValidationReport, manifest: dict[str, Any] | None, b
         "focal-length adjustment D = (f_cur / f_tr) D~ (CNN-SLAM eq. 5, the paper's Fig. 3 (a) vs (b)), with f = "
         "(fx + fy) / 2 at 320x240. Within 10 % = CNN-SLAM's \"correct depth\" over all valid pixels of the dense map."
         + ("" if report.camera_effects == "clean" else
-           f" Images seen through the world's `{report.camera_effects}` camera (`sim_envs/camera_effects.py`)."),
+           f" Images seen through the world's `{report.camera_effects}` camera (`sim_envs/sensor/camera_effects.py`)."),
         "",
         "| sequence | camera | frames | f_cur/f_tr | AbsRel raw | AbsRel eq. 5 | RMSE raw [m] | RMSE eq. 5 [m] "
         "| δ<1.25 raw [%] | δ<1.25 eq. 5 [%] | within 10 % raw [%] | within 10 % eq. 5 [%] | pixel acc. [%] "

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from cnnslam.depth_prediction import focal_length_adjustment
+from cnnslam.depth.depth_prediction import focal_length_adjustment
 from cnnslam.depthnet.metrics import gradient_pixel_scale, log_depth_slope
 from cnnslam.depthnet.predict import DepthNetPredictor
-from cnnslam.tracking import to_gray
+from cnnslam.track.tracking import to_gray
 from sim_envs.sequences import TABLE1_SEQUENCES
 from slamcommon.depth_metrics import DepthMetrics, aggregate_depth_metrics, depth_metrics
 from slamcommon.semantic_metrics import SemanticMetrics, confusion_matrix, metrics_from_confusion
@@ -154,14 +154,15 @@ def validate_sequences(
     camera_effects: str = "clean",
 ) -> ValidationReport:
     """Score ``predictor`` on ``frames_per_sequence`` frames of each registered sequence in ``names``, seen
-    through the world's camera ``camera_effects`` (a :mod:`sim_envs.camera_effects` preset; "clean": the renderer's
+    through the world's camera ``camera_effects`` (a :mod:`sim_envs.sensor.camera_effects` preset; "clean": the
+    renderer's
     bytes).
 
     sample_every: keep one sample frame (the middle one) of every ``sample_every``-th sequence for the figure
     (0 = none). progress: wraps the iterator over (sequence, frame index) jobs, e.g. a tqdm bar.
     """
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     num_classes = predictor.model.config.num_classes
     jobs = []
@@ -254,7 +255,7 @@ def validate_folder(
     progress: Callable[[Iterable[Any], int], Iterator[Any]] | None = None,
 ) -> FolderValidation:
     """Score ``predictor`` on ``frames`` evenly spaced frames of ``source`` (a frame source of a real RGB-D folder,
-    :func:`sim_envs.datasets.load_rgbd_folder`: frames with ``rgb`` and metric ``depth``, 0 = no measurement).
+    :func:`sim_envs.folders.datasets.load_rgbd_folder`: frames with ``rgb`` and metric ``depth``, 0 = no measurement).
 
     Real data is test data: nothing here feeds back into the network or the SLAM. Where the depth camera is not
     registered to the colour camera (7-Scenes), depth edges are a few pixels off the image's, which inflates the

@@ -97,11 +97,11 @@ def world_roots(sequence: Any) -> tuple[str, ...]:
     variant's, the frame cache; a window's)."""
     roots = list(WORLD_ROOTS)
     if getattr(sequence, "folder", None) is not None:
-        roots.append("sim_envs.datasets")
+        roots.append("sim_envs.folders.datasets")
     else:
-        roots += ["sim_envs.simsource", "sim_envs.frame_cache"]
+        roots += ["sim_envs.sources.simsource", "sim_envs.sources.frame_cache"]
         if getattr(sequence, "focal_ratio", None) is not None or getattr(sequence, "added_pan_deg_s", 0.0):
-            roots.append("sim_envs.variants")
+            roots.append("sim_envs.sources.variants")
     if getattr(sequence, "start", 0):
         roots.append("sim_envs.source")
     return tuple(roots)

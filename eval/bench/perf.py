@@ -1,9 +1,10 @@
 """The perf suite: every throughput figure of the project measured in one run -> ``results/perf.{md,json}``.
 
 Probes (:file:`eval/perf.toml`, one subprocess each, ``python -m MODULE ...``): render frames per second per
-renderer and output set (``sim_envs.bench_render``), depth-network milliseconds per frame
+renderer and output set (``sim_envs.tools.bench_render``), depth-network milliseconds per frame
 (``cnnslam.depthnet.bench --json FILE``), CNN-SLAM tracking and whole-system frames per second
-(``cnnslam.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``), one run of
+(``cnnslam.tools.bench_slam --json``), trajectory-metric time for 100k poses (``eval.metrics.bench_metrics``), one run
+of
 each Table-1 method inside a suite with where its time goes (``eval.commands.cli_profile --json``: a table, ``columns``
 and ``rows``, shown as one). Modules with
 a JSON output are read as JSON; the two without one (``bench_render``, ``bench_metrics``) are parsed from the figures
@@ -113,7 +114,7 @@ class PerfReport:
 
 # -------------------------------------------------------------------------------------------------------- parsers
 def parse_render_table(stdout: str) -> dict[str, Any]:
-    """``sim_envs.bench_render``'s rows ``style renderer outputs fps`` -> ``{"<style>/<renderer>/<outputs>_fps":
+    """``sim_envs.tools.bench_render``'s rows ``style renderer outputs fps`` -> ``{"<style>/<renderer>/<outputs>_fps":
     fps}``; header lines, ``#`` notes and anything else are skipped."""
     figures: dict[str, Any] = {}
     for line in stdout.splitlines():
@@ -359,7 +360,7 @@ class BaselineRecord:
 @dataclass(frozen=True)
 class SpeedBaseline(BaselineRecord):
     """What the speed gate compares with: the median frames per machine unit of ``SPEED_GATED`` over several runs
-    of ``python -m cnnslam.bench_slam --sequence SEQUENCE --frames FRAMES --predictor PREDICTOR``, with the unit's
+    of ``python -m cnnslam.tools.bench_slam --sequence SEQUENCE --frames FRAMES --predictor PREDICTOR``, with the unit's
     version (a figure in another unit compares with nothing), the runs themselves, the machine and revision."""
 
     sequence: str
@@ -370,7 +371,7 @@ class SpeedBaseline(BaselineRecord):
 
 def speed_baseline_from_runs(runs: Sequence[Mapping[str, Any]], *, sequence: str, frames: int, predictor: str,
                              git_revision: str | None = None) -> SpeedBaseline:
-    """The median of each gated figure over ``runs`` (``cnnslam.bench_slam`` figure dicts, one unit version)."""
+    """The median of each gated figure over ``runs`` (``cnnslam.tools.bench_slam`` figure dicts, one unit version)."""
     if not runs:
         raise PerfError("a speed baseline needs at least one run")
     versions = {r.get("unit_version") for r in runs}
@@ -432,7 +433,7 @@ def speed_regressions(figures: Mapping[str, Any], baseline: SpeedBaseline) -> li
 
 
 def speed_gate(figures: Mapping[str, Any] | None, baseline_path: str | Path | None = None) -> dict[str, Any]:
-    """The speed gate's verdict on a ``cnnslam.bench_slam`` figure dict, as a record for perf.{json,md}: per gated
+    """The speed gate's verdict on a ``cnnslam.tools.bench_slam`` figure dict, as a record for perf.{json,md}: per gated
     figure this run's value, the baseline's and their ratio; the failures (:func:`speed_regressions`); or the reason
     it could not judge (no figures, no baseline, another sequence, frame count or predictor)."""
     path = Path(baseline_path) if baseline_path is not None else SPEED_BASELINE

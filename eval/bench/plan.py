@@ -34,7 +34,7 @@ from eval.bench.suites import (
 )
 from eval.errors import InputError, SuiteError
 from eval.reports.style import FIGURE_FORMATS
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import ProjectError
 from slamcommon.output_paths import OutputPathError, check_output_folder
 

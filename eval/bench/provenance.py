@@ -261,8 +261,8 @@ def covering_manifests(folder: Path, files: Sequence[Path]) -> dict[Path, dict[s
 def output_changes(data: Mapping[str, Any]) -> dict[str, list[str]]:
     """What differs now from what an output manifest recorded, per part: ``code`` (the import closure of its
     modules), ``inputs`` (a file's SHA-256, or the file gone), ``folders`` (a data folder's content fingerprint,
-    :func:`sim_envs.folder_layouts.folder_fingerprint`, or the folder gone); part -> the names that changed."""
-    from sim_envs.folder_layouts import folder_fingerprint
+    :func:`sim_envs.folders.folder_layouts.folder_fingerprint`, or the folder gone); part -> the names that changed."""
+    from sim_envs.folders.folder_layouts import folder_fingerprint
 
     changed: dict[str, list[str]] = {}
     code = data.get("code") or {}

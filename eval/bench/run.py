@@ -68,7 +68,7 @@ from eval.metrics.runs import (  # a run folder's record files and its trajector
 )
 from eval.metrics.trajectory import PoseTrajectory, rotation_share
 from eval.metrics.trajectory_metrics import TrajectoryMetrics
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds, unit_summary
 from slamcommon.resources import peak_rss_mib
 

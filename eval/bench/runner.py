@@ -186,7 +186,7 @@ def run_suite(
     (KeyboardInterrupt) stops the executor and propagates;
     the runs finished before it are stored. ``frame_cache``: simulated frames rendered once per sequence, on the
     executor ahead of the runs (:func:`frames_jobs`; one queue with the runs, :func:`suite_task`), and read back by
-    every run, under ``out_root/.frames`` (:mod:`sim_envs.frame_cache`; the same bytes). The runs start longest
+    every run, under ``out_root/.frames`` (:mod:`sim_envs.sources.frame_cache`; the same bytes). The runs start longest
     first (:func:`run_order`).
     """
     unknown = [m for m in suite.methods if m not in methods]

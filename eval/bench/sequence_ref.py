@@ -4,7 +4,7 @@ folders carry: ``office0@kinect``, ``office0+lit@hard``, ``office1~fr1_desk@kine
 name) and the parser of that form (:func:`resolve_sequence`).
 
 A simulated sequence is made as a Gymnasium environment by its id (``sim_envs/<name>-v0``) when registered as is,
-else as a :class:`~sim_envs.simsource.SimulatedSequence` replayed by ``sim_envs/Replay-v0``.
+else as a :class:`~sim_envs.sources.simsource.SimulatedSequence` replayed by ``sim_envs/Replay-v0``.
 
 The local dataset list (``datasets.toml``, or the file ``$CNNSLAM_DATASETS`` names) names the real RGB-D folders this
 machine has; :func:`resolve_sequence` resolves those names too.
@@ -25,8 +25,8 @@ from typing import Any, Literal
 
 from eval.errors import SuiteError
 from sim_envs.camera import UNDISTORT_MODES, camera_presets
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
-from sim_envs.datasets import (
+from sim_envs.errors import SimEnvError
+from sim_envs.folders.datasets import (
     LOADER_VERSION,
     PROCESSING_SIZE,
     RgbdFolder,
@@ -34,10 +34,10 @@ from sim_envs.datasets import (
     detect_layout,
     folder_fingerprint,
 )
-from sim_envs.errors import SimEnvError
-from sim_envs.formats import read_tum_trajectory
-from sim_envs.frame_cache import CachedFrames, cache_key
-from sim_envs.scene import DETAILS, LIGHTINGS
+from sim_envs.folders.formats import read_tum_trajectory
+from sim_envs.motion.trajectories import parse_axes
+from sim_envs.scenes.scene import DETAILS, LIGHTINGS
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.sequences import (
     SequenceSpec,
     get_sequence,
@@ -46,10 +46,10 @@ from sim_envs.sequences import (
     rotation_stress_spec,
     split_variants,
 )
-from sim_envs.simsource import SimulatedSequence
 from sim_envs.source import WINDOW_VERSION, FrameWindow
-from sim_envs.trajectories import parse_axes
-from sim_envs.variants import VariantSequence
+from sim_envs.sources.frame_cache import CachedFrames, cache_key
+from sim_envs.sources.simsource import SimulatedSequence
+from sim_envs.sources.variants import VariantSequence
 
 REPLAY_ENV_ID = "sim_envs/Replay-v0"
 _ROTATION_NAME = re.compile(r"^rot_(?P<axes>[a-z]+(-[a-z]+)*)_(?P<speed>\d+(\.\d+)?)$")
@@ -67,7 +67,7 @@ ROOM_MARKS: dict[str, tuple[str, tuple[str, ...]]] = {"lighting": ("flat", LIGHT
 def sim_camera_presets() -> list[str]:
     """The camera-effects presets a simulated sequence can be seen through (``--camera`` of simulated sequences);
     disjoint from the calibration presets of real folders (:func:`sim_envs.camera.camera_presets`)."""
-    from sim_envs.camera_effects import camera_effect_presets
+    from sim_envs.sensor.camera_effects import camera_effect_presets
 
     return camera_effect_presets()
 
@@ -82,7 +82,7 @@ class SequenceRef:
     :class:`SequenceSpec` fields to replace, as sorted ``(field, value)`` pairs (a mapping is accepted);
     focal_ratio / added_pan_deg_s: see :class:`VariantSequence`; axis / axis_value: the sweep axis and its nominal
     value, for plots. folder (instead of ``base`` or ``rotation``): the absolute path of a real RGB-D folder
-    (:class:`sim_envs.datasets.RgbdFolder`), with ``camera`` (a preset name or the path of a camera file; None:
+    (:class:`sim_envs.folders.datasets.RgbdFolder`), with ``camera`` (a preset name or the path of a camera file; None:
     detected), ``size`` ((width, height) of the delivered frames, default 320x240, or ``"native"``),
     ``depth_scale`` (None: detected) and ``undistort`` (how a distorted lens is undistorted:
     :data:`sim_envs.camera.UNDISTORT_MODES`, default ``crop``). start: the sequence's first frame (0: its
@@ -156,7 +156,8 @@ class SequenceRef:
     def make_source(self, renderer: str = "mujoco", frame_cache: str | Path | None = None) -> Any:
         """The frame source (lazy: nothing is rendered or generated until used; a folder's frames are read from
         disk when asked for). ``renderer`` does not apply to a folder. ``frame_cache``: a folder under which a
-        simulated source keeps the frames it rendered (:class:`sim_envs.frame_cache.CachedFrames`; same bytes)."""
+        simulated source keeps the frames it rendered (:class:`sim_envs.sources.frame_cache.CachedFrames`; same
+        bytes)."""
         if self.start:  # the whole sequence's source (its frames cached as the whole's), windowed
             whole = replace(self, start=0).make_source(renderer, frame_cache)
             return FrameWindow(whole, self.start, name=self.name)
@@ -187,7 +188,7 @@ class SequenceRef:
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready definition (run metadata; part of a run's fingerprint). A folder's includes its resolved path
-        and a content fingerprint (:func:`sim_envs.datasets.folder_fingerprint`), so a changed folder reruns."""
+        and a content fingerprint (:func:`sim_envs.folders.datasets.folder_fingerprint`), so a changed folder reruns."""
         if self.folder is not None:
             camera_file = [self.camera] if self.camera and Path(self.camera).is_file() else []
             return {
@@ -221,7 +222,7 @@ class SequenceRef:
 
     def with_camera_effects(self, preset: str) -> SequenceRef:
         """This simulated sequence seen through the camera-effects preset ``preset``
-        (:func:`sim_envs.camera_effects.camera_effect_presets`), named ``<name>@<preset>`` (its own run folders);
+        (:func:`sim_envs.sensor.camera_effects.camera_effect_presets`), named ``<name>@<preset>`` (its own run folders);
         ``clean`` (the renderer's bytes) is the plain ``<name>``. A preset the sequence already has is replaced."""
         if self.folder is not None:
             raise SuiteError(f"sequence {self.name!r} is a folder: its images come from a real camera")
@@ -248,14 +249,15 @@ class SequenceRef:
         return self.name, "", ""
 
     def with_lighting(self, lighting: str) -> SequenceRef:
-        """This simulated sequence in the same room lit otherwise (:data:`sim_envs.scene.LIGHTINGS`; ``lit``:
-        :mod:`sim_envs.lighting`), named ``<name>+<lighting>`` before any ``+<detail>`` and ``@<camera preset>`` (its
+        """This simulated sequence in the same room lit otherwise (:data:`sim_envs.scenes.scene.LIGHTINGS`; ``lit``:
+        :mod:`sim_envs.scenes.lighting`), named ``<name>+<lighting>`` before any ``+<detail>`` and ``@<camera preset>``
+        (its
         own run folders); ``flat`` is the plain name. The trajectory is the same."""
         return self._with_room_mark("lighting", lighting, "light")
 
     def with_detail(self, detail: str) -> SequenceRef:
-        """This simulated sequence in the same room at another detail level (:data:`sim_envs.scene.DETAILS`;
-        ``rich``: clutter and texture detail, :mod:`sim_envs.scenegen`), named ``<name>+<detail>`` after any
+        """This simulated sequence in the same room at another detail level (:data:`sim_envs.scenes.scene.DETAILS`;
+        ``rich``: clutter and texture detail, :mod:`sim_envs.scenes.scenegen`), named ``<name>+<detail>`` after any
         ``+<lighting>`` and before any ``@<camera preset>`` (its own run folders); ``standard`` is the plain name. The
         trajectory is the same."""
         return self._with_room_mark("detail", detail, "detail")
@@ -283,7 +285,7 @@ class SequenceRef:
 
     def with_motion(self, file: str | Path, label: str | None = None, frames: int | None = None) -> SequenceRef:
         """This simulated sequence's room with a recorded camera motion replayed in it instead of its own
-        trajectory (the ``replay`` kind of :mod:`sim_envs.trajectories`: a TUM trajectory ``file``, e.g. real
+        trajectory (the ``replay`` kind of :mod:`sim_envs.motion.trajectories`: a TUM trajectory ``file``, e.g. real
         hand-held motion), named ``<name>~<label>`` before any ``@<camera preset>`` (label: :func:`motion_label`).
         The room and camera are the sequence's; its length too, cut to what the recording covers and to ``frames``
         (the frames a suite will run: the whole replayed path must fit the room's free space, so a path longer than

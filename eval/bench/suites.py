@@ -23,7 +23,7 @@ Suites (:data:`SUITES`):
 - ``quick``: a few short sequences x all methods, the CI regression baseline.
 
 Sweep variants (:func:`sweep_sequences`), built with :func:`dataclasses.replace` on the base sequence's spec where
-the spec has the parameter, and by :class:`sim_envs.variants.VariantSequence` where it has not:
+the spec has the parameter, and by :class:`sim_envs.sources.variants.VariantSequence` where it has not:
 
 - texture density: ``SequenceSpec.texture_density`` (the room generator's share of textured surfaces);
 - rotation share: the base trajectory with an extra pan (rotation about the camera's y axis) sweeping +-20 deg at a
@@ -56,11 +56,11 @@ from eval.bench.sequence_ref import (
     with_default_camera,
 )
 from eval.errors import SuiteError
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS, sweep_effects
-from sim_envs.datasets import detect_layout
 from sim_envs.errors import SimEnvError
+from sim_envs.folders.datasets import detect_layout
+from sim_envs.motion.trajectories import ROTATION_AXES
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS, sweep_effects
 from sim_envs.sequences import TABLE1_SEQUENCES, VARIANT_MARKS, split_variants
-from sim_envs.trajectories import ROTATION_AXES
 
 
 # --------------------------------------------------------------------------------------------------- the suites
@@ -77,7 +77,7 @@ class SuiteKind(StrEnum):
     PREPROCESSING = "preprocessing"
 
 
-# camera presets of the simulated part of the transfer suite (sim_envs.camera_effects), in report order
+# camera presets of the simulated part of the transfer suite (sim_envs.sensor.camera_effects), in report order
 SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
 # the paper's methods, the original ORB-SLAM3 beside our ORB baseline (thirdparty/, out of process), and the oracle:
 # the methods whose table in eval/methods.toml says `table1 = true`, in the table's order (defined there only)
@@ -105,7 +105,8 @@ FOCAL_RATIOS: tuple[float, ...] = (0.7, 0.85, 1.0, 1.2, 1.4)
 
 
 # the sweep's camera axes: each camera effect whose stage class declares sweep strengths, alone on the clean camera
-# (sim_envs.camera_stages: a class's effect, sweep_strengths and axis_title; strength 1 = the kinect preset's value),
+# (sim_envs.sensor.camera_stages: a class's effect, sweep_strengths and axis_title; strength 1 = the kinect preset's
+# value),
 # in the classes' definition order. Live views of the stage classes: a new effect stage is a new axis.
 class _SweepAxes(Mapping[str, Any]):
     """Axis name -> value: ``fixed``'s, then each camera effect's ``pick(stage class)`` (read at every access)."""
@@ -311,7 +312,7 @@ def sweep_sequences(base: str = SWEEP_BASE) -> tuple[SequenceRef, ...]:
 
 def _named(name: str) -> SequenceRef:
     """A registered sequence as suites run it: through the world's default camera
-    (:data:`sim_envs.camera_effects.DEFAULT_CAMERA_EFFECTS`)."""
+    (:data:`sim_envs.sensor.camera_effects.DEFAULT_CAMERA_EFFECTS`)."""
     return SequenceRef(name, base=name).with_camera_effects(DEFAULT_CAMERA_EFFECTS)
 
 

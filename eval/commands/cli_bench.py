@@ -74,7 +74,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add("--list", action="store_true", help="list the suites and the method table, run nothing")
     add = parser.add_argument_group("the sequences' images").add_argument
     add("--camera", metavar="PRESET|FILE", help="simulated sequences: kinect (default), clean or hard "
-        "(sim_envs/camera_effects.py; NAME@PRESET in --sequences for one sequence; transfer: comma-separated "
+        "(sim_envs/sensor/camera_effects.py; NAME@PRESET in --sequences for one sequence; transfer: comma-separated "
         "simulated domains, e.g. clean,kinect+lit); folder sequences: a calibration preset (tum_fr1, icl, 7scenes, "
         "...) or camera file (TOML/YAML: fx fy cx cy [width height] [k1 k2 p1 p2 k3])")
     add("--image-size", metavar="WxH", help="folder sequences' resolution (default 320x240; 'native')")

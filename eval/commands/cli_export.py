@@ -1,9 +1,10 @@
 """``cnnslam export SEQUENCE FOLDER``: write a registered simulated sequence as a TUM RGB-D folder.
 
 The folder layout (rgb/, depth/ 16-bit x5000, labels/, instances/, rgb.txt, depth.txt, groundtruth.txt and the
-``cnnslam.json`` side file with the intrinsics) is described in :mod:`sim_envs.datasets`. The sequence registry
+``cnnslam.json`` side file with the intrinsics) is described in :mod:`sim_envs.folders.datasets`. The sequence registry
 (:mod:`sim_envs.sequences`) and the renderers are imported only when the command runs. The folder is written under a
-temporary name and renamed at the end (:func:`sim_envs.datasets.export_tum_rgbd`): Ctrl-C leaves nothing in the way
+temporary name and renamed at the end (:func:`sim_envs.folders.datasets.export_tum_rgbd`): Ctrl-C leaves nothing in the
+way
 of the next export. Exit status: 0 written, 1 the export failed, 2 a bad argument, refused in one line before
 anything renders (an unknown sequence, camera, lighting or renderer; ``--frames`` outside 1..the sequence's length; a
 file where the folder goes, a folder that cannot be written, a non-empty folder without ``--overwrite``), 130 on
@@ -18,9 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from eval.errors import InputError
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
-from sim_envs.datasets import export_tum_rgbd
 from sim_envs.errors import SimEnvError
+from sim_envs.folders.datasets import export_tum_rgbd
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import ProjectError
 from slamcommon.output_paths import check_output_folder
 
@@ -32,13 +33,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--renderer", default="mujoco", help="renderer backend (default: mujoco)")
     parser.add_argument("--frames", type=int, default=None, help="export only the first N frames")
     parser.add_argument("--camera-effects", default=DEFAULT_CAMERA_EFFECTS, metavar="PRESET",
-                        help=f"simulated camera (sim_envs.camera_effects): {DEFAULT_CAMERA_EFFECTS} (default, the "
+                        help=f"simulated camera (sim_envs.sensor.camera_stages): {DEFAULT_CAMERA_EFFECTS} "
+                             "(default, the "
                              "one the suites score), clean (the renderer's images) or hard; a non-clean camera also "
                              "writes its photometric calibration (times.txt, pcalib.txt, vignette.png) and camera "
                              "files")  # fmt: skip
     parser.add_argument("--lighting", default="flat", metavar="LIGHTING",
                         help="flat (default) or lit: the room with lamps, shadows and highlights "
-                             "(sim_envs/lighting.py; mujoco renderer only)")  # fmt: skip
+                             "(sim_envs/scenes/lighting.py; mujoco renderer only)")  # fmt: skip
     parser.add_argument("--overwrite", action="store_true", help="write into a non-empty folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -51,7 +53,7 @@ def open_sequence(name: str, renderer: str, camera_effects: str = DEFAULT_CAMERA
     from dataclasses import replace
 
     from sim_envs.sequences import variant_spec, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     spec = variant_spec(name)
     spec = with_camera(spec, camera_effects) if camera_effects != "clean" else spec

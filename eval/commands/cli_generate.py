@@ -4,7 +4,7 @@ fr1/rpy) at chosen axes, angular speeds and lengths; optionally exported as TUM 
 Each (axes, speed) pair gives the sequence ``rot_<axes>_<speed>`` of
 :func:`sim_envs.sequences.rotation_stress_spec` (TUM fr1 intrinsics, the office room). The command prints one line
 per sequence with the measured angular speed of its trajectory; ``--export DIR`` renders each into
-``DIR/<name>/`` (``rgb/``, ``depth/``, ``groundtruth.txt``, ... see :mod:`sim_envs.datasets`) and writes
+``DIR/<name>/`` (``rgb/``, ``depth/``, ``groundtruth.txt``, ... see :mod:`sim_envs.folders.datasets`) and writes
 ``DIR/sequences.json`` with the specs, so a third-party system can run on them and be scored with
 ``cnnslam bench rotation --sequences <names> --external NAME=ITS_OUTPUT``. The same names work in
 ``cnnslam bench --sequences``. ``--camera`` picks the simulated camera (``kinect`` by default, as every suite; the
@@ -31,8 +31,8 @@ import numpy as np
 
 from eval.bench.sequence_ref import SequenceRef, rotation_ref, sim_camera_presets
 from eval.errors import EvalError, InputError
-from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
 from sim_envs.errors import SimEnvError
+from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.errors import ProjectError
 from slamcommon.output_paths import check_output_folder
 
@@ -75,7 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--export", type=Path, default=None, metavar="DIR",
                         help="render each sequence into DIR/<name>/ as a TUM RGB-D folder")  # fmt: skip
     parser.add_argument("--camera", choices=sim_camera_presets(), default=DEFAULT_CAMERA_EFFECTS,
-                        help="what the camera does to the images (sim_envs/camera_effects.py): kinect (default, as "
+                        help="what the camera does to the images (sim_envs/sensor/camera_stages.py): kinect "
+                             "(default, as "
                              "every suite), clean (the renderer's bytes) or hard; names get its @PRESET suffix as in "
                              "cnnslam bench (none for clean)")  # fmt: skip
     parser.add_argument("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
@@ -140,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
             )
             entry = {"name": ref.name, "spec": asdict(spec), "intrinsics": asdict(source.intrinsics)}
             if args.export is not None:
-                from sim_envs.datasets import export_tum_rgbd
+                from sim_envs.folders.datasets import export_tum_rgbd
 
                 try:
                     folder = export_tum_rgbd(

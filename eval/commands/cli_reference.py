@@ -173,7 +173,7 @@ def select_images(n_images: int, args: argparse.Namespace) -> np.ndarray:
 
 def run(args: argparse.Namespace) -> int:
     from eval.bench.sequence_ref import resolve_sequence
-    from sim_envs.datasets import load_rgbd_folder
+    from sim_envs.folders.datasets import load_rgbd_folder
 
     try:  # bad options, a folder that is no RGB-D folder, too few images, unwritable outputs: before COLMAP starts
         check_options(args)
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
     _write_reference(out, folder, reference, args.fixed_camera)  # first: kept whatever fails after it
     summary, metrics = _summary(args, folder, reference, seconds)
     _write_report(out, seq.name, summary, metrics if not args.no_plot else None)
-    from sim_envs.folder_layouts import folder_fingerprint
+    from sim_envs.folders.folder_layouts import folder_fingerprint
     from slamcommon.provenance import record_outputs  # what made the files: `cnnslam results status`
 
     record_outputs([out / n for n in ("reference.tum", "camera.toml", "reference.json", "reference.md",
@@ -263,7 +263,7 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
              seconds: float) -> tuple[dict[str, Any], TrajectoryMetrics]:  # fmt: skip
     import pycolmap
 
-    from sim_envs.datasets import camera_fields
+    from sim_envs.folders.datasets import camera_fields
 
     stated = folder.camera
     summary: dict[str, Any] = {
@@ -293,7 +293,7 @@ def _summary(args: argparse.Namespace, folder: Any, reference: SfmReference,
 def _write_reference(out: Path, folder: Any, reference: SfmReference, fixed: bool) -> None:
     import pycolmap
 
-    from sim_envs.datasets import camera_file_text
+    from sim_envs.folders.datasets import camera_file_text
     from slamcommon.formats import write_tum_trajectory
 
     how = "held fixed" if fixed else "self-calibrated"

@@ -45,7 +45,7 @@ KNOWN_COMMANDS: dict[str, tuple[str, ...]] = {
     "depthnet_data": ("cnnslam train data-statistics ../shared/data/real/7scenes_redkitchen --results {folder}",),
     "contact_sheet": ("cnnslam contact-sheet --out {folder}/contact_sheet.png",),
     "camera_calibration": (
-        "python -m sim_envs.cli_camera_calibration --real ../shared/data/real/7scenes_redkitchen "
+        "python -m sim_envs.tools.cli_camera_calibration --real ../shared/data/real/7scenes_redkitchen "
         "--out {folder}/camera_calibration.md --png {folder}/camera_calibration.png",),
     "reference": ("cnnslam reference {name} --step 2 --out {folder}",),
     "camera": ("cnnslam reference {name} --step 2 --out {folder}",),

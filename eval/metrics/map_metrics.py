@@ -3,7 +3,7 @@ metrics of every suite: what ``cnnslam map`` measures in depth, here in the run 
 
 Input: the agent's :class:`sim_envs.agent.MapModel` (points in its own world frame, fused labels), its key-frame
 poses and the ground-truth frames at those key-frames (the driver's matching), and the scene's labelled surface
-samples (:func:`sim_envs.surface_sampling.sample_scene_surface`, 2 cm apart). The model is moved onto the ground
+samples (:func:`sim_envs.scenes.surface_sampling.sample_scene_surface`, 2 cm apart). The model is moved onto the ground
 truth with the alignment of the run's trajectory, the one its ATE uses (:func:`slamcommon.alignment.align`, the
 run's alignment method: SE(3) by default, so absolute scale counts). Only surfaces at least one key-frame saw count
 for completeness (:func:`slamcommon.reconstruction_metrics.visible_in_views`); accuracy is measured against every
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sim_envs.surface_sampling import sample_scene_surface
+from sim_envs.scenes.surface_sampling import sample_scene_surface
 from slamcommon.alignment import align
 from slamcommon.labels import NO_LABEL
 from slamcommon.reconstruction_metrics import (

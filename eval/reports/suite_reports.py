@@ -91,7 +91,8 @@ RUNS_FIGURE_METRICS: tuple[tuple[str, str], ...] = tuple((key, label) for label,
 TARGET_ATE_PERCENT_LENGTH = 2.0
 TARGET_SCALE_ERROR_PERCENT = 5.0
 def camera_sentence(suite: Any) -> str:
-    """Which simulated camera(s) the suite's simulated sequences are seen through (:mod:`sim_envs.camera_effects`),
+    """Which simulated camera(s) the suite's simulated sequences are seen through
+    (:mod:`sim_envs.sensor.camera_effects`),
     as a sentence for a report's header; empty when it has none."""
     cameras = sorted({str(dict(r.overrides).get("camera_effects", "clean")) for r in suite.sequences
                       if r.folder is None})  # fmt: skip
@@ -99,9 +100,11 @@ def camera_sentence(suite: Any) -> str:
         return ""
     lit = sorted({r.name for r in suite.sequences if r.folder is None and dict(r.overrides).get("lighting", "flat")
                   != "flat"})  # fmt: skip
-    rooms = (f"Rooms lit with lamps, shadows and highlights (`sim_envs/lighting.py`, the `+lit` names): {len(lit)} of "
+    rooms = (f"Rooms lit with lamps, shadows and highlights (`sim_envs/scenes/lighting.py`, the `+lit` names): "
+             f"{len(lit)} of "
              f"{sum(r.folder is None for r in suite.sequences)} simulated sequences. ") if lit else ""  # fmt: skip
-    return (f"Simulated camera: **{', '.join(cameras)}** (`sim_envs/camera_effects.py`; `--camera clean|kinect|hard` "
+    return (f"Simulated camera: **{', '.join(cameras)}** (`sim_envs/sensor/camera_stages.py`; "
+            f"`--camera clean|kinect|hard` "
             "switches; a sequence's `@PRESET` suffix names its camera). " + rooms)  # fmt: skip
 
 
@@ -604,7 +607,7 @@ def report_sweep(run: SuiteRun, results_dir: str | Path, command: str,
         "rotation, for a scene 2 m away); focal length of the test camera over the training camera's (NYU) at the "
         "same resolution (1 = no mismatch; the base sequence's ICL camera is 0.93); these three through the "
         "default camera (kinect). Camera axes: one effect of the camera alone, on the clean camera, at strengths "
-        "where 1 is the kinect preset's value (`sim_envs.camera_effects.SINGLE_EFFECTS`): noise (x ICL-NUIM's), "
+        "where 1 is the kinect preset's value (`sim_envs.sensor.camera_effects.SINGLE_EFFECTS`): noise (x ICL-NUIM's), "
         "motion blur (exposure x half a frame interval, global shutter), auto-exposure (exposure jitter x 1 %), "
         "rolling shutter (readout in frame intervals; kinect 0.05, hard 0.5) and lens distortion (x TUM fr1's, "
         "undistorted and cropped to what the lens saw before the agent sees it).\n",

@@ -1,7 +1,7 @@
-"""Offscreen renderers of a :class:`~sim_envs.scene.Scene`: MuJoCo and pyrender, chosen by name.
+"""Offscreen renderers of a :class:`~sim_envs.scenes.scene.Scene`: MuJoCo and pyrender, chosen by name.
 
 >>> from sim_envs.camera import preset
->>> from sim_envs.scenegen import generate_scene
+>>> from sim_envs.scenes.scenegen import generate_scene
 >>> with make_renderer(generate_scene("office", 0), preset("icl"), backend="mujoco") as r:  # doctest: +SKIP
 ...     out = r.render(T_world_cam, outputs=("rgb", "depth"))
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 from sim_envs.camera import Intrinsics
 from sim_envs.errors import UnknownNameError
 from sim_envs.render.base import DEFAULT_ZNEAR, OUTPUTS, Renderer, RenderOutput
-from sim_envs.scene import Scene
+from sim_envs.scenes.scene import Scene
 
 BACKENDS: tuple[str, ...] = ("mujoco", "pyrender")
 

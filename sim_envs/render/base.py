@@ -15,7 +15,7 @@ import numpy as np
 from sim_envs.camera import Intrinsics
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import NO_LABEL
-from sim_envs.scene import Scene
+from sim_envs.scenes.scene import Scene
 
 OUTPUTS: tuple[str, ...] = ("rgb", "depth", "labels", "instances")
 DEFAULT_ZNEAR = 0.02  # metres; nearest renderable surface (ours: a hand-held camera never gets closer)

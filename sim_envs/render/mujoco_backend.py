@@ -1,10 +1,10 @@
-"""The MuJoCo renderer: a model built in code with ``mujoco.MjSpec`` from a :class:`~sim_envs.scene.Scene`.
+"""The MuJoCo renderer: a model built in code with ``mujoco.MjSpec`` from a :class:`~sim_envs.scenes.scene.Scene`.
 
 Geometry: one mesh geom per (instance, material) pair, in world coordinates, with the scene's own texture coordinates
 and flat/smooth normals (:meth:`Primitive.mesh`), so texture mapping is identical to the pyrender backend's.
 Textures come from numpy arrays. Lighting reproduces :meth:`Scene.shade`: the headlight gives only the ambient term,
 and each scene light is a MuJoCo directional light with diffuse colour = intensity (no specular, no shadows). A
-``lit`` scene (:mod:`sim_envs.lighting`) adds its lamps as MuJoCo spot lights (attenuation, cone, shadow maps of
+``lit`` scene (:mod:`sim_envs.scenes.lighting`) adds its lamps as MuJoCo spot lights (attenuation, cone, shadow maps of
 1024 x 1024 for those that cast shadows) and its materials' specular, shininess and emission.
 
 Camera: the model's one camera gets exact pinhole intrinsics through ``cam_intrinsic`` / ``cam_sensorsize`` and is
@@ -36,7 +36,7 @@ from sim_envs.render.base import (
     validate_pose,
 )
 from sim_envs.render.gl import configure_gl, context_error
-from sim_envs.scene import Material, Scene, TriMesh
+from sim_envs.scenes.scene import Material, Scene, TriMesh
 
 SHADOW_MAP_SIZE = 1024  # texels per side of a shadow map (ours: at 320x240 as sharp as 2048, 2.4x faster)
 LIT_MAX_EDGE_M = 0.5  # a lit scene's meshes are split down to this edge length (MuJoCo lights per vertex; ours)

@@ -1,4 +1,4 @@
-"""The pyrender renderer of a :class:`~sim_envs.scene.Scene` (the maintained fork ``scikit-robot-pyrender``).
+"""The pyrender renderer of a :class:`~sim_envs.scenes.scene.Scene` (the maintained fork ``scikit-robot-pyrender``).
 
 Geometry: the scene's meshes and texture coordinates (the same as the MuJoCo backend's). pyrender's cost is mostly
 per drawn primitive (Python and PyOpenGL calls), so the colour/depth scene has few, large primitives: one per
@@ -34,7 +34,7 @@ from sim_envs.render.base import (
     validate_pose,
 )
 from sim_envs.render.gl import configure_gl, context_error
-from sim_envs.scene import Scene, TriMesh
+from sim_envs.scenes.scene import Scene, TriMesh
 
 
 def instance_meshes(scene: Scene) -> dict[int, TriMesh]:

@@ -10,7 +10,7 @@ exports) and the judge (reading trajectories), importing neither and no Gymnasiu
 - :mod:`~slamcommon.formats.lines`: the shared text rules (comments, separators, increasing timestamps).
 
 Reading is strict: the first bad line raises one :class:`~slamcommon.errors.FormatError` that names the file, the
-line, what was found and what is valid (``sim_envs.formats`` re-raises it as the world's ``FormatError``).
+line, what was found and what is valid (``sim_envs.folders.formats`` re-raises it as the world's ``FormatError``).
 """
 
 from slamcommon.errors import FormatError

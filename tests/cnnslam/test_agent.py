@@ -11,7 +11,7 @@ from cnnslam.agent import CnnSlamAgent, GroundTruthAidedAgent, build_config
 from cnnslam.errors import CnnSlamError
 from sim_envs.agent import load_agent
 from sim_envs.driver import run_episode
-from sim_envs.formats import read_tum_trajectory
+from sim_envs.folders.formats import read_tum_trajectory
 
 
 def test_short_episode_end_to_end(tmp_path) -> None:
@@ -63,7 +63,7 @@ class _ConstantDepthNet:
     train_focal = 259.58
 
     def predict_raw(self, rgb: np.ndarray):
-        from cnnslam.depth_prediction import DegradedPrediction
+        from cnnslam.depth.depth_prediction import DegradedPrediction
 
         h, w = rgb.shape[:2]
         return DegradedPrediction(np.full((h, w), 2.0, np.float32), np.full((h, w, 4), 0.25, np.float32))

@@ -12,8 +12,14 @@ import pytest
 from cnnslam.baselines.laina import GroundTruthAidedLainaAgent, LainaAgent, LainaConfig, area_downsample_depth
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import rotation_angle_deg, se3_inverse
-from cnnslam.global_model import GlobalModel, GlobalModelConfig
-from cnnslam.icp import IcpConfig, depth_surface_pyramid, icp_point_to_plane, surface_maps_from_depth, surface_pyramid
+from cnnslam.model.global_model import GlobalModel, GlobalModelConfig
+from cnnslam.model.icp import (
+    IcpConfig,
+    depth_surface_pyramid,
+    icp_point_to_plane,
+    surface_maps_from_depth,
+    surface_pyramid,
+)
 from slamcommon.errors import ConfigError
 
 TRAIN_FOCAL = 200.0  # the stub network's training focal length; the room's camera has f = 240.3 px

@@ -17,7 +17,7 @@ from sim_envs.agent import load_agent
 from sim_envs.driver import run_episode
 from sim_envs.env import SlamEnv
 from sim_envs.sequences import get_sequence, rotation_stress_spec
-from sim_envs.simsource import FrameListSource, SimulatedSequence
+from sim_envs.sources.simsource import FrameListSource, SimulatedSequence
 from slamcommon.errors import ConfigError
 
 HANDHELD_FRAMES = 90  # 3 s of the office0 analogue (ICL intrinsics, hand-held at 0.25 m/s)

@@ -344,7 +344,7 @@ def rendered_pair():
     """Two views of the office room, 0.5 m apart sideways, both looking at the same point of interest."""
     from sim_envs.camera import preset
     from sim_envs.render import make_renderer
-    from sim_envs.scenegen import generate_scene
+    from sim_envs.scenes.scenegen import generate_scene
 
     scene = generate_scene("office", 1)
     rng = np.random.default_rng(0)

@@ -109,7 +109,7 @@ def test_a_new_baseline_is_one_module_and_one_table(tmp_path: Path) -> None:
 
     # the Table-1 suite and the warm-up take it from its table
     probe = _python(copy, "-c", "import json; from eval.bench.suites import TABLE1_METHODS; "
-                                "from cnnslam.warmup import warmup_agents; "
+                                "from cnnslam.tools.warmup import warmup_agents; "
                                 "print(json.dumps([TABLE1_METHODS, warmup_agents()['baselines']]))")
     assert probe.returncode == 0, probe.stderr
     table1, warmed = json.loads(probe.stdout)

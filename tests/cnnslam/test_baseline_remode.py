@@ -28,7 +28,7 @@ from sim_envs.driver import run_episode
 from sim_envs.env import SlamEnv
 from sim_envs.frames import SemanticClass
 from sim_envs.sequences import get_sequence
-from sim_envs.simsource import SimulatedSequence
+from sim_envs.sources.simsource import SimulatedSequence
 from slamcommon.depth_metrics import depth_metrics
 from slamcommon.errors import ConfigError
 

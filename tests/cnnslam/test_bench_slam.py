@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from cnnslam.bench_slam import benchmark, format_figures, main
+from cnnslam.tools.bench_slam import benchmark, format_figures, main
 
 
 def test_benchmark_reports_every_figure() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnnslam.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
+from cnnslam.depth.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
 from cnnslam.errors import CnnSlamError
 
 
@@ -42,14 +42,14 @@ class _FixedNet:
     train_focal = 480.0
 
     def predict_raw(self, rgb: np.ndarray):
-        from cnnslam.depth_prediction import DegradedPrediction
+        from cnnslam.depth.depth_prediction import DegradedPrediction
 
         h, w = rgb.shape[:2]
         return DegradedPrediction(np.full((h, w), 2.0, np.float32), np.full((h, w, 4), 0.25, np.float32))
 
 
 def test_raw_and_adjusted_switch() -> None:
-    from cnnslam.depth_prediction import predict_keyframe_depth
+    from cnnslam.depth.depth_prediction import predict_keyframe_depth
 
     rgb = np.zeros((4, 6, 3), np.uint8)
     k = np.array([240.0, 240.0, 2.5, 1.5])
@@ -63,7 +63,7 @@ def test_raw_and_adjusted_switch() -> None:
 
 
 def test_degraded_predictor_imitates_a_cnn() -> None:
-    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint, predict_keyframe_depth
+    from cnnslam.depth.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint, predict_keyframe_depth
 
     gt = np.full((48, 64), 3.0, np.float32)
     gt[20:28, 30:34] = 1.0  # a small near object
@@ -89,7 +89,7 @@ def test_degraded_predictor_imitates_a_cnn() -> None:
 
 
 def test_degraded_predictor_needs_ground_truth() -> None:
-    from cnnslam.depth_prediction import DegradedGroundTruthPredictor, predict_keyframe_depth
+    from cnnslam.depth.depth_prediction import DegradedGroundTruthPredictor, predict_keyframe_depth
     from cnnslam.predictors import make_predictor
 
     with pytest.raises(CnnSlamError, match="GroundTruthAidedAgent"):
@@ -100,7 +100,7 @@ def test_degraded_predictor_needs_ground_truth() -> None:
 
 
 def test_ground_truth_hint_prefers_the_depth_sensor_for_the_lsd_bs_bootstrap() -> None:
-    from cnnslam.depth_prediction import GroundTruthHint
+    from cnnslam.depth.depth_prediction import GroundTruthHint
 
     exact = np.full((4, 5), 2.0, np.float32)
     sensor = np.full((4, 5), 2.03, np.float32)

@@ -38,7 +38,7 @@ def test_split_seeds_are_training_seeds_and_disjoint() -> None:
 
 
 def test_jobs_use_training_styles_only(tmp_path: Path) -> None:
-    from sim_envs.scenegen import TEST_STYLES, TRAIN_STYLES
+    from sim_envs.scenes.scenegen import TEST_STYLES, TRAIN_STYLES
 
     jobs = shard_jobs(tmp_path, "train", GenerationConfig(n_scenes=8))
     assert {j.style for j in jobs} == set(TRAIN_STYLES)

@@ -129,7 +129,7 @@ def test_shipped_weights_predict_depth_and_labels_of_an_unseen_test_room() -> No
     pytest.importorskip("mujoco", reason="mujoco is not installed (a core dependency: pip install -c "
                                          "constraints.txt -e '.[dev]')")
     from sim_envs.sequences import get_sequence
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     source = SimulatedSequence(get_sequence("office0"))
     pred = load_predictor()

@@ -7,9 +7,9 @@ import pytest
 from cnnslam.depthnet.predict import Prediction
 from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
 from sim_envs.camera import preset
-from sim_envs.datasets import load_rgbd_folder, write_folder
+from sim_envs.folders.datasets import load_rgbd_folder, write_folder
 from sim_envs.frames import Frame
-from sim_envs.simsource import FrameListSource
+from sim_envs.sources.simsource import FrameListSource
 
 
 class StubPredictor:
@@ -90,7 +90,7 @@ def test_the_command_writes_a_manifest_of_the_weights_and_the_folder(folder, tmp
 
     import cnnslam.depthnet.predict as predict
     from cnnslam.cli import main
-    from sim_envs.folder_layouts import folder_fingerprint
+    from sim_envs.folders.folder_layouts import folder_fingerprint
 
     weights = tmp_path / "w.pt"
     weights.write_bytes(b"stub weights")

@@ -25,7 +25,7 @@ def test_camera_rotation_axes() -> None:
 
 
 def test_sampled_views_are_in_free_space_and_hand_held() -> None:
-    from sim_envs.scenegen import generate_scene
+    from sim_envs.scenes.scenegen import generate_scene
 
     scene = generate_scene("study", 10_007, texture_density=0.5)
     cfg = ViewConfig()

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import pixel_rays
-from cnnslam.global_model import NO_LABEL, GlobalModel, GlobalModelConfig, radial_confidence, voxel_keys
+from cnnslam.model.global_model import NO_LABEL, GlobalModel, GlobalModelConfig, radial_confidence, voxel_keys
 
 K = np.array([60.0, 60.0, 39.5, 29.5])  # a small 80 x 60 camera keeps these tests fast
 SIZE = (60, 80)
@@ -245,7 +245,7 @@ def test_bad_inputs_are_rejected_with_the_value_named():
 def test_association_on_the_measurement_grid_equals_the_full_splat():
     """associate_kernel(grid=2) visits only the even rows and columns, where stride-2 measurements lie: the same
     targets and misses as the full splat; measurements off that grid fall back to the full splat."""
-    from cnnslam.surfel_kernels import associate_kernel
+    from cnnslam.model.surfel_kernels import associate_kernel
 
     rng = np.random.default_rng(3)
     h, w = 60, 80

@@ -4,8 +4,8 @@ from scipy.spatial.transform import Rotation
 
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import relative_pose, rotation_angle_deg, se3_inverse
-from cnnslam.global_model import GlobalModel, GlobalModelConfig
-from cnnslam.icp import (
+from cnnslam.model.global_model import GlobalModel, GlobalModelConfig
+from cnnslam.model.icp import (
     IcpConfig,
     SurfaceMaps,
     _evaluate,

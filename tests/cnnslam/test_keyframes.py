@@ -8,7 +8,7 @@ import pytest
 from cnnslam.config import DepthConfig, KeyframeConfig
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import relative_pose, se3_exp
-from cnnslam.keyframes import (
+from cnnslam.keyframe.keyframes import (
     fuse_keyframe_depth,
     fuse_keyframe_uncertainty,
     init_cnn_keyframe,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cnnslam.errors import CnnSlamError
-from cnnslam.label_fusion import (
+from cnnslam.model.label_fusion import (
     checked_class_scores,
     class_probabilities_at,
     class_probability_map,

@@ -1,11 +1,11 @@
-"""cnnslam.map_replay: the numeric core of ``cnnslam map`` (known answers; the command end to end is in
+"""cnnslam.tools.map_replay: the numeric core of ``cnnslam map`` (known answers; the command end to end is in
 test_model_io.py)."""
 
 import numpy as np
 import pytest
 
 from cnnslam.geometry import se3_exp
-from cnnslam.map_replay import corrected_trajectory
+from cnnslam.tools.map_replay import corrected_trajectory
 
 
 def _pose(x: float) -> np.ndarray:

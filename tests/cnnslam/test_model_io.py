@@ -8,9 +8,16 @@ import json
 import numpy as np
 import pytest
 
-from cnnslam.global_model import SurfelCloud
-from cnnslam.model_io import VERTEX_DTYPE, PlyFormatError, read_ply, write_ply
-from cnnslam.model_render import PALETTE, label_colours, overview_camera, project, render_map_views, save_map_figure
+from cnnslam.model.global_model import SurfelCloud
+from cnnslam.model.model_io import VERTEX_DTYPE, PlyFormatError, read_ply, write_ply
+from cnnslam.model.model_render import (
+    PALETTE,
+    label_colours,
+    overview_camera,
+    project,
+    render_map_views,
+    save_map_figure,
+)
 
 
 def _cloud(n: int = 500, seed: int = 0) -> SurfelCloud:
@@ -133,7 +140,7 @@ def test_map_command_end_to_end(tmp_path):
 def test_evidence_maps_hold_the_ground_truth_one_hot_and_whether_the_cnn_was_right():
     from types import SimpleNamespace
 
-    from cnnslam.map_replay import evidence_maps
+    from cnnslam.tools.map_replay import evidence_maps
 
     probs = np.zeros((2, 2, 4), np.float32)
     probs[..., 1] = 1.0  # the CNN says class 1 everywhere

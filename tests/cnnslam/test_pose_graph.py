@@ -9,7 +9,7 @@ import pytest
 from cnnslam.config import PoseGraphConfig, TrackingConfig
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import relative_pose, se3_exp, se3_inverse, se3_log
-from cnnslam.pose_graph import (
+from cnnslam.graph.pose_graph import (
     PoseGraph,
     PoseGraphEdge,
     align_keyframes,
@@ -17,7 +17,7 @@ from cnnslam.pose_graph import (
     field_of_view,
     neighbour_candidates,
 )
-from cnnslam.tracking import build_image_pyramid, build_tracking_reference, to_gray
+from cnnslam.track.tracking import build_image_pyramid, build_tracking_reference, to_gray
 
 
 def _circle(n: int, radius: float = 2.0) -> list[np.ndarray]:

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-import cnnslam.tracking as tracking
+import cnnslam.track.tracking as tracking
 from cnnslam.errors import CnnSlamError
-from cnnslam.pyramid import build_image_pyramid, central_gradients, to_gray
+from cnnslam.track.pyramid import build_image_pyramid, central_gradients, to_gray
 
 
 def test_central_gradients_of_a_ramp() -> None:

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from cnnslam.config import RefinementConfig
-from cnnslam.depth_prediction import DegradedGroundTruthPredictor
+from cnnslam.depth.depth_prediction import DegradedGroundTruthPredictor
 from cnnslam.geometry import relative_pose
-from cnnslam.refinement import (
+from cnnslam.keyframe.refinement import (
     OK,
     StereoObservation,
     StereoSettings,
@@ -20,7 +20,7 @@ from cnnslam.refinement import (
     refine_keyframe,
     stereo_observation,
 )
-from cnnslam.tracking import build_image_pyramid, to_gray
+from cnnslam.track.tracking import build_image_pyramid, to_gray
 
 CFG = RefinementConfig()
 
@@ -76,7 +76,7 @@ def test_refinement_reduces_error_of_degraded_depth_on_rendered_frames() -> None
     """Issue 5: refinement reduces the depth error of a degraded (CNN-like) depth map on rendered frames; pixels
     without a stereo observation (low texture) keep their depth exactly."""
     from sim_envs.sequences import get_sequence
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     with SimulatedSequence(get_sequence("office0")) as seq:
         K = seq.intrinsics.as_array()
@@ -118,7 +118,7 @@ def test_density_selects_the_attempted_pixels(room, density: str) -> None:
 
 
 def test_observation_outliers_is_lsd_chi_square_gate() -> None:
-    from cnnslam.refinement import observation_outliers
+    from cnnslam.keyframe.refinement import observation_outliers
 
     d_kf = np.array([2.0, 2.0, 2.0])
     u_kf = np.array([0.01, 0.01, 0.01])  # sigma 0.1 m
@@ -131,7 +131,7 @@ def test_observation_outliers_is_lsd_chi_square_gate() -> None:
 
 def test_refine_keyframe_does_not_fuse_an_inconsistent_observation() -> None:
     from cnnslam.config import RefinementConfig
-    from cnnslam.refinement import StereoObservation, refine_keyframe
+    from cnnslam.keyframe.refinement import StereoObservation, refine_keyframe
 
     depth = np.full((2, 2), 2.0, np.float32)
     variance = np.full((2, 2), 0.01, np.float32)

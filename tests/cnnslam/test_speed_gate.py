@@ -13,7 +13,7 @@ import time
 import pytest
 
 import cnnslam.system
-from cnnslam.bench_slam import benchmark
+from cnnslam.tools.bench_slam import benchmark
 from eval.bench.perf import SPEED_GATED, load_probes, load_speed_baseline, run_probe, speed_regressions
 
 pytestmark = pytest.mark.slow  # agent runs timed against a baseline: the full lane (make test), not make check

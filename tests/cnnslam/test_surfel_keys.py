@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-import cnnslam.global_model as global_model
-from cnnslam.surfel_keys import KEY_BITS, KEY_OFFSET, radial_confidence, voxel_keys
+import cnnslam.model.global_model as global_model
+from cnnslam.model.surfel_keys import KEY_BITS, KEY_OFFSET, radial_confidence, voxel_keys
 
 
 def test_voxel_key_packs_voxel_coordinates_and_normal_direction() -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cnnslam.surfel_store import SurfelStore
+from cnnslam.model.surfel_store import SurfelStore
 
 
 def _filled(n: int) -> SurfelStore:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cnnslam.config import CnnSlamConfig, baseline_config
-from cnnslam.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint
+from cnnslam.depth.depth_prediction import DegradedGroundTruthPredictor, GroundTruthHint
 from cnnslam.errors import CnnSlamError
 from cnnslam.geometry import relative_pose, se3_inverse, se3_log
 from cnnslam.system import CnnSlam

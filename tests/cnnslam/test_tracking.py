@@ -9,7 +9,7 @@ import pytest
 
 from cnnslam.config import TrackingConfig
 from cnnslam.geometry import relative_pose, rotation_angle_deg, se3_exp, se3_inverse, se3_log
-from cnnslam.tracking import (
+from cnnslam.track.tracking import (
     _normal_equations,
     affine_brightness,
     build_image_pyramid,
@@ -35,7 +35,7 @@ def _errors(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
 def test_known_motion_between_rendered_frames() -> None:
     """Issue 5: a known motion between two rendered frames within 1 mm and 0.1 degree, given exact depth."""
     from sim_envs.sequences import get_sequence
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     with SimulatedSequence(get_sequence("tum_nostructure_near")) as seq:
         K = seq.intrinsics.as_array()
@@ -148,7 +148,7 @@ def test_kernel_matches_the_equations(room) -> None:
 
 
 def _sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    from cnnslam.tracking import bilinear
+    from cnnslam.track.tracking import bilinear
 
     return bilinear(image, np.nan_to_num(uv))
 

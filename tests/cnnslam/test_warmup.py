@@ -1,9 +1,9 @@
-"""cnnslam.warmup: the install-time run that fills numba's on-disk cache."""
+"""cnnslam.tools.warmup: the install-time run that fills numba's on-disk cache."""
 
 import pytest
 
 from cnnslam.errors import CnnSlamError
-from cnnslam.warmup import METHODS_FILE, _baselines_of, main, warm_up, warm_up_baselines, warmup_agents
+from cnnslam.tools.warmup import METHODS_FILE, _baselines_of, main, warm_up, warm_up_baselines, warmup_agents
 
 
 def test_the_warm_up_runs_the_system_and_counts_the_kernels(capsys):

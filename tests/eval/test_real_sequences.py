@@ -1,7 +1,7 @@
 """Real RGB-D folders wherever a sequence name goes: folder references (names, fingerprints), the dataset list and
 the ``real`` suite, runs on folders (the source's description in the run record; RGB-only: no depth metric), and
 ``cnnslam bench`` with folder paths, ``--camera`` and ``--image-size``. The folders are written at test time
-(``sim_envs.datasets.write_folder``) from a few synthetic frames."""
+(``sim_envs.folders.datasets.write_folder``) from a few synthetic frames."""
 
 import json
 from pathlib import Path
@@ -24,10 +24,10 @@ from eval.bench.sequence_ref import (
 from eval.bench.suites import get_suite
 from eval.errors import SuiteError
 from sim_envs.camera import preset
-from sim_envs.datasets import write_folder
-from sim_envs.formats import write_tum_trajectory
+from sim_envs.folders.datasets import write_folder
+from sim_envs.folders.formats import write_tum_trajectory
 from sim_envs.frames import Frame
-from sim_envs.simsource import FrameListSource
+from sim_envs.sources.simsource import FrameListSource
 
 METHODS = load_methods()
 SMALL = ["--frames", "5", "--runs", "1", "--executor", "serial", "--no-plots", "--no-progress"]
@@ -299,7 +299,7 @@ def test_bench_real_reports_missing_folders(folders, tmp_path, monkeypatch, caps
 def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, monkeypatch):
     """Known answer: the reference is the ground truth with every translation doubled (a similarity), so against
     it the oracle and the ground truth both have Sim(3) ATE 0 and a scale error of |1/2 - 1| = 50 %."""
-    from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
+    from sim_envs.folders.formats import read_tum_trajectory, write_tum_trajectory
 
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')

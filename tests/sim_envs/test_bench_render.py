@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from sim_envs.bench_render import camera_throughput, main
+from sim_envs.tools.bench_render import camera_throughput, main
 
 
 def test_camera_throughput_late_in_a_sequence():

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from sim_envs.camera import Intrinsics
-from sim_envs.camera_calibration import camera_statistics, noise_std, vignette_ratio
-from sim_envs.camera_effects import vignette
+from sim_envs.sensor.camera_calibration import camera_statistics, noise_std, vignette_ratio
+from sim_envs.sensor.camera_effects import vignette
 
 
 def test_noise_is_measured_on_flat_regions():
@@ -29,8 +29,8 @@ def test_vignette_ratio_and_brightness_change():
 
 
 def test_a_calibration_sequence_may_be_named_in_its_lit_or_rich_room():
-    from sim_envs.cli_camera_calibration import _spec
     from sim_envs.errors import SimEnvError
+    from sim_envs.tools.cli_camera_calibration import _spec
 
     assert _spec("office0+lit", 5).lighting == "lit" and _spec("office0", 5).lighting == "flat"
     assert _spec("office0+lit", 5).trajectory == _spec("office0", 5).trajectory
@@ -41,9 +41,9 @@ def test_a_calibration_sequence_may_be_named_in_its_lit_or_rich_room():
 
 
 def test_depth_statistics_pool_the_valid_pixels_of_every_frame():
-    from sim_envs.camera_calibration import depth_statistics
-    from sim_envs.cli_camera_calibration import markdown_table
     from sim_envs.errors import SimEnvError
+    from sim_envs.sensor.camera_calibration import depth_statistics
+    from sim_envs.tools.cli_camera_calibration import markdown_table
 
     a = np.zeros((4, 5), np.float32)
     a[:2] = np.arange(1, 11, dtype=np.float32).reshape(2, 5)  # 1..10 m valid, the rest none
@@ -60,8 +60,8 @@ def test_depth_statistics_pool_the_valid_pixels_of_every_frame():
 
 
 def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
-    from sim_envs.camera_calibration import depth_edge_alignment
     from sim_envs.errors import SimEnvError
+    from sim_envs.sensor.camera_calibration import depth_edge_alignment
 
     rgb = np.full((120, 160, 3), 60, np.uint8)
     depth = np.full((120, 160), 3.0, np.float32)
@@ -76,7 +76,7 @@ def test_depth_edges_on_colour_edges_score_higher_than_shifted_ones():
 
 
 def test_the_calibration_command_refuses_a_step_below_one():
-    from sim_envs.cli_camera_calibration import main
+    from sim_envs.tools.cli_camera_calibration import main
 
     with pytest.raises(SystemExit):
         main(["--step", "0"])

@@ -9,7 +9,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sim_envs.camera import Intrinsics, pinhole_maps, preset_distortion
-from sim_envs.camera_effects import (
+from sim_envs.errors import SimEnvError, UnknownNameError
+from sim_envs.motion.trajectories import Trajectory
+from sim_envs.sensor.camera_effects import (
     ICL_READ_NOISE,
     ICL_SHOT_NOISE,
     CameraEffects,
@@ -28,10 +30,8 @@ from sim_envs.camera_effects import (
     vignette,
     with_options,
 )
-from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.sequences import SequenceSpec, get_sequence, with_camera
-from sim_envs.simsource import SimulatedSequence
-from sim_envs.trajectories import Trajectory
+from sim_envs.sources.simsource import SimulatedSequence
 
 W, H = 64, 48
 K = Intrinsics(60.0, 60.0, 31.5, 23.5, W, H)
@@ -229,7 +229,7 @@ def test_same_seed_same_bytes_and_clean_is_identity():
 
 
 def test_noise_drawn_ahead_gives_the_same_bytes():
-    from sim_envs.camera_effects import noise_draws
+    from sim_envs.sensor.camera_effects import noise_draws
 
     render, pose_at = _moving_edge(300.0)
     fx = camera_effects_preset("kinect")
@@ -329,7 +329,7 @@ def test_a_rendered_sequence_through_each_camera():
 
 
 def test_export_writes_the_photometric_calibration(tmp_path):
-    from sim_envs.datasets import export_tum_rgbd, load_rgbd_folder, read_camera_file
+    from sim_envs.folders.datasets import export_tum_rgbd, load_rgbd_folder, read_camera_file
 
     seq = SimulatedSequence(with_camera(_tiny(get_sequence("office0"), 6), "hard"))
     try:
@@ -353,8 +353,8 @@ def test_export_writes_the_photometric_calibration(tmp_path):
 
 
 def test_one_effect_alone_by_name():
-    from sim_envs.camera_effects import FPS_NOMINAL, SINGLE_EFFECTS, single_effect
     from sim_envs.errors import SimEnvError
+    from sim_envs.sensor.camera_effects import FPS_NOMINAL, SINGLE_EFFECTS, single_effect
 
     kinect = camera_effects_preset("kinect")
     noise = camera_effects_preset("noise:2")

@@ -1,7 +1,8 @@
 """The camera's bytes, pinned: sha256 digests of what ``clean``, ``kinect``, ``hard`` and each single effect at strength
 1 make, so that a restructuring of the camera's code is seen to give the same bytes. Two tiers: a synthetic scene
-through :func:`sim_envs.camera_effects.sensor_image` (no OpenGL, always run), and 6 rendered frames of office0 at
-320x240 through :class:`sim_envs.simsource.SimulatedSequence`, the frame source the suites use (slow; skipped where
+through :func:`sim_envs.sensor.camera_effects.sensor_image` (no OpenGL, always run), and 6 rendered frames of office0 at
+320x240 through :class:`sim_envs.sources.simsource.SimulatedSequence`, the frame source the suites use (slow; skipped
+where
 this machine's renderer gives other clean bytes than the recording's)."""
 
 import hashlib
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 from sim_envs.camera import Intrinsics
-from sim_envs.camera_effects import (
+from sim_envs.sensor.camera_effects import (
     auto_exposure,
     camera_effects_preset,
     inverse_response,
@@ -99,7 +100,7 @@ def test_synthetic_camera_bytes(name):
 def _rendered_digests(name: str) -> tuple[str, str]:
     """(digest of the camera's outputs, digest of its rgb frames alone) for 6 frames of office0 through ``name``."""
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     spec = with_camera(get_sequence("office0").with_frames(6), name)
     assert (spec.width, spec.height) == (320, 240)

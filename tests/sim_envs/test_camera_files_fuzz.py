@@ -1,4 +1,4 @@
-"""Property-based test of :func:`sim_envs.camera_files.read_camera_file` (``fuzz_reader``: tests/conftest.py):
+"""Property-based test of :func:`sim_envs.folders.camera_files.read_camera_file` (``fuzz_reader``: tests/conftest.py):
 mutated valid camera files (TOML and flat YAML) for 640x480 images give a camera of that size, or one
 :class:`FormatError` line naming the file."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sim_envs.camera import CameraModel
-from sim_envs.camera_files import read_camera_file
+from sim_envs.folders.camera_files import read_camera_file
 
 pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 

@@ -5,7 +5,14 @@ import numpy as np
 import pytest
 
 from sim_envs.camera import Intrinsics
-from sim_envs.camera_sensor import decode_render, linear_to_srgb, row_times, row_weights, srgb_to_linear, vignette
+from sim_envs.sensor.camera_sensor import (
+    decode_render,
+    linear_to_srgb,
+    row_times,
+    row_weights,
+    srgb_to_linear,
+    vignette,
+)
 
 
 def test_srgb_round_trip_and_decoding_table():

@@ -1,5 +1,5 @@
 """The camera's stages: the chain's order, presets as ordered stage lists, each stage checking its own parameters, and a
-new effect as one class: defined in a test (or added to sim_envs/camera_stages.py in a copy of the tree), it is a
+new effect as one class: defined in a test (or added to sim_envs/sensor/camera_stages.py in a copy of the tree), it is a
 single effect by name, a camera the sequences render through, and one of the sweep's camera axes, with no other file
 edited."""
 
@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_envs import camera_stages
 from sim_envs.camera import Intrinsics
-from sim_envs.camera_effects import (
+from sim_envs.errors import SimEnvError, UnknownNameError
+from sim_envs.sensor import camera_stages
+from sim_envs.sensor.camera_effects import (
     SINGLE_EFFECTS,
     CameraEffects,
     camera_effects_preset,
@@ -23,7 +24,7 @@ from sim_envs.camera_effects import (
     sensor_image,
     single_effect,
 )
-from sim_envs.camera_stages import (
+from sim_envs.sensor.camera_stages import (
     BUILTIN_STAGES,
     EFFECT_STAGES,
     PRESET_STAGES,
@@ -36,7 +37,6 @@ from sim_envs.camera_stages import (
     Response,
     RollingShutter,
 )
-from sim_envs.errors import SimEnvError, UnknownNameError
 
 W, H = 32, 24
 K = Intrinsics(30.0, 30.0, 15.5, 11.5, W, H)
@@ -163,7 +163,7 @@ def test_a_new_effect_is_one_class(monkeypatch):
 @pytest.mark.slow
 def test_a_sequence_renders_through_a_new_effect(monkeypatch):
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     monkeypatch.setattr(camera_stages, "EFFECT_STAGES", dict(EFFECT_STAGES))
     _Gain.define()
@@ -203,7 +203,7 @@ class Gain(CameraStage):
 '''
 _CHECK = """
 from eval.bench.suites import SWEEP_AXES, sweep_sequences
-from sim_envs.camera_effects import camera_effects_preset, single_effect
+from sim_envs.sensor.camera_effects import camera_effects_preset, single_effect
 assert single_effect("gain", 1).extra_stages[0].factor == 2.0
 assert camera_effects_preset("gain:0.5").any
 assert SWEEP_AXES["gain"] == "gain alone, 1 + s"
@@ -216,11 +216,11 @@ def test_a_new_effect_in_a_copy_of_the_tree_touches_one_file(tmp_path):
     skip = shutil.ignore_patterns("__pycache__", "*.pyc")
     for package in ("sim_envs", "eval", "slamcommon"):
         shutil.copytree(REPO / package, tmp_path / package, ignore=skip)
-    stages = tmp_path / "sim_envs" / "camera_stages.py"
+    stages = tmp_path / "sim_envs" / "sensor" / "camera_stages.py"
     stages.write_text(stages.read_text() + _GAIN_SOURCE)
     changed = [p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*.py")
                if p.read_bytes() != (REPO / p.relative_to(tmp_path)).read_bytes()]  # fmt: skip
-    assert changed == ["sim_envs/camera_stages.py"]
+    assert changed == ["sim_envs/sensor/camera_stages.py"]
     run = subprocess.run([sys.executable, "-c", _CHECK], cwd=tmp_path, capture_output=True, text=True, timeout=120,
                          env={"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin"})  # fmt: skip
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
@@ -233,8 +233,8 @@ def test_an_effect_without_alone_is_refused_where_it_is_defined():
 
     import pytest
 
-    from sim_envs.camera_stages import EFFECT_STAGES, CameraStage
     from sim_envs.errors import SimEnvError
+    from sim_envs.sensor.camera_stages import EFFECT_STAGES, CameraStage
 
     with pytest.raises(SimEnvError, match="'lonely'.*defines no alone"):
         @dataclasses.dataclass(frozen=True)

@@ -6,9 +6,9 @@ import pytest
 from matplotlib.figure import Figure
 
 from cnnslam.cli import main
-from sim_envs.contact_sheet import LABEL_PALETTE, SheetRow, colorize_labels, draw_contact_sheet
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import NO_LABEL, Frame, SemanticClass
+from sim_envs.tools.contact_sheet import LABEL_PALETTE, SheetRow, colorize_labels, draw_contact_sheet
 
 
 def _frame(i: int) -> Frame:
@@ -52,4 +52,4 @@ def test_command_writes_a_png_of_rendered_rooms(tmp_path):
     assert png is not None and png.shape[0] > 300 and png.shape[1] > 300
     assert png.std() > 20.0  # images, not an empty canvas
     manifest = json.loads((out.parent / "sheet.provenance.json").read_text())  # what made it
-    assert manifest["outputs"] == ["sheet.png"] and manifest["code"]["modules"] == ["sim_envs.contact_sheet"]
+    assert manifest["outputs"] == ["sheet.png"] and manifest["code"]["modules"] == ["sim_envs.tools.contact_sheet"]

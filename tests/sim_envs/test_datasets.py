@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from sim_envs.camera import Intrinsics, preset
-from sim_envs.datasets import (
+from sim_envs.errors import SimEnvError, UnknownNameError
+from sim_envs.folders.datasets import (
     SIDE_FILE,
     RgbdFolder,
     convert_pose_convention,
@@ -14,8 +15,7 @@ from sim_envs.datasets import (
     load_tum_rgbd_folder,
     ray_length_to_z,
 )
-from sim_envs.errors import SimEnvError, UnknownNameError
-from sim_envs.formats import write_tum_trajectory
+from sim_envs.folders.formats import write_tum_trajectory
 from sim_envs.frames import NO_INSTANCE, Frame
 from sim_envs.source import FrameSource
 

@@ -13,7 +13,7 @@ from sim_envs.driver import EpisodeResult, run_episode
 from sim_envs.env import SlamEnv
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
-from sim_envs.simsource import FrameListSource
+from sim_envs.sources.simsource import FrameListSource
 
 N = 8
 

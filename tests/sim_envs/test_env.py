@@ -13,7 +13,7 @@ from sim_envs.env import SceneEnv, SlamEnv, relative_translation_error
 from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import Frame
 from sim_envs.sequences import list_sequences
-from sim_envs.simsource import FrameListSource
+from sim_envs.sources.simsource import FrameListSource
 
 N = 6
 
@@ -220,7 +220,7 @@ def test_async_vector_env_with_spawned_workers():
 
 
 def test_replay_env_reads_a_tum_rgbd_folder(tmp_path):
-    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.folders.datasets import export_tum_rgbd
 
     source = _source()
     folder = export_tum_rgbd(source, tmp_path / "seq", progress=False)

@@ -1,4 +1,5 @@
-"""sim_envs.folder_layouts: a layout is one registered :class:`FolderLayout`; the registry names, detects and indexes
+"""sim_envs.folders.folder_layouts: a layout is one registered :class:`FolderLayout`; the registry names, detects and
+indexes
 layouts. ``test_a_new_layout_is_one_class`` is CONTRIBUTING.md's recipe "a new real-folder layout": a toy layout
 (``frames.csv``) written in the test, registered, and a tiny folder read through it by ``RgbdFolder`` end to end."""
 
@@ -11,9 +12,9 @@ import cv2
 import numpy as np
 import pytest
 
-from sim_envs.datasets import RgbdFolder
 from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
-from sim_envs.folder_layouts import (
+from sim_envs.folders.datasets import RgbdFolder
+from sim_envs.folders.folder_layouts import (
     LAYOUTS,
     FolderIndex,
     FolderLayout,

@@ -1,4 +1,5 @@
-"""Property-based tests of the folder readers of :mod:`sim_envs.folder_layouts` (``fuzz_reader``: tests/conftest.py):
+"""Property-based tests of the folder readers of :mod:`sim_envs.folders.folder_layouts` (``fuzz_reader``:
+tests/conftest.py):
 an ICL-NUIM ``associations.txt`` (read by :func:`index_folder` with a valid ground truth beside it), a TUM RGB-D
 folder's ``rgb.txt``, ``depth.txt`` and ``groundtruth.txt`` (one of them mutated), and a 7-Scenes
 ``frame-XXXXXX.pose.txt`` (:func:`read_pose_matrix`). Mutated valid files give a valid index or pose, or one line
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_envs.folder_layouts import index_folder, read_pose_matrix
+from sim_envs.folders.folder_layouts import index_folder, read_pose_matrix
 
 pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 

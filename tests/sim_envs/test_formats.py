@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sim_envs.errors import FormatError
-from sim_envs.formats import (
+from sim_envs.folders.formats import (
     associate_greedy,
     format_tum_trajectory,
     read_kitti_poses,

@@ -1,4 +1,4 @@
-"""Property-based test of the KITTI pose reader of :mod:`sim_envs.formats` (``fuzz_reader``: tests/conftest.py):
+"""Property-based test of the KITTI pose reader of :mod:`sim_envs.folders.formats` (``fuzz_reader``: tests/conftest.py):
 mutated valid files give valid poses or one :class:`FormatError` line naming the file. The TUM trajectory reader's
 fast path is fuzzed against its line reader (tests/slamcommon/formats/test_tum_fuzz.py); the TUM image lists as a
 TUM RGB-D folder's (tests/sim_envs/test_folder_layouts_fuzz.py)."""
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_envs.formats import read_kitti_poses
+from sim_envs.folders.formats import read_kitti_poses
 
 pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim_envs import frame_cache
-from sim_envs.frame_cache import CachedFrames, cache_key, world_source_hash
 from sim_envs.render.gl import gl_platform
 from sim_envs.sequences import get_sequence, with_camera
-from sim_envs.simsource import SimulatedSequence
+from sim_envs.sources import frame_cache
+from sim_envs.sources.frame_cache import CachedFrames, cache_key, world_source_hash
+from sim_envs.sources.simsource import SimulatedSequence
 
 
 def _same(a, b) -> bool:

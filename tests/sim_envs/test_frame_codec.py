@@ -9,8 +9,8 @@ import struct
 import numpy as np
 import pytest
 
-from sim_envs import frame_codec as fc
-from sim_envs.frame_codec import MAGIC, FrameCodecError, decode_frame, encode_frame, frame_fields
+from sim_envs.sources import frame_codec as fc
+from sim_envs.sources.frame_codec import MAGIC, FrameCodecError, decode_frame, encode_frame, frame_fields
 
 
 def _transforms(data: bytes) -> dict[str, str]:

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from sim_envs import furniture as fur
-from sim_envs.materials import MaterialBank
-from sim_envs.scene import Material
+from sim_envs.scenes import furniture as fur
+from sim_envs.scenes.materials import MaterialBank
+from sim_envs.scenes.scene import Material
 
 ALL_BUILDERS = {**fur.FURNITURE, **fur.OBJECTS, **fur.WALL_DECORATIONS}
 

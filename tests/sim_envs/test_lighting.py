@@ -8,12 +8,12 @@ import pytest
 from sim_envs.camera import preset
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import SemanticClass
-from sim_envs.lighting import light_room, window_panes
 from sim_envs.render import make_renderer
-from sim_envs.scene import Lamp, Material, Primitive, Scene
-from sim_envs.scenegen import generate_scene
+from sim_envs.scenes.lighting import light_room, window_panes
+from sim_envs.scenes.scene import Lamp, Material, Primitive, Scene
+from sim_envs.scenes.scenegen import generate_scene
 from sim_envs.sequences import get_sequence
-from sim_envs.simsource import SimulatedSequence
+from sim_envs.sources.simsource import SimulatedSequence
 
 CAM = preset("icl")  # 320 x 240
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from sim_envs.frames import SemanticClass
-from sim_envs.physics import FreeBody, settle_bodies
-from sim_envs.scene import Material, Primitive
-from sim_envs.scenegen import generate_scene
+from sim_envs.scenes.physics import FreeBody, settle_bodies
+from sim_envs.scenes.scene import Material, Primitive
+from sim_envs.scenes.scenegen import generate_scene
 
 PLAIN = Material("plain", (0.5, 0.5, 0.5))
 HUNG = {"poster", "whiteboard"}  # small-structure instances fixed to walls, never dropped

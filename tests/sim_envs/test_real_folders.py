@@ -14,8 +14,8 @@ import pytest
 
 import sim_envs  # noqa: F401 - registers the environments
 from sim_envs.camera import CameraModel, Intrinsics, camera_model, preset
-from sim_envs.camera_calibration import depth_edge_alignment
-from sim_envs.datasets import (
+from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
+from sim_envs.folders.datasets import (
     LAYOUTS,
     PROCESSING_SIZE,
     SEVEN_SCENES_COLOUR_SOURCE,
@@ -30,11 +30,11 @@ from sim_envs.datasets import (
     register_depth,
     write_folder,
 )
-from sim_envs.errors import FormatError, SimEnvError, UnknownNameError
-from sim_envs.folder_layouts import index_folder
-from sim_envs.formats import read_tum_image_list, read_tum_trajectory
+from sim_envs.folders.folder_layouts import index_folder
+from sim_envs.folders.formats import read_tum_image_list, read_tum_trajectory
 from sim_envs.frames import Frame
-from sim_envs.simsource import FrameListSource
+from sim_envs.sensor.camera_calibration import depth_edge_alignment
+from sim_envs.sources.simsource import FrameListSource
 
 
 def look(position, yaw_deg, pitch_deg):

@@ -12,7 +12,7 @@ from sim_envs.errors import RendererUnavailableError, SimEnvError, UnknownNameEr
 from sim_envs.frames import NO_INSTANCE, NO_LABEL, SemanticClass
 from sim_envs.render import BACKENDS, OUTPUTS, make_renderer
 from sim_envs.render import gl as glmod
-from sim_envs.scenegen import TEST_STYLES, generate_scene
+from sim_envs.scenes.scenegen import TEST_STYLES, generate_scene
 
 CAM = preset("icl")  # 320 x 240
 

@@ -11,7 +11,7 @@ import pytest
 from sim_envs.camera import Intrinsics
 from sim_envs.frames import SemanticClass
 from sim_envs.render import make_renderer
-from sim_envs.scene import Material, Primitive, Scene
+from sim_envs.scenes.scene import Material, Primitive, Scene
 
 CAM = Intrinsics(fx=150.0, fy=110.0, cx=70.3, cy=65.8, width=160, height=120)
 EYE = np.array([5.0, 1.0, 5.0])

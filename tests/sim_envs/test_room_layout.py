@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sim_envs import furniture as fur
-from sim_envs.room_layout import Drop, Layout, Rect, inward, wall_frame, yaw_facing, yaw_pose
+from sim_envs.scenes import furniture as fur
+from sim_envs.scenes.room_layout import Drop, Layout, Rect, inward, wall_frame, yaw_facing, yaw_pose
 
 
 def test_rect_corners_and_overlap() -> None:

@@ -1,7 +1,7 @@
 """The room styles' data: every name it uses is a builder, and the test and training styles never meet."""
 
-from sim_envs import furniture as fur
-from sim_envs.room_styles import (
+from sim_envs.scenes import furniture as fur
+from sim_envs.scenes.room_styles import (
     OBJECTS_ON,
     RICH_FLOOR_TABLE,
     RICH_OBJECTS_ON,

@@ -5,7 +5,7 @@ import pytest
 
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import SemanticClass
-from sim_envs.scene import Light, Material, Primitive, Scene, box_mesh, cylinder_mesh, sphere_mesh
+from sim_envs.scenes.scene import Light, Material, Primitive, Scene, box_mesh, cylinder_mesh, sphere_mesh
 
 PLAIN = Material("plain", (0.5, 0.5, 0.5))
 

@@ -5,7 +5,7 @@ import pytest
 
 from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import SemanticClass
-from sim_envs.scenegen import ROOM_STYLES, TEST_STYLES, TRAIN_STYLES, generate_scene
+from sim_envs.scenes.scenegen import ROOM_STYLES, TEST_STYLES, TRAIN_STYLES, generate_scene
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ import pickle
 import pytest
 
 from sim_envs.errors import SimEnvError, UnknownNameError
-from sim_envs.scenegen import TEST_STYLES, TRAIN_STYLES
+from sim_envs.scenes.scenegen import TEST_STYLES, TRAIN_STYLES
 from sim_envs.sequences import (
     TABLE1_SEQUENCES,
     TEST_SEED_LIMIT,

@@ -8,8 +8,8 @@ from sim_envs.camera import Intrinsics
 from sim_envs.errors import SimEnvError, UnknownNameError
 from sim_envs.frames import NO_LABEL, Frame, SemanticClass
 from sim_envs.sequences import get_sequence
-from sim_envs.simsource import FrameListSource, SimulatedSequence, cached_scene
 from sim_envs.source import FrameSource
+from sim_envs.sources.simsource import FrameListSource, SimulatedSequence, cached_scene
 
 
 def _short(name: str, n: int = 60):

@@ -6,8 +6,8 @@ from scipy.spatial.transform import Rotation
 
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import SemanticClass
-from sim_envs.scene import Material, Primitive, Scene
-from sim_envs.surface_sampling import box_surface, cylinder_surface, sample_scene_surface, sphere_surface
+from sim_envs.scenes.scene import Material, Primitive, Scene
+from sim_envs.scenes.surface_sampling import box_surface, cylinder_surface, sample_scene_surface, sphere_surface
 
 MAT = Material("grey")
 

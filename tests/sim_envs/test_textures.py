@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from sim_envs import textures
-from sim_envs.materials import SLOTS, MaterialBank
+from sim_envs.scenes import textures
+from sim_envs.scenes.materials import SLOTS, MaterialBank
 
 TILING = [textures.wood, textures.planks, textures.carpet, textures.tiles, textures.wallpaper, textures.fabric,
           textures.paint, textures.concrete]  # fmt: skip
@@ -75,8 +75,8 @@ def test_detailed_raises_contrast_adds_wear_and_keeps_tiling():
 
 
 def test_enrich_material():
-    from sim_envs.materials import RICH_WALL_STRENGTH, enrich_material
-    from sim_envs.scene import Material
+    from sim_envs.scenes.materials import RICH_WALL_STRENGTH, enrich_material
+    from sim_envs.scenes.scene import Material
 
     plain = Material("metal_1", (0.5, 0.5, 0.52), None, 1.0)
     rich = enrich_material(plain, np.random.default_rng(0))

@@ -3,8 +3,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from sim_envs.errors import SimEnvError, UnknownNameError
-from sim_envs.simsource import cached_scene
-from sim_envs.trajectories import (
+from sim_envs.motion.trajectories import (
     FPS,
     TRAJECTORY_KINDS,
     Trajectory,
@@ -13,6 +12,7 @@ from sim_envs.trajectories import (
     parse_axes,
     sweep_angles,
 )
+from sim_envs.sources.simsource import cached_scene
 
 N = 450  # 15 s at 30 Hz: long enough for several waypoints, quick to generate
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-import sim_envs.trajectories as trajectories
+import sim_envs.motion.trajectories as trajectories
 from sim_envs.errors import SimEnvError
-from sim_envs.trajectory_core import FPS, Trajectory, frame_times, look_at, poses_from, smooth_noise
+from sim_envs.motion.trajectory_core import FPS, Trajectory, frame_times, look_at, poses_from, smooth_noise
 
 
 def test_frame_times_are_i_over_fps_and_need_two_frames() -> None:

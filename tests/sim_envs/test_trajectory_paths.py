@@ -4,8 +4,8 @@ closed), in a room that is free everywhere or nowhere."""
 import numpy as np
 import pytest
 
-from sim_envs.trajectory_core import FPS, frame_times
-from sim_envs.trajectory_paths import SLOW_DOWNS, Limits, drive, segment_durations
+from sim_envs.motion.trajectory_core import FPS, frame_times
+from sim_envs.motion.trajectory_paths import SLOW_DOWNS, Limits, drive, segment_durations
 
 
 class _Room:

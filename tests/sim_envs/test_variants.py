@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from sim_envs.camera import preset
 from sim_envs.errors import SimEnvError
 from sim_envs.sequences import get_sequence
-from sim_envs.variants import ADDED_PAN_AMPLITUDE_DEG, VariantSequence
+from sim_envs.sources.variants import ADDED_PAN_AMPLITUDE_DEG, VariantSequence
 
 
 def test_variant_sequence_focal_and_pan():

@@ -15,7 +15,7 @@ from eval.bench.benchmark import KINDS, prepare
 from eval.bench.sequence_ref import resolve_sequence
 from eval.bench.suites import SuiteKind
 from eval.errors import InputError
-from sim_envs.formats import write_tum_trajectory
+from sim_envs.folders.formats import write_tum_trajectory
 
 SERIAL = ExecutorOptions("serial")
 
@@ -86,7 +86,7 @@ def test_an_unknown_method_or_a_missing_external_folder_is_refused_up_front(tmp_
      "focal lengths must be finite and positive"),
 ])
 def test_a_folder_whose_camera_file_is_bad_is_refused_up_front(tmp_path, camera, message):
-    from sim_envs.datasets import write_folder
+    from sim_envs.folders.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "seq", "7scenes")

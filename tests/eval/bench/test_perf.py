@@ -51,7 +51,7 @@ def test_the_default_probes():
     assert tuple(by_name["cameras_lit"].args[:3]) == ("--cameras", "--lighting", "lit")
     assert tuple(by_name["cameras_late"].args[:3]) == ("--cameras", "--first", "900")
     assert "--cameras" in by_name["cameras"].args and by_name["cameras"].output == "json_stdout"
-    assert by_name["render"].module == "sim_envs.bench_render" and by_name["render"].output == "render_table"
+    assert by_name["render"].module == "sim_envs.tools.bench_render" and by_name["render"].output == "render_table"
     assert by_name["cnn"].output == "json_file" and "{json}" in by_name["cnn"].args
     assert by_name["slam"].output == "json_stdout" and "--json" in by_name["slam"].args
     assert by_name["metrics"].module == "eval.metrics.bench_metrics" and by_name["metrics"].output == "metrics_text"

@@ -15,8 +15,8 @@ from eval.bench.run_store import is_finished, remove_stale_temporaries, run_fold
 from eval.bench.runner import frames_jobs, plan_runs, run_order, run_suite
 from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import get_suite
-from sim_envs.datasets import export_tum_rgbd
-from sim_envs.formats import read_tum_trajectory, write_tum_trajectory
+from sim_envs.folders.datasets import export_tum_rgbd
+from sim_envs.folders.formats import read_tum_trajectory, write_tum_trajectory
 
 METHODS = load_methods()
 ORACLE, CONSTANT = METHODS["oracle"], METHODS["constant-pose"]
@@ -354,7 +354,7 @@ def test_a_run_waits_for_its_sequence_rendering_outside_its_clocks(tmp_path):
     import threading
     import time
 
-    from sim_envs.frame_cache import CachedFrames
+    from sim_envs.sources.frame_cache import CachedFrames
 
     ref = SequenceRef("office0@kinect", base="office0", overrides={"camera_effects": "kinect"})
     spec = replace(spec_of(ORACLE, 4, sequence=ref), frame_cache=str(tmp_path / ".frames"))

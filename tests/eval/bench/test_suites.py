@@ -152,8 +152,8 @@ def test_camera_preset_names_do_not_collide_with_folder_calibrations():
 def test_the_transfer_suite_compares_like_with_like(tmp_path):
     from eval.bench.sequence_ref import folder_ref
     from eval.bench.suites import BENCH_FRAMES, transfer_parts
-    from sim_envs.datasets import export_tum_rgbd
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.folders.datasets import export_tum_rgbd
+    from sim_envs.sources.simsource import SimulatedSequence
 
     folder = tmp_path / "realish"
     export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=25)
@@ -187,8 +187,8 @@ def test_the_transfer_suite_compares_like_with_like(tmp_path):
 
 def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
     from eval.bench.sequence_ref import folder_ref, window_refs
-    from sim_envs.datasets import export_tum_rgbd
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.folders.datasets import export_tum_rgbd
+    from sim_envs.sources.simsource import SimulatedSequence
 
     folder = tmp_path / "seq"
     export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=12)
@@ -227,8 +227,8 @@ def test_a_window_is_the_frames_of_the_whole_from_its_start(tmp_path):
 
 def test_undistortion_of_folder_sequences_gets_its_own_name_and_fingerprint(tmp_path):
     from eval.bench.sequence_ref import folder_ref
-    from sim_envs.datasets import export_tum_rgbd
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.folders.datasets import export_tum_rgbd
+    from sim_envs.sources.simsource import SimulatedSequence
 
     folder = tmp_path / "seq"
     export_tum_rgbd(SimulatedSequence(get_sequence("office0")), folder, max_frames=3)

@@ -4,7 +4,7 @@ import pytest
 import eval.commands.cli_export as cli_export
 from cnnslam.cli import main
 from sim_envs.camera import preset
-from sim_envs.datasets import RgbdFolder
+from sim_envs.folders.datasets import RgbdFolder
 from sim_envs.frames import Frame
 
 NO_WORLD = "sim_envs.sequences cannot be imported (core dependencies: pip install -c constraints.txt -e '.[dev]')"
@@ -75,9 +75,9 @@ def test_the_readmes_through_files_recipe_works_as_written(tmp_path, monkeypatch
     """README, "Through files": ``cnnslam export office0 data/office0``, a system writes OUT/office0/trajectory.txt
     from the exported images, ``cnnslam bench table1 --external MySLAM=OUT`` scores it (here at 12 frames, one
     sequence, the external method alone). The export shows the images the suite scores (the default camera)."""
-    from sim_envs.camera_effects import DEFAULT_CAMERA_EFFECTS
+    from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     monkeypatch.chdir(tmp_path)
     assert main(["export", "office0", "data/office0", "--frames", "12", "--no-progress"]) == 0
@@ -106,7 +106,7 @@ def test_a_file_in_the_folders_place_is_one_line(tmp_path, capsys):
 
 def test_an_interrupted_export_leaves_nothing_in_the_way(tmp_path):
     """Ctrl-C during an export: the temporary folder goes, no partial folder blocks the rerun, which then works."""
-    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.folders.datasets import export_tum_rgbd
 
     class Interrupted(TinySource):
         def frame(self, i):

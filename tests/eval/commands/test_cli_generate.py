@@ -9,7 +9,7 @@ from cnnslam.cli import main
 from eval.bench.sequence_ref import resolve_sequence
 from eval.commands.cli_generate import rotation_refs
 from eval.errors import EvalError
-from sim_envs.formats import read_tum_image_list, read_tum_trajectory
+from sim_envs.folders.formats import read_tum_image_list, read_tum_trajectory
 
 
 def test_help(capsys):

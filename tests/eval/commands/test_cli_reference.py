@@ -64,7 +64,7 @@ def test_bad_arguments_exit_2_in_one_line_before_colmap_starts(tmp_path, monkeyp
     selection of fewer than 3 images, a stated camera the fixed model cannot hold, an output that cannot be
     written: exit 2, one line, COLMAP never called, nothing written."""
     import slamcommon.output_paths as output_paths
-    from sim_envs.datasets import export_tum_rgbd
+    from sim_envs.folders.datasets import export_tum_rgbd
 
     def no_colmap(*args, **kwargs):
         raise AssertionError("COLMAP ran")

@@ -7,7 +7,7 @@ import pytest
 from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files, aligned_tum_text
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import RELATIVE_TOLERANCE, error_statistics, evaluate_trajectory
-from sim_envs.formats import write_tum_trajectory
+from sim_envs.folders.formats import write_tum_trajectory
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-import sim_envs.formats
+import sim_envs.folders.formats
 import slamcommon.formats.association as association
 from eval.metrics.association import (
     AssociationError,
@@ -113,11 +113,11 @@ def test_greedy_matching_gives_the_brute_force_pairs(seed):
 
 
 def test_the_judge_and_the_world_share_one_association():
-    """eval.metrics.association and sim_envs.formats use slamcommon's; the world raises its own error type."""
+    """eval.metrics.association and sim_envs.folders.formats use slamcommon's; the world raises its own error type."""
     assert matching_greedy is associate_greedy
-    assert sim_envs.formats.associate_greedy.__wrapped__ is associate_greedy
-    with pytest.raises(sim_envs.formats.FormatError, match="max_difference"):
-        sim_envs.formats.associate_greedy(np.zeros(2), np.zeros(2), 0.0)
+    assert sim_envs.folders.formats.associate_greedy.__wrapped__ is associate_greedy
+    with pytest.raises(sim_envs.folders.formats.FormatError, match="max_difference"):
+        sim_envs.folders.formats.associate_greedy(np.zeros(2), np.zeros(2), 0.0)
 
 
 def test_greedy_matching_on_a_chain_of_equal_differences_finishes_in_order(monkeypatch):

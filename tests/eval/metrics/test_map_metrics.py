@@ -8,9 +8,9 @@ import pytest
 
 from eval.metrics.map_metrics import MAP_METRICS, map_metrics
 from sim_envs.agent import MapModel
+from sim_envs.scenes.surface_sampling import sample_scene_surface
 from sim_envs.sequences import get_sequence
-from sim_envs.simsource import SimulatedSequence
-from sim_envs.surface_sampling import sample_scene_surface
+from sim_envs.sources.simsource import SimulatedSequence
 
 
 @pytest.fixture(scope="module")

@@ -34,8 +34,8 @@ def test_colmap_cameras_become_opencv_cameras():
 
 def test_the_camera_file_reads_back(tmp_path):
     from sim_envs.camera import Intrinsics
-    from sim_envs.datasets import camera_file_text, read_camera_file
     from sim_envs.errors import FormatError
+    from sim_envs.folders.datasets import camera_file_text, read_camera_file
 
     cam = colmap_to_opencv_camera("RADIAL", [526.5, 320.0, 240.0, 0.01, -0.05], 640, 480)
     (tmp_path / "camera.toml").write_text(camera_file_text(cam, "self-calibrated\nsecond line"))
@@ -94,9 +94,9 @@ LENS = (0.12, -0.08, 0.0, 0.0, 0.0)  # a Kinect-like barrel lens COLMAP's RADIAL
 
 
 def _rendered(n: int, lens: tuple[float, ...]):
-    from sim_envs.camera_effects import CameraEffects
+    from sim_envs.sensor.camera_effects import CameraEffects
     from sim_envs.sequences import get_sequence, with_camera
-    from sim_envs.simsource import SimulatedSequence
+    from sim_envs.sources.simsource import SimulatedSequence
 
     spec = replace(get_sequence("office0").with_frames(n), width=320, height=240)
     return SimulatedSequence(with_camera(spec, CameraEffects(name="lens", distortion=lens)))
@@ -137,7 +137,7 @@ def test_self_calibration_recovers_a_rendered_lens(tmp_path):
 @pytest.mark.slow  # > 5 s: the full lane only
 def test_the_reference_command_on_an_exported_folder(tmp_path, capsys):
     from cnnslam.cli import main
-    from sim_envs.datasets import export_tum_rgbd, read_camera_file
+    from sim_envs.folders.datasets import export_tum_rgbd, read_camera_file
 
     seq = _rendered(FRAMES, (0.0,) * 5)
     try:

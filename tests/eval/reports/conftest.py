@@ -17,7 +17,7 @@ from eval.bench.run import RunSpec, run_trajectory_metrics, write_json
 from eval.bench.runner import RunOutcome, SuiteRun, plan_runs
 from eval.bench.suites import get_suite
 from eval.metrics.results import RunRecord
-from sim_envs.formats import write_tum_trajectory
+from sim_envs.folders.formats import write_tum_trajectory
 
 SEQUENCES = ("office0@clean", "living1@clean")
 METHODS = ("CNN-SLAM", "LSD", "REMODE", "oracle", "ORB")

@@ -47,7 +47,7 @@ def test_the_preprocessing_suite_end_to_end(tmp_path, monkeypatch):
     its depth is its camera's own) runs as <folder>~<choice>, beside the defaults; the report names it."""
     from cnnslam.cli import main
     from eval.bench import sequence_ref, suites
-    from sim_envs.datasets import write_folder
+    from sim_envs.folders.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "tiny_7scenes", "7scenes")

@@ -96,7 +96,7 @@ def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatc
 
     from cnnslam.cli import main
     from eval.bench import sequence_ref, suites
-    from sim_envs.datasets import write_folder
+    from sim_envs.folders.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "tiny_7scenes", "7scenes")

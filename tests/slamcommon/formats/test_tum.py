@@ -1,5 +1,6 @@
 """slamcommon.formats.tum: the fast TUM reader (:func:`read_tum_trajectory`) gives the line-by-line reader's poses
-(bit for bit) and its errors; the old import paths (``eval.metrics.tum_reader``, ``sim_envs.formats``) are it."""
+(bit for bit) and its errors; the old import paths (``eval.metrics.tum_reader``, ``sim_envs.folders.formats``) are
+it."""
 
 import re
 
@@ -9,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 import eval.metrics.tum_reader
 import sim_envs.errors
-import sim_envs.formats
+import sim_envs.folders.formats
 from eval.metrics.trajectory import PoseTrajectory, TrajectoryError
 from slamcommon.errors import FormatError
 from slamcommon.formats.lines import data_line_numbers
@@ -101,14 +102,14 @@ def assert_same(ours, theirs):
 
 
 def test_the_old_import_paths_are_the_one_reader(tmp_path):
-    """eval.metrics.tum_reader re-exports it; sim_envs.formats wraps it, raising the world's FormatError."""
+    """eval.metrics.tum_reader re-exports it; sim_envs.folders.formats wraps it, raising the world's FormatError."""
     assert eval.metrics.tum_reader.read_tum_file is read_tum_file
     assert eval.metrics.tum_reader.TumFileError is FormatError
-    assert sim_envs.formats.read_tum_trajectory.__wrapped__ is read_tum_file
+    assert sim_envs.folders.formats.read_tum_trajectory.__wrapped__ is read_tum_file
     path = tmp_path / "bad.txt"
     path.write_text("1.0 0 0 0 0 0 0\n")
     with pytest.raises(sim_envs.errors.FormatError, match=r"bad\.txt:1: expected 8 columns") as err:
-        sim_envs.formats.read_tum_trajectory(path)
+        sim_envs.folders.formats.read_tum_trajectory(path)
     assert isinstance(err.value, sim_envs.errors.SimEnvError) and isinstance(err.value, FormatError)
 
 

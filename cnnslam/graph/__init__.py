@@ -1,0 +1,1 @@
+"""The key-frame pose graph (CNN-SLAM Sec. 3.3) and its optimisation."""

@@ -1,0 +1,1 @@
+"""Edge tools of the agent: speed benchmark, ``cnnslam map`` and its replay core, the numba warm-up."""

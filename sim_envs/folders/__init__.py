@@ -1,0 +1,1 @@
+"""Real (or exported) RGB-D folders: layouts, file formats, camera files, depth registration, loading and export."""

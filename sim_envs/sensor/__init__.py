@@ -1,0 +1,1 @@
+"""The simulated camera sensor: composable stages of image formation, their physics, presets, calibration statistics."""

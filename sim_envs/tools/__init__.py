@@ -1,0 +1,1 @@
+"""Edge tools of the world: render benchmark, contact sheets, camera calibration command."""
