@@ -25,11 +25,11 @@ The perturbation matrix (:data:`MATRIX`) runs the suite, with all its runs per c
   (AVX2) as between that machine and an Intel Xeon (AVX-512) (docs/benchmarks.md, "Which machine").
 
 An allowed change that could never be crossed inside its metric's bounds is made crossable
-(:func:`eval.bench.regress.cap_to_cross`), so every gated figure can fail: where the figure's own noise (k x spread)
-reaches its bound (a rotation error of 51.9 deg moving by 60.7 deg: 3 x 60.7 > the 128 deg left to 180) no tolerance
-both absorbs that noise and can fail, and the figure is left out of the gate, listed; where a rule's floor does (a
-correct depth of 0.1 % under the 0.3-point floor), the allowance is capped to
-:data:`eval.bench.regress.CROSSABLE_SHARE` of the room between the figure and its worst value.
+(:func:`eval.bench.gate_baseline.cap_to_cross`), so every gated figure can fail: where the figure's own noise
+(k x spread) reaches its bound (a rotation error of 51.9 deg moving by 60.7 deg: 3 x 60.7 > the 128 deg left to 180)
+no tolerance both absorbs that noise and can fail, and the figure is left out of the gate, listed; where a rule's floor
+does (a correct depth of 0.1 % under the 0.3-point floor), the allowance is capped to
+:data:`eval.bench.gate_baseline.CROSSABLE_SHARE` of the room between the figure and its worst value.
 
 Other machines: ``--calibrate`` also writes this machine's reference figures to ``<baseline dir>/machines/<suite>/``
 (:func:`machine_record`), and folds every such record of another machine into the spread as one more configuration
@@ -59,8 +59,9 @@ from typing import Any
 
 from eval.bench.environment import machine_description
 from eval.bench.executors import LocalExecutor
+from eval.bench.gate_baseline import CALIBRATION_K, CROSSABLE_SHARE, Baseline
 from eval.bench.methods import with_predictor_options
-from eval.bench.regress import CALIBRATION_K, CROSSABLE_SHARE, Baseline, calibrate, gate_metrics, seed_figures
+from eval.bench.regress import calibrate, gate_metrics, seed_figures
 from eval.bench.runner import SuiteRun, run_suite
 from eval.bench.suites import Suite
 from eval.metrics.results import RunRecord, json_ready
@@ -266,7 +267,7 @@ def calibrate_suite(suite: Suite, methods: Mapping[str, Any], out_root: str | Pa
     machine's reference figures recorded in ``<baseline dir>/machines/<suite>/``, and the baseline with tolerances
     from the spread over the matrix and the other machines' records of the same runs written to ``baseline_path``
     (:func:`calibrated_baseline`). Nothing is written when a run failed."""
-    from eval.bench.regress import save_baseline
+    from eval.bench.gate_baseline import save_baseline
 
     runs: dict[str, SuiteRun] = {}
     failed: list[str] = []

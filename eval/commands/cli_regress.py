@@ -15,7 +15,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from eval.bench.regress import compare, format_report, load_baseline, load_run_metrics, update_baseline
+from eval.bench.gate_baseline import load_baseline, update_baseline
+from eval.bench.regress import compare, format_report, load_run_metrics
 from eval.errors import InputError
 
 

@@ -24,8 +24,9 @@ from pathlib import Path
 import pytest
 
 from eval.bench.calibrate import MATRIX, Perturbation, run_configuration
+from eval.bench.gate_baseline import load_baseline
 from eval.bench.methods import load_methods
-from eval.bench.regress import compare, format_report, gate_metrics, load_baseline
+from eval.bench.regress import compare, format_report, gate_metrics
 from eval.bench.suite_speed import load_suite_speed_baseline, suite_speed_regressions, suite_speeds
 from eval.bench.suites import get_suite
 

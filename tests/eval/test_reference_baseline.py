@@ -4,7 +4,8 @@ pass."""
 
 from pathlib import Path
 
-from eval.bench.regress import compare, format_report, load_baseline
+from eval.bench.gate_baseline import load_baseline
+from eval.bench.regress import compare, format_report
 from eval.metrics.trajectory import PoseTrajectory
 from eval.metrics.trajectory_metrics import evaluate_trajectory
 

@@ -20,7 +20,8 @@ from eval.bench.calibrate import (
     machine_file_name,
     save_machine_record,
 )
-from eval.bench.regress import ADDED_KEY, REWRITTEN_KEY, UNGATED_KEY, calibrate, compare, load_baseline
+from eval.bench.gate_baseline import ADDED_KEY, REWRITTEN_KEY, UNGATED_KEY, load_baseline
+from eval.bench.regress import calibrate, compare
 from eval.bench.suites import get_suite
 
 PROBE = """

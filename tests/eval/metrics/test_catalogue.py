@@ -185,7 +185,7 @@ def test_a_new_metric_is_one_spec_and_one_computation(tmp_path):
 def test_the_gates_rules_judge_every_figure_as_the_committed_baselines_rules_do():
     """The default rules derived from the catalogue give every figure of the committed quick baseline, and every
     metric of a scored run, the direction and allowed change that the baseline's own rule list gives it."""
-    from eval.bench.regress import Baseline, load_baseline
+    from eval.bench.gate_baseline import Baseline, load_baseline
     from eval.metrics.results import evaluate_episode
 
     path = REPO / "results" / "baselines" / "quick.json"
