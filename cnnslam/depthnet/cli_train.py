@@ -5,7 +5,7 @@
                                 [--lighting flat lit]   # rooms with lamps, shadows, highlights (one drawn per room)
     cnnslam train fit [--data data/depthnet] [--out data/depthnet/run] [--steps 16000] [--batch 16] ... [--export]
     cnnslam train validate [--weights W] [--frames 40] [--camera PRESET] [--results results] [--update-manifest]
-    cnnslam train validate-folder FOLDER... [--frames 100]   # real RGB-D frames -> results/depthnet_real.md
+    cnnslam train validate-folder FOLDER... [--frames 100] [--window 100]   # real frames -> results/depthnet_real.md
     cnnslam train export [--run data/depthnet/run]
 
 ``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
@@ -138,6 +138,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     r.add_argument("folders", nargs="+", type=Path, help="RGB-D folders (TUM, ICL-NUIM, 7-Scenes layouts)")
     r.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
     r.add_argument("--frames", type=int, default=100, help="evenly spaced frames per folder")
+    r.add_argument("--window", type=int, default=100,
+                   help="consecutive frames in the middle of each folder, for the scale's frame-to-frame change "
+                        "(0: none)")
     r.add_argument("--results", type=Path, default=Path("results"))
     r.add_argument("--threads", type=int, default=2)
 
@@ -258,11 +261,21 @@ def _record(outputs: list[Path], action: str, modules: list[str], inputs: list[P
 
 
 def _validate_folder(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cnnslam.depthnet.plots import plot_scale_over_frames
     from cnnslam.depthnet.predict import load_predictor
     from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
     from sim_envs.errors import SimEnvError
     from sim_envs.folders.datasets import load_rgbd_folder
 
+    for name, value, least in (("--frames", args.frames, 1), ("--window", args.window, 0)):
+        if value < least:
+            print(f"cnnslam train validate-folder: error: {name} must be >= {least}, got {value}", file=sys.stderr)
+            return 2
     predictor = load_predictor(args.weights, num_threads=args.threads)
     results = []
     for folder in args.folders:
@@ -271,14 +284,22 @@ def _validate_folder(args: argparse.Namespace) -> int:
         except SimEnvError as exc:
             print(f"cnnslam train validate-folder: error: {exc}", file=sys.stderr)
             return 2
-        results.append(validate_folder(predictor, source, args.frames, progress=_progress(f"validate {folder.name}")))
+        results.append(validate_folder(predictor, source, args.frames, progress=_progress(f"validate {folder.name}"),
+                                       window=args.window))
     sim_json = args.results / "depthnet.json"
     simulated = json.loads(sim_json.read_text())["validation"]["overall"] if sim_json.is_file() else None
     args.results.mkdir(parents=True, exist_ok=True)
     (args.results / "depthnet_real.md").write_text(folder_validation_markdown(results, simulated))
     (args.results / "depthnet_real.json").write_text(json.dumps([r.to_dict() for r in results], indent=2) + "\n")
-    _record([args.results / "depthnet_real.md", args.results / "depthnet_real.json"], "validate-folder",
-            ["cnnslam.depthnet.predict", "cnnslam.depthnet.validate", "sim_envs.folders.datasets"],
+    fig, axes = plt.subplots(len(results), 1, figsize=(8, 2.6 * len(results) + 0.4), squeeze=False)
+    for ax, r in zip(axes[:, 0], results, strict=True):
+        plot_scale_over_frames(ax, r)
+    fig.tight_layout()
+    fig.savefig(args.results / "depthnet_real_scale.png", dpi=80)
+    plt.close(fig)
+    _record([args.results / f"depthnet_real{s}" for s in (".md", ".json", "_scale.png")], "validate-folder",
+            ["cnnslam.depthnet.plots", "cnnslam.depthnet.predict", "cnnslam.depthnet.validate",
+             "sim_envs.folders.datasets"],
             [args.weights, *([sim_json] if sim_json.is_file() else [])], args.folders)
     print(f"wrote {args.results / 'depthnet_real.md'} and {args.results / 'depthnet_real.json'}")
     return 0

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.colors import ListedColormap
 
-from cnnslam.depthnet.validate import SampleFrame
+from cnnslam.depthnet.validate import FolderValidation, SampleFrame
 
 # floor, vertical structure, large structure, small structure; unlabelled pixels are drawn black
 CLASS_COLOURS: tuple[tuple[float, float, float], ...] = (
@@ -66,3 +66,23 @@ def plot_sample_row(axes: Sequence[Axes], sample: SampleFrame, max_depth: float 
     axes[0].set_ylabel(f"{sample.sequence} #{sample.index}", fontsize=8)
     axes[3].set_xlabel(f"{100 * within:.0f}% within 10%", fontsize=8)
     axes[1].set_xlabel(f"0 (dark) .. {vmax:.1f} m (yellow)", fontsize=8)
+
+
+def plot_scale_over_frames(ax: Axes, result: FolderValidation) -> None:
+    """Draw a folder's per-frame scale (sensor depth / eq. 5 depth) over the frame index into ``ax``: the evenly
+    spaced frames as a thin line with dots, the run of consecutive frames as a thick line, 1 (the right metric scale)
+    and the median of the evenly spaced frames as horizontal lines. Frames without a scale are gaps in the lines."""
+    spread, window = result.spread, result.window
+    if spread.indices:
+        ax.plot(spread.indices, spread.scales, "o-", ms=3, lw=0.8, color="tab:blue",
+                label=f"evenly spaced (gap {spread.stability.gap_frames:.0f} frames)")
+    if window.indices:
+        ax.plot(window.indices, window.scales, "-", lw=2.0, color="tab:orange", label="consecutive frames")
+    ax.axhline(1.0, color="black", lw=0.8, ls=":", label="1 (right scale)")
+    if np.isfinite(spread.stability.median):
+        ax.axhline(spread.stability.median, color="tab:blue", lw=0.8, ls="--",
+                   label=f"median {spread.stability.median:.3f}")
+    ax.set_xlabel("frame index")
+    ax.set_ylabel("scale: sensor / eq. 5 depth")
+    ax.set_title(result.name, fontsize=10)
+    ax.legend(fontsize=7, loc="best")

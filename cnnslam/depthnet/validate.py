@@ -21,6 +21,7 @@ import numpy as np
 from cnnslam.depth.depth_prediction import focal_length_adjustment
 from cnnslam.depthnet.metrics import gradient_pixel_scale, log_depth_slope
 from cnnslam.depthnet.predict import DepthNetPredictor
+from cnnslam.errors import CnnSlamError
 from cnnslam.track.tracking import to_gray
 from sim_envs.sequences import TABLE1_SEQUENCES
 from slamcommon.depth_metrics import DepthMetrics, aggregate_depth_metrics, depth_metrics
@@ -220,13 +221,113 @@ def validate_sequences(
 
 
 @dataclass(frozen=True)
+class ScaleStability:
+    """The per-frame scale s_t (sensor depth / eq. 5 CNN depth, median over a frame's valid pixels) of a series of
+    frames, summarised (:func:`scale_stability`).
+
+    frames: frames with a finite, positive scale; median, iqr (25 %, 75 %), range_5_95 (5 %, 95 % quantiles),
+    cv (coefficient of variation: std / mean, population std) over those frames. pairs: neighbouring entries of the
+    series both with a scale; change_median_pct, change_p95_pct: median and 95th percentile over those pairs of
+    100 |ln(s_t / s_{t-1})| (about the % change for small changes). gap_frames, gap_s: median frame-index and
+    timestamp difference of those pairs (the time the change spans; nan without pairs or times)."""
+
+    frames: int
+    median: float
+    iqr: tuple[float, float]
+    range_5_95: tuple[float, float]
+    cv: float
+    pairs: int
+    change_median_pct: float
+    change_p95_pct: float
+    gap_frames: float
+    gap_s: float = float("nan")
+
+
+def scale_stability(scales: Sequence[float], indices: Sequence[int] | None = None,
+                    times: Sequence[float] | None = None) -> ScaleStability:
+    """Level, spread and frame-to-frame change of a per-frame scale series (:class:`ScaleStability`).
+
+    scales: one entry per frame in frame order; nan (or any non-finite or non-positive value) marks a frame without
+    a scale (no valid pixels). Such a frame is left out of the level statistics, and a change is only taken between
+    two neighbouring entries that both have a scale: a hole breaks the series, it is never bridged. indices, times:
+    each entry's frame index and timestamp [s] (default: 0, 1, 2, ...; no times), for the gap the changes span.
+    An empty series (or one without any scale) gives 0 frames, 0 pairs and nan figures.
+    """
+    s = np.asarray(scales, dtype=np.float64).reshape(-1)
+    idx = np.arange(s.size, dtype=np.float64) if indices is None else np.asarray(indices, dtype=np.float64)
+    if idx.shape != s.shape:
+        raise ValueError(f"indices must have one entry per scale ({s.size}), got {idx.size}")
+    ts = None if times is None else np.asarray(times, dtype=np.float64)
+    if ts is not None and ts.shape != s.shape:
+        raise ValueError(f"times must have one entry per scale ({s.size}), got {ts.size}")
+    ok = np.isfinite(s) & (s > 0)
+    nan = float("nan")
+    v = s[ok]
+    if v.size:
+        median = float(np.median(v))
+        q = np.quantile(v, [0.25, 0.75, 0.05, 0.95])
+        cv = float(np.std(v) / np.mean(v))
+    else:
+        median, q, cv = nan, np.full(4, nan), nan
+    both = ok[1:] & ok[:-1]
+    change = 100.0 * np.abs(np.log(s[1:][both] / s[:-1][both])) if both.any() else np.empty(0)
+    gap = np.diff(idx)[both]
+    gap_s = np.diff(ts)[both] if ts is not None else np.empty(0)
+    return ScaleStability(
+        frames=int(v.size), median=median, iqr=(float(q[0]), float(q[1])), range_5_95=(float(q[2]), float(q[3])),
+        cv=cv, pairs=int(change.size),
+        change_median_pct=float(np.median(change)) if change.size else nan,
+        change_p95_pct=float(np.quantile(change, 0.95)) if change.size else nan,
+        gap_frames=float(np.median(gap)) if gap.size else nan,
+        gap_s=float(np.median(gap_s)) if gap_s.size else nan,
+    )
+
+
+@dataclass(frozen=True)
+class ScaleSeries:
+    """A per-frame scale series: frame indices, timestamps [s] and scales (nan: no scale in that frame), with its
+    :class:`ScaleStability`."""
+
+    indices: tuple[int, ...]
+    times: tuple[float, ...]
+    scales: tuple[float, ...]
+    stability: ScaleStability
+
+    @classmethod
+    def of(cls, indices: Sequence[int], times: Sequence[float], scales: Sequence[float]) -> ScaleSeries:
+        """The series and its statistics (:func:`scale_stability`)."""
+        return cls(tuple(int(i) for i in indices), tuple(float(t) for t in times), tuple(float(x) for x in scales),
+                   scale_stability(scales, indices, times))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: nan becomes null."""
+        d = asdict(self)
+        return _nan_to_none(d)
+
+
+def _nan_to_none(x: Any) -> Any:
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _nan_to_none(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_nan_to_none(v) for v in x]
+    return x
+
+
+_NO_SERIES = ScaleSeries((), (), (), scale_stability([]))
+
+
+@dataclass(frozen=True)
 class FolderValidation:
     """The network on a real RGB-D folder's frames: depth metrics raw and after eq. 5 (pooled over pixels), and the
     scale of the adjusted depth: per frame ``median(gt / pred)`` over the valid pixels, summarised over the frames
     by its median and quartiles (1 = the right metric scale). gradient_scale_*: the same over each frame's 20 % of
     pixels with the strongest image gradient (:func:`~cnnslam.depthnet.metrics.gradient_pixel_scale`); slope_*: each
     frame's log-depth slope (:func:`~cnnslam.depthnet.metrics.log_depth_slope`, 1 = the right depth range, below 1
-    compressed). All on the adjusted depth. f_cur, f_tr: pixels at the network's resolution."""
+    compressed). All on the adjusted depth. f_cur, f_tr: pixels at the network's resolution. spread: the scale
+    series of the evenly spaced frames (its frame-to-frame change spans their gap); window: the same over a run of
+    consecutive frames in the middle of the folder (change per frame)."""
 
     name: str
     frames: int
@@ -240,11 +341,14 @@ class FolderValidation:
     gradient_scale_quartiles: tuple[float, float] = (float("nan"), float("nan"))
     slope_median: float = float("nan")
     slope_quartiles: tuple[float, float] = (float("nan"), float("nan"))
+    spread: ScaleSeries = _NO_SERIES
+    window: ScaleSeries = _NO_SERIES
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["focal_ratio"] = self.f_cur / self.f_tr
         d["scale_error"] = abs(self.scale_median - 1.0)
+        d["spread"], d["window"] = self.spread.to_dict(), self.window.to_dict()
         return d
 
 
@@ -253,31 +357,49 @@ def validate_folder(
     source: Any,
     frames: int = 100,
     progress: Callable[[Iterable[Any], int], Iterator[Any]] | None = None,
+    window: int = 0,
 ) -> FolderValidation:
     """Score ``predictor`` on ``frames`` evenly spaced frames of ``source`` (a frame source of a real RGB-D folder,
     :func:`sim_envs.folders.datasets.load_rgbd_folder`: frames with ``rgb`` and metric ``depth``, 0 = no measurement).
+    window: also the scale of ``window`` consecutive frames centred on the folder's middle (all frames when it has
+    fewer; 0 = none), for the change from one frame to the next; they only feed ``FolderValidation.window``.
 
     Real data is test data: nothing here feeds back into the network or the SLAM. Where the depth camera is not
     registered to the colour camera (7-Scenes), depth edges are a few pixels off the image's, which inflates the
     errors there; the figures are an upper bound of the network's error on those frames.
     """
-    idx = frame_indices(len(source), frames)
+    if window < 0:
+        raise CnnSlamError(f"window must be >= 0 consecutive frames (0 = none), got {window}")
+    n = len(source)
+    idx = frame_indices(n, frames)
+    start = max(0, (n - window) // 2)
+    win = list(range(start, min(n, start + window))) if window else []
     raw_frames: list[DepthMetrics] = []
     adj_frames: list[DepthMetrics] = []
     scales, gradient_scales, slopes = [], [], []
+    series: dict[str, tuple[list[int], list[float], list[float]]] = {"spread": ([], [], []), "window": ([], [], [])}
     f_cur = predictor.current_focal(source.intrinsics.as_array(), (source.intrinsics.height, source.intrinsics.width))
     wrap = progress or (lambda it, total: it)
-    for i in wrap(iter(idx), len(idx)):
+    jobs = [("spread", i) for i in idx] + [("window", i) for i in win]
+    for part, i in wrap(iter(jobs), len(jobs)):
         frame = source.frame(i)
+        indices, times, values = series[part]
+        indices.append(i)
+        times.append(float(frame.timestamp))
         if frame.depth is None:
+            values.append(float("nan"))
             continue
         raw = predictor.predict_raw(frame.rgb)
         adjusted = focal_length_adjustment(raw.depth, f_cur, predictor.train_focal)
+        valid = (frame.depth > 0) & (adjusted > 0)
+        scale = float(np.median(frame.depth[valid] / adjusted[valid])) if valid.sum() >= 100 else float("nan")
+        values.append(scale)
+        if part == "window":
+            continue
         raw_frames.append(depth_metrics(raw.depth, frame.depth))
         adj_frames.append(depth_metrics(adjusted, frame.depth))
-        valid = (frame.depth > 0) & (adjusted > 0)
-        if valid.sum() >= 100:
-            scales.append(float(np.median(frame.depth[valid] / adjusted[valid])))
+        if np.isfinite(scale):
+            scales.append(scale)
             gradient_scales.append(gradient_pixel_scale(to_gray(frame.rgb), adjusted, frame.depth))
             slopes.append(log_depth_slope(adjusted, frame.depth))
     s, gs, sl = (_median_quartiles(v) for v in (scales, gradient_scales, slopes))
@@ -286,6 +408,7 @@ def validate_folder(
         raw=aggregate_depth_metrics(raw_frames, "pooled"), adjusted=aggregate_depth_metrics(adj_frames, "pooled"),
         scale_median=s[0], scale_quartiles=s[1],
         gradient_scale_median=gs[0], gradient_scale_quartiles=gs[1], slope_median=sl[0], slope_quartiles=sl[1],
+        spread=ScaleSeries.of(*series["spread"]), window=ScaleSeries.of(*series["window"]),
     )
 
 
@@ -334,7 +457,39 @@ def folder_validation_markdown(results: Sequence[FolderValidation], simulated: d
             f"{adj.get('delta_1_25', float('nan')):.1f} | {raw.get('percent_correct', float('nan')):.1f} | "
             f"{adj.get('percent_correct', float('nan')):.1f} | - | - | - |"
         )
+    lines += ["", *scale_stability_markdown(results)]
     return "\n".join(lines) + "\n"
+
+
+def scale_stability_markdown(results: Sequence[FolderValidation], figure: str = "depthnet_real_scale.png"
+                             ) -> list[str]:
+    """The section on the scale over time: per folder the level, spread and frame-to-frame change of the per-frame
+    scale, over the evenly spaced frames and over the run of consecutive frames."""
+    lines = [
+        "## The network's scale over time\n",
+        "Per frame s = median(sensor depth / eq. 5 depth) over its valid pixels. Level and spread over the frames: "
+        "median, quartiles, 5-95 % range, coefficient of variation (std / mean). Frame-to-frame change: median and "
+        "95th percentile of 100 |ln(s_t / s_t-1)| (about % for small changes) over neighbouring frames, spanning "
+        "the gap given (frames, seconds): \"evenly spaced\" = the frames of the table above, \"consecutive\" = a "
+        "run of consecutive frames in the middle of the folder (the change from one frame to the next). A frame "
+        "without a scale breaks the series; no change is taken across it.\n",
+        "| data | frames | median | quartiles | 5-95 % | CV [%] | gap [frames / s] | change median [%] | "
+        "change p95 [%] |",
+        "|---|---:|---:|---|---|---:|---|---:|---:|",
+    ]
+    for r in results:
+        for what, ser in (("evenly spaced", r.spread), ("consecutive", r.window)):
+            st = ser.stability
+            if not ser.indices:
+                continue
+            lines.append(
+                f"| {r.name} ({what}, frames {ser.indices[0]}-{ser.indices[-1]}) | {st.frames} | {st.median:.3f} | "
+                f"{st.iqr[0]:.3f}-{st.iqr[1]:.3f} | {st.range_5_95[0]:.3f}-{st.range_5_95[1]:.3f} | "
+                f"{100 * st.cv:.1f} | {st.gap_frames:.0f} / {st.gap_s:.3f} | {st.change_median_pct:.2f} | "
+                f"{st.change_p95_pct:.2f} |"
+            )
+    lines += ["", f"![scale over frames]({figure})", ""]
+    return lines
 
 
 def _mq(median: float, quartiles: tuple[float, float]) -> str:

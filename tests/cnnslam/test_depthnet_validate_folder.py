@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from cnnslam.depthnet.predict import Prediction
-from cnnslam.depthnet.validate import folder_validation_markdown, validate_folder
+from cnnslam.depthnet.validate import folder_validation_markdown, scale_stability, validate_folder
 from sim_envs.camera import preset
 from sim_envs.folders.datasets import load_rgbd_folder, write_folder
 from sim_envs.frames import Frame
@@ -99,7 +99,93 @@ def test_the_command_writes_a_manifest_of_the_weights_and_the_folder(folder, tmp
     assert main(["train", "validate-folder", str(folder), "--weights", str(weights), "--frames", "3",
                  "--results", str(results)]) == 0  # fmt: skip
     manifest = json.loads((results / "depthnet_real.provenance.json").read_text())
-    assert manifest["outputs"] == ["depthnet_real.json", "depthnet_real.md"]
+    assert manifest["outputs"] == ["depthnet_real.json", "depthnet_real.md", "depthnet_real_scale.png"]
     assert list(manifest["inputs"].values()) == [hashlib.sha256(b"stub weights").hexdigest()]
     assert list(manifest["folders"].values()) == [folder_fingerprint(folder)["sha256"]]
     assert "cnnslam.depthnet.validate" in manifest["code"]["modules"]
+    doc = json.loads((results / "depthnet_real.json").read_text())
+    assert doc[0]["spread"]["indices"] == [0, 2, 4] and doc[0]["window"]["indices"] == [0, 1, 2, 3, 4]
+    assert doc[0]["window"]["stability"]["change_median_pct"] == pytest.approx(0.0, abs=1e-6)  # a constant scale
+    assert "## The network's scale over time" in (results / "depthnet_real.md").read_text()
+    assert main(["train", "validate-folder", str(folder), "--weights", str(weights), "--window", "-1",
+                 "--results", str(results)]) == 2  # fmt: skip
+
+
+def test_scale_stability_of_a_constant_series() -> None:
+    st = scale_stability([1.2] * 6)
+    assert st.frames == 6 and st.pairs == 5 and st.median == pytest.approx(1.2)
+    assert st.change_median_pct == 0.0 and st.change_p95_pct == 0.0 and st.cv == pytest.approx(0.0, abs=1e-12)
+    assert st.iqr == pytest.approx((1.2, 1.2)) and st.range_5_95 == pytest.approx((1.2, 1.2)) and st.gap_frames == 1
+
+
+def test_scale_stability_of_a_geometric_ramp() -> None:
+    """s_t = 0.9 x 1.05^t every 10th frame at 30 Hz: every change is 100 ln 1.05 % over 10 frames, 1/3 s."""
+    scales = [0.9 * 1.05**t for t in range(7)]
+    st = scale_stability(scales, indices=[10 * t for t in range(7)], times=[t / 3 for t in range(7)])
+    assert st.change_median_pct == pytest.approx(100 * np.log(1.05)) == pytest.approx(4.879, abs=1e-3)
+    assert st.change_p95_pct == pytest.approx(100 * np.log(1.05))
+    assert st.median == pytest.approx(0.9 * 1.05**3) and st.pairs == 6
+    assert st.gap_frames == 10 and st.gap_s == pytest.approx(1 / 3)
+    falling = scale_stability(scales[::-1])
+    assert falling.change_median_pct == pytest.approx(st.change_median_pct)  # |log|: direction does not count
+    assert falling.cv == pytest.approx(st.cv) and st.cv > 0.05
+
+
+def test_a_frame_without_scale_breaks_the_series() -> None:
+    """nan, 0 and negative scales are holes: out of the level statistics, and no change is taken across them."""
+    st = scale_stability([1.0, 1.1, float("nan"), 2.0, 2.2, 0.0, 5.0])
+    assert st.frames == 5 and st.pairs == 2  # (1.0, 1.1) and (2.0, 2.2): the 10 % steps, never 1.1 -> 2.0
+    assert st.change_median_pct == pytest.approx(100 * np.log(1.1)) and st.median == pytest.approx(2.0)
+    for empty in ([], [float("nan")] * 3):
+        st = scale_stability(empty)
+        assert st.frames == 0 and st.pairs == 0
+        assert np.isnan(st.median) and np.isnan(st.change_median_pct) and np.isnan(st.gap_frames)
+    one = scale_stability([1.3])
+    assert one.frames == 1 and one.median == pytest.approx(1.3) and one.pairs == 0 and np.isnan(one.change_p95_pct)
+    with pytest.raises(ValueError, match="one entry per scale"):
+        scale_stability([1.0, 1.0], indices=[0])
+
+
+@pytest.fixture(scope="module")
+def ramp_folder(tmp_path_factory):
+    """Five frames whose sensor depth grows by 10 % a frame (2 m x 1.1^k) at 30 Hz."""
+    rng = np.random.default_rng(1)
+    frames = [Frame(k, k / 30.0, rng.integers(0, 256, (48, 64, 3), dtype=np.uint8),
+                    np.full((48, 64), 2.0 * 1.1**k, np.float32), np.eye(4)) for k in range(5)]  # fmt: skip
+    source = FrameListSource("ramp", preset("icl", 64, 48), frames)
+    return write_folder(source, tmp_path_factory.mktemp("real") / "ramp_7scenes", "7scenes")
+
+
+def test_the_scale_series_of_evenly_spaced_and_consecutive_frames(ramp_folder):
+    """Against a constant prediction the scale follows the sensor: 10 % a frame over the consecutive frames, 21 %
+    over the evenly spaced ones two frames apart; the window is taken from the middle and only adds a series."""
+    source = load_rgbd_folder(ramp_folder, size=None)
+    result = validate_folder(StubPredictor(1.0), source, frames=3, window=3)
+    spread, window = result.spread, result.window
+    assert spread.indices == (0, 2, 4) and window.indices == (1, 2, 3) and result.frames == 3
+    assert spread.scales == pytest.approx([1.1**k for k in (0, 2, 4)], rel=1e-3)  # depth stored in mm
+    assert window.stability.change_median_pct == pytest.approx(100 * np.log(1.1), abs=0.02)
+    assert spread.stability.change_median_pct == pytest.approx(100 * np.log(1.21), abs=0.02)
+    assert spread.stability.gap_frames == 2 and window.stability.gap_s == pytest.approx(1 / 30, abs=1e-4)
+    assert result.scale_median == pytest.approx(spread.stability.median)
+    assert validate_folder(StubPredictor(1.0), source, frames=3).window.indices == ()
+    whole = validate_folder(StubPredictor(1.0), source, frames=2, window=50).window
+    assert whole.indices == (0, 1, 2, 3, 4) and whole.stability.pairs == 4
+    md = folder_validation_markdown([result])
+    assert "| ramp_7scenes (consecutive, frames 1-3) | 3 |" in md and "| 2 / 0.067 |" in md
+
+
+def test_the_scale_plot_draws_both_series(ramp_folder):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cnnslam.depthnet.plots import plot_scale_over_frames
+
+    result = validate_folder(StubPredictor(1.0), load_rgbd_folder(ramp_folder, size=None), frames=3, window=3)
+    fig, ax = plt.subplots()
+    plot_scale_over_frames(ax, result)
+    xs = [tuple(line.get_xdata()) for line in ax.get_lines()]
+    assert (0, 2, 4) in xs and (1, 2, 3) in xs
+    plt.close(fig)
