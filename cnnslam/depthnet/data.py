@@ -4,7 +4,8 @@ with augmentation.
 Generation (:func:`generate_dataset`): rooms of ``sim_envs.scenes.scenegen.TRAIN_STYLES`` only (never the test styles
 office / living), scene seeds >= ``sim_envs.sequences.TRAIN_SEED_BASE`` (test sequences use seeds below 1000), NYU
 Kinect intrinsics at 320x240 (the paper's network was trained on NYU Depth v2), texture density varied per room. Per
-room, camera views are sampled like a hand-held Kinect (:func:`sample_view`). One shard per room: a folder
+room, camera views are sampled like a hand-held Kinect (:func:`sample_view_pose`; a share ``close_range`` of them
+0.4-1.5 m from a surface, :func:`sample_close_view_pose`). One shard per room: a folder
 ``scene_<seed>/`` with ``rgb.npy`` (N, H, W, 3) uint8, ``depth.npy`` (N, H, W) uint16 millimetres (0 = no surface),
 ``labels.npy`` (N, H, W) uint8 (255 = none), ``poses.npy`` (N, 4, 4) float64 ``T_world_cam`` and ``meta.json``.
 With ``GenerationConfig.focal_scale`` a room is rendered at another focal length (the shipped network's last
@@ -39,6 +40,7 @@ from torch.utils.data import Dataset
 
 from cnnslam.depthnet.views import ViewConfig as ViewConfig  # re-exported: the views' home is depthnet.views
 from cnnslam.depthnet.views import camera_rotation as camera_rotation
+from cnnslam.depthnet.views import sample_close_view_pose as sample_close_view_pose
 from cnnslam.depthnet.views import sample_view_pose as sample_view_pose
 from cnnslam.depthnet.views import view_is_usable as view_is_usable
 from cnnslam.errors import CnnSlamError
@@ -93,8 +95,14 @@ class GenerationConfig:
     # data) or
     # "rich" (the same room with clutter on its surfaces and texture detail at several scales).
     detail: tuple[str, ...] = ("standard",)
+    # Ours: the share of each room's views drawn at close range (:func:`sample_close_view_pose`: a floor, table,
+    # desk, wall or cupboard 0.4-1.5 m ahead), the rest as ``view`` draws them. 0: no draw at all (the shipped
+    # stages' data, byte for byte).
+    close_range: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.close_range <= 1.0:
+            raise CnnSlamError(f"close_range must be a share in [0, 1], got {self.close_range!r}")
         lo, hi = (float(v) for v in self.focal_scale)
         if not (0 < lo <= hi):
             raise CnnSlamError(f"focal_scale must be a range 0 < lo <= hi, got {self.focal_scale!r}")
@@ -258,11 +266,13 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
     modes: list[str] = []
     rejected = 0
     with make_renderer(scene, intr, backend=cfg.backend) as renderer:
-        i = 0
+        i, close = 0, None
         while i < n:
-            T, mode = sample_view_pose(scene, rng, cfg.view)
+            if close is None:  # one draw per view slot (none at close_range 0): redraws keep the slot's kind
+                close = cfg.close_range > 0 and bool(rng.random() < cfg.close_range)
+            T, mode = (sample_close_view_pose if close else sample_view_pose)(scene, rng, cfg.view)
             out = renderer.render(T, outputs=("rgb", "depth", "labels"))
-            if not view_is_usable(out.depth, cfg.view):
+            if not view_is_usable(out.depth, cfg.view, mode):
                 rejected += 1
                 if rejected > 20 * n:
                     raise CnnSlamError(f"room {job.style}/{job.scene_seed}: too many unusable views ({rejected})")
@@ -276,7 +286,7 @@ def render_shard(job: ShardJob, cfg: GenerationConfig) -> dict[str, Any]:
             rgb[i], labels[i], poses[i] = out_rgb, out.labels, T
             depth[i] = np.clip(np.round(out.depth * DEPTH_SCALE), 0, np.iinfo(np.uint16).max).astype(np.uint16)
             modes.append(mode)
-            i += 1
+            i, close = i + 1, None
     meta = {
         "format": DATA_FORMAT,
         "scene_seed": job.scene_seed,

@@ -1,7 +1,7 @@
 """Camera views of the depth network's training data, drawn in a room like a hand-held Kinect (NYU Depth v2,
-ICL-NUIM, TUM): the view's configuration, its rotation from a viewing direction and roll, the draw of a pose, and
-the check that a rendered view is usable. Used by :mod:`cnnslam.depthnet.data` (which re-exports these names) when
-it renders the training split.
+ICL-NUIM, TUM): the view's configuration, its rotation from a viewing direction and roll, the draw of a pose (a room
+view, or a close-range view of a surface 0.4-1.5 m away), and the check that a rendered view is usable. Used by
+:mod:`cnnslam.depthnet.data` (which re-exports these names) when it renders the training split.
 """
 
 from __future__ import annotations
@@ -36,6 +36,19 @@ class ViewConfig:
     min_valid_fraction: float = 0.97  # share of pixels with a surface (a view out of a gap is redrawn)
     min_median_depth_m: float = 0.5
     max_attempts: int = 200
+    # Close-range views (:func:`sample_close_view_pose`; ours, after what hand-held cameras see in TUM fr1/desk, fr3
+    # "near" and 7-Scenes): the camera ``close_distance_m`` from the surface it aims at, along its optical axis.
+    # Kinds drawn with ``close_kind_p``: look down at the floor or a furniture top, face a desk / table / object
+    # from above, face a wall or the furniture along it (cupboards, shelves).
+    close_distance_m: tuple[float, float] = (0.4, 1.5)
+    close_kind_p: tuple[float, float, float] = (0.35, 0.35, 0.3)  # close_down, close_desk, close_wall
+    close_down_pitch_deg: tuple[float, float] = (-88.0, -45.0)
+    close_desk_pitch_deg: tuple[float, float] = (-65.0, -15.0)
+    close_wall_pitch_deg: tuple[float, float] = (-30.0, 10.0)
+    close_wall_yaw_deg: float = 35.0  # heading off the wall's normal, at most
+    close_height_m: tuple[float, float] = (0.3, 2.0)  # optical centre above the floor, hand-held
+    close_margin_m: float = 0.15  # free-space margin of a close view's optical centre
+    close_median_depth_m: tuple[float, float] = (0.3, 1.6)  # a rendered close view's median depth, else redrawn
 
 
 def camera_rotation(forward: np.ndarray, roll_rad: float) -> np.ndarray:
@@ -98,12 +111,68 @@ def sample_view_pose(scene: Any, rng: np.random.Generator, cfg: ViewConfig) -> t
     raise CnnSlamError(f"no free camera position found in {cfg.max_attempts} draws in room {scene.style}/{scene.seed}")
 
 
-def view_is_usable(depth: np.ndarray, cfg: ViewConfig) -> bool:
-    """A rendered view is kept when almost every pixel sees a surface and it is not pressed against one.
+CLOSE_KINDS = ("close_down", "close_desk", "close_wall")  # the modes of :func:`sample_close_view_pose`
+
+
+def sample_close_view_pose(scene: Any, rng: np.random.Generator, cfg: ViewConfig) -> tuple[np.ndarray, str]:
+    """One candidate close-range ``T_world_cam`` (4, 4) float64 in ``scene``'s free space and its mode (one of
+    :data:`CLOSE_KINDS`): the optical axis meets a surface point ``d`` ~ U(``close_distance_m``) metres ahead.
+
+    close_down: the point on the floor or on a furniture top, pitch in ``close_down_pitch_deg``; close_desk: the
+    point near a furniture top or object (interest points), pitch in ``close_desk_pitch_deg``; close_wall: the point
+    on a wall (the furniture along it may be nearer), heading within ``close_wall_yaw_deg`` of the wall's normal,
+    pitch in ``close_wall_pitch_deg``. The caller checks the rendered view (:func:`view_is_usable` with its mode).
+    """
+    room = np.asarray(scene.room_size, dtype=np.float64)
+    points = scene.interest_points()
+    for _ in range(cfg.max_attempts):
+        mode = CLOSE_KINDS[int(rng.choice(3, p=np.asarray(cfg.close_kind_p) / np.sum(cfg.close_kind_p)))]
+        d = rng.uniform(*cfg.close_distance_m)
+        roll = np.radians(np.clip(rng.normal(0.0, cfg.roll_std_deg), -cfg.max_roll_deg, cfg.max_roll_deg))
+        if mode == "close_wall":
+            wall = int(rng.integers(4))  # -x, +x, -y, +y walls; the camera faces it
+            axis, far = wall // 2, wall % 2
+            normal_yaw = (np.pi if not far else 0.0) if axis == 0 else (-np.pi / 2 if not far else np.pi / 2)
+            yaw = normal_yaw + np.radians(rng.uniform(-cfg.close_wall_yaw_deg, cfg.close_wall_yaw_deg))
+            pitch = np.radians(rng.uniform(*cfg.close_wall_pitch_deg))
+            target = np.array([rng.uniform(0, room[0]), rng.uniform(0, room[1]), rng.uniform(0.2, room[2] - 0.2)])
+            target[axis] = room[axis] if far else 0.0
+        else:
+            use_floor = mode == "close_down" and (not len(points) or rng.random() < 0.5)
+            if use_floor:
+                target = np.array([rng.uniform(0, room[0]), rng.uniform(0, room[1]), 0.0])
+            elif len(points):
+                target = points[rng.integers(len(points))] + rng.normal(0.0, 0.1, 3)
+            else:
+                continue
+            yaw = rng.uniform(-np.pi, np.pi)
+            pitch = np.radians(rng.uniform(*(cfg.close_down_pitch_deg if mode == "close_down"
+                                             else cfg.close_desk_pitch_deg)))
+        forward = _direction(yaw, pitch)
+        eye = target - d * forward
+        if not (cfg.close_height_m[0] <= eye[2] <= cfg.close_height_m[1]):
+            continue
+        if not scene.free_space(eye[None], margin=cfg.close_margin_m)[0]:
+            continue
+        T = np.eye(4)
+        T[:3, :3] = camera_rotation(forward, roll)
+        T[:3, 3] = eye
+        return T, mode
+    raise CnnSlamError(f"no free close-range camera position found in {cfg.max_attempts} draws in room "
+                       f"{scene.style}/{scene.seed}")
+
+
+def view_is_usable(depth: np.ndarray, cfg: ViewConfig, mode: str = "") -> bool:
+    """A rendered view is kept when almost every pixel sees a surface and it is not pressed against one: its median
+    depth at least ``min_median_depth_m``, or, for a close-range ``mode`` (:data:`CLOSE_KINDS`), within
+    ``close_median_depth_m`` (so that a close view really is close).
 
     depth: (H, W) float32 metres, 0 = no surface.
     """
     valid = depth > 0
     if valid.mean() < cfg.min_valid_fraction:
         return False
-    return float(np.median(depth[valid])) >= cfg.min_median_depth_m
+    median = float(np.median(depth[valid]))
+    if mode in CLOSE_KINDS:
+        return cfg.close_median_depth_m[0] <= median <= cfg.close_median_depth_m[1]
+    return median >= cfg.min_median_depth_m

@@ -65,6 +65,58 @@ def test_generation_is_deterministic_resumable_and_readable(tmp_path: Path) -> N
     assert ds.train_focal == pytest.approx((518.8579 + 519.4696) / 2 / 10)  # NYU at 64x48
 
 
+# sha256 over (poses, depth, labels, rgb) of the SHIPPED recipe's first two training rooms, 3 views at 64x48,
+# recorded before close-range views existed: close_range 0 (the default) must draw and render the same views
+SHIPPED_ROOM_DIGESTS = {
+    "scene_010000": "8367c1feaec6920250f01ac7ad1e623e7a6cd7da12f3d2319d98a3769c3628aa",
+    "scene_010001": "946452064949bae5cb2ff09514a1f3cc7de82cd1095fc91fcc2fc6832898cc03",
+}
+
+
+def _shard_digest(shard: Path) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in ("poses", "depth", "labels", "rgb"):
+        h.update(np.load(shard / f"{name}.npy").tobytes())
+    return h.hexdigest()
+
+
+@pytest.mark.slow
+def test_the_shipped_recipes_data_bytes_are_unchanged(tmp_path: Path) -> None:
+    from cnnslam.depthnet.recipe import SHIPPED
+
+    assert SHIPPED.generation.close_range == 0.0
+    cfg = replace(SHIPPED.generation, n_scenes=2, views_per_scene=3, width=64, height=48)
+    shards = generate_dataset(tmp_path, "train", cfg, workers=0)
+    assert {p.name: _shard_digest(p) for p in shards} == SHIPPED_ROOM_DIGESTS
+
+
+@pytest.mark.slow
+def test_close_range_views_are_close_deterministic_and_a_share(tmp_path: Path) -> None:
+    from cnnslam.depthnet.views import CLOSE_KINDS
+
+    cfg = GenerationConfig(n_scenes=2, views_per_scene=8, width=64, height=48, data_seed=5, close_range=0.5)
+    shards = generate_dataset(tmp_path / "a", "train", cfg, workers=0)
+    again = generate_dataset(tmp_path / "b", "train", replace(cfg, n_scenes=1), workers=0)
+    assert _shard_digest(shards[0]) == _shard_digest(again[0])  # seeded: same room, same bytes
+    close = far = 0
+    for shard in shards:
+        modes = json.loads((shard / "meta.json").read_text())["modes"]
+        depth = np.load(shard / "depth.npy").astype(np.float32) / 1000.0
+        for mode, d in zip(modes, depth, strict=True):
+            median = float(np.median(d[d > 0]))
+            if mode in CLOSE_KINDS:
+                close += 1
+                assert cfg.view.close_median_depth_m[0] <= median <= cfg.view.close_median_depth_m[1]
+            else:
+                far += 1
+                assert median >= cfg.view.min_median_depth_m
+    assert close >= 3 and far >= 3  # 16 views, each close with probability 0.5
+    with pytest.raises(CnnSlamError, match="close_range"):
+        GenerationConfig(close_range=1.5)
+
+
 def test_focal_scaled_rooms_read_as_the_nominal_camera(tmp_path: Path) -> None:
     cfg = GenerationConfig(n_scenes=1, views_per_scene=1, width=64, height=48, data_seed=3, focal_scale=(1.25, 1.25))
     (shard,) = generate_dataset(tmp_path, "train", cfg, workers=0)

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 import cnnslam.depthnet.data as data
-from cnnslam.depthnet.views import ViewConfig, camera_rotation, sample_view_pose, view_is_usable
+from cnnslam.depthnet.views import (
+    CLOSE_KINDS,
+    ViewConfig,
+    camera_rotation,
+    sample_close_view_pose,
+    sample_view_pose,
+    view_is_usable,
+)
 from cnnslam.errors import CnnSlamError
 
 
@@ -48,6 +55,33 @@ def test_sampled_views_are_in_free_space_and_hand_held() -> None:
         assert abs(np.degrees(np.arcsin(np.clip(R[2, 0], -1, 1)))) <= cfg.max_roll_deg + 1e-6
 
 
+def test_close_views_aim_at_a_surface_close_by() -> None:
+    from sim_envs.scenes.scenegen import generate_scene
+
+    scene = generate_scene("study", 10_007, texture_density=0.5)
+    cfg = ViewConfig()
+    rng = np.random.default_rng(1)
+    room = np.asarray(scene.room_size)
+    kinds = set()
+    for _ in range(60):
+        T, mode = sample_close_view_pose(scene, rng, cfg)
+        kinds.add(mode)
+        eye, forward = T[:3, 3], T[:3, 2]
+        assert scene.free_space(eye[None], margin=cfg.close_margin_m)[0]
+        assert cfg.close_height_m[0] <= eye[2] <= cfg.close_height_m[1]
+        pitch = np.degrees(np.arcsin(forward[2]))
+        lo, hi = {"close_down": cfg.close_down_pitch_deg, "close_desk": cfg.close_desk_pitch_deg,
+                  "close_wall": cfg.close_wall_pitch_deg}[mode]
+        assert lo - 1e-9 <= pitch <= hi + 1e-9
+        if mode == "close_wall":  # the optical axis meets a wall within close_distance_m
+            t = min(((room[a] if forward[a] > 0 else 0.0) - eye[a]) / forward[a] for a in (0, 1) if abs(forward[a])
+                    > 1e-9)
+            assert cfg.close_distance_m[0] - 1e-9 <= t <= cfg.close_distance_m[1] + 1e-9
+    assert kinds == set(CLOSE_KINDS)
+    a = [sample_close_view_pose(scene, np.random.default_rng(4), cfg)[0] for _ in range(2)]
+    np.testing.assert_array_equal(a[0], a[1])  # a function of the generator's state
+
+
 def test_view_usability() -> None:
     cfg = ViewConfig()
     assert view_is_usable(np.full((10, 10), 2.0, np.float32), cfg)
@@ -55,6 +89,9 @@ def test_view_usability() -> None:
     d = np.full((10, 10), 2.0, np.float32)
     d[:2] = 0
     assert not view_is_usable(d, cfg)  # 20 % without a surface
+    assert view_is_usable(np.full((10, 10), 0.45, np.float32), cfg, "close_down")  # close views may be close
+    assert not view_is_usable(np.full((10, 10), 2.5, np.float32), cfg, "close_wall")  # ... and must be
+    assert not view_is_usable(np.full((10, 10), 0.2, np.float32), cfg, "close_desk")
 
 
 def test_data_reexports_the_views() -> None:
