@@ -31,8 +31,8 @@ from eval.reports.lengths import (
     shortest_agreeing_length,
 )
 from eval.reports.plots import save_transfer_figure
+from eval.reports.report_parts import long_frame, markdown_image, status_markdown
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
-from eval.reports.suite_reports import long_frame, markdown_image, status_markdown
 from eval.reports.transfer import TRANSFER_METRICS
 from eval.reports.transfer_report import fmt_score, ranks_markdown
 

@@ -16,6 +16,7 @@ import pandas as pd
 
 from eval.reports.html_report import markdown_page
 from eval.reports.inputs import PreprocessingChoice, SuiteRun
+from eval.reports.report_parts import long_frame, status_markdown
 from eval.reports.sensitivity import (
     SENSITIVITY_METRICS,
     TRACKED_SHARE_CHANGE,
@@ -25,7 +26,6 @@ from eval.reports.sensitivity import (
     choice_ranks,
 )
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
-from eval.reports.suite_reports import long_frame, status_markdown
 from eval.reports.transfer_report import fmt_score as _fmt
 
 

@@ -31,8 +31,8 @@ import pandas as pd
 from eval.reports.html_report import markdown_page
 from eval.reports.inputs import SuiteRun, TransferPart
 from eval.reports.plots import save_transfer_figure
+from eval.reports.report_parts import long_frame, markdown_image, status_markdown
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
-from eval.reports.suite_reports import long_frame, markdown_image, status_markdown
 from eval.reports.transfer import (
     ALL_METRICS,
     BOOTSTRAP_DRAWS,

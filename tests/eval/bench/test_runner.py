@@ -242,7 +242,7 @@ def test_report_only_takes_finished_runs_whatever_made_them(tmp_path):
     again = run_suite(suite, changed, tmp_path, plots=False, progress=False, check=False, report_only=True)
     assert again.counts() == {"cached": 1, "not_run": 1}  # the oracle's old run taken as is; nothing was run
     assert not again.failed and [r.method for r in again.records] == ["oracle"]
-    from eval.reports.suite_reports import failure_frame, status_markdown
+    from eval.reports.report_parts import failure_frame, status_markdown
 
     assert "1 not run (--report-only" in status_markdown(again) and "Not run (" in status_markdown(again)
     assert set(failure_frame(again)["method"]) == {"oracle"}  # a run not run is no failure

@@ -11,16 +11,14 @@ from eval.bench.run import RunSpec
 from eval.bench.runner import RunOutcome, SuiteRun
 from eval.bench.suites import get_suite
 from eval.metrics.results import FAILURE_RULE, RunRecord
+from eval.reports.report_parts import long_frame
 from eval.reports.suite_reports import (
-    long_frame,
     ours_beside_paper,
     report_depth_quality,
     report_rotation,
     report_sweep,
     report_table1,
-    status_markdown,
     sweep_points,
-    with_relative_errors,
 )
 from eval.reports.tables import TABLE1_BLOCKS, table1
 
@@ -148,38 +146,6 @@ def test_sweep_report_plots_each_axis(tmp_path):
     assert "### rolling shutter alone, readout in frame intervals" in md and "| 0.5 | 0.500 |" in md
 
 
-def test_status_lists_skips_and_failures():
-    suite, values = table1_values()
-    text = status_markdown(fake_run(suite, values, skipped={"Laina": "no weights\nat all"}))
-    assert "8 runs: 8 run now, 0 reused from earlier, 0 failed." in text and "**Laina**: no weights at all" in text
-    assert "Machine: not recorded" in text  # the fake runs' timing.json has no environment
-
-
-def test_status_names_the_machines_runs_came_from():
-    suite, values = table1_values()
-    run = fake_run(suite, values)
-    env = {"cpu": "Test CPU", "isa": ["avx512f", "avx2"], "packages": {"torch": "9.9", "numpy": "1.0"}}
-    keys = sorted(run.timings)
-    for key in keys[:5]:
-        run.timings[key]["environment"] = env
-    text = status_markdown(run)
-    assert "Machines: Test CPU (avx512f), torch 9.9, numpy 1.0: 5 run(s); not recorded: 3 run(s)." in text
-
-
-def test_relative_errors_are_per_run_percentages():
-    frame = pd.DataFrame({
-        "run": ["a", "a", "a", "b", "b"], "sequence": ["s", "s", "s", "t", "t"], "method": ["m"] * 5,
-        "metric": ["ate_rmse", "length_gt_m", "scale_error", "ate_rmse", "length_gt_m"],
-        "value": [0.2, 10.0, 0.05, 0.1, 0.0],
-    })  # fmt: skip
-    out = with_relative_errors(frame).set_index(["run", "metric"])["value"]
-    assert out[("a", "ate_percent_length")] == pytest.approx(2.0)  # 0.2 m over 10 m
-    assert out[("a", "scale_error_percent")] == pytest.approx(5.0)
-    assert ("b", "ate_percent_length") not in out.index  # zero-length path: no percentage
-    assert ("b", "scale_error_percent") not in out.index  # no scale error, no row
-    assert with_relative_errors(frame.iloc[:0]).empty
-
-
 def test_depth_quality_report_checks_the_targets(tmp_path):
     suite = get_suite("depth_quality").select(["office0@clean", "living0@clean"],
                                               ["CNN-SLAM", "raw-CNN", "dev-depth-10"])
@@ -224,7 +190,8 @@ def test_reports_say_which_alignment_and_which_methods_were_fed_ground_truth(tmp
 
 
 def test_reports_name_the_camera_and_map_camera_sequences_to_the_paper():
-    from eval.reports.suite_reports import camera_sentence, paper_name
+    from eval.reports.report_parts import camera_sentence
+    from eval.reports.suite_reports import paper_name
 
     assert paper_name("office0@kinect", "-") == paper_name("office0", "-") == "ICL/office0"
     assert paper_name("office0+lit@kinect", "-") == paper_name("office0+lit", "-") == "ICL/office0"
