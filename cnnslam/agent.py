@@ -12,7 +12,8 @@ Keyword arguments (both classes; all optional)::
 
     CnnSlamAgent(preset="cnn_slam" | "raw" | "adjusted" | "refined" | "lsd" | "lsd_constant" | "lsd_bs",
                  config={"section.field": value, ...},  # overrides on top of the preset
-                 predictor="network" | "degraded_ground_truth" | <an object with predict_raw / train_focal>,
+                 predictor="network" | "degraded_ground_truth" | "package.module:Class" | "path/net.onnx" (or a
+                           TorchScript file; cnnslam.depth.model_file) | <an object with predict_raw / train_focal>,
                  predictor_options={...},               # keywords of the predictor (weights=..., seed=...)
                  threads=True | False,                  # the paper's two threads, or deterministic single-thread
                  observers=[...])                       # cnnslam.system.SlamObserver-like (Python callers only)
@@ -35,7 +36,7 @@ import numpy as np
 from cnnslam.config import ABLATIONS, BASELINES, CnnSlamConfig, ablation_config, baseline_config
 from cnnslam.depth.depth_prediction import GroundTruthHint
 from cnnslam.errors import CnnSlamError
-from cnnslam.predictors import make_predictor
+from cnnslam.predictors import check_predictor_spec, make_predictor
 from cnnslam.system import CnnSlam, SlamResult
 from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
@@ -85,6 +86,8 @@ class CnnSlamAgent:
             )
         self._predictor_spec = self.default_predictor if predictor is None else predictor
         self._predictor_options = dict(predictor_options or {})
+        if self.config.depth.uses_cnn:  # a bad predictor name, model file or training focal: now, before any frame
+            check_predictor_spec(self._predictor_spec, self._predictor_options)
         if (isinstance(self._predictor_spec, str) and self._predictor_spec == "degraded_ground_truth"
                 and not self.uses_ground_truth and self.config.depth.uses_cnn):
             raise CnnSlamError("the 'degraded_ground_truth' predictor needs ground truth: use "

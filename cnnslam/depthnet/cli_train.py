@@ -7,6 +7,7 @@
     cnnslam train validate [--weights W] [--frames 40] [--camera PRESET] [--results results] [--update-manifest]
     cnnslam train validate-folder FOLDER... [--frames 100] [--window 100]   # real frames -> results/depthnet_real.md
     cnnslam train export [--run data/depthnet/run]
+    cnnslam train export-onnx [--weights W] [--out data/depthnet/export/depthnet.onnx] [--out net.pt]
 
 ``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
 copies the run's weights and manifest to ``cnnslam/depthnet/weights/default.{pt,json}``, the shipped default, the
@@ -147,6 +148,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     e = sub.add_parser("export", help="copy a run's weights + manifest to the shipped default")
     e.add_argument("--run", type=Path, default=Path(d.out_dir))
 
+    eo = sub.add_parser("export-onnx", help="write the network as an ONNX (.onnx) and/or TorchScript (.pt) model file "
+                                            "with its sidecar <file>.json, for a methods table's predictor")
+    eo.add_argument("--weights", type=Path, default=DEFAULT_WEIGHTS)
+    eo.add_argument("--out", type=Path, action="append", default=None, metavar="FILE",
+                    help="model file, format by extension (.onnx; .pt .pth .ts .torchscript: TorchScript); "
+                         "repeatable; default data/depthnet/export/depthnet.onnx")
+
     ds = sub.add_parser("data-statistics", help="image statistics and depth distributions of the training rooms, the "
                                                 "simulated test sequences and real folders -> results/depthnet_data.md")
     ds.add_argument("folders", nargs="*", type=Path, help="real RGB-D folders to compare with (test data)")
@@ -210,6 +218,23 @@ def _export(run: Path) -> None:
         raise SystemExit(f"cnnslam train export: error: {exc}") from exc
     print(f"exported {run / 'weights.pt'} -> {DEFAULT_WEIGHTS} ({doc['weights_bytes'] / 1e6:.1f} MB, "
           f"sha256 {doc['weights_sha256']})")
+
+
+def _export_model(args: argparse.Namespace) -> int:
+    from cnnslam.depth.model_file import model_file_kind
+    from cnnslam.depthnet.export_model import export_model_file
+
+    outs = args.out or [Path("data/depthnet/export/depthnet.onnx")]
+    try:
+        for out in outs:  # every extension checked before any file is written
+            model_file_kind(out)
+        for out in outs:
+            done = export_model_file(out, args.weights)
+            print(f"wrote {done.path} ({done.kind}, {done.bytes / 1e6:.1f} MB) and {done.sidecar}")
+    except CnnSlamError as exc:
+        print(f"cnnslam train export-onnx: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
 
 
 def _fit(args: argparse.Namespace) -> int:
@@ -428,5 +453,7 @@ def run(args: argparse.Namespace) -> int:
         return _validate(args)
     if args.action == "validate-folder":
         return _validate_folder(args)
+    if args.action == "export-onnx":
+        return _export_model(args)
     _export(args.run)
     return 0
