@@ -111,6 +111,7 @@ from sim_envs.folders.folder_layouts import (
     index_folder,
     read_pose_matrix,
 )
+from sim_envs.folders.prefetch import Prefetcher
 from sim_envs.frames import NO_INSTANCE, NO_LABEL, Frame
 
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
@@ -119,6 +120,8 @@ SEVEN_SCENES_COLOUR_SOURCE = "preset 7scenes_rgb (layout: 7-Scenes' colour camer
 PoseConvention = Literal["opencv", "icl", "auto"]
 POSE_CONVENTIONS: tuple[str, ...] = ("opencv", "icl", "auto")
 _FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
+PREFETCH_AHEAD = 6  # frames read ahead of a run of consecutive reads (0: none); see sim_envs.folders.prefetch
+PREFETCH_WORKERS = 2  # threads reading ahead (the 2 cores a run is given)
 
 CameraLike = Intrinsics | CameraModel | str | os.PathLike[str] | None
 
@@ -130,8 +133,11 @@ class RgbdFolder:
     the delivered frames (None: the images' own). ``timestamps`` (N,) float64 seconds; ``poses`` (N, 4, 4) float64
     ``T_world_cam`` in the OpenCV camera convention; ``intrinsics``: the pinhole camera of the delivered
     (undistorted, resized) frames; ``camera``: the folder's camera model at its original resolution;
-    ``has_depth``: False for an RGB-only folder. Frames are read from disk on each ``frame(i)`` call (nothing is
-    cached).
+    ``has_depth``: False for an RGB-only folder. Frames are read from disk on each ``frame(i)`` / ``rgb(i)`` call
+    (nothing is cached); ``prefetch`` (default :data:`PREFETCH_AHEAD`; 0: off): once ``frame`` or ``rgb`` is asked
+    for two consecutive indices, the next ``prefetch`` frames are read ahead on :data:`PREFETCH_WORKERS` threads
+    (:class:`~sim_envs.folders.prefetch.Prefetcher`: the same bytes, handed back in the order asked; :meth:`close`
+    stops the threads).
     """
 
     def __init__(
@@ -146,7 +152,12 @@ class RgbdFolder:
         max_difference: float = MAX_DIFFERENCE,
         name: str | None = None,
         undistort: str = "crop",
+        prefetch: int = PREFETCH_AHEAD,
     ) -> None:
+        if isinstance(prefetch, bool) or not isinstance(prefetch, numbers.Integral) or prefetch < 0:
+            raise SimEnvError(f"prefetch must be a whole number of frames >= 0 (0: no reading ahead), got {prefetch!r}")
+        self.prefetch: int = int(prefetch)
+        self._prefetchers: dict[str, Prefetcher[Any]] = {}
         if undistort not in UNDISTORT_MODES:
             raise SimEnvError(f"unknown undistortion {undistort!r}; valid: {', '.join(UNDISTORT_MODES)} (crop: to "
                               "what the lens saw, the default; full: the whole frame with K and a black border; "
@@ -198,11 +209,26 @@ class RgbdFolder:
         """The colour image files as they are on disk (before undistortion and resizing), one per frame."""
         return list(self._rgb_files)
 
+    @property
+    def depth_paths(self) -> list[Path]:
+        """The depth image files as they are on disk, one per frame (empty for a folder without depth)."""
+        return list(self._depth_files or [])
+
+    @property
+    def prefetch_hits(self) -> int:
+        """Frames handed back from a read ahead since the threads last started (see ``prefetch``)."""
+        return sum(p.hits for p in self._prefetchers.values())
+
     def frame(self, index: int) -> Frame:
         """Frame ``index`` as delivered: RGB (H, W, 3) uint8, depth (H, W) float32 planar z metres (0 = none; all 0
         without depth), pose, and labels / instances where the side file names them."""
         i = self._check_index(index)
-        rgb = self.rgb(i)
+        if self.prefetch:
+            return self._prefetched("frame", self._read_frame).get(i)
+        return self._read_frame(i)
+
+    def _read_frame(self, i: int) -> Frame:
+        rgb = self._read_rgb(i)
         depth = self.depth(i)
         labels = instances = None
         if self._labels is not None:
@@ -225,13 +251,20 @@ class RgbdFolder:
     def rgb(self, index: int) -> np.ndarray:
         """RGB of frame ``index`` alone, as delivered: (H, W, 3) uint8 (the environment's fast path)."""
         i = self._check_index(index)
+        if self.prefetch:
+            return self._prefetched("rgb", self._read_rgb).get(i)
+        return self._read_rgb(i)
+
+    def _read_rgb(self, i: int) -> np.ndarray:
         image = _read_image(self._rgb_files[i], cv2.IMREAD_COLOR)
         if image.shape[:2] != self.original_size[::-1]:
             raise SimEnvError(
                 f"{self._rgb_files[i]}: image of {image.shape[1]}x{image.shape[0]}, but the folder's first image is "
                 f"{self.original_size[0]}x{self.original_size[1]}"
             )
-        return self._deliver(cv2.cvtColor(image, cv2.COLOR_BGR2RGB), "rgb")
+        # undistortion and resizing treat each channel alone, so BGR -> RGB commutes with them: done on the smaller
+        # delivered image (the same bytes as converting first)
+        return cv2.cvtColor(self._deliver(image, "rgb"), cv2.COLOR_BGR2RGB)
 
     def depth(self, index: int) -> np.ndarray:
         """Depth of frame ``index`` alone, as delivered: (H, W) float32 planar z metres, 0 = none (all 0 for a
@@ -257,7 +290,25 @@ class RgbdFolder:
         return self._deliver(depth, "depth")
 
     def close(self) -> None:
-        """Nothing is held open."""
+        """Stop the threads reading ahead (no file is held open); reading again starts them again."""
+        prefetchers, self._prefetchers = list(self._prefetchers.values()), {}
+        for prefetcher in prefetchers:
+            prefetcher.close()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Picklable state (for worker processes): without the threads reading ahead."""
+        state = dict(self.__dict__)
+        state["_prefetchers"] = {}
+        return state
+
+    def _prefetched(self, kind: str, read: Any) -> Prefetcher[Any]:
+        """The prefetcher of the per-frame reader ``kind`` ("rgb" or "frame"), made on first use."""
+        prefetcher = self._prefetchers.get(kind)
+        if prefetcher is None:
+            prefetcher = Prefetcher(read, len(self), ahead=self.prefetch, workers=PREFETCH_WORKERS,
+                                    label=lambda i: str(self._rgb_files[i]))  # fmt: skip
+            self._prefetchers[kind] = prefetcher
+        return prefetcher
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready account of what was read and how it was converted (for the run record): layout, original and
