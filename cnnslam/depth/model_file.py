@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -228,7 +229,9 @@ class _TorchScriptBackend:
 
         self.threads = int(threads)
         try:
-            self.module = torch.jit.load(str(path), map_location="cpu").eval()
+            with warnings.catch_warnings():  # TorchScript is deprecated in torch, still what such files hold
+                warnings.simplefilter("ignore", DeprecationWarning)
+                self.module = torch.jit.load(str(path), map_location="cpu").eval()
         except Exception as exc:  # noqa: BLE001 - any unreadable model is reported the same way
             raise CnnSlamError(f"cannot load {path} as a TorchScript depth model: {_one_line(exc)}") from exc
 
