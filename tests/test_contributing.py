@@ -7,7 +7,7 @@ from pathlib import Path
 from eval.bench import BenchOptions, run_bench
 from eval.bench import suites as suites_module
 from eval.bench.benchmark import ExecutorOptions
-from eval.bench.sequence_ref import resolve_sequence
+from eval.bench.sequence_resolve import resolve_sequence
 from eval.bench.suites import Suite
 
 CONTRIBUTING = Path(__file__).resolve().parents[1] / "CONTRIBUTING.md"

@@ -105,7 +105,7 @@ def test_the_library_call_without_its_guard_is_refused_before_any_run(tmp_path):
 def test_the_dataset_list_format_is_the_one_the_code_reads(tmp_path):
     """README: one ``name = "path"`` line each under the ``[datasets]`` table, as datasets.toml and the loader have
     it (the README once said a line per name without the table, which the loader refuses)."""
-    from eval.bench.sequence_ref import load_dataset_list
+    from eval.bench.sequence_resolve import load_dataset_list
 
     text = block_with("toml", "[datasets]")
     path = tmp_path / "datasets.toml"

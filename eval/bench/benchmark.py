@@ -65,7 +65,7 @@ from eval.bench.plan import (  # the options and the checks before any run; thei
 )
 from eval.bench.regress import GateAction, GateOutcome, apply_gate, check_gate
 from eval.bench.runner import RunOutcome, SuiteRun, git_revision, run_suite
-from eval.bench.sequence_ref import dataset_list_file
+from eval.bench.sequence_resolve import dataset_list_file
 from eval.bench.suites import SUITES, Suite, SuiteKind, get_suite
 from eval.errors import SuiteError
 from eval.metrics.results import coverage

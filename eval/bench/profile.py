@@ -89,7 +89,7 @@ def measure(sequences: Sequence[str] = DEFAULT_SEQUENCES, frames: int = DEFAULT_
     from eval.bench.benchmark import ExecutorOptions
     from eval.bench.regress import GateAction
     from eval.bench.run import FRAME_CACHE_DIR, FramesJob, render_frames
-    from eval.bench.sequence_ref import resolve_sequence
+    from eval.bench.sequence_resolve import resolve_sequence
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-profile-") as tmp:
         out = Path(tmp)

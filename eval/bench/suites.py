@@ -46,15 +46,13 @@ from eval.bench.methods import load_methods
 from eval.bench.sequence_ref import (
     FolderSize,
     SequenceRef,
-    dataset_list_file,
-    load_dataset_list,
     motion_label,
     rotation_ref,
     sim_camera_presets,
     unique_refs,
     window_refs,
-    with_default_camera,
 )
+from eval.bench.sequence_resolve import dataset_list_file, load_dataset_list, with_default_camera
 from eval.errors import SuiteError
 from sim_envs.errors import SimEnvError
 from sim_envs.folders.datasets import detect_layout
@@ -196,7 +194,7 @@ class Suite:
         undistort: str | None = None,
     ) -> Suite:
         """The suite restricted or changed: ``sequences`` (names of the suite's, or any
-        :func:`eval.bench.sequence_ref.resolve_sequence` name or folder path), ``methods`` (any method names),
+        :func:`eval.bench.sequence_resolve.resolve_sequence` name or folder path), ``methods`` (any method names),
         ``frames`` (a number, or ``"all"``: whole sequences), ``seeds``, or ``runs`` N (seeds 0 .. N-1; not with
         ``seeds``);
         ``camera`` and ``size`` for

@@ -172,7 +172,7 @@ def select_images(n_images: int, args: argparse.Namespace) -> np.ndarray:
 
 
 def run(args: argparse.Namespace) -> int:
-    from eval.bench.sequence_ref import resolve_sequence
+    from eval.bench.sequence_resolve import resolve_sequence
     from sim_envs.folders.datasets import load_rgbd_folder
 
     try:  # bad options, a folder that is no RGB-D folder, too few images, unwritable outputs: before COLMAP starts

@@ -12,15 +12,8 @@ import pytest
 from cnnslam.cli import main
 from eval.bench.methods import external_method, load_methods
 from eval.bench.runner import run_suite
-from eval.bench.sequence_ref import (
-    DATASETS_ENV,
-    DEFAULT_DATASETS_FILE,
-    REPLAY_ENV_ID,
-    SequenceRef,
-    folder_ref,
-    load_dataset_list,
-    resolve_sequence,
-)
+from eval.bench.sequence_ref import REPLAY_ENV_ID, SequenceRef, folder_ref
+from eval.bench.sequence_resolve import DATASETS_ENV, DEFAULT_DATASETS_FILE, load_dataset_list, resolve_sequence
 from eval.bench.suites import get_suite
 from eval.errors import SuiteError
 from sim_envs.camera import preset

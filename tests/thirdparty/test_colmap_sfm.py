@@ -32,7 +32,7 @@ def test_method_is_available_and_a_one_frame_episode_fails_softly():
 
 @pytest.mark.slow  # about 15 s: the full lane only
 def test_recovers_office0_up_to_scale_from_the_final_trajectory():
-    from eval.bench.sequence_ref import resolve_sequence
+    from eval.bench.sequence_resolve import resolve_sequence
     from eval.metrics.results import evaluate_episode
     from sim_envs.driver import run_episode
     from thirdparty.colmap_sfm import ColmapAgent

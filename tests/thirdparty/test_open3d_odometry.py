@@ -24,7 +24,7 @@ def test_method_is_available():
 
 @pytest.mark.slow
 def test_tracks_office0_from_the_sensor_depth():
-    from eval.bench.sequence_ref import resolve_sequence
+    from eval.bench.sequence_resolve import resolve_sequence
     from eval.metrics.results import evaluate_episode
     from sim_envs.driver import run_episode
     from thirdparty.open3d_odometry import Open3dOdometryAgent

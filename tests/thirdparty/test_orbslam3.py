@@ -36,7 +36,7 @@ def test_method_is_available_and_runs_out_of_process():
 def test_tracks_office0_with_our_vocabulary():
     """ORB-SLAM3's own threads make each run a little different (one 40-frame run in about ten failed to initialise
     in time while this was written): the contract is checked on every run, tracking on the best of three runs."""
-    from eval.bench.sequence_ref import resolve_sequence
+    from eval.bench.sequence_resolve import resolve_sequence
     from eval.metrics.results import evaluate_episode
     from sim_envs.driver import run_episode
     from thirdparty.orbslam3 import OrbSlam3Agent

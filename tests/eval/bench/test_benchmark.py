@@ -12,7 +12,7 @@ import pytest
 
 from eval.bench import BenchOptions, ExecutorOptions, GateAction, run_bench
 from eval.bench.benchmark import KINDS, prepare
-from eval.bench.sequence_ref import resolve_sequence
+from eval.bench.sequence_resolve import resolve_sequence
 from eval.bench.suites import SuiteKind
 from eval.errors import InputError
 from sim_envs.folders.formats import write_tum_trajectory

@@ -7,7 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from eval.bench.methods import load_methods
-from eval.bench.sequence_ref import REPLAY_ENV_ID, SequenceRef, resolve_sequence
+from eval.bench.sequence_ref import REPLAY_ENV_ID, SequenceRef
+from eval.bench.sequence_resolve import resolve_sequence
 from eval.bench.suites import CAMERA_EFFECT_STRENGTHS, FOCAL_RATIOS, SUITES, Suite, get_suite, sweep_sequences
 from eval.errors import SuiteError
 from sim_envs.camera import camera_presets, preset

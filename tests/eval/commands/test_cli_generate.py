@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cnnslam.cli import main
-from eval.bench.sequence_ref import resolve_sequence
+from eval.bench.sequence_resolve import resolve_sequence
 from eval.commands.cli_generate import rotation_refs
 from eval.errors import EvalError
 from sim_envs.folders.formats import read_tum_image_list, read_tum_trajectory

@@ -46,14 +46,14 @@ def test_the_preprocessing_suite_end_to_end(tmp_path, monkeypatch):
     applies to it (the native size: its images are 64x48, delivered at 320x240 by default; no lens distortion, and
     its depth is its camera's own) runs as <folder>~<choice>, beside the defaults; the report names it."""
     from cnnslam.cli import main
-    from eval.bench import sequence_ref, suites
+    from eval.bench import sequence_resolve, suites
     from sim_envs.folders.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "tiny_7scenes", "7scenes")
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.tiny]\npath = "{folder}"\n')
-    monkeypatch.setenv(sequence_ref.DATASETS_ENV, str(listing))
+    monkeypatch.setenv(sequence_resolve.DATASETS_ENV, str(listing))
     parts = suites.preprocessing_parts(suites.get_suite("preprocessing"))
     assert [c for c, _, _ in parts] == ["default", "native_size"]
     assert dict(parts[1][2]) == {"tiny~native_size": "tiny"} and parts[1][1].sequences[0].size == "native"

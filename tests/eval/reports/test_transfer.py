@@ -95,14 +95,14 @@ def test_the_transfer_suite_ranks_sim_against_a_real_folder(tmp_path, monkeypatc
     from dataclasses import replace
 
     from cnnslam.cli import main
-    from eval.bench import sequence_ref, suites
+    from eval.bench import sequence_ref, sequence_resolve, suites
     from sim_envs.folders.datasets import write_folder
     from tests.eval.test_real_sequences import tiny_source
 
     folder = write_folder(tiny_source(), tmp_path / "tiny_7scenes", "7scenes")
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.tiny]\npath = "{folder}"\n')
-    monkeypatch.setenv(sequence_ref.DATASETS_ENV, str(listing))
+    monkeypatch.setenv(sequence_resolve.DATASETS_ENV, str(listing))
     short = sequence_ref.SequenceRef("office0", base="office0", overrides={"n_frames": 8})
     monkeypatch.setitem(suites.SUITES, "table1", replace(suites.SUITES["table1"], sequences=(short,), frames=5))
     methods = tmp_path / "methods.toml"

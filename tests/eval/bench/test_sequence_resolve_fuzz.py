@@ -1,4 +1,4 @@
-"""Property-based test of the dataset list reader :func:`eval.bench.sequence_ref.load_dataset_list`
+"""Property-based test of the dataset list reader :func:`eval.bench.sequence_resolve.load_dataset_list`
 (``fuzz_reader``: tests/conftest.py): mutated valid ``datasets.toml`` files give valid entries, or one
 :class:`SuiteError` line naming the list file (or the reference trajectory it names)."""
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from eval.bench.sequence_ref import DatasetEntry, load_dataset_list
+from eval.bench.sequence_resolve import DatasetEntry, load_dataset_list
 
 pytestmark = pytest.mark.slow  # 10 000 inputs per reader: about 10 s of CPU each
 
