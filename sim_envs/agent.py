@@ -3,7 +3,10 @@
 An agent is any object with ``reset``, ``step`` and ``finish`` (duck-typed; it need not import this module):
 
 - ``reset(intrinsics, image_size)``: a new episode; ``intrinsics`` is ``[fx, fy, cx, cy]`` (float64, pixels, OpenCV
-  convention), ``image_size`` is ``(H, W)``.
+  convention), ``image_size`` is ``(H, W)``. An agent whose class sets ``takes_distortion = True`` (one that
+  undistorts what it sees itself, as ORB-SLAM3 undistorts its key-points) is called ``reset(intrinsics, image_size,
+  distortion=coeffs)`` instead: ``coeffs`` the (5,) float64 ``k1 k2 p1 p2 k3`` (OpenCV model) of the images it will
+  see, all zeros for pinhole ones (:func:`takes_distortion`). Every other agent is called as before.
 - ``step(observation) -> action``: ``observation`` is the env's observation dict (``rgb`` (H, W, 3) uint8,
   ``timestamp`` (1,) float64 seconds, ``intrinsics`` (4,) float64). The action is a dict with ``T_world_cam``
   ((4, 4) float64, the agent's current camera-to-world estimate) and ``tracked`` (1 if tracking succeeded for this
@@ -128,6 +131,12 @@ class Agent(Protocol):
     def step(self, observation: dict[str, np.ndarray]) -> dict[str, Any]: ...
 
     def finish(self) -> AgentOutput: ...
+
+
+def takes_distortion(agent: Any) -> bool:
+    """Whether ``agent`` declares (``takes_distortion = True``) that its ``reset`` takes the images' lens
+    distortion as the keyword ``distortion`` (module docstring)."""
+    return getattr(agent, "takes_distortion", False) is True
 
 
 def load_agent(entry_point: str, **kwargs: Any) -> Agent:

@@ -18,8 +18,9 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from sim_envs.agent import AgentOutput, FinalTrajectory, KeyframeDepth, MapModel
+from sim_envs.agent import AgentOutput, FinalTrajectory, KeyframeDepth, MapModel, takes_distortion
 from sim_envs.camera import Intrinsics
+from sim_envs.env import delivered_distortion
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
 from sim_envs.source import FrameSource
@@ -93,7 +94,11 @@ def run_episode(env: gym.Env, agent: Any, max_frames: int | None = None, progres
     name = agent_name(agent)
     uses_gt = bool(getattr(agent, "uses_ground_truth", False))
     obs, info = env.reset(options={"ground_truth": "full"} if uses_gt else None)
-    agent.reset(np.array(obs["intrinsics"], dtype=np.float64), tuple(obs["rgb"].shape[:2]))
+    intrinsics, image_size = np.array(obs["intrinsics"], dtype=np.float64), tuple(obs["rgb"].shape[:2])
+    if takes_distortion(agent):  # the images' lens distortion, for an agent that undistorts them itself
+        agent.reset(intrinsics, image_size, distortion=delivered_distortion(source))
+    else:
+        agent.reset(intrinsics, image_size)
 
     total = int(getattr(base, "n_frames", len(source)))
     if max_frames is not None:

@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH
+from sim_envs.camera import DEFAULT_HEIGHT, DEFAULT_WIDTH, DISTORTION_NAMES
 from sim_envs.errors import SimEnvError
 from sim_envs.frames import Frame
 from sim_envs.sequences import TEST_SEED_LIMIT, TRAIN_SEED_BASE, SequenceSpec, get_sequence
@@ -85,6 +85,10 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
     the ground truth (TUM RPE with a one-frame delta). It compares motions, so it needs no alignment; a monocular
     agent whose scale is off is penalised by the scale error of its motion. The first step's reward is 0. The
     reward is a per-step diagnostic; the benchmark's metrics (ATE, RPE, correct depth) are computed by ``eval``.
+
+    The lens distortion of the delivered images is ``env.unwrapped.distortion`` ((5,) float64 ``k1 k2 p1 p2 k3``,
+    OpenCV model; all zeros for pinhole images: simulated ones, and a folder's once undistorted), constant; the
+    driver hands it to agents that take it (:mod:`sim_envs.agent`). Not part of the observation.
 
     ## Starting State
 
@@ -170,6 +174,7 @@ class SlamEnv(gym.Env[dict[str, np.ndarray], dict[str, Any]]):
         self.n_frames: int = n if max_frames is None else min(n, int(max_frames))
         intr = source.intrinsics
         self._intrinsics = intr.as_array()
+        self.distortion: np.ndarray = delivered_distortion(source)  # (5,) k1 k2 p1 p2 k3 of the delivered images
         self.observation_space = spaces.Dict(
             {
                 "rgb": spaces.Box(0, 255, (intr.height, intr.width, 3), np.uint8),
@@ -359,6 +364,28 @@ def _load_folder(path: str, camera: Any, size: tuple[int, int] | None) -> FrameS
     except ImportError as exc:
         raise SimEnvError(f"cannot replay the folder {path!r}: the folder reader is unavailable ({exc})") from exc
     return RgbdFolder(path, camera, size=size)
+
+
+def delivered_distortion(source: FrameSource) -> np.ndarray:
+    """The lens distortion of the images a source delivers: (5,) float64 ``k1 k2 p1 p2 k3`` of OpenCV's model, on
+    normalised image coordinates (so they hold at any image size the source resizes to); all zeros for pinhole
+    images. A source may say so itself (a ``distortion`` attribute); a folder (``camera``, a
+    :class:`~sim_envs.camera.CameraModel`, and ``undistort``) delivers its camera's distortion when it leaves its
+    images as they are (``undistort="none"``) and zeros when it undistorts them; a simulated source renders pinhole
+    images (zeros)."""
+    own = getattr(source, "distortion", None)
+    if own is not None:
+        coeffs = np.asarray(own, dtype=np.float64).reshape(-1)
+    else:
+        camera = getattr(source, "camera", None)
+        raw = getattr(source, "undistort", "crop") == "none"
+        coeffs = np.asarray(getattr(camera, "distortion", ()) if raw else (), dtype=np.float64).reshape(-1)
+    if coeffs.size == 0:
+        return np.zeros(len(DISTORTION_NAMES), dtype=np.float64)
+    if coeffs.shape != (len(DISTORTION_NAMES),) or not np.isfinite(coeffs).all():
+        raise SimEnvError(f"a source's distortion must be {len(DISTORTION_NAMES)} finite coefficients "
+                          f"({' '.join(DISTORTION_NAMES)}), got {coeffs.tolist()}")
+    return coeffs
 
 
 def _check_ground_truth(value: str) -> GroundTruth:

@@ -206,3 +206,42 @@ def test_a_bad_final_trajectory_gets_one_clear_error():
     agent = _OfflineAgent(np.stack([bad] * N), 100.0 + np.arange(N) / 30)
     with pytest.raises(SimEnvError, match="not a rigid transform"):
         run_episode(SlamEnv(source=source), agent, progress=False)
+
+
+class _Lens:
+    """A source wrapper whose images carry a lens distortion (as a folder left distorted does)."""
+
+    def __init__(self, source, distortion):
+        self._source, self.distortion = source, distortion
+
+    def __getattr__(self, name):
+        return getattr(self._source, name)
+
+    def __len__(self):
+        return len(self._source)
+
+
+class _Recorder(ConstantPoseAgent):
+    def reset(self, *args, **kwargs):
+        self.given = (args, kwargs)
+        super().reset(*args)
+
+
+class _Undistorter(_Recorder):
+    takes_distortion = True
+
+
+def test_only_an_agent_that_takes_the_distortion_is_given_it():
+    coeffs = (0.26, -0.95, -0.005, 0.003, 1.16)
+    env = SlamEnv(source=_Lens(_source(3), coeffs))
+    np.testing.assert_array_equal(env.distortion, coeffs)
+    plain, undistorter = _Recorder(), _Undistorter()
+    run_episode(env, plain, progress=False)
+    run_episode(env, undistorter, progress=False)
+    assert plain.given[1] == {} and len(plain.given[0]) == 2  # the contract as it was: reset(intrinsics, size)
+    assert undistorter.given[0][1] == (24, 32) and undistorter.given[1]["distortion"].dtype == np.float64
+    np.testing.assert_array_equal(undistorter.given[1]["distortion"], coeffs)
+    run_episode(SlamEnv(source=_source(3)), undistorter, progress=False)  # a pinhole source: zeros
+    np.testing.assert_array_equal(undistorter.given[1]["distortion"], np.zeros(5))
+    with pytest.raises(SimEnvError, match="5 finite coefficients"):
+        SlamEnv(source=_Lens(_source(3), (0.1, 0.2)))

@@ -247,3 +247,21 @@ def test_full_ground_truth_carries_the_depth_sensor_apart_from_the_exact_depth()
     assert info["sensor_depth"].dtype == np.float32 and info["sensor_depth"].shape == (24, 32)
     assert (info["sensor_depth"][:, 0] == 0).all() and info["sensor_depth"][0, 1] == pytest.approx(2.01)
     assert (info["gt_depth"] == 2.0).all()  # the judge's depth stays exact
+
+
+def test_the_env_says_the_lens_distortion_of_the_images_it_delivers(tmp_path):
+    from sim_envs.camera import preset
+    from sim_envs.env import ReplayEnv
+    from sim_envs.folders.datasets import RgbdFolder
+    from sim_envs.folders.folder_exports import write_folder
+
+    intr = preset("tum_fr1", 32, 24)
+    frames = [Frame(i, 5.0 + i / 30, np.full((24, 32, 3), 9 * i, np.uint8), np.ones((24, 32), np.float32), np.eye(4))
+              for i in range(2)]
+    folder = write_folder(FrameListSource("x", intr, frames), tmp_path / "rgbd_dataset_freiburg1_x", "tum",
+                          camera_file=False)  # named fr1: TUM's fr1 lens
+    raw, undistorted = RgbdFolder(folder, undistort="none"), RgbdFolder(folder, size=(16, 12))
+    np.testing.assert_array_equal(ReplayEnv(raw).distortion, raw.camera.distortion)  # left distorted: its lens
+    assert raw.camera.distorted and not ReplayEnv(undistorted).distortion.any()  # undistorted: none left
+    assert not SlamEnv(source=FrameListSource("x", intr, frames)).distortion.any()  # pinhole frames
+    assert "distortion" not in ReplayEnv(raw).observation_space.spaces  # not part of the observation
