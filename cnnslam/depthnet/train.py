@@ -243,6 +243,7 @@ def _resume_or_start(cfg: TrainConfig, model: DepthSemanticNet, opt: torch.optim
         model.load_state_dict(ckpt["model"])
         opt.load_state_dict(ckpt["optimizer"])  # its state follows the parameters' device
         torch.set_rng_state(ckpt["torch_rng"])
+        _truncate_log(log_path, int(ckpt["step"]))
         return int(ckpt["step"]), float(ckpt["elapsed_s"]), list(ckpt["val_history"])
     if log_path.exists():
         log_path.unlink()
@@ -253,6 +254,22 @@ def _resume_or_start(cfg: TrainConfig, model: DepthSemanticNet, opt: torch.optim
                                f"{cfg.model}; pass the matching architecture")
         model.load_state_dict(start.model.state_dict())
     return 0, 0.0, []
+
+
+def _truncate_log(log_path: Path, step: int) -> None:
+    """Drop the log's records of steps after ``step`` (those an interrupted run logged after its last checkpoint:
+    the resumed run logs them again), and a last line cut short."""
+    if not log_path.is_file():
+        return
+    kept = []
+    for line in log_path.read_text().splitlines():
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if int(record.get("step", 0)) <= step:
+            kept.append(line)
+    log_path.write_text("".join(f"{line}\n" for line in kept))
 
 
 def _optimiser_step(cfg: TrainConfig, model: DepthSemanticNet, opt: torch.optim.Optimizer, autocast: Any,
@@ -285,7 +302,8 @@ def train(
 ) -> TrainResult:
     """Run (or resume) training to ``cfg.steps`` and write weights + manifest into ``cfg.out_dir``.
 
-    resume: continue from ``out_dir/checkpoint.pt`` when it exists (its config must match); otherwise start over.
+    resume: continue from ``out_dir/checkpoint.pt`` when it exists (its config must match; the log keeps the records up
+    to the checkpoint's step); otherwise start over.
     progress: show a tqdm bar. on_step(step, loss): called after every optimiser step (tests, monitoring).
     """
     from tqdm import tqdm

@@ -141,6 +141,31 @@ def test_resumed_run_equals_uninterrupted_run(fake_data: Path, tmp_path: Path) -
         torch.testing.assert_close(wa[k], wb[k], msg=k)
 
 
+class _Stop(Exception):
+    pass
+
+
+def test_an_interrupted_run_continues_from_its_checkpoint_and_logs_each_step_once(fake_data: Path,
+                                                                                  tmp_path: Path) -> None:
+    out = tmp_path / "run"
+
+    def stop_at_5(step: int, loss: float) -> None:
+        if step == 5:
+            raise _Stop  # killed after step 5: the last checkpoint is step 3, the log reached step 4
+    with pytest.raises(_Stop):
+        train(_cfg(fake_data, out, 8), progress=False, on_step=stop_at_5)
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 3
+    seen: list[int] = []
+    result = train(_cfg(fake_data, out, 8), progress=False, on_step=lambda s, _: seen.append(s))
+    assert seen == [4, 5, 6, 7, 8] and result.steps == 8
+    records = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in records if r["kind"] == "train"] == [2, 4, 6, 8]  # step 4 once, not twice
+    uninterrupted = train(_cfg(fake_data, tmp_path / "b", 8), progress=False)
+    wa, wb = load_weights(result.weights).model.state_dict(), load_weights(uninterrupted.weights).model.state_dict()
+    for k in wa:
+        torch.testing.assert_close(wa[k], wb[k], msg=k)
+
+
 def test_dataset_reads_shards(fake_data: Path) -> None:
     ds = RenderedDataset(fake_data, "train")
     assert len(ds) == 8
