@@ -45,6 +45,12 @@ from slamcommon.errors import ProjectError
 
 MethodKind = Literal["agent", "external"]
 METHOD_KINDS: tuple[str, ...] = get_args(MethodKind)
+# what a method's agent is given (Method.input): "harness" = the frames as the suite delivers them (a folder's
+# undistorted by the harness and resized to the suite's size, 320x240 by default); "native" = a folder's frames at
+# the images' own size, not undistorted, the lens distortion handed to the agent (sim_envs.agent's
+# takes_distortion), which undistorts them itself; a simulated sequence as rendered either way (pinhole, its size)
+MethodInput = Literal["harness", "native"]
+METHOD_INPUTS: tuple[str, ...] = get_args(MethodInput)
 METHODS_FILE: Path = Path(__file__).resolve().parents[1] / "methods.toml"  # eval/methods.toml, data beside code
 
 ALWAYS_KEPT: tuple[str, ...] = (catalogue.FRAMES.key,)
@@ -92,7 +98,9 @@ class Method:
     the import (1-2 s); names, never imported by the judge itself; not part of a run's fingerprint. table1: whether
     the Table-1 suite (and the suites built on its methods) runs the method (:data:`eval.bench.suites.TABLE1_METHODS`,
     in the table's order). warmup: which part of the agents' install-time numba warm-up runs it (``"baselines"`` or
-    ``"system"``; the agents' package reads it from the table file, the judge does nothing with it).
+    ``"system"``; the agents' package reads it from the table file, the judge does nothing with it). input: what the
+    agent is given (:data:`METHOD_INPUTS`: ``harness``, the suite's frames, or ``native``, a folder's frames at
+    their own size with their lens distortion, :meth:`given_sequence`).
     """
 
     name: str
@@ -112,8 +120,16 @@ class Method:
     preload: tuple[str, ...] = ()
     table1: bool = False
     warmup: str | None = None
+    input: MethodInput = "harness"
 
     def __post_init__(self) -> None:
+        if self.input not in METHOD_INPUTS:
+            raise MethodError(f"method {self.name!r}: input must be one of {', '.join(METHOD_INPUTS)} (harness: the "
+                              "suite's frames; native: a folder's own size and lens, undistorted by the method), got "
+                              f"{self.input!r}")
+        if self.input != "harness" and self.kind == "external":
+            raise MethodError(f"method {self.name!r}: input = {self.input!r} is for agents; an external system's "
+                              "output was made from whatever it read")
         if not isinstance(self.table1, bool) or not isinstance(self.warmup, str | None):
             raise MethodError(f"method {self.name!r}: table1 is true or false and warmup a string, got "
                               f"{self.table1!r} and {self.warmup!r}")
@@ -192,6 +208,14 @@ class Method:
             kwargs[keyword] = {**inner, key: int(seed)}
         return kwargs
 
+    def given_sequence(self, ref: Any) -> Any:
+        """The sequence as this method's agent is given it: ``ref`` (an :class:`eval.bench.sequence_ref.SequenceRef`)
+        itself, or with ``input = "native"`` a folder sequence at the images' own size and not undistorted (same
+        name: its runs stay in the suite's cells)."""
+        if self.input == "native" and getattr(ref, "folder", None) is not None:
+            return replace(ref, size="native", undistort="none")
+        return ref
+
     def input_hashes(self) -> dict[str, str]:
         """``{input: sha256 hex}`` of :attr:`inputs` (see :func:`resolve_input`)."""
         return {name: _file_sha256(resolve_input(name, self.name)) for name in self.inputs}
@@ -237,6 +261,7 @@ class Method:
             "align": self.align,
             "sensor": self.sensor,
             "uses_ground_truth": list(self.uses_ground_truth),
+            **({"input": self.input} if self.input != "harness" else {}),  # harness: as before the field
         }
 
 
@@ -290,8 +315,8 @@ def _thaw(value: Any) -> Any:
 
 # ------------------------------------------------------------------------------------------------------ the table
 _FIELDS = {"entry_point", "kwargs", "seed", "metrics", "paper", "description", "kind", "folder", "inputs", "align",
-           "sensor", "uses_ground_truth", "cost", "preload", "table1", "warmup"}
-_STRING_FIELDS = ("entry_point", "paper", "description", "kind", "folder", "align", "sensor")
+           "sensor", "uses_ground_truth", "cost", "preload", "table1", "warmup", "input"}
+_STRING_FIELDS = ("entry_point", "paper", "description", "kind", "folder", "align", "sensor", "input")
 _LIST_FIELDS = ("metrics", "inputs", "uses_ground_truth", "preload")
 _FIELD_KINDS = {**dict.fromkeys(_STRING_FIELDS, "a string"), **dict.fromkeys(_LIST_FIELDS, "a list of strings"),
                 "seed": "a string or a list of strings", "kwargs": "a table", "cost": "a number",

@@ -53,7 +53,7 @@ from typing import Any, Literal
 import numpy as np
 
 from eval.bench.environment import machine_description
-from eval.bench.methods import RUN_SIDE_FILE, TIMING_METRICS, Method
+from eval.bench.methods import RUN_SIDE_FILE, TIMING_METRICS, Method, resolve_input
 from eval.bench.sequence_ref import SequenceRef
 from eval.errors import RunnerError
 from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
@@ -246,10 +246,11 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
     scene = None
     stages: dict[str, float] = {}
     reads: dict[str, int] = {}
+    given = None
     if method.kind == "external":
         episode, n_frames, source_info = _external_episode(spec)
     else:
-        episode, source_info, scene = _agent_episode(spec, progress, stages, reads)
+        episode, source_info, scene, given = _agent_episode(spec, progress, stages, reads)
         n_frames = int(episode.timestamps.shape[0])
     metadata = {
         "suite": spec.suite,
@@ -267,6 +268,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         "sequence_definition": ref.describe(),
         "method_definition": method.describe(),
     }
+    if given is not None:
+        metadata["method_input"] = given  # what the agent was given: image size, undistortion, camera, input files
     if source_info is not None:
         metadata["source"] = source_info  # a folder's layout, original size, camera, depth scale, conversions
     record = evaluate_episode(episode, alignment=spec.alignment, method=method.name, metadata=metadata,
@@ -364,9 +367,12 @@ def run_title(spec: RunSpec) -> str:
 
 
 def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | None = None,
-                   reads: dict[str, int] | None = None) -> tuple[Any, dict[str, Any] | None, Any]:
-    """The agent's episode, the frame source's own description (:func:`_source_info`) and its scene (simulated
-    sequences whose agent handed back a model; None for folders and without a model). ``stages``: the wall seconds
+                   reads: dict[str, int] | None = None) -> tuple[Any, dict[str, Any] | None, Any, dict[str, Any]]:
+    """The agent's episode, the frame source's own description (:func:`_source_info`), its scene (simulated
+    sequences whose agent handed back a model; None for folders and without a model) and what the agent was given
+    (:func:`given_input`; the sequence as the method's ``input`` asks, :meth:`Method.given_sequence`). Raises
+    :class:`RunnerError` before the episode when a method whose ``input`` is ``native`` would be given distorted
+    images its agent does not take the distortion of. ``stages``: the wall seconds
     of the episode's stages are added to it (setup, frames, agent, finish, env_driver; see :data:`STAGES`);
     ``reads``: the frames read from the frame cache and rendered (``frame_reads``, ``frame_renders``; a source
     without a cache counts none)."""
@@ -376,9 +382,15 @@ def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | Non
     stages = {} if stages is None else stages
     t0 = time.perf_counter()
     agent = load_agent(spec.method.entry_point or "", **spec.method.agent_kwargs(spec.seed))
-    env = spec.sequence.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
+    ref = spec.method.given_sequence(spec.sequence)
+    env = ref.make_env(max_frames=spec.frames, renderer=spec.renderer, frame_cache=spec.frame_cache)
     try:
         source = env.unwrapped.source
+        given = given_input(env, agent, spec.method)
+        if spec.method.input == "native" and given["undistortion"] == "none" and env.unwrapped.distortion.any():
+            raise RunnerError(f"method {spec.method.name!r} has input = 'native', but its agent "
+                              f"{spec.method.entry_point} does not take the lens distortion (takes_distortion = True, "
+                              f"sim_envs/agent.py) of {ref.name}'s distorted images; give it input = 'harness'")
         t1 = time.perf_counter()
         stages["setup"] = t1 - t0
         episode = run_episode(env, agent, progress=progress)
@@ -392,9 +404,49 @@ def _agent_episode(spec: RunSpec, progress: bool, stages: dict[str, float] | Non
                       env_driver=max(0.0, (t2 - t1) - frames_s - agent_s - finish_s))
         if reads is not None:
             reads.update(frame_reads=int(getattr(source, "reads", 0)), frame_renders=int(getattr(source, "renders", 0)))
-        return episode, _source_info(source), scene
+        return episode, _source_info(source), scene, given
     finally:
         env.close()
+
+
+def given_input(env: Any, agent: Any, method: Method) -> dict[str, Any]:
+    """What ``env`` gives ``agent`` (run metadata ``method_input``): the method's ``input`` setting, the delivered
+    ``image_size`` (width, height pixels), ``intrinsics`` (fx, fy, cx, cy pixels), the lens ``distortion`` handed to
+    the agent (k1 k2 p1 p2 k3, OpenCV model; zeros for pinhole images and for agents that take none), who undistorts
+    the images (``undistortion``: ``harness`` when the folder undistorts a distorted lens, ``method`` when the agent
+    is given the distortion of images left distorted, ``none`` otherwise: a pinhole camera, or distorted images an
+    agent takes as pinhole ones) and the method's input files (``files``: name -> file name and bytes, such as a
+    vocabulary or network weights)."""
+    from sim_envs.agent import takes_distortion
+    from sim_envs.camera import DISTORTION_NAMES
+    from sim_envs.env import delivered_distortion
+
+    base = env.unwrapped
+    source = base.source
+    height, width = base.observation_space["rgb"].shape[:2]
+    K = source.intrinsics
+    lens = delivered_distortion(source)
+    lens_distorted = bool(getattr(getattr(source, "camera", None), "distorted", False))
+    takes = takes_distortion(agent)
+    if lens_distorted and not lens.any():
+        undistortion = "harness"
+    elif lens.any() and takes:
+        undistortion = "method"
+    else:
+        undistortion = "none"
+    given = lens if takes else np.zeros_like(lens)
+    files = {}
+    for name in method.inputs:
+        path = resolve_input(name, method.name)
+        files[name] = {"file": path.name, "bytes": path.stat().st_size}
+    return {
+        "input": method.input,
+        "image_size": {"width": int(width), "height": int(height)},
+        "undistortion": undistortion,
+        "intrinsics": {"fx": float(K.fx), "fy": float(K.fy), "cx": float(K.cx), "cy": float(K.cy)},
+        "distortion": {n: float(v) for n, v in zip(DISTORTION_NAMES, given, strict=True)},
+        "files": files,
+    }
 
 
 def _source_info(source: Any) -> dict[str, Any] | None:
