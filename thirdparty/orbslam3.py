@@ -7,8 +7,12 @@ when ``pyorbslam3`` is not installed (found with :func:`importlib.util.find_spec
 benchmark skips the method with that reason.
 
 Configuration (written as an ORB-SLAM3 settings file per episode, :func:`settings_yaml`): the episode's pinhole
-intrinsics, no distortion (the env delivers undistorted images), 30 fps, RGB order; ORB extractor 1000 features,
-scale factor 1.2, 8 levels, FAST thresholds 20 / 7 (ORB-SLAM3's TUM settings); monocular, no viewer, local mapping
+intrinsics and the lens distortion of the images it is given (``takes_distortion``: the driver hands it to
+``reset``; ``Camera.k1 k2 p1 p2 k3``, from which ORB-SLAM3 undistorts its key-points itself, as its TUM examples do
+on the raw 640x480 images; all zeros for images already undistorted or rendered as pinhole ones; the method table
+gives it real folders at their own size, as recorded: ``input = "native"`` in ``eval/methods.toml``), 30 fps, RGB
+order; ORB extractor 1000 features, scale factor 1.2, 8 levels, FAST thresholds 20 / 7 (ORB-SLAM3's TUM
+settings); monocular, no viewer, local mapping
 and loop closing in ORB-SLAM3's own threads (so runs are NOT deterministic: the ``seed`` keyword is recorded, and
 changes nothing fed to ORB-SLAM3). The vocabulary is ours (:mod:`thirdparty.orb_vocabulary`, default
 ``thirdparty/vocabulary/orbvoc_train_k8l3.txt``: 584 nodes, built from simulated training frames), not ORBvoc.txt.
@@ -51,23 +55,29 @@ TRACKED_STATES = ("OK", "OK_KLT")
 
 
 def settings_yaml(intrinsics: np.ndarray, image_size: tuple[int, int], fps: float = 30.0, n_features: int = 1000,
-                  scale_factor: float = 1.2, n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7) -> str:
+                  scale_factor: float = 1.2, n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7,
+                  distortion: np.ndarray | None = None) -> str:
     """An ORB-SLAM3 monocular settings file (OpenCV YAML, the ``Camera.*`` format ORB-SLAM3 reads when the file has
-    no ``File.version``) for a pinhole camera without distortion: ``intrinsics`` [fx, fy, cx, cy] pixels (OpenCV
-    convention), ``image_size`` (H, W), RGB images."""
+    no ``File.version``) for a pinhole camera: ``intrinsics`` [fx, fy, cx, cy] pixels (OpenCV convention),
+    ``image_size`` (H, W), RGB images, ``distortion`` (5,) ``k1 k2 p1 p2 k3`` of OpenCV's model (None or zeros:
+    none), which ORB-SLAM3 applies to its key-points (``cv::undistortPoints``)."""
     fx, fy, cx, cy = (float(v) for v in np.asarray(intrinsics, dtype=np.float64).reshape(4))
     h, w = (int(v) for v in image_size)
+    coeffs = np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64).reshape(-1)
+    if coeffs.shape != (5,) or not np.isfinite(coeffs).all():
+        raise ConfigError(f"ORB-SLAM3: distortion must be 5 finite coefficients k1 k2 p1 p2 k3, got {coeffs.tolist()}")
+    k1, k2, p1, p2, k3 = (_yaml_float(v) for v in coeffs)
     return f"""%YAML:1.0
 Camera.type: "PinHole"
 Camera.fx: {fx:.6f}
 Camera.fy: {fy:.6f}
 Camera.cx: {cx:.6f}
 Camera.cy: {cy:.6f}
-Camera.k1: 0.0
-Camera.k2: 0.0
-Camera.p1: 0.0
-Camera.p2: 0.0
-Camera.k3: 0.0
+Camera.k1: {k1}
+Camera.k2: {k2}
+Camera.p1: {p1}
+Camera.p2: {p2}
+Camera.k3: {k3}
 Camera.width: {w}
 Camera.height: {h}
 Camera.fps: {float(fps):.1f}
@@ -88,6 +98,13 @@ Viewer.ViewpointY: -0.7
 Viewer.ViewpointZ: -1.8
 Viewer.ViewpointF: 500.0
 """
+
+
+def _yaml_float(value: float) -> str:
+    """A float as the settings file writes it: ``0.0`` for zero, else the shortest text that reads back the same
+    (``repr``), never an integer (OpenCV's YAML reads ``1`` as an int, which ORB-SLAM3's ``real()`` rejects)."""
+    text = repr(float(value))
+    return "0.0" if float(value) == 0.0 else text
 
 
 def _rigid(values: list[float]) -> np.ndarray:
@@ -135,6 +152,7 @@ class OrbSlam3Agent:
     """
 
     uses_ground_truth = False
+    takes_distortion = True  # reset(..., distortion=k1 k2 p1 p2 k3): ORB-SLAM3 undistorts its key-points itself
     name = "orb_slam3"
 
     def __init__(self, vocabulary: str | None = None, n_features: int = 1000, scale_factor: float = 1.2,
@@ -165,6 +183,7 @@ class OrbSlam3Agent:
         self._last_state: str | None = None
         self._init_frame: int | None = None
         self._load_seconds = 0.0
+        self._camera: dict[str, Any] = {}
 
     # -- the ORB-SLAM3 program ---------------------------------------------------------------------------------------
     def _request(self, header: dict[str, Any], payload: bytes = b"") -> dict[str, Any]:
@@ -233,15 +252,20 @@ class OrbSlam3Agent:
             pass
 
     # -- the agent contract ------------------------------------------------------------------------------------------
-    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> None:
-        """A new episode: a fresh ORB-SLAM3 program for ``intrinsics`` [fx, fy, cx, cy] (pixels) and ``image_size``
-        (H, W)."""
+    def reset(self, intrinsics: np.ndarray, image_size: tuple[int, int], distortion: np.ndarray | None = None) -> None:
+        """A new episode: a fresh ORB-SLAM3 program for ``intrinsics`` [fx, fy, cx, cy] (pixels), ``image_size``
+        (H, W) and the images' lens ``distortion`` (5,) k1 k2 p1 p2 k3 (None: pinhole images)."""
         self.close()
         self._clear()
+        coeffs = np.zeros(5) if distortion is None else np.asarray(distortion, dtype=np.float64).reshape(-1)
+        text = settings_yaml(intrinsics, image_size, distortion=coeffs, **self.options)  # checks the coefficients
+        self._camera = {"image_size": [int(v) for v in image_size],
+                        "intrinsics": [float(v) for v in np.asarray(intrinsics, dtype=np.float64).reshape(4)],
+                        "distortion": [float(v) for v in coeffs]}
         self._dir = tempfile.TemporaryDirectory(prefix="orbslam3_")
         work = Path(self._dir.name)
         settings = work / "settings.yaml"
-        settings.write_text(settings_yaml(intrinsics, image_size, **self.options))
+        settings.write_text(text)
         self._log = open(work / "orbslam3.log", "wb")  # noqa: SIM115 - closed in _stop
         self._proc = subprocess.Popen([sys.executable, str(DRIVER)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                       stderr=self._log, cwd=work)
@@ -290,6 +314,8 @@ class OrbSlam3Agent:
             "init_frame": self._init_frame,
             "keyframes": keyframes,
             "vocabulary": self.vocabulary.name,
+            "vocabulary_bytes": self.vocabulary.stat().st_size,
+            "camera": dict(self._camera),  # what ORB-SLAM3 was told: (H, W), fx fy cx cy, k1 k2 p1 p2 k3
             "vocabulary_load_seconds": self._load_seconds,
             "options": dict(self.options),
             "mean_track_seconds": float(secs.mean()) if n else 0.0,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +23,54 @@ def test_settings_file_is_the_episode_camera():
     for line in ("Camera.fx: 240.500000", "Camera.cy: 119.500000", "Camera.width: 320", "Camera.height: 240",
                  "Camera.k1: 0.0", "Camera.RGB: 1", "ORBextractor.nFeatures: 1000", "ORBextractor.minThFAST: 7"):
         assert line in text.splitlines()
+
+
+def test_settings_file_carries_the_lens_distortion():
+    from slamcommon.errors import ConfigError
+    from thirdparty.orbslam3 import settings_yaml
+
+    fr1 = (0.2624, -0.9531, -0.0054, 0.0026, 1.1633)  # TUM fr1's, as ORB-SLAM3's TUM1.yaml has them
+    lines = settings_yaml(np.array([517.3, 516.5, 318.6, 255.3]), (480, 640), distortion=np.array(fr1)).splitlines()
+    for name, value in zip(("k1", "k2", "p1", "p2", "k3"), fr1, strict=True):
+        assert f"Camera.{name}: {value!r}" in lines
+    assert "Camera.width: 640" in lines and "Camera.height: 480" in lines
+    with pytest.raises(ConfigError, match="5 finite coefficients"):
+        settings_yaml(np.array([1.0, 1.0, 0.0, 0.0]), (4, 4), distortion=np.array([0.1, 0.2]))
+
+
+@pytest.mark.slow
+def test_a_distorted_folder_reaches_orbslam3_raw_with_its_distortion(tmp_path):
+    """ORB-SLAM3's method table asks for native input: a distorted fr1-named folder is delivered at its own size, not
+    undistorted, and the settings file ORB-SLAM3 reads holds the lens's k1 k2 p1 p2 k3."""
+    from eval.bench.methods import get_method
+    from eval.bench.sequence_ref import SequenceRef
+    from sim_envs.driver import run_episode
+    from thirdparty.orbslam3 import OrbSlam3Agent
+
+    helpers = Path(__file__).resolve().parents[1] / "eval" / "bench" / "test_run.py"  # the distorted folder's writer
+    spec = importlib.util.spec_from_file_location("_run_helpers", helpers)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    distorted_tum_folder = module.distorted_tum_folder
+
+    class Keeping(OrbSlam3Agent):
+        def finish(self):
+            self.settings = (Path(self._dir.name) / "settings.yaml").read_text().splitlines()
+            return super().finish()
+
+    folder = distorted_tum_folder(tmp_path, 160, 120)
+    method = get_method("ORB-SLAM3")
+    assert method.input == "native"
+    env = method.given_sequence(SequenceRef(folder.name, folder=str(folder))).make_env(max_frames=2)
+    agent = Keeping()
+    result = run_episode(env, agent, progress=False)
+    lens = env.unwrapped.source.camera.distortion
+    assert any(lens)
+    for name, value in zip(("k1", "k2", "p1", "p2", "k3"), lens, strict=True):
+        assert f"Camera.{name}: {float(value)!r}" in agent.settings
+    assert "Camera.width: 160" in agent.settings and "Camera.height: 120" in agent.settings
+    assert result.extras["camera"]["distortion"] == pytest.approx(list(lens))
+    assert result.extras["vocabulary_bytes"] == agent.vocabulary.stat().st_size
 
 
 def test_method_is_available_and_runs_out_of_process():
