@@ -112,6 +112,7 @@ from sim_envs.folders.folder_layouts import (
     read_pose_matrix,
 )
 from sim_envs.folders.prefetch import Prefetcher
+from sim_envs.folders.prepared import PreparedImages, prepared_key
 from sim_envs.frames import NO_INSTANCE, NO_LABEL, Frame
 
 PROCESSING_SIZE: tuple[int, int] = (DEFAULT_WIDTH, DEFAULT_HEIGHT)  # (width, height): the paper's 320x240
@@ -137,7 +138,9 @@ class RgbdFolder:
     (nothing is cached); ``prefetch`` (default :data:`PREFETCH_AHEAD`; 0: off): once ``frame`` or ``rgb`` is asked
     for two consecutive indices, the next ``prefetch`` frames are read ahead on :data:`PREFETCH_WORKERS` threads
     (:class:`~sim_envs.folders.prefetch.Prefetcher`: the same bytes, handed back in the order asked; :meth:`close`
-    stops the threads).
+    stops the threads). ``prepared``: a folder under which the delivered RGB images are kept once converted and read
+    back by later runs that convert the same way (:class:`~sim_envs.folders.prepared.PreparedImages`: the same
+    bytes; ``prepared_images`` is the store, None without one).
     """
 
     def __init__(
@@ -153,6 +156,7 @@ class RgbdFolder:
         name: str | None = None,
         undistort: str = "crop",
         prefetch: int = PREFETCH_AHEAD,
+        prepared: str | os.PathLike[str] | None = None,
     ) -> None:
         if isinstance(prefetch, bool) or not isinstance(prefetch, numbers.Integral) or prefetch < 0:
             raise SimEnvError(f"prefetch must be a whole number of frames >= 0 (0: no reading ahead), got {prefetch!r}")
@@ -199,6 +203,10 @@ class RgbdFolder:
             self.poses = self.poses @ np.linalg.inv(self.depth_rig.T_colour_depth)
         self._labels = self._optional_folder("labels")
         self._instances = self._optional_folder("instances")
+        self.prepared_images: PreparedImages | None = None
+        if prepared is not None:
+            key = prepared_key(self.describe(), folder_fingerprint(self.folder))
+            self.prepared_images = PreparedImages(Path(prepared) / key, (self.size[1], self.size[0], 3))
 
     # ---------------------------------------------------------------------------------------------- FrameSource
     def __len__(self) -> int:
@@ -256,6 +264,16 @@ class RgbdFolder:
         return self._read_rgb(i)
 
     def _read_rgb(self, i: int) -> np.ndarray:
+        store = self.prepared_images
+        if store is None:
+            return self._convert_rgb(i)
+        image = store.load(i, self._rgb_files[i])
+        if image is None:
+            image = self._convert_rgb(i)
+            store.store(i, self._rgb_files[i], image)
+        return image
+
+    def _convert_rgb(self, i: int) -> np.ndarray:
         image = _read_image(self._rgb_files[i], cv2.IMREAD_COLOR)
         if image.shape[:2] != self.original_size[::-1]:
             raise SimEnvError(

@@ -13,8 +13,10 @@ what "alone on 2 cores" can reach when other work shares the machine and the wal
 to drop the folder's image files from the page cache (``posix_fadvise(POSIX_FADV_DONTNEED)``, per file: no
 privileges needed, other files untouched), so each row reads them from disk; otherwise they are read as the page
 cache holds them (warm after the first row). ``--digest`` also prints the SHA-256 of every delivered array (RGB,
-timestamp, and the ground-truth pose and depth), so rows with different K can be compared byte for byte. Figures
-only: nothing is asserted.
+timestamp, and the ground-truth pose and depth), so rows with different K can be compared byte for byte.
+``--prepared DIR`` keeps the delivered RGB images under DIR (:mod:`sim_envs.folders.prepared`): the first row
+converts and stores them, later rows and runs read them back (column ``kept``; ``--cold`` drops those files too).
+Figures only: nothing is asserted.
 """
 
 from __future__ import annotations
@@ -41,7 +43,8 @@ class FolderReadFigures:
     """One timed replay: ``frames`` delivered in ``seconds`` (wall clock, reset to last observation) with read-ahead
     depth ``prefetch``; ``cold``: the folder's files were dropped from the page cache first; ``digest``: SHA-256
     (hex) of the delivered arrays, or None when not asked for; ``hits``: frames taken from a read ahead;
-    ``cpu_seconds``: CPU time of the process (all its threads) over the same span."""
+    ``cpu_seconds``: CPU time of the process (all its threads) over the same span; ``prepared_reads``: RGB images
+    read back from the prepared images instead of converted."""
 
     prefetch: int
     frames: int
@@ -50,6 +53,7 @@ class FolderReadFigures:
     cold: bool
     digest: str | None
     hits: int
+    prepared_reads: int = 0
 
     @property
     def fps(self) -> float:
@@ -87,10 +91,11 @@ def drop_from_page_cache(paths: Sequence[Path]) -> None:
 
 def replay_folder(folder: str | Path, *, frames: int | None = None, prefetch: int = PREFETCH_AHEAD,
                   size: tuple[int, int] | None = PROCESSING_SIZE, reader: str = "rgb", cold: bool = False,
-                  digest: bool = False) -> FolderReadFigures:  # fmt: skip
+                  digest: bool = False, prepared: str | Path | None = None) -> FolderReadFigures:  # fmt: skip
     """Replay the first ``frames`` frames (None: all) of ``folder`` through :class:`~sim_envs.env.ReplayEnv` with a
     do-nothing agent, read ahead ``prefetch`` frames, delivered at ``size`` (None: the images' own) by ``reader``
-    ("rgb": RGB alone, as a monocular run; "frame": full ground truth); see the module docstring."""
+    ("rgb": RGB alone, as a monocular run; "frame": full ground truth), the RGB images kept under ``prepared``
+    when given (:mod:`sim_envs.folders.prepared`); see the module docstring."""
     from sim_envs.env import ReplayEnv
     from slamcommon.agent_keys import T_WORLD_CAM, TRACKED
 
@@ -98,10 +103,12 @@ def replay_folder(folder: str | Path, *, frames: int | None = None, prefetch: in
         raise SimEnvError(f"unknown reader {reader!r}; valid: {', '.join(READERS)}")
     if frames is not None and int(frames) < 1:
         raise SimEnvError(f"frames must be >= 1, got {frames}")
-    source = RgbdFolder(folder, size=size, prefetch=prefetch)
+    source = RgbdFolder(folder, size=size, prefetch=prefetch, prepared=prepared)
     n = len(source) if frames is None else min(len(source), int(frames))
     if cold:
-        drop_from_page_cache([*source.rgb_paths[:n], *source.depth_paths[:n]])
+        store = source.prepared_images
+        kept = [p for p in (store.path(i) for i in range(n)) if p.is_file()] if store is not None else []
+        drop_from_page_cache([*source.rgb_paths[:n], *source.depth_paths[:n], *kept])
     env = ReplayEnv(source, ground_truth="full" if reader == "frame" else "pose", max_frames=n)
     hasher = hashlib.sha256() if digest else None
     action = {T_WORLD_CAM: np.eye(4), TRACKED: 1}
@@ -124,7 +131,8 @@ def replay_folder(folder: str | Path, *, frames: int | None = None, prefetch: in
     finally:
         env.close()
     digest_hex = hasher.hexdigest() if hasher is not None else None
-    return FolderReadFigures(prefetch, delivered, seconds, cpu_seconds, cold, digest_hex, hits)
+    kept = 0 if source.prepared_images is None else source.prepared_images.reads
+    return FolderReadFigures(prefetch, delivered, seconds, cpu_seconds, cold, digest_hex, hits, kept)
 
 
 def _size(text: str) -> tuple[int, int] | None:
@@ -149,6 +157,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rgb: RGB alone, as a monocular run (default); frame: full ground truth (RGB + depth)")
     parser.add_argument("--cold", action="store_true",
                         help="drop the folder's image files from the page cache before each row")
+    parser.add_argument("--prepared", default=None, metavar="DIR",
+                        help="keep the delivered RGB images under DIR and read them back on later rows and runs")
     parser.add_argument("--digest", action="store_true", help="print the SHA-256 of every delivered array per row")
 
 
@@ -170,13 +180,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.folder}: reader {args.reader}, size {size}, {'cold' if args.cold else 'as cached'}, "
           f"{os.cpu_count()} CPUs")  # fmt: skip
     print(f"{'prefetch':>8} {'frames':>7} {'fps':>8} {'ms/frame':>9} {'cpu ms/frame':>13} {'2-core bound':>13} "
-          f"{'hits':>6}" + ("  digest" if args.digest else ""))  # fmt: skip
+          f"{'hits':>6} {'kept':>6}" + ("  digest" if args.digest else ""))  # fmt: skip
     for k in args.prefetch:
         row = replay_folder(args.folder, frames=args.frames, prefetch=k, size=args.size, reader=args.reader,
-                            cold=args.cold, digest=args.digest)  # fmt: skip
+                            cold=args.cold, digest=args.digest, prepared=args.prepared)  # fmt: skip
         tail = f"  {row.digest[:16]}" if row.digest else ""
         print(f"{k:>8} {row.frames:>7} {row.fps:>8.1f} {row.ms_per_frame:>9.2f} {row.cpu_ms_per_frame:>13.2f} "
-              f"{row.fps_on(2):>9.1f} fps {row.hits:>6}{tail}", flush=True)  # fmt: skip
+              f"{row.fps_on(2):>9.1f} fps {row.hits:>6} {row.prepared_reads:>6}{tail}", flush=True)  # fmt: skip
     return 0
 
 

@@ -19,7 +19,15 @@ def test_the_benchmark_prints_one_row_per_depth_with_equal_digests(folder, capsy
     rows = [line.split() for line in lines[2:]]
     assert [r[0] for r in rows] == ["0", "3"] and all(r[1] == "5" for r in rows)
     assert rows[0][-1] == rows[1][-1]  # the same bytes delivered with and without reading ahead
-    assert rows[0][-2] == "0" and int(rows[1][-2]) == 3  # hits: frames 2, 3, 4 came from reads ahead
+    assert rows[0][-3] == "0" and int(rows[1][-3]) == 3  # hits: frames 2, 3, 4 came from reads ahead
+    assert rows[0][-2] == rows[1][-2] == "0"  # no prepared images
+
+
+def test_prepared_images_are_read_back_on_the_second_row(folder, tmp_path, capsys):
+    args = [str(folder), "--prefetch", "2", "2", "--digest", "--prepared", str(tmp_path / "prep"), "--size", "48x36"]
+    assert main(args) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[2:]]
+    assert [r[-2] for r in rows] == ["0", "6"] and rows[0][-1] == rows[1][-1]
 
 
 def test_replay_figures_and_the_full_reader(folder):
