@@ -5,9 +5,14 @@ The question every user of a synthetic benchmark should ask (``cnnslam bench tra
 real RGB-D folder (``real:<name>``). Per domain, metric and method:
 
 - **score** (:func:`domain_scores`): the median over a cell's runs (its seeds), then the mean over the domain's
-  sequences (the Avg. row of Table 1); a method missing a sequence of the domain gets no score there;
+  sequences (the Avg. row of Table 1); a method missing a sequence of the domain gets no score there; a **failed**
+  cell (at least half its runs failures by the one rule, :func:`eval.metrics.results.failure_of`: never
+  initialised, or tracked less than 90 % of its frames; :func:`eval.reports.tables.cell_failures`) makes the
+  method *failed* in that domain, and a failed run counts in no median;
 - **rank** (:func:`rank_methods`): 1 = best, in the metric's direction (:data:`TRANSFER_METRICS`), ties share the
-  mean rank (``scipy.stats.rankdata``), over the methods that have a score in every domain compared;
+  mean rank (``scipy.stats.rankdata``), over the methods that have a score or failed in every domain compared; a
+  method failed in a domain ranks last there, below every scored method, the failed methods tied (sharing the
+  mean of the last ranks), so a simulator whose failures are the real ones' agrees with it;
 - **agreement** (:func:`rank_correlations`): Spearman's rho and Kendall's tau-b (``scipy.stats``) between each
   simulated domain's ranks and each real domain's, with the number of methods n and the two-sided p-values (with
   n = 5 methods, scipy's p is below 0.05 only for rho >= 0.9: read the figures as agreement, not significance);
@@ -40,6 +45,7 @@ from scipy import stats
 
 from eval.errors import EvalError
 from eval.metrics import catalogue
+from eval.reports.tables import cell_failures, without_failures
 
 SIM_PREFIX, REAL_PREFIX, WINDOW_PREFIX = "sim:", "real:", "win:"
 _WINDOW_SUFFIX = re.compile(r"\.from\d+$")
@@ -80,12 +86,21 @@ def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANS
     """Scores per (domain, metric, method) from a long frame of runs.
 
     frame: columns ``domain``, ``sequence``, ``method``, ``metric``, ``value`` (one row per run and metric, as
-    :func:`eval.metrics.results.runs_frame` gives, plus the domain). Returns columns domain, metric, method, score,
-    sequences (how many the score averages), runs: the median over each cell's runs, then the mean over the
-    domain's sequences; a method lacking a finite value on one of the domain's sequences gets no row.
+    :func:`eval.metrics.results.runs_frame` gives, plus the domain; with a ``run`` column and the runs' tracked
+    share / pose-pair rows, failures are told). Returns columns domain, metric, method, score, sequences (how many
+    the score averages), runs, failed: the median over each cell's runs that did not fail, then the mean over the
+    domain's sequences; a method lacking a finite value on one of the domain's sequences gets no row, unless that
+    cell failed (:func:`eval.reports.tables.cell_failures`): then its row says ``failed`` True, score NaN (it ranks
+    last, :func:`rank_methods`).
     """
     _check_frame(frame)
     names = [m.name for m in metrics]
+    failed_cells: set[tuple[str, str, str]] = set()
+    if "run" in frame.columns and not frame.empty:
+        for domain, part in frame.groupby("domain", sort=False):
+            failures = cell_failures(part)
+            failed_cells |= {(str(domain), s, m) for (s, m), f in failures.items() if f.is_failure}
+        frame = pd.concat([without_failures(part) for _, part in frame.groupby("domain", sort=False)])
     sub = frame[frame["metric"].isin(names)]
     cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"]
              .agg(median="median", runs="count").reset_index())  # fmt: skip
@@ -94,24 +109,38 @@ def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANS
     out = cells.groupby(["domain", "metric", "method"]).agg(
         score=("median", "mean"), sequences=("sequence", "nunique"), runs=("runs", "sum")
     ).reset_index()
-    out = out[out["sequences"] == out["domain"].map(n_seq)]
+    out = out[out["sequences"] == out["domain"].map(n_seq)].assign(failed=False)
+    if failed_cells:
+        pairs = sorted({(d, method) for d, _, method in failed_cells})
+        failed = pd.DataFrame([{"domain": d, "metric": m.name, "method": method, "score": math.nan,
+                                "sequences": sum(1 for c in failed_cells if c[0] == d and c[2] == method),
+                                "runs": 0, "failed": True} for d, method in pairs for m in metrics])  # fmt: skip
+        keep = out.merge(failed[["domain", "metric", "method"]], how="left", indicator=True)
+        out = pd.concat([keep[keep["_merge"] == "left_only"].drop(columns="_merge"), failed], ignore_index=True)
+        out["sequences"] = out["sequences"].astype(int)
+        out["runs"] = out["runs"].astype(int)
     return out.sort_values(["metric", "domain", "method"], ignore_index=True)
 
 
 def rank_methods(scores: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
                  domains: Sequence[str] | None = None) -> pd.DataFrame:
     """``scores`` (:func:`domain_scores`) with a ``rank`` column: 1 = best in each (domain, metric), ties sharing
-    their mean rank, over the methods scored in every one of ``domains`` (default: all domains) for that metric,
-    so that every domain ranks the same set. Rows of other methods are dropped."""
+    their mean rank, over the methods scored or failed in every one of ``domains`` (default: all domains) for that
+    metric, so that every domain ranks the same set; a failed method (``failed`` True) ranks after every scored one,
+    the failed methods of a domain tied. Rows of other methods are dropped."""
     direction = {m.name: m.higher_is_better for m in metrics}
     domains = list(domains) if domains is not None else sorted(scores["domain"].unique())
+    if "failed" not in scores.columns:
+        scores = scores.assign(failed=False)
     parts = []
     for metric, group in scores[scores["domain"].isin(domains)].groupby("metric"):
         per_method = group.groupby("method")["domain"].nunique()
         common = set(per_method[per_method == len(domains)].index)
         group = group[group["method"].isin(common)].copy()
         sign = -1.0 if direction.get(str(metric), False) else 1.0
-        group["rank"] = group.groupby("domain")["score"].transform(lambda s, k=sign: stats.rankdata(k * s.to_numpy()))
+        key = np.where(group["failed"].to_numpy(dtype=bool), np.inf, sign * group["score"].to_numpy(dtype=float))
+        group["rank"] = pd.Series(key, index=group.index).groupby(group["domain"]).transform(
+            lambda s: stats.rankdata(s.to_numpy()))  # fmt: skip
         parts.append(group)
     if not parts:
         return scores.iloc[0:0].assign(rank=pd.Series(dtype=float))

@@ -350,3 +350,44 @@ def test_null_of_whole_sequences_holds_each_sequence_against_all() -> None:
     null = null_agreement(frame, [TransferMetric("ate_se3_rmse", "ATE", False)]).iloc[0]
     assert (null.recordings, null.windows) == (3, 1)
     assert (null.rho_min, null.rho_median, null.rho_max) == pytest.approx((-0.5, 0.5, 1.0))
+
+
+def _runs(table: dict[tuple[str, str, str], tuple[float, float]]) -> pd.DataFrame:
+    """(domain, sequence, method) -> (ATE, tracked share) of one run each, with run ids and the tracked-share rows
+    the failure rule reads."""
+    from eval.metrics.catalogue import TRACKED_SHARE
+
+    rows = []
+    for (domain, seq, method), (ate, share) in table.items():
+        base = {"domain": domain, "sequence": seq, "method": method, "run": f"{domain}/{seq}/{method}"}
+        rows += [{**base, "metric": "ate_se3_rmse", "value": ate}, {**base, "metric": TRACKED_SHARE.key,
+                                                                    "value": share}]  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def test_a_failed_run_ranks_last_and_failures_tie():
+    # sim: A < B < C < D by ATE, nobody fails. real: A 0.1, B lost (tracked 20 %: a failure by the rule, its small
+    # ATE no figure), C 0.3, D never initialised -> A 1, C 2, B and D tied last (3.5 each)
+    table = {("sim:kinect", "s1", m): (v, 1.0) for m, v in zip("ABCD", [0.1, 0.2, 0.3, 0.4], strict=True)}
+    table |= {("real:x", "r1", "A"): (0.1, 1.0), ("real:x", "r1", "B"): (0.05, 0.2),
+              ("real:x", "r1", "C"): (0.3, 1.0), ("real:x", "r1", "D"): (math.nan, 0.0)}  # fmt: skip
+    scores = domain_scores(_runs(table), [ATE])
+    real = scores[scores["domain"] == "real:x"].set_index("method")
+    assert real["failed"].to_dict() == {"A": False, "B": True, "C": False, "D": True}
+    assert np.isnan(real.loc["B", "score"]) and real.loc["C", "score"] == pytest.approx(0.3)
+    ranks = rank_methods(scores, [ATE])
+    by = {(r.domain, r.method): r.rank for r in ranks.itertuples()}
+    assert [by["real:x", m] for m in "ABCD"] == [1.0, 3.5, 2.0, 3.5]
+    assert [by["sim:kinect", m] for m in "ABCD"] == [1.0, 2.0, 3.0, 4.0]
+    # Spearman of (1 2 3 4) against (1 3.5 2 3.5): the textbook value with ties
+    expected = pd.Series([1, 2, 3, 4]).corr(pd.Series([1, 3.5, 2, 3.5]))
+    assert rank_correlations(ranks)["spearman"].iloc[0] == pytest.approx(expected)
+    assert expected == pytest.approx(0.6324555, abs=1e-6)
+
+
+def test_a_failure_on_one_sequence_fails_the_domain_and_higher_is_better_still_ranks_it_last():
+    table = {("sim:fr1", s, m): (v, 1.0) for s in ("s1", "s2") for m, v in zip("ABC", [3.0, 2.0, 1.0], strict=True)}
+    table[("sim:fr1", "s2", "C")] = (1.0, 0.5)  # C lost on one of two sequences: failed in the domain
+    frame = _runs(table).replace({"ate_se3_rmse": "depth_percent_correct"})
+    ranks = rank_methods(domain_scores(frame, [DEPTH]), [DEPTH]).set_index("method")
+    assert ranks["rank"].to_dict() == {"A": 1.0, "B": 2.0, "C": 3.0}  # C's best figure does not save it
