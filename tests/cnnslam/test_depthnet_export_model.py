@@ -153,9 +153,20 @@ def test_a_short_run_with_the_onnx_network_is_within_the_quick_gate(exported, tm
         assert row.status == "equal", row
 
 
+@pytest.mark.slow  # imports torch and the network's package
 def test_export_refuses_a_bad_extension_before_writing(tmp_path) -> None:
     from cnnslam.depthnet.export_model import export_model_file
 
     with pytest.raises(CnnSlamError, match="has extension '.h5'"):
         export_model_file(tmp_path / "net.h5")
     assert not any(tmp_path.iterdir())
+
+
+def test_the_command_refuses_a_bad_extension_before_writing(tmp_path, capsys) -> None:
+    from cnnslam.cli import main
+
+    good, bad = tmp_path / "net.onnx", tmp_path / "net.h5"
+    assert main(["train", "export-onnx", "--out", str(good), "--out", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("cnnslam train export-onnx: error: ") and "'.h5'" in err and "\n" not in err
+    assert not any(tmp_path.iterdir())  # nothing written, not even the valid first file
