@@ -167,8 +167,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     ds.add_argument("--results", type=Path, default=Path("results"))
 
     rc = sub.add_parser("recipe", help="retrain the shipped network from nothing: render its data, fit (resumable)")
-    rc.add_argument("--root", type=Path, default=Path("data/depthnet/shipped"),
-                    help="folder of the recipe's data (data/) and run (run/)")
+    rc.add_argument("--recipe", default="shipped-v2", metavar="NAME",
+                    help="shipped-v2 (the shipped network, from nothing) or shipped-v3 (its close-range fine-tune)")
+    rc.add_argument("--root", type=Path, default=None,
+                    help="folder of the recipe's data (data/) and run (run/); a second call resumes the work there "
+                         "(default data/depthnet/shipped, data/depthnet/<NAME> for other recipes)")
     rc.add_argument("--device", choices=("cpu", "cuda"), default="cpu", help="where to train (cuda: a GPU)")
     rc.add_argument("--render-workers", type=int, default=2, help="render processes")
     rc.add_argument("--loader-workers", type=int, default=1, help="processes preparing the coming batches")
@@ -425,13 +428,20 @@ def _data_statistics(args: argparse.Namespace) -> int:
 
 
 def _recipe(args: argparse.Namespace) -> int:
-    from cnnslam.depthnet.recipe import SHIPPED, run_recipe
+    from cnnslam.depthnet.recipe import SHIPPED, get_recipe, run_recipe
 
-    res = run_recipe(SHIPPED, args.root, device=args.device, render_workers=args.render_workers,
-                     loader_workers=args.loader_workers, threads=args.threads,
-                     progress=None if args.no_progress else _progress("shards"), train_progress=not args.no_progress)
+    try:
+        recipe = get_recipe(args.recipe)
+        root = args.root or Path("data/depthnet/shipped" if recipe is SHIPPED else f"data/depthnet/{recipe.name}")
+        res = run_recipe(recipe, root, device=args.device, render_workers=args.render_workers,
+                         loader_workers=args.loader_workers, threads=args.threads,
+                         progress=None if args.no_progress else _progress("shards"),
+                         train_progress=not args.no_progress)
+    except CnnSlamError as exc:
+        print(f"cnnslam train recipe: error: {exc}", file=sys.stderr)
+        return 2
     v = res.fit.validation
-    print(f"recipe {SHIPPED.name}: data {res.seconds['generate'] / 60:.1f} min, fit {res.seconds['fit'] / 3600:.2f} h "
+    print(f"recipe {recipe.name}: data {res.seconds['generate'] / 60:.1f} min, fit {res.seconds['fit'] / 3600:.2f} h "
           f"({res.fit.steps} steps, {args.device}); held-out val: AbsRel {v['abs_rel']:.3f}, within 10 % "
           f"{100 * v['within_10pct']:.1f} %; weights {res.fit.weights}")
     if args.export:

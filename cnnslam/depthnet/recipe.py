@@ -20,6 +20,16 @@ What the recipe is made of, and why (ours; real frames are never used: they are 
 - Loss: berHu on log depth (metric), plus the scale-invariant log loss (Eigen et al.) and the multi-scale gradient
   matching of MegaDepth / MiDaS, which weigh the depth's shape and its edges, plus cross-entropy for the labels.
 - Model: the shipped architecture (ResNet-18 trunk of width 32, 3.8 M parameters): inference cost unchanged.
+
+:data:`CLOSE_RANGE` ("shipped-v3") fine-tunes :data:`SHIPPED`'s weights (checked by their SHA-256) on new views of
+training rooms, half of them 0.4-1.5 m from a surface (``GenerationConfig.close_range``: look-down floors and table
+tops, desks with objects, close walls and cupboards: what hand-held cameras see at a desk), the other half drawn as
+SHIPPED draws them: cheap enough for 2 CPU cores (``cnnslam train recipe --recipe shipped-v3``).
+
+Resuming: ``run_recipe`` may be stopped at any moment (Ctrl-C, ``kill``, ``timeout``) and called again with the same
+recipe and root: finished shards are kept, a half-written one is rendered again, the fit continues from its last
+checkpoint (``checkpoint_every`` steps) with the same batches, and the stages' seconds add up over the calls
+(``root/recipe.json``). A root holding another recipe's work is refused.
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ from typing import Any
 
 from cnnslam.depthnet.data import AugmentConfig, GenerationConfig, generate_dataset
 from cnnslam.depthnet.train import TrainConfig, TrainResult, train
+from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS
 from cnnslam.errors import CnnSlamError
 
 Progress = Callable[[Iterator[Any], int], Iterator[Any]]
@@ -46,11 +57,21 @@ class Recipe:
     val_scenes: int
     fit: TrainConfig
     name: str = "recipe"
+    # A fine-tune's start: "default" (the shipped weights, cnnslam/depthnet/weights/default.pt) or a weights file;
+    # None: from scratch. init_sha256: the start's SHA-256, checked before any work (None: not checked).
+    init_weights: str | None = None
+    init_sha256: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable form (the manifest records it)."""
         return {"name": self.name, "generation": asdict(self.generation), "val_scenes": self.val_scenes,
-                "fit": self.fit.to_dict()}
+                "fit": self.fit.to_dict(), "init_weights": self.init_weights, "init_sha256": self.init_sha256}
+
+    def start_weights(self) -> Path | None:
+        """The fine-tune's start file (``init_weights`` resolved), or None for a run from scratch."""
+        if self.init_weights is None:
+            return None
+        return DEFAULT_WEIGHTS if self.init_weights == "default" else Path(self.init_weights)
 
 
 SHIPPED = Recipe(
@@ -66,6 +87,26 @@ SHIPPED = Recipe(
         augment=replace(AugmentConfig(), crop=(120, 160), p_camera=0.5),
     ),
 )
+
+
+CLOSE_RANGE = Recipe(
+    name="shipped-v3",
+    generation=replace(SHIPPED.generation, n_scenes=160, data_seed=13, close_range=0.5),
+    val_scenes=16,
+    fit=replace(SHIPPED.fit, batch_size=16, steps=500, lr=1e-4, min_lr=1e-4, warmup_steps=0, seed=13,
+                val_every=250, checkpoint_every=25),
+    init_weights="default",
+    init_sha256="e28c80a966e1077e4ff417f6b3f1d3c6ded950670cb3517c8c2b7554b6ebb4f0",  # SHIPPED's weights
+)
+
+RECIPES: dict[str, Recipe] = {r.name: r for r in (SHIPPED, CLOSE_RANGE)}  # cnnslam train recipe --recipe NAME
+
+
+def get_recipe(name: str) -> Recipe:
+    """The recipe called ``name`` (:data:`RECIPES`)."""
+    if name not in RECIPES:
+        raise CnnSlamError(f"unknown recipe {name!r}; known: {', '.join(RECIPES)}")
+    return RECIPES[name]
 
 
 @dataclass(frozen=True)
@@ -86,34 +127,70 @@ def run_recipe(
     threads: int = 2,
     progress: Progress | None = None,
     train_progress: bool = True,
+    on_step: Callable[[int, float], None] | None = None,
 ) -> RecipeResult:
-    """Render the recipe's data under ``root/data`` and train under ``root/run`` (both resumable).
+    """Render the recipe's data under ``root/data`` and train under ``root/run``; a second call after an
+    interruption goes on where the first stopped (module docstring).
 
     device: "cpu" or "cuda"; render_workers: render processes; loader_workers: batch processes of the fit (1: one
-    thread); threads: torch's intra-op threads. Returns the run's weights and manifest (``root/run``).
+    thread); threads: torch's intra-op threads; on_step(step, loss): called after every optimiser step. Returns the
+    run's weights and manifest (``root/run``); ``seconds`` are the stages' totals over every call.
     """
     if render_workers < 0 or loader_workers < 1 or threads < 1:
         raise CnnSlamError(f"need render_workers >= 0, loader_workers >= 1 and threads >= 1, got {render_workers}, "
                            f"{loader_workers}, {threads}")
+    start = recipe.start_weights()
+    if start is not None:
+        _check_start(start, recipe.init_sha256)
     root = Path(root)
     data = root / "data"
-    seconds: dict[str, float] = {}
+    state_path = root / "recipe.json"
+    state = json.loads(state_path.read_text()) if state_path.is_file() else None
+    if state is not None and state["recipe"] != json.loads(json.dumps(recipe.to_dict())):
+        raise CnnSlamError(f"{root} holds the work of recipe {state['recipe']['name']!r} with other settings, not "
+                           f"{recipe.name!r}'s; pass another root")
+    seconds: dict[str, float] = dict(state["seconds"]) if state else {"generate": 0.0, "fit": 0.0}
+    root.mkdir(parents=True, exist_ok=True)
+
+    def save_state() -> None:
+        state_path.write_text(json.dumps({"recipe": recipe.to_dict(), "seconds": seconds}, indent=2) + "\n")
+
+    save_state()
     t0 = time.perf_counter()
-    generate_dataset(data, "train", recipe.generation, render_workers, progress)
-    generate_dataset(data, "val", replace(recipe.generation, n_scenes=recipe.val_scenes), render_workers, progress)
-    seconds["generate"] = time.perf_counter() - t0
+    try:
+        generate_dataset(data, "train", recipe.generation, render_workers, progress)
+        generate_dataset(data, "val", replace(recipe.generation, n_scenes=recipe.val_scenes), render_workers,
+                         progress)
+    finally:
+        seconds["generate"] += time.perf_counter() - t0
+        save_state()
     (data / "generation.json").write_text(json.dumps({
         "config": asdict(recipe.generation), "val_scenes": recipe.val_scenes,
         "train_frames": recipe.generation.n_scenes * recipe.generation.views_per_scene,
         "val_frames": recipe.val_scenes * recipe.generation.views_per_scene,
         "wall_time_s": round(seconds["generate"], 1), "workers": render_workers}, indent=2) + "\n")
     cfg = replace(recipe.fit, data_root=str(data), out_dir=str(root / "run"), device=device,
-                  loader_workers=loader_workers, num_threads=threads)
+                  loader_workers=loader_workers, num_threads=threads,
+                  init_weights=None if start is None else str(start))
     t0 = time.perf_counter()
-    result = train(cfg, resume=True, progress=train_progress)
-    seconds["fit"] = time.perf_counter() - t0
+    try:
+        result = train(cfg, resume=True, progress=train_progress, on_step=on_step)
+    finally:
+        seconds["fit"] += time.perf_counter() - t0
+        save_state()
     manifest = json.loads(result.manifest.read_text())
     manifest["recipe"] = {**recipe.to_dict(), "device": device, "render_workers": render_workers,
                           "loader_workers": loader_workers, "seconds": {k: round(v, 1) for k, v in seconds.items()}}
     result.manifest.write_text(json.dumps(manifest, indent=2) + "\n")
     return RecipeResult(data, result, seconds)
+
+
+def _check_start(path: Path, sha256: str | None) -> None:
+    """Refuse a fine-tune whose start file is missing or (with ``sha256``) not the recipe's start."""
+    import hashlib
+
+    if not path.is_file():
+        raise CnnSlamError(f"the recipe starts from {path}, which does not exist")
+    if sha256 is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha256:
+        raise CnnSlamError(f"{path} is not the recipe's start (SHA-256 {sha256}); restore those weights (git "
+                           f"history of cnnslam/depthnet/weights/default.pt) or pass their file")
