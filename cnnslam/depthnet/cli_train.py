@@ -7,6 +7,7 @@
     cnnslam train validate [--weights W] [--frames 40] [--camera PRESET] [--results results] [--update-manifest]
     cnnslam train validate-folder FOLDER... [--frames 100] [--window 100]   # real frames -> results/depthnet_real.md
     cnnslam train export [--run data/depthnet/run]
+    cnnslam train recipe [--recipe shipped-v2|shipped-v3] [--root DIR]   # data + fit; call again to resume
     cnnslam train export-onnx [--weights W] [--out data/depthnet/export/depthnet.onnx] [--out net.pt]
 
 ``fit`` resumes from ``<out>/checkpoint.pt`` when it exists (``--restart`` starts over); ``--export`` (or ``export``)
