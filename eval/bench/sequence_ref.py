@@ -151,14 +151,16 @@ class SequenceRef:
         """The frame source (lazy: nothing is rendered or generated until used; a folder's frames are read from
         disk when asked for). ``renderer`` does not apply to a folder. ``frame_cache``: a folder under which a
         simulated source keeps the frames it rendered (:class:`sim_envs.sources.frame_cache.CachedFrames`; same
+        bytes) and a folder its delivered RGB images, in ``prepared/`` (:mod:`sim_envs.folders.prepared`; same
         bytes)."""
         if self.start:  # the whole sequence's source (its frames cached as the whole's), windowed
             whole = replace(self, start=0).make_source(renderer, frame_cache)
             return FrameWindow(whole, self.start, name=self.name)
         if self.folder is not None:
             size = None if self.size == "native" else self.size
+            prepared = None if frame_cache is None else Path(frame_cache) / "prepared"
             return RgbdFolder(self.folder, self.camera, size=size, depth_scale=self.depth_scale, name=self.name,
-                              undistort=self.undistort)  # fmt: skip
+                              undistort=self.undistort, prepared=prepared)  # fmt: skip
         if self.focal_ratio is None and self.added_pan_deg_s == 0.0:
             source = SimulatedSequence(self.spec(), renderer=renderer)
         else:

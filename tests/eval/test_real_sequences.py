@@ -44,6 +44,19 @@ def folders(tmp_path_factory):
     return {layout: write_folder(tiny_source(), root / f"seq_{layout}", layout) for layout in ("7scenes", "rgb_only")}
 
 
+def test_a_folder_with_a_frame_cache_keeps_its_prepared_images(folders, tmp_path):
+    ref = resolve_sequence(str(folders["7scenes"]))
+    assert ref.make_source().prepared_images is None
+    first = ref.make_source(frame_cache=tmp_path)
+    store = first.prepared_images
+    assert store is not None and store.folder.parent == tmp_path / "prepared"
+    want = [first.rgb(i).tobytes() for i in range(len(first))]
+    first.close()
+    again = ref.make_source(frame_cache=tmp_path)
+    assert [again.rgb(i).tobytes() for i in range(len(again))] == want
+    assert again.prepared_images.reads == len(want)
+    again.close()
+
 def test_a_folder_is_a_sequence(folders, tmp_path):
     ref = resolve_sequence(str(folders["7scenes"]))
     assert ref == folder_ref(folders["7scenes"]) and ref.name == "seq_7scenes" and ref.env_id == REPLAY_ENV_ID
