@@ -10,7 +10,8 @@ sequences (:func:`training_specs`) use the training styles, NYU intrinsics and s
 Table-1 analogues (CNN-SLAM Sec. 5: ICL-NUIM office 0-2 and living room 0-2 with ICL intrinsics; TUM fr3
 long_office_household, nostructure_texture_near_withloop and structure_texture_far with fr3 intrinsics), lengths
 close to the originals within 20-60 s at 30 Hz. As in ICL-NUIM, the three office sequences share one room and so do
-the three living-room sequences; only their hand-held trajectories differ.
+the three living-room sequences; only their hand-held trajectories differ. :data:`FR1_MOTION_SEQUENCES`: close-range
+hand-held sequences at TUM fr1/desk's motion statistics, in rooms of their own, for the ``fr1`` camera.
 """
 
 from __future__ import annotations
@@ -232,6 +233,26 @@ def gym_id(name: str) -> str:
 
 ICL_OFFICE_SEED, ICL_LIVING_SEED = 1, 2  # one room per ICL-NUIM scene, shared by its sequences (as in ICL-NUIM)
 TUM_LONG_OFFICE_SEED, TUM_NEAR_SEED, TUM_FAR_SEED = 3, 4, 5
+FR1_OFFICE_SEED, FR1_LIVING_SEED = 6, 7  # rooms of the fr1/desk-motion sequences (test styles, their own rooms)
+FR1_MOTION_SEQUENCES: tuple[str, ...] = ("office_fr1motion", "living_fr1motion")
+
+
+def _fr1_motion(name: str, style: str, scene_seed: int) -> SequenceSpec:
+    """A close-range hand-held sequence moving as TUM fr1/desk's camera does: the ``handheld_stats`` trajectory at
+    its defaults (:data:`sim_envs.motion.trajectories.FR1_DESK_MOTION`: fr1/desk's ground-truth speeds, angular
+    rates and their time scales; distance to a desk or table top as fr1/desk's depths), TUM fr1 intrinsics, 20 s.
+    Seen through the ``fr1`` camera as ``<name>@fr1`` (registered with ``clean``, as every sequence)."""
+    return SequenceSpec(
+        name=name,
+        style=style,
+        scene_seed=scene_seed,
+        trajectory="handheld_stats",
+        camera="tum_fr1",
+        n_frames=600,
+        seed=0,
+        description=f"TUM fr1/desk-like: hand-held at fr1/desk's speeds and angular rates, about 1 m from a desk or "
+                    f"table top in a {style} room, fr1 intrinsics",
+    )  # fmt: skip
 
 
 def _icl(name: str, style: str, scene_seed: int, seed: int, speed: float, n_frames: int, icl_name: str) -> SequenceSpec:
@@ -337,6 +358,8 @@ def _test_specs() -> list[SequenceSpec]:
     ]
     for axes, speed in (("yaw", 15), ("yaw", 30), ("yaw", 60), ("pitch", 30), ("roll", 30), ("rpy", 30)):
         specs.append(rotation_stress_spec(axes, speed))
+    specs += [_fr1_motion("office_fr1motion", "office", FR1_OFFICE_SEED),
+              _fr1_motion("living_fr1motion", "living", FR1_LIVING_SEED)]  # fmt: skip
     return specs
 
 
