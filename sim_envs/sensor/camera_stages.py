@@ -585,6 +585,7 @@ BUILTIN_STAGES: tuple[type[CameraStage], ...] = tuple(sorted(
 
 
 # ---------------------------------------------------------------------------------------------------------- presets
+FR1_NOISE_SCALE: float = 2.0  # the fr1 preset's shot and read noise, x ICL-NUIM's (fitted: see PRESET_STAGES["fr1"])
 # Each camera preset as an ordered list of stages (chain order); stages left out keep their neutral defaults.
 PRESET_STAGES: dict[str, tuple[CameraStage, ...]] = {
     # The renderer's image, byte for byte (what every sequence gave before camera effects existed).
@@ -606,6 +607,32 @@ PRESET_STAGES: dict[str, tuple[CameraStage, ...]] = {
         Noise(shot_noise=ICL_SHOT_NOISE, read_noise=ICL_READ_NOISE, sensor_width=640),
         AutoExposure(ae_target=0.20, ae_rate=0.25, ae_min_s=1e-3, ae_max_s=1.0 / FPS_NOMINAL, max_gain=2.0,
                      exposure_jitter=0.010),  # fmt: skip
+        Response(response="srgb"),
+        SensorDepth(),
+    ),
+    # TUM fr1 (a Kinect v1 on fr1/desk: fast hand-held motion, rolling shutter, motion blur, auto-exposure), as kinect
+    # was made from the 7-Scenes kitchen. Fitted on the image statistics of fr1/desk's first 100 frames against the
+    # first 100 frames of office_fr1motion / living_fr1motion (hand-held at fr1/desk's ground-truth motion
+    # statistics), never on SLAM results (results/camera_calibration_fr1.md; `python -m
+    # sim_envs.tools.cli_camera_calibration --real ../shared/data/real/rgbd_dataset_freiburg1_desk --sequences
+    # office_fr1motion living_fr1motion --presets fr1 kinect clean --depth`): ae_target 0.34 (mean grey level 137
+    # real, 137 / 136 simulated), exposure_jitter 0.026 (std of the frame-to-frame change of log mean grey level 0.020
+    # real, 0.020 / 0.020), FR1_NOISE_SCALE (noise on flat regions 0.41 real, 0.37 / 0.38). From the camera's
+    # published calibration: the TUM fr1 lens (SOURCE.md; the real folder is undistorted by the loader, so the
+    # simulated images are too). Not measured (ours; no statistic of the calibration tool resolves them apart from
+    # scene content): exposure up to the whole frame interval with 5 sub-frames (fr1/desk's strong blur), a
+    # rolling-shutter readout of half the frame interval, and kinect's vignetting, ae_rate, response and sensor depth.
+    "fr1": (
+        Distortion(distortion=preset_distortion("tum_fr1")),
+        MotionBlur(blur_subframes=5),
+        RollingShutter(readout_s=0.5 / FPS_NOMINAL),
+        Exposure(reference_exposure_s=0.5 / FPS_NOMINAL, exposure_s=0.5 / FPS_NOMINAL),
+        Vignetting(vignette_corner=0.90),
+        Noise(shot_noise=tuple(FR1_NOISE_SCALE * v for v in ICL_SHOT_NOISE),  # type: ignore[arg-type]
+              read_noise=tuple(FR1_NOISE_SCALE * v for v in ICL_READ_NOISE),  # type: ignore[arg-type]
+              sensor_width=640),  # fmt: skip
+        AutoExposure(ae_target=0.34, ae_rate=0.25, ae_min_s=1e-3, ae_max_s=1.0 / FPS_NOMINAL, max_gain=2.0,
+                     exposure_jitter=0.026),  # fmt: skip
         Response(response="srgb"),
         SensorDepth(),
     ),

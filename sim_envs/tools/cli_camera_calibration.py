@@ -1,5 +1,8 @@
 """``python -m sim_envs.tools.cli_camera_calibration``: measure the camera statistics of real frames and of a simulated
 sequence through each camera preset; write a Markdown table and a side-by-side picture of the simulated cameras.
+With ``--motion``, also how the cameras move: :func:`sim_envs.motion.trajectories.motion_statistics` of the real
+folder's ground truth (a TUM ``groundtruth.txt``, resampled at 30 Hz) and of each simulated sequence's trajectory
+(:func:`motion_table`).
 
 The real frames are measured only: their images are never written (7-Scenes is research-only data, and the picture
 is committed). The statistics are :mod:`sim_envs.sensor.camera_calibration`'s; frames are delivered at 320x240 (real
@@ -13,6 +16,7 @@ import argparse
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -67,6 +71,48 @@ def measure_depths(name: str, frames: int, renderer: str = "mujoco", full_length
 
     with SimulatedSequence(_spec(name, frames, full_length or step > 1), renderer) as seq:
         return depth_statistics(seq.frame(i).depth for i in range(0, frames * step, step))
+
+
+MOTION_ROWS: dict[str, str] = {
+    "speed_mean": "speed, mean [m/s]",
+    "speed_p90": "speed, 90th percentile [m/s]",
+    "angular_speed_mean_deg": "angular speed, mean [deg/s]",
+    "angular_speed_p90_deg": "angular speed, 90th percentile [deg/s]",
+    "jerk_rms": "jerk, root mean square [m/s^3]",
+    "angular_rate_share": "angular rate about camera x, y, z, over the largest",
+    "velocity_share": "velocity along camera x, y, z, over the largest",
+    "angular_rate_halftime_s": "angular rate x, y, z: autocorrelation half-time [s]",
+    "velocity_halftime_s": "velocity x, y, z: autocorrelation half-time [s]",
+}
+
+
+def motion_table(columns: dict[str, Any]) -> str:
+    """A Markdown table of :class:`sim_envs.motion.trajectories.MotionStatistics`: one row per statistic of
+    :data:`MOTION_ROWS`, one column per named measurement."""
+    def cell(value: Any) -> str:
+        return ", ".join(f"{v:.2f}" for v in value) if isinstance(value, tuple) else f"{value:.3g}"
+
+    lines = ["| motion statistic | " + " | ".join(columns) + " |", "|---|" + "---:|" * len(columns)]
+    for key, label in MOTION_ROWS.items():
+        lines.append(f"| {label} | " + " | ".join(cell(getattr(m, key)) for m in columns.values()) + " |")
+    return "\n".join(lines)
+
+
+def measure_motion(real: str | Path | None, sequences: Sequence[str], frames: int | None = None) -> dict[str, Any]:
+    """Motion statistics (:func:`sim_envs.motion.trajectories.motion_statistics`) of ``real``'s
+    ``groundtruth.txt`` when there is one (column ``real (<folder>)``) and of each registered sequence's trajectory
+    (made ``frames`` long, or as registered when None)."""
+    from sim_envs.motion.trajectories import motion_statistics, recorded_motion
+    from sim_envs.sources.simsource import SimulatedSequence
+
+    out: dict[str, Any] = {}
+    if real is not None and (Path(real) / "groundtruth.txt").is_file():
+        out[f"real ({Path(real).name})"] = motion_statistics(recorded_motion(str(Path(real) / "groundtruth.txt")))
+    for name in sequences:
+        spec = variant_spec(name) if frames is None else _spec(name, frames)
+        with SimulatedSequence(spec) as seq:
+            out[name] = motion_statistics(seq.trajectory)
+    return out
 
 
 def _cell(value: float) -> str:
@@ -124,6 +170,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--full-length", action="store_true",
                         help="the first N frames of each sequence as registered (the frames a suite runs), not of "
                              "the sequence made N frames long (a trajectory generated for that length: the default)")
+    parser.add_argument("--motion", action="store_true",
+                        help="also how the cameras move: motion statistics of the real folder's groundtruth.txt and "
+                             "of each simulated sequence's trajectory as registered")
     parser.add_argument("--step", type=int, default=1,
                         help="measure frames 0, STEP, 2 STEP... (N of them) of every sequence as registered and of "
                              "the real one, spread over them (default 1: the first N)")
@@ -148,6 +197,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 depths[f"{name} {preset}"] = seen
             timing.append(f"{name} {preset}: {seconds:.1f} s")
     table = markdown_table(columns, depths)
+    if args.motion:
+        table += "\n\n" + motion_table(measure_motion(args.real, args.sequences))
     print(table)
     print("; ".join(timing))
     if args.out:

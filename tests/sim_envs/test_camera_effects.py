@@ -260,13 +260,13 @@ def test_exposures_are_the_same_in_any_order_of_asking():
 
 
 def test_presets_and_unknown_names():
-    assert camera_effect_presets() == ["clean", "hard", "kinect"]
+    assert camera_effect_presets() == ["clean", "fr1", "hard", "kinect"]
     kinect = camera_effects_preset("kinect")
     assert kinect.shot_noise == ICL_SHOT_NOISE and kinect.read_noise == ICL_READ_NOISE and kinect.auto_exposure
     assert camera_effects_preset("hard").distortion == preset_distortion("tum_fr1")
-    with pytest.raises(UnknownNameError, match="valid presets: clean, hard, kinect"):
+    with pytest.raises(UnknownNameError, match="valid presets: clean, fr1, hard, kinect"):
         camera_effects_preset("fancy")
-    with pytest.raises(UnknownNameError, match="clean, hard, kinect"):
+    with pytest.raises(UnknownNameError, match="clean, fr1, hard, kinect"):
         with_camera(get_sequence("office0"), "fancy")
     spec = with_camera(get_sequence("office0"), "kinect")
     assert spec.camera_effects == "kinect" and "kinect" in repr(spec) and spec != get_sequence("office0")

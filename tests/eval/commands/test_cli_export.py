@@ -58,7 +58,7 @@ def test_export_command_unknown_sequence(tmp_path, capsys):
 def test_export_command_unknown_camera_effects(tmp_path, capsys):
     pytest.importorskip("sim_envs.sequences", reason=NO_WORLD)
     assert main(["export", "office0", str(tmp_path / "x"), "--no-progress", "--camera-effects", "fancy"]) == 2
-    assert "clean, hard, kinect" in capsys.readouterr().err
+    assert "clean, fr1, hard, kinect" in capsys.readouterr().err
 
 
 def test_export_command_lighting(tmp_path, capsys):
