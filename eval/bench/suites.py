@@ -75,8 +75,9 @@ class SuiteKind(StrEnum):
     PREPROCESSING = "preprocessing"
 
 
-# camera presets of the simulated part of the transfer suite (sim_envs.sensor.camera_effects), in report order
-SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard")
+# camera presets of the simulated part of the transfer suite (sim_envs.sensor.camera_effects), in report order:
+# kinect was made from the 7-Scenes kitchen's image statistics, fr1 from TUM fr1/desk's (results/camera_calibration*.md)
+SIM_CAMERA_PRESETS: tuple[str, ...] = ("clean", "kinect", "hard", "fr1")
 # the paper's methods, the original ORB-SLAM3 beside our ORB baseline (thirdparty/, out of process), and the oracle:
 # the methods whose table in eval/methods.toml says `table1 = true`, in the table's order (defined there only)
 TABLE1_METHODS: tuple[str, ...] = tuple(name for name, method in load_methods().items() if method.table1)
@@ -547,8 +548,8 @@ class TransferPart:
 
 
 def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECTS,),
-                   lengths: Sequence[int | None] | None = None,
-                   motions: Sequence[str | Path] = ()) -> list[TransferPart]:
+                   lengths: Sequence[int | None] | None = None, motions: Sequence[str | Path] = (),
+                   sim_sequences: Sequence[str] | None = None) -> list[TransferPart]:
     """The suites the ``transfer`` suite is made of, compared like for like: for each length of ``lengths`` (default:
     the transfer suite's ``frames``, the bench length, then whole sequences; ``frames`` None: whole only), the
     ``table1`` suite on its first ``length`` frames through each simulated domain of ``presets`` (a camera preset,
@@ -561,7 +562,8 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     gap to the real rankings can be told from the images'. Where a real folder gives w > 1 windows of a length, each
     simulated sequence's first w windows of that length are run too (domain ``win:<preset>``): the like-for-like
     null distribution of :func:`eval.reports.transfer.null_agreement` (one simulated recording, cut as the real one
-    is, against the simulated domain)."""
+    is, against the simulated domain). ``sim_sequences``: registered simulated sequences to run instead of the Table-1
+    analogues (e.g. :data:`sim_envs.sequences.FR1_MOTION_SEQUENCES`, moving as TUM fr1/desk's camera does)."""
     if suite.kind is not SuiteKind.TRANSFER:
         raise SuiteError(f"suite {suite.name!r} is not a transfer suite")
     labels = [motion_label(m) for m in motions]
@@ -570,6 +572,8 @@ def transfer_parts(suite: Suite, presets: Sequence[str] = (DEFAULT_CAMERA_EFFECT
     if lengths is None:
         lengths = (None,) if suite.frames is None else (suite.frames, None)
     table1 = SUITES["table1"]
+    if sim_sequences is not None:
+        table1 = replace(table1, sequences=tuple(_named(name) for name in sim_sequences))
     parts = []
     for length in lengths:
         refs, domains = [], []

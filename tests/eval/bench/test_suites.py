@@ -107,10 +107,10 @@ def test_a_camera_preset_applies_to_simulated_sequences_and_a_calibration_to_fol
     assert get_suite("table1").select(["office0"], camera="clean").sequences[0].name == "office0"  # today's bytes
     rot = get_suite("rotation").select(["rot_yaw_30"], camera="hard").sequences[0]
     assert rot.name == "rot_yaw_30@hard" and rot.spec().camera_effects == "hard"
-    with pytest.raises(SuiteError, match="camera-effects presets of simulated sequences: clean, hard, kinect"):
+    with pytest.raises(SuiteError, match="camera-effects presets of simulated sequences: clean, fr1, hard, kinect"):
         SequenceRef("office0", base="office0").with_camera_effects("kinnect")
     with pytest.raises(SuiteError, match="unknown camera preset 'tum_fr1' for simulated sequences; valid presets: "
-                                         "clean, hard, kinect"):
+                                         "clean, fr1, hard, kinect"):
         get_suite("table1").select(["office0"], camera="tum_fr1")  # a folder calibration on a simulated sequence
 
 
@@ -312,3 +312,54 @@ def test_a_suite_carries_its_report_gate_and_baseline_and_nothing_switches_on_it
                 if names & set(literals):
                     offenders.append(f"{path.name}:{node.lineno}")
     assert not offenders
+
+
+def _two_real_recordings(tmp_path, shared_data):
+    """A dataset list naming the 7-Scenes kitchen and TUM fr1/desk (skipped where ../shared lacks them)."""
+    kitchen = shared_data("data/real/7scenes_redkitchen")
+    desk = shared_data("data/real/rgbd_dataset_freiburg1_desk", "groundtruth.txt", "rgb.txt")
+    listing = tmp_path / "datasets.toml"
+    listing.write_text(f'[datasets]\nredkitchen = "{kitchen}"\nfr1_desk = "{desk}"\n')
+    return listing
+
+
+def test_the_transfer_suite_sets_kinect_and_fr1_against_both_real_recordings(tmp_path, shared_data):
+    from eval.bench.suites import transfer_parts, with_real_folders
+    from sim_envs.sequences import FR1_MOTION_SEQUENCES
+
+    suite = with_real_folders(get_suite("transfer"), _two_real_recordings(tmp_path, shared_data))
+    assert [r.name for r in suite.sequences] == ["redkitchen", "fr1_desk"] and not suite.skipped
+    parts = transfer_parts(replace(suite, frames=None), ("kinect", "fr1"))
+    assert [sorted({d for _, d in p.domains}) for p in parts] == [["sim:kinect"], ["sim:fr1"],
+                                                                  ["real:fr1_desk", "real:redkitchen"]]
+    assert parts[1].suite.sequences[0].name == "office0@fr1" and parts[1].suite.sequences[0].spec().camera_effects \
+        == "fr1"  # fmt: skip
+    moved = transfer_parts(replace(suite, frames=None), ("fr1",), sim_sequences=FR1_MOTION_SEQUENCES)
+    assert [r.name for r in moved[0].suite.sequences] == ["office_fr1motion@fr1", "living_fr1motion@fr1"]
+    assert moved[0].suite.sequences[0].spec().trajectory == "handheld_stats"
+
+
+@pytest.mark.slow
+def test_transfer_report_smoke_two_presets_two_real_recordings_few_frames(tmp_path, shared_data):
+    # a tiny transfer run: 2 methods, 4 frames, one fr1-motion sequence through kinect and fr1, the two real
+    # recordings' first 4 frames; the report names both presets and both recordings
+    from eval.bench import BenchOptions, run_bench
+    from eval.bench.suites import TransferPart, transfer_parts, with_real_folders
+    from eval.reports.transfer_report import report_transfer
+
+    suite = with_real_folders(get_suite("transfer"), _two_real_recordings(tmp_path, shared_data))
+    planned = transfer_parts(replace(suite, frames=None), ("kinect", "fr1"), sim_sequences=["office_fr1motion"])
+    methods = ("constant-pose", "oracle")
+    done = []
+    for part in planned:
+        small = replace(part.suite, methods=methods, seeds=(0,), frames=4)
+        options = BenchOptions(frames=4, out=tmp_path / "runs", results=tmp_path / "results" / small.name,
+                               progress=False, plots=False)  # fmt: skip
+        outcome = run_bench(small, methods, options)
+        assert outcome.exit_status == 0, outcome.rows
+        done.append((TransferPart(4, small, part.domains), outcome.parts[0][1]))
+    files = report_transfer(done, tmp_path / "report", "smoke")
+    text = (tmp_path / "report" / "transfer.md").read_text()
+    for domain in ("sim:kinect", "sim:fr1", "real:redkitchen", "real:fr1_desk"):
+        assert domain in text
+    assert any(f.name == "transfer.csv" for f in files)
