@@ -10,13 +10,15 @@ the reads ahead of the old position are cancelled (one already running finishes 
 
 At most ``ahead`` values are held. The pool starts on the first read ahead and stops on :meth:`Prefetcher.close`
 (waiting for its threads, which end), when the prefetcher is garbage, or at interpreter exit; a closed prefetcher
-starts a new pool when it reads ahead again. An error in a read ahead is raised by the ``get`` of its index, in the
-consumer's thread: a :class:`~sim_envs.errors.SimEnvError` as it is (the reader's own one-line message naming the
-file), anything else as a :class:`SimEnvError` naming the index and what ``label(i)`` says about it (its file).
+starts a new pool when it reads ahead again, and so does one in a process forked from the one that read ahead.
+An error in a read ahead is raised by the ``get`` of its index, in the consumer's thread: a
+:class:`~sim_envs.errors.SimEnvError` as it is (the reader's own one-line message naming the file), anything else
+as a :class:`SimEnvError` naming the index and what ``label(i)`` says about it (its file).
 """
 
 from __future__ import annotations
 
+import os
 import threading
 import weakref
 from collections.abc import Callable
@@ -60,6 +62,7 @@ class Prefetcher(Generic[T]):
         self._pending: dict[int, Future[T]] = {}
         self._last: int | None = None
         self._pool: ThreadPoolExecutor | None = None
+        self._pid = os.getpid()  # the process the pool's threads run in (a forked child has none of them)
         self._finalizer: weakref.finalize | None = None
         self._lock = threading.Lock()  # close() may come from another thread than get()
         self.hits = 0  # values handed back from a read ahead
@@ -69,6 +72,8 @@ class Prefetcher(Generic[T]):
         """The value ``read(index)``: taken from a read ahead when there is one, else read now; then the reads of
         the next ``ahead`` indices are submitted when ``index`` continues a run (it follows the last index asked)."""
         i = int(index)
+        if self._pid != os.getpid():  # in a child forked after reading ahead: the parent's threads are not here
+            self._forget_parent()
         with self._lock:
             future = self._pending.pop(i, None)
             sequential = future is not None or (self._last is not None and i == self._last + 1)
@@ -110,6 +115,15 @@ class Prefetcher(Generic[T]):
             for j in range(i + 1, min(i + 1 + self.ahead, self.length)):
                 if j not in self._pending:
                     self._pending[j] = self._pool.submit(self._read, j)
+
+    def _forget_parent(self) -> None:
+        """Drop the pool and the reads ahead inherited from the parent process (their threads do not exist here)."""
+        self._lock = threading.Lock()
+        self._pending.clear()
+        self._pool, self._last, self._pid = None, None, os.getpid()
+        if self._finalizer is not None:
+            self._finalizer.detach()
+            self._finalizer = None
 
     def _cancel(self) -> None:
         for future in self._pending.values():

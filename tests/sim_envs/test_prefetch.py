@@ -1,3 +1,5 @@
+import multiprocessing
+import os
 import pickle
 import threading
 import time
@@ -228,3 +230,18 @@ def test_any_other_failure_read_ahead_is_one_line_naming_the_file():
 def test_a_bad_prefetch_depth_is_refused(noise_folder, bad):
     with pytest.raises(SimEnvError, match=r"prefetch must be a whole number of frames >= 0"):
         RgbdFolder(noise_folder, prefetch=bad)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+def test_a_forked_child_reads_ahead_with_its_own_threads():
+    p = Prefetcher(lambda i: i * 2, 50, ahead=3, workers=1)
+    assert [p.get(i) for i in range(4)] == [0, 2, 4, 6] and p.pending == [4, 5, 6]
+    ctx = multiprocessing.get_context("fork")
+    results = ctx.Queue()
+    child = ctx.Process(target=lambda: results.put([p.get(i) for i in range(4, 9)]))  # forked: not pickled
+    child.start()  # the child inherits the pending reads, not the thread running them
+    assert results.get(timeout=30) == [8, 10, 12, 14, 16]
+    child.join(timeout=30)
+    assert child.exitcode == 0
+    assert [p.get(i) for i in range(4, 7)] == [8, 10, 12]
+    p.close()
