@@ -12,7 +12,8 @@ real RGB-D folder (``real:<name>``). Per domain, metric and method:
 - **rank** (:func:`rank_methods`): 1 = best, in the metric's direction (:data:`TRANSFER_METRICS`), ties share the
   mean rank (``scipy.stats.rankdata``), over the methods that have a score or failed in every domain compared; a
   method failed in a domain ranks last there, below every scored method, the failed methods tied (sharing the
-  mean of the last ranks), so a simulator whose failures are the real ones' agrees with it;
+  mean of the last ranks), so a simulator whose failures are the real ones' agrees with it; the resampled and
+  held-out rankings below rank a failed cell last the same way (:func:`failures_ranked_last`);
 - **agreement** (:func:`rank_correlations`): Spearman's rho and Kendall's tau-b (``scipy.stats``) between each
   simulated domain's ranks and each real domain's, with the number of methods n and the two-sided p-values (with
   n = 5 methods, scipy's p is below 0.05 only for rho >= 0.9: read the figures as agreement, not significance);
@@ -120,6 +121,42 @@ def domain_scores(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANS
         out["sequences"] = out["sequences"].astype(int)
         out["runs"] = out["runs"].astype(int)
     return out.sort_values(["metric", "domain", "method"], ignore_index=True)
+
+
+FAILED_RUN = "failed"  # the run id of the rows :func:`failures_ranked_last` puts in place of a failed cell's runs
+
+
+def failures_ranked_last(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS) -> pd.DataFrame:
+    """``frame`` (as :func:`domain_scores` takes it) for the resampling and held-out rankings: failed runs removed
+    (:func:`eval.reports.tables.without_failures`, per domain) and each failed cell (:func:`eval.reports.tables.
+    cell_failures`) one run per metric of ``metrics`` (run :data:`FAILED_RUN`) with a value worse than any finite one
+    of that metric in ``frame`` by more than ``(1 + 10 x the largest magnitude) x the most sequences of a domain``,
+    so that any mean over sequences that includes a failed cell ranks after every mean that does not. Without a
+    ``run`` column, ``frame`` as it is."""
+    if "run" not in frame.columns or frame.empty:
+        return frame
+    kept, added = [], []
+    most = int(frame.groupby("domain")["sequence"].nunique().max())
+    for domain, part in frame.groupby("domain", sort=False):
+        failures = cell_failures(part)
+        kept.append(without_failures(part, failures))
+        for (sequence, method), info in failures.items():
+            if info.is_failure:
+                added += [{"domain": domain, "sequence": sequence, "method": method, "run": FAILED_RUN,
+                           "metric": m.name} for m in metrics]  # fmt: skip
+    out = pd.concat(kept, ignore_index=True)
+    if not added:
+        return out
+    worse = {}
+    for m in metrics:
+        values = pd.to_numeric(frame.loc[frame["metric"] == m.name, "value"], errors="coerce").to_numpy(dtype=float)
+        values = values[np.isfinite(values)]
+        big = float(np.abs(values).max()) if values.size else 1.0
+        step = (1.0 + 10.0 * big) * max(most, 1)
+        worse[m.name] = (float(values.min()) - step if values.size else -step) if m.higher_is_better \
+            else (float(values.max()) + step if values.size else step)  # fmt: skip
+    failed = pd.DataFrame(added).assign(value=lambda f: f["metric"].map(worse))
+    return pd.concat([out, failed], ignore_index=True)
 
 
 def rank_methods(scores: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
@@ -241,6 +278,7 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
     all methods equal are left out of a metric's figures.
     """
     _check_frame(frame)
+    frame = failures_ranked_last(frame, metrics)
     if any(int(k) < 1 for k in held_out) or max_splits < 1:
         raise EvalError(f"holdout_agreement: held_out must be >= 1 and max_splits >= 1, got {list(held_out)}, "
                         f"{max_splits}")  # fmt: skip
@@ -335,6 +373,7 @@ def null_agreement(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRAN
     exceed every draw).
     """
     _check_frame(frame)
+    frame = failures_ranked_last(frame, metrics)
     names = [m.name for m in metrics]
     sub = frame[frame["metric"].isin(names)]
     cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"].median()
@@ -406,6 +445,7 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
     where rho is defined: not all ranks tied). ``seed`` fixes the draws: the same frame gives the same interval.
     """
     _check_frame(frame)
+    frame = failures_ranked_last(frame, metrics)
     if not 0 < level < 1 or draws < 1:
         raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
     cells = (frame[frame["metric"].isin([m.name for m in metrics])]

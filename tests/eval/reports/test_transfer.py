@@ -7,7 +7,14 @@ import pandas as pd
 import pytest
 
 from eval.errors import EvalError
-from eval.reports.transfer import TransferMetric, best_predictor, domain_scores, rank_correlations, rank_methods
+from eval.reports.transfer import (
+    TransferMetric,
+    best_predictor,
+    bootstrap_correlations,
+    domain_scores,
+    rank_correlations,
+    rank_methods,
+)
 
 ATE = TransferMetric("ate_se3_rmse", "ATE", False)
 DEPTH = TransferMetric("depth_percent_correct", "depth", True)
@@ -383,6 +390,9 @@ def test_a_failed_run_ranks_last_and_failures_tie():
     expected = pd.Series([1, 2, 3, 4]).corr(pd.Series([1, 3.5, 2, 3.5]))
     assert rank_correlations(ranks)["spearman"].iloc[0] == pytest.approx(expected)
     assert expected == pytest.approx(0.6324555, abs=1e-6)
+    # one sample a side: the bootstrap does not resample, and ranks the failures last and tied too
+    boot = bootstrap_correlations(_runs(table), [ATE], draws=20)
+    assert boot[["rho_low", "rho_high"]].iloc[0].tolist() == pytest.approx([expected, expected])
 
 
 def test_a_failure_on_one_sequence_fails_the_domain_and_higher_is_better_still_ranks_it_last():
