@@ -37,6 +37,7 @@ SYNTHETIC = {
     "exposure:1": "f0086af97ecf3f5f3d22866021cbbf087caa958ddfa32805d1779b7338cb07f8",
     "rolling_shutter:1": "0fc0d5fa6b07771d2ec18f6bd65497382e7e22395a5f654b2b1a6ede09508035",
     "distortion:1": "52259a5249647d1fe00b3248592830c8c1ae454a2e14cbff95459fccae7a0618",
+    "fr1": "249a7bf83614b67fe9255effc4b0cd18790a68f3cbbd87e208aeaa63da232ae3",  # synthetic tier only
 }
 # sha256 of 6 rendered frames of office0 at 320x240 (rgb and sensor depth of each, the exposures and gains, the raw
 # image of frame 5), per camera, recorded with MUJOCO_GL=egl; CLEAN_RENDERS: the clean camera's rgb alone (the
@@ -92,7 +93,7 @@ def _synthetic_digest(name: str) -> str:
     return h.hexdigest()
 
 
-@pytest.mark.parametrize("name", CAMERAS)
+@pytest.mark.parametrize("name", (*CAMERAS, "fr1"))
 def test_synthetic_camera_bytes(name):
     assert _synthetic_digest(name) == SYNTHETIC[name]
 
