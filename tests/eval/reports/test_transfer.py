@@ -396,8 +396,8 @@ def test_a_failed_run_ranks_last_and_failures_tie():
 
 
 def test_a_failure_on_one_sequence_fails_the_domain_and_higher_is_better_still_ranks_it_last():
-    table = {("sim:fr1", s, m): (v, 1.0) for s in ("s1", "s2") for m, v in zip("ABC", [3.0, 2.0, 1.0], strict=True)}
-    table[("sim:fr1", "s2", "C")] = (1.0, 0.5)  # C lost on one of two sequences: failed in the domain
+    table = {("sim:fr1", s, m): (v, 1.0) for s in ("s1", "s2") for m, v in zip("ABC", [3.0, 2.0, 9.0], strict=True)}
+    table[("sim:fr1", "s2", "C")] = (9.0, 0.5)  # C lost on one of two sequences: failed in the domain
     frame = _runs(table).replace({"ate_se3_rmse": "depth_percent_correct"})
     ranks = rank_methods(domain_scores(frame, [DEPTH]), [DEPTH]).set_index("method")
     assert ranks["rank"].to_dict() == {"A": 1.0, "B": 2.0, "C": 3.0}  # C's best figure does not save it
