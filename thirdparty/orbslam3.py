@@ -133,11 +133,18 @@ class OrbSlam3Config(Configurable):
     fps: float = 30.0
     # ours: how long to wait for one answer of the ORB-SLAM3 program (seconds)
     timeout_s: float = 120.0
+    # ours: after each frame, wait up to this long (seconds) until ORB-SLAM3's mapping threads are idle (0: no wait):
+    # the time between frames its TUM example gives them (frames fed at the camera's rate, on a machine that keeps
+    # up), which a loaded machine fed as fast as tracking answers does not (orbslam3_driver.settle)
+    settle_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("n_features", "n_levels", "ini_th_fast", "min_th_fast"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"ORB-SLAM3: {name} must be >= 1, got {getattr(self, name)}")
+        if not (self.settle_s >= 0 and self.settle_s < self.timeout_s):
+            raise ConfigError(f"ORB-SLAM3: settle_s must be >= 0 and below timeout_s ({self.timeout_s}), got "
+                              f"{self.settle_s}")
         if not (self.scale_factor > 1 and self.fps > 0 and self.timeout_s > 0):
             raise ConfigError(f"ORB-SLAM3: scale_factor must be > 1, fps and timeout_s > 0, got {self.scale_factor}, "
                               f"{self.fps}, {self.timeout_s}")
@@ -148,7 +155,8 @@ class OrbSlam3Agent:
 
     vocabulary: a DBoW2 text vocabulary (default: ours); n_features, scale_factor, n_levels, ini_th_fast,
     min_th_fast: ORB extractor settings; fps: the camera rate ORB-SLAM3 is told; seed: recorded only (ORB-SLAM3's
-    threads make its runs differ anyway); timeout_s: how long to wait for one answer of the ORB-SLAM3 program.
+    threads make its runs differ anyway); timeout_s: how long to wait for one answer of the ORB-SLAM3 program;
+    settle_s: after each frame, the longest wait for ORB-SLAM3's mapping threads to be idle (0: none).
     """
 
     uses_ground_truth = False
@@ -157,9 +165,10 @@ class OrbSlam3Agent:
 
     def __init__(self, vocabulary: str | None = None, n_features: int = 1000, scale_factor: float = 1.2,
                  n_levels: int = 8, ini_th_fast: int = 20, min_th_fast: int = 7, fps: float = 30.0, seed: int = 0,
-                 timeout_s: float = 120.0, config: OrbSlam3Config | Mapping[str, Any] | None = None) -> None:
+                 timeout_s: float = 120.0, settle_s: float = 0.0,
+                 config: OrbSlam3Config | Mapping[str, Any] | None = None) -> None:
         defaults = OrbSlam3Config(vocabulary or "", int(n_features), float(scale_factor), int(n_levels),
-                                  int(ini_th_fast), int(min_th_fast), float(fps), float(timeout_s))
+                                  int(ini_th_fast), int(min_th_fast), float(fps), float(timeout_s), float(settle_s))
         self.config = configure(defaults, config)  # the keywords, with `config` overrides on top
         self.vocabulary = Path(self.config.vocabulary) if self.config.vocabulary else DEFAULT_VOCABULARY
         if not self.vocabulary.is_file():
@@ -169,6 +178,7 @@ class OrbSlam3Agent:
                         ("n_features", "scale_factor", "n_levels", "ini_th_fast", "min_th_fast", "fps")}
         self.seed = int(seed)
         self.timeout_s = self.config.timeout_s
+        self.settle_s = self.config.settle_s
         self._proc: subprocess.Popen[bytes] | None = None
         self._dir: tempfile.TemporaryDirectory[str] | None = None
         self._log: Any = None
@@ -179,6 +189,7 @@ class OrbSlam3Agent:
         self._tracked: list[bool] = []
         self._states: dict[str, int] = {}
         self._seconds: list[float] = []
+        self._settle_seconds = 0.0
         self._maps = 0
         self._last_state: str | None = None
         self._init_frame: int | None = None
@@ -278,7 +289,11 @@ class OrbSlam3Agent:
         rgb = np.ascontiguousarray(observation["rgb"], dtype=np.uint8)
         h, w = rgb.shape[:2]
         stamp = float(np.asarray(observation["timestamp"]).reshape(-1)[0])
-        ans = self._request({"cmd": "track", "timestamp": stamp, "height": h, "width": w}, rgb.tobytes())
+        header = {"cmd": "track", "timestamp": stamp, "height": h, "width": w}
+        if self.settle_s > 0:
+            header["settle_s"] = self.settle_s
+        ans = self._request(header, rgb.tobytes())
+        self._settle_seconds += float(ans.get("settle_seconds") or 0.0)
         state = str(ans["state"])
         tracked = state in TRACKED_STATES and ans["pose_wc"] is not None
         if ans["pose_wc"] is not None and (tracked or state == "RECENTLY_LOST"):
@@ -321,5 +336,7 @@ class OrbSlam3Agent:
             "mean_track_seconds": float(secs.mean()) if n else 0.0,
             "track_fps": float(n / secs.sum()) if n and secs.sum() > 0 else 0.0,
             "seed": self.seed,
+            "settle_s": self.settle_s,
+            "settle_seconds": self._settle_seconds,  # waited for the mapping threads, in the steps' time
         }
         return AgentOutput(keyframes=[], extras=extras)

@@ -140,3 +140,38 @@ def test_a_hung_or_dead_program_is_named_as_such(program: str, why: str) -> None
         agent._request({"cmd": "track"}, b"x")
     assert proc.poll() is not None and agent._proc is None
     agent.close()
+
+
+def test_settle_waits_for_the_other_threads_to_go_idle():
+    """The driver's wait after a frame (ORB-SLAM3's mapping threads: here a thread that computes for a while)."""
+    import threading
+    import time
+
+    spec = importlib.util.spec_from_file_location("_driver", Path(__file__).resolve().parents[2] / "thirdparty"
+                                                  / "orbslam3_driver.py")
+    driver = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(driver)  # numpy and the standard library only: pyorbslam3 is imported by main()
+    stop = time.perf_counter() + 0.3
+
+    def busy() -> None:
+        while time.perf_counter() < stop:
+            pass
+
+    worker = threading.Thread(target=busy)
+    worker.start()
+    assert driver.running_threads(threading.get_native_id()) >= 1
+    driver.settle(30.0)
+    assert not worker.is_alive()  # it waited for the busy thread, not for its limit
+    worker.join()
+    assert driver.settle(30.0) < 30.0
+
+
+def test_settle_is_checked():
+    from slamcommon.errors import ConfigError
+    from thirdparty.orbslam3 import OrbSlam3Agent
+
+    assert OrbSlam3Agent().settle_s == 0.0  # by default no wait: frames as fast as tracking answers
+    with pytest.raises(ConfigError, match="settle_s must be >= 0 and below timeout_s"):
+        OrbSlam3Agent(settle_s=-1.0)
+    with pytest.raises(ConfigError, match="settle_s must be >= 0 and below timeout_s"):
+        OrbSlam3Agent(settle_s=200.0, timeout_s=100.0)
