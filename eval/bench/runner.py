@@ -28,7 +28,7 @@ from eval.bench.run import (
     execute_run,
     render_frames,
 )
-from eval.bench.run_store import complete_run, is_finished, remove_stale_temporaries, run_folder, store_result
+from eval.bench.run_store import complete_run, remove_stale_temporaries, reuse_finished, run_folder, store_result
 from eval.bench.sequence_ref import SequenceRef
 from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
@@ -209,7 +209,7 @@ def run_suite(
             done = (folder / DONE_FILE).is_file()
             outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "not_run", folder,
                                             None if done else "not run (--report-only runs nothing)")  # fmt: skip
-        elif not rerun and is_finished(out_root, spec):
+        elif not rerun and reuse_finished(out_root, spec):  # its own folder, or another suite's run of it
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
             cache = str(out_root / FRAME_CACHE_DIR) if frame_cache else None
