@@ -29,12 +29,14 @@ SHIPPED draws them: cheap enough for 2 CPU cores (``cnnslam train recipe --recip
 Resuming: ``run_recipe`` may be stopped at any moment (Ctrl-C, ``kill``, ``timeout``) and called again with the same
 recipe and root: finished shards are kept, a half-written one is rendered again, the fit continues from its last
 checkpoint (``checkpoint_every`` steps) with the same batches, and the stages' seconds add up over the calls
-(``root/recipe.json``). A root holding another recipe's work is refused.
+(``root/recipe.json``). A fine-tune's start is copied to ``root/start.pt`` on the first call (an export over the
+shipped default in between changes nothing). A root holding another recipe's work is refused.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field, replace
@@ -139,10 +141,10 @@ def run_recipe(
     if render_workers < 0 or loader_workers < 1 or threads < 1:
         raise CnnSlamError(f"need render_workers >= 0, loader_workers >= 1 and threads >= 1, got {render_workers}, "
                            f"{loader_workers}, {threads}")
+    root = Path(root)
     start = recipe.start_weights()
     if start is not None:
-        _check_start(start, recipe.init_sha256)
-    root = Path(root)
+        start = _start_copy(start, recipe.init_sha256, root)
     data = root / "data"
     state_path = root / "recipe.json"
     state = json.loads(state_path.read_text()) if state_path.is_file() else None
@@ -185,12 +187,24 @@ def run_recipe(
     return RecipeResult(data, result, seconds)
 
 
-def _check_start(path: Path, sha256: str | None) -> None:
-    """Refuse a fine-tune whose start file is missing or (with ``sha256``) not the recipe's start."""
+def _start_copy(path: Path, sha256: str | None, root: Path) -> Path:
+    """The fine-tune's start as ``root/start.pt`` (with its manifest as ``root/start.json``), copied from ``path``
+    on the first call, so that a later call resumes from the same start even if ``path`` has since been overwritten
+    (e.g. the shipped default by an export). Refuses a missing start, or (with ``sha256``) one of other bytes."""
     import hashlib
+    import shutil
 
-    if not path.is_file():
-        raise CnnSlamError(f"the recipe starts from {path}, which does not exist")
-    if sha256 is not None and hashlib.sha256(path.read_bytes()).hexdigest() != sha256:
-        raise CnnSlamError(f"{path} is not the recipe's start (SHA-256 {sha256}); restore those weights (git "
+    local = root / "start.pt"
+    source = local if local.is_file() else path
+    if not source.is_file():
+        raise CnnSlamError(f"the recipe starts from {source}, which does not exist")
+    if sha256 is not None and hashlib.sha256(source.read_bytes()).hexdigest() != sha256:
+        raise CnnSlamError(f"{source} is not the recipe's start (SHA-256 {sha256}); restore those weights (git "
                            f"history of cnnslam/depthnet/weights/default.pt) or pass their file")
+    if source is path:
+        root.mkdir(parents=True, exist_ok=True)
+        if path.with_suffix(".json").is_file():
+            shutil.copyfile(path.with_suffix(".json"), root / "start.json")
+        shutil.copyfile(path, root / "start.pt.tmp")
+        os.replace(root / "start.pt.tmp", local)
+    return local
