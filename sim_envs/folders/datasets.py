@@ -123,6 +123,7 @@ POSE_CONVENTIONS: tuple[str, ...] = ("opencv", "icl", "auto")
 _FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 PREFETCH_AHEAD = 6  # frames read ahead of a run of consecutive reads (0: none); see sim_envs.folders.prefetch
 PREFETCH_WORKERS = 2  # threads reading ahead (the 2 cores a run is given)
+_IMREAD_RGB: int = getattr(cv2, "IMREAD_COLOR_RGB", cv2.IMREAD_COLOR)  # OpenCV >= 4.10 decodes to RGB itself
 
 CameraLike = Intrinsics | CameraModel | str | os.PathLike[str] | None
 
@@ -274,15 +275,17 @@ class RgbdFolder:
         return image
 
     def _convert_rgb(self, i: int) -> np.ndarray:
-        image = _read_image(self._rgb_files[i], cv2.IMREAD_COLOR)
+        # decoded straight to RGB: the bytes of decoding to BGR and swapping the channels, without the swap
+        image = _read_image(self._rgb_files[i], _IMREAD_RGB)
         if image.shape[:2] != self.original_size[::-1]:
             raise SimEnvError(
                 f"{self._rgb_files[i]}: image of {image.shape[1]}x{image.shape[0]}, but the folder's first image is "
                 f"{self.original_size[0]}x{self.original_size[1]}"
             )
-        # undistortion and resizing treat each channel alone, so BGR -> RGB commutes with them: done on the smaller
-        # delivered image (the same bytes as converting first)
-        return cv2.cvtColor(self._deliver(image, "rgb"), cv2.COLOR_BGR2RGB)
+        if _IMREAD_RGB == cv2.IMREAD_COLOR:  # an OpenCV without IMREAD_COLOR_RGB: swap after undistortion and
+            # resizing, which treat each channel alone (the same bytes as swapping first, on fewer pixels)
+            return cv2.cvtColor(self._deliver(image, "rgb"), cv2.COLOR_BGR2RGB)
+        return self._deliver(image, "rgb")
 
     def depth(self, index: int) -> np.ndarray:
         """Depth of frame ``index`` alone, as delivered: (H, W) float32 planar z metres, 0 = none (all 0 for a

@@ -11,7 +11,7 @@ import pytest
 from sim_envs.camera import preset
 from sim_envs.env import ReplayEnv
 from sim_envs.errors import SimEnvError
-from sim_envs.folders.datasets import RgbdFolder
+from sim_envs.folders.datasets import _IMREAD_RGB, RgbdFolder, _read_image
 from sim_envs.folders.folder_exports import write_folder
 from sim_envs.folders.prefetch import THREAD_PREFIX, Prefetcher
 from sim_envs.frames import Frame
@@ -113,11 +113,20 @@ def converted_first(source: RgbdFolder, i: int) -> np.ndarray:
     return source._deliver(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), "rgb")
 
 
-def test_rgb_is_converted_last_with_the_same_bytes(noise_folder):
+def test_rgb_is_the_same_bytes_as_decoding_to_bgr_and_converting_first(noise_folder, tmp_path):
     for size in [(64, 48), None]:
         source = RgbdFolder(noise_folder, size=size, prefetch=0)
         for i in (0, 3):
             assert source.rgb(i).tobytes() == converted_first(source, i).tobytes()
+    rgb = cv2.GaussianBlur(NoiseSource(1).frame(0).rgb, (5, 5), 0)  # JPEG, grey and 16-bit PNG, RGBA PNG
+    write_folder(NoiseSource(1), tmp_path / "jpg", "7scenes", image_format="jpg")
+    for name, image in (("grey.png", rgb[..., 0]), ("deep.png", rgb.astype(np.uint16) * 257),
+                        ("alpha.png", np.dstack([rgb, rgb[..., :1]]))):  # fmt: skip
+        cv2.imwrite(str(tmp_path / name), image)
+    for path in [*sorted((tmp_path / "jpg").glob("*.jpg")), *(tmp_path / n for n in ("grey.png", "deep.png",
+                                                                                      "alpha.png"))]:
+        bgr_first = cv2.cvtColor(cv2.imread(str(path), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        assert _read_image(path, _IMREAD_RGB).tobytes() == bgr_first.tobytes(), path.name
 
 
 def test_the_real_fr1_desk_first_frames_are_the_same_bytes(shared_data):
