@@ -353,7 +353,8 @@ def generate_dataset(
 ) -> list[Path]:
     """Render every missing shard of ``split`` under ``root/split`` (resumable: finished shards are skipped).
 
-    workers: processes (spawned: a process holding an OpenGL context must not fork); 0 renders in this process.
+    workers: processes (spawned: a process holding an OpenGL context must not fork); 0 renders in this process. On
+    an interruption the rooms being rendered are finished and the others dropped (a later call renders them).
     progress: wraps the iterator of finished shards with its total (e.g. a tqdm bar). Returns all shard folders.
     """
     jobs = shard_jobs(root, split, cfg)
@@ -364,10 +365,15 @@ def generate_dataset(
             pass
     elif todo:
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+        try:
             futures = [pool.submit(_render_shard_worker, j, cfg) for j in todo]
             for fut in wrap(as_completed(futures), len(futures)):
                 fut.result()
+        except BaseException:  # interrupted (Ctrl-C) or a room failed: the rooms not started are dropped
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     return [Path(j.out_dir) for j in jobs]
 
 
