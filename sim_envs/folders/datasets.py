@@ -122,7 +122,7 @@ PoseConvention = Literal["opencv", "icl", "auto"]
 POSE_CONVENTIONS: tuple[str, ...] = ("opencv", "icl", "auto")
 _FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 PREFETCH_AHEAD = 6  # frames read ahead of a run of consecutive reads (0: none); see sim_envs.folders.prefetch
-PREFETCH_WORKERS = 2  # threads reading ahead (the 2 cores a run is given)
+PREFETCH_WORKERS = 3  # threads reading ahead: the 2 cores a run is given, and one more for a thread waiting on disk
 _IMREAD_RGB: int = getattr(cv2, "IMREAD_COLOR_RGB", cv2.IMREAD_COLOR)  # OpenCV >= 4.10 decodes to RGB itself
 
 CameraLike = Intrinsics | CameraModel | str | os.PathLike[str] | None

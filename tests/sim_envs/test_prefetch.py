@@ -11,7 +11,7 @@ import pytest
 from sim_envs.camera import preset
 from sim_envs.env import ReplayEnv
 from sim_envs.errors import SimEnvError
-from sim_envs.folders.datasets import _IMREAD_RGB, RgbdFolder, _read_image
+from sim_envs.folders.datasets import _IMREAD_RGB, PREFETCH_WORKERS, RgbdFolder, _read_image
 from sim_envs.folders.folder_exports import write_folder
 from sim_envs.folders.prefetch import THREAD_PREFIX, Prefetcher
 from sim_envs.frames import Frame
@@ -180,7 +180,7 @@ def test_close_stops_the_threads_and_episodes_do_not_leak_them(noise_folder):
         obs, _ = env.reset()
         for _ in range(len(source) - 1):
             env.step({T_WORLD_CAM: np.eye(4), TRACKED: 1})
-        assert 0 < len(prefetch_threads()) <= 2
+        assert 0 < len(prefetch_threads()) <= PREFETCH_WORKERS
     env.close()
     assert prefetch_threads() == []
     obs, _ = env.reset()  # reading again after close starts the threads again
