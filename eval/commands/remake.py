@@ -13,10 +13,12 @@ Where a result's command comes from, first found wins:
 A ``cnnslam bench`` line is parsed as that command parses it (:func:`eval.commands.cli_bench.bench_args`), planned
 and run in this process (:func:`eval.bench.benchmark.prepare`, then
 :func:`eval.commands.cli_bench.run`) with ``--results`` the result's folder and ``--out`` the runs folder, where the
-runner reuses every finished run whose fingerprint is current; any other command runs as a subprocess. The estimate
-adds, per run to make, the ``wall_s`` its result recorded for that run (else the median of its method's there, else
-of all its runs), divided by the runs in parallel (``--jobs``); an output command's is its manifest's ``wall_s`` or
-the seconds its files record.
+runner reuses every finished run whose fingerprint is current, its own or another suite's of the same fingerprint
+(:func:`eval.bench.run_store.reuse_finished`); any other command runs as a subprocess. A run one result plans that
+an earlier result of the same plan makes too (same fingerprint: the same code, inputs and configuration, whichever
+suite asks) is counted as shared, made once by the first. The estimate adds, per run to make, the ``wall_s`` its
+result recorded for that run (else the median of its method's there, else of all its runs), divided by the runs in
+parallel (``--jobs``); an output command's is its manifest's ``wall_s`` or the seconds its files record.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import statistics
 import subprocess
 import sys
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,8 +59,11 @@ MADE_BY = re.compile(r"Made by `(cnnslam bench [^`]+)`")
 @dataclass(frozen=True)
 class Remake:
     """How one result is remade: its ``name``, the ``commands`` (shown as typed), whether they are ``cnnslam bench``
-    lines (``bench``), the folder they run in (``cwd``), the runs planned, reused and to make (None: not a suite or
-    not planned), the estimated seconds (None: unknown) and ``notes`` (why it cannot be remade, what is missing)."""
+    lines (``bench``), the folder they run in (``cwd``), the runs planned, reused (finished under the runs folder),
+    shared (made by an earlier result of the plan: ``shared_with``, result -> runs) and to make (None: not a suite or
+    not planned), the estimated seconds (None: unknown; shared runs not counted, ``shared_s`` their estimate) and
+    ``notes`` (why it cannot be remade, what is missing); ``specs``: every run planned, ``made``: the fingerprints
+    of those it makes."""
 
     name: str
     commands: tuple[str, ...]
@@ -70,6 +75,15 @@ class Remake:
     to_make: int | None = None
     estimate_s: float | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    shared_with: tuple[tuple[str, int], ...] = ()
+    shared_s: float = 0.0
+    specs: tuple[Any, ...] = field(default=(), repr=False, compare=False)
+    made: frozenset[str] = field(default=frozenset(), repr=False, compare=False)
+
+    @property
+    def shared(self) -> int:
+        """Runs made by an earlier result of the plan."""
+        return sum(n for _, n in self.shared_with)
 
     @property
     def possible(self) -> bool:
@@ -170,19 +184,26 @@ def estimate_runs(specs: Sequence[Any], walls: Mapping[str, tuple[str, float]],
 
 
 def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence[Path], out: Path, jobs: int,
-               notes: Sequence[str] = (), rates_root: Path | None = None) -> Remake:
+               notes: Sequence[str] = (), rates_root: Path | None = None,
+               made_by: Mapping[str, str] | None = None) -> Remake:
     """A suite's result remade by ``cnnslam bench`` lines: each planned now (nothing runs), its runs counted as
-    reused (finished in ``out`` with the current fingerprint) or to make, and the time of those estimated (the
-    seconds per frame of ``rates_root``'s results, default ``folder``'s)."""
+    reused (finished in ``out`` with the current fingerprint, in its own folder or another suite's:
+    :func:`eval.bench.run_store.shared_run`), shared (their fingerprint in ``made_by``, fingerprint -> the result
+    that makes it earlier in the plan) or to make, and the time of those estimated (the seconds per frame of
+    ``rates_root``'s results, default ``folder``'s)."""
     rates_root = folder if rates_root is None else rates_root
     from eval.bench.benchmark import prepare
     from eval.bench.methods import method_table
-    from eval.bench.run_store import is_finished
+    from eval.bench.run_store import is_finished, shared_run
     from eval.bench.runner import plan_runs
     from eval.commands.cli_bench import bench_args, options_of
 
+    made_by = {} if made_by is None else made_by
     planned = reused = 0
     specs_to_make: list[Any] = []
+    all_specs: list[Any] = []
+    shared: dict[str, list[Any]] = {}
+    made: dict[str, Any] = {}
     notes = list(notes)
     for command in commands:
         try:
@@ -196,16 +217,27 @@ def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence
             chosen = [plan.methods[m] for m in part.suite.methods if m in plan.methods]
             for spec in plan_runs(part.suite, chosen, renderer=args.renderer, plots=False):
                 planned += 1
-                if is_finished(out, spec):
+                fingerprint = spec.fingerprint()
+                spec = replace(spec, known_fingerprint=fingerprint)  # computed once: the checks below read it
+                all_specs.append(spec)
+                if is_finished(out, spec) or shared_run(out, spec) is not None:
                     reused += 1
+                elif fingerprint in made_by:
+                    shared.setdefault(made_by[fingerprint], []).append(spec)
+                elif fingerprint in made:  # two parts of this result plan the same run: the first part makes it
+                    shared.setdefault(name, []).append(spec)
                 else:
+                    made[fingerprint] = spec
                     specs_to_make.append(spec)
-    seconds = estimate_runs(specs_to_make, recorded_walls(files), seconds_per_frame(rates_root))
+    walls, rates = recorded_walls(files), seconds_per_frame(rates_root)
+    seconds = estimate_runs(specs_to_make, walls, rates)
     if not planned:  # perf: probes, no runs
         seconds = recorded_seconds(files)
     estimate = None if seconds is None else seconds / max(1, jobs) if planned else seconds
+    saved = estimate_runs([s for specs in shared.values() for s in specs], walls, rates) or 0.0
     return Remake(name, tuple(commands), True, REPOSITORY, folder, planned, reused, len(specs_to_make), estimate,
-                  tuple(notes))  # fmt: skip
+                  tuple(notes), tuple((k, len(v)) for k, v in shared.items()), saved / max(1, jobs),
+                  tuple(all_specs), frozenset(made))  # fmt: skip
 
 
 def recorded_seconds(files: Sequence[Path]) -> float | None:
@@ -259,8 +291,10 @@ def _shown(path: Path) -> str:
     return shown_path(path)
 
 
-def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
-    """How ``row`` (a result under ``root``) is remade (module docstring)."""
+def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int,
+                made_by: Mapping[str, str] | None = None) -> Remake:
+    """How ``row`` (a result under ``root``) is remade (module docstring); ``made_by``: the runs earlier results of
+    the plan make (fingerprint -> result), counted as shared (:func:`plan_bench`)."""
     files = [root / f.rstrip("/") for f in row.files]
     folder = (root / row.name).parent
     stem = row.name.rsplit("/", 1)[-1]
@@ -268,7 +302,8 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
     if row.suite is not None and manifest.is_file():
         data = json.loads(manifest.read_text())
         if data.get("kind") != "output":
-            return plan_bench(row.name, [str(data["command"])], folder, files, out, jobs, rates_root=root)
+            return plan_bench(row.name, [str(data["command"])], folder, files, out, jobs, rates_root=root,
+                              made_by=made_by)  # fmt: skip
     covering = covering_manifests(folder, files)
     if covering:
         listed = {str(o).split("/")[0] for d in covering.values() for o in d.get("outputs") or ()}
@@ -283,7 +318,7 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
         cwd = found_path(next(iter(covering.values())).get("cwd") or ".") if covering else REPOSITORY
         walls = [d.get("wall_s") for d in covering.values()]
         if row.suite is not None and all(c.startswith("cnnslam bench ") for c in commands):
-            return plan_bench(row.name, commands, folder, files, out, jobs, notes, root)
+            return plan_bench(row.name, commands, folder, files, out, jobs, notes, root, made_by)
         seconds = sum(w for w in walls if isinstance(w, int | float)) if any(walls) else recorded_seconds(files)
         return Remake(row.name, tuple(commands), False, cwd, folder, estimate_s=seconds, notes=notes)
     if row.suite is not None:
@@ -292,11 +327,12 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
             if path.is_file() and path.suffix == ".md":
                 quoted += [m for m in MADE_BY.findall(path.read_text()) if m not in quoted]
         commands = quoted or [f"cnnslam bench {row.suite}"]
-        planned = plan_bench(row.name, commands, folder, files, out, jobs, rates_root=root)
+        planned = plan_bench(row.name, commands, folder, files, out, jobs, rates_root=root, made_by=made_by)
         if planned.runs is None and quoted and folder.resolve() == Path(root).resolve():  # the suite's own place
             notes = (f"the command its report quotes cannot be planned now ({'; '.join(planned.notes)}): the suite "
                      "as defined instead",)  # fmt: skip
-            return plan_bench(row.name, [f"cnnslam bench {row.suite}"], folder, files, out, jobs, notes, root)
+            return plan_bench(row.name, [f"cnnslam bench {row.suite}"], folder, files, out, jobs, notes, root,
+                              made_by)  # fmt: skip
         return planned
     commands = known_commands(row.name, root, files)
     notes = () if commands else ("no manifest and no known command: remake it by hand",)
@@ -306,11 +342,19 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int) -> Remake:
 
 def plan_remakes(root: Path = RESULTS_ROOT, names: Sequence[str] | None = None, out: Path = Path("runs"),
                  jobs: int = 2, table: Mapping[str, Any] | None = None) -> list[Remake]:
-    """The remake of every stale result under ``root``, or of each of ``names`` (stale or not); nothing runs.
-    :class:`InputError` for an unknown name (:func:`eval.bench.provenance.results_status`)."""
+    """The remake of every stale result under ``root``, or of each of ``names`` (stale or not), in the order they are
+    remade; a run two results plan is made by the first and shared with the second (:func:`plan_bench`); nothing
+    runs. :class:`InputError` for an unknown name (:func:`eval.bench.provenance.results_status`)."""
     rows = results_status(root, names, table)
     chosen = rows if names else [r for r in rows if not r.current]
-    return [plan_result(r, Path(root), Path(out), jobs) for r in chosen]
+    made_by: dict[str, str] = {}
+    plans = []
+    for row in chosen:
+        plan = plan_result(row, Path(root), Path(out), jobs, made_by)
+        if plan.possible:
+            made_by.update({f: plan.name for f in plan.made if f not in made_by})
+        plans.append(plan)
+    return plans
 
 
 def format_plan(plans: Sequence[Remake], jobs: int) -> str:
@@ -324,7 +368,8 @@ def format_plan(plans: Sequence[Remake], jobs: int) -> str:
         shared.setdefault(p.commands, max(known) if known else None)
     seen: set[tuple[str, ...]] = set()
     for p in plans:
-        runs = "" if p.runs is None else f"{p.runs} runs: {p.reused} reused, {p.to_make} to make; "
+        others = "".join(f", {n} made by {'another part' if by == p.name else by}" for by, n in p.shared_with)
+        runs = "" if p.runs is None else f"{p.runs} runs: {p.reused} reused{others}, {p.to_make} to make; "
         estimate = shared[p.commands] if p.possible else p.estimate_s
         est = "time unknown" if estimate is None else f"about {_duration(estimate)}"
         if p.possible and p.commands in seen:
@@ -340,6 +385,10 @@ def format_plan(plans: Sequence[Remake], jobs: int) -> str:
     lines.append(f"{len(plans)} result(s) to remake ({sum(not p.possible for p in plans)} of them not remade), "
                  f"about {_duration(total)} with {jobs} run(s) in parallel"
                  + (f" (+ {unknown} of unknown time)" if unknown else ""))  # fmt: skip
+    shared_runs = sum(p.shared for p in plans if p.possible)
+    if shared_runs:
+        lines.append(f"{shared_runs} run(s) shared between results (same fingerprint, made once): about "
+                     f"{_duration(sum(p.shared_s for p in plans if p.possible))} not spent")  # fmt: skip
     return "\n".join(lines)
 
 

@@ -172,3 +172,21 @@ def test_the_estimate_takes_a_runs_recorded_time_else_its_methods_seconds_per_fr
     assert remake.estimate_runs(specs, walls, rates) == pytest.approx(30.0 + 5.0 + 10.0 + 30.0)
     assert remake.estimate_runs(specs[1:2], walls, {}) == pytest.approx(40.0)  # its method's median wall
     assert remake.estimate_runs(specs[1:2], {}, {}) is None
+
+
+def test_a_run_two_results_plan_is_made_once_and_a_prefix_run_is_not_shared(tmp_path):
+    results = tmp_path / "results"
+    line = "cnnslam bench table1 --frames {n} --sequences office0 --methods oracle constant-pose --seeds 0"
+    for folder, frames in (("a", 6), ("b", 6), ("c", 8)):
+        (results / folder).mkdir(parents=True)
+        (results / folder / "table1.md").write_text(f"Made by `{line.format(n=frames)}`: ...\n")
+    plans = {p.name: p for p in remake.plan_remakes(results, out=tmp_path / "runs")}
+    a, b, c = plans["a/table1"], plans["b/table1"], plans["c/table1"]
+    assert (a.runs, a.reused, a.shared, a.to_make) == (2, 0, 0, 2)
+    assert (b.runs, b.reused, b.shared, b.to_make) == (2, 0, 2, 0) and b.shared_with == (("a/table1", 2),)
+    assert b.estimate_s in (0.0, None) and b.made == frozenset()
+    assert (c.runs, c.shared, c.to_make) == (2, 0, 2)  # the first 6 of 8 frames are another run: not shared
+    assert a.made == {s.fingerprint() for s in b.specs} and not a.made & c.made
+    text = remake.format_plan(list(plans.values()), 2)
+    assert "b/table1: 2 runs: 0 reused, 2 made by a/table1, 0 to make" in text
+    assert "2 run(s) shared between results (same fingerprint, made once)" in text
