@@ -239,7 +239,7 @@ FR1_MOTION_SEQUENCES: tuple[str, ...] = ("office_fr1motion", "living_fr1motion")
 
 def _fr1_motion(name: str, style: str, scene_seed: int) -> SequenceSpec:
     """A close-range hand-held sequence moving as TUM fr1/desk's camera does: the ``handheld_stats`` trajectory at
-    its defaults (:data:`sim_envs.motion.trajectories.FR1_DESK_MOTION`: fr1/desk's ground-truth speeds, angular
+    its defaults (:data:`sim_envs.motion.recorded.FR1_DESK_MOTION`: fr1/desk's ground-truth speeds, angular
     rates and their time scales; distance to a desk or table top as fr1/desk's depths), TUM fr1 intrinsics, 20 s.
     Seen through the ``fr1`` camera as ``<name>@fr1`` (registered with ``clean``, as every sequence)."""
     return SequenceSpec(

@@ -1,6 +1,6 @@
 """``python -m sim_envs.tools.cli_camera_calibration``: measure the camera statistics of real frames and of a simulated
 sequence through each camera preset; write a Markdown table and a side-by-side picture of the simulated cameras.
-With ``--motion``, also how the cameras move: :func:`sim_envs.motion.trajectories.motion_statistics` of the real
+With ``--motion``, also how the cameras move: :func:`sim_envs.motion.recorded.motion_statistics` of the real
 folder's ground truth (a TUM ``groundtruth.txt``, resampled at 30 Hz) and of each simulated sequence's trajectory
 (:func:`motion_table`).
 
@@ -87,7 +87,7 @@ MOTION_ROWS: dict[str, str] = {
 
 
 def motion_table(columns: dict[str, Any]) -> str:
-    """A Markdown table of :class:`sim_envs.motion.trajectories.MotionStatistics`: one row per statistic of
+    """A Markdown table of :class:`sim_envs.motion.recorded.MotionStatistics`: one row per statistic of
     :data:`MOTION_ROWS`, one column per named measurement."""
     def cell(value: Any) -> str:
         return ", ".join(f"{v:.2f}" for v in value) if isinstance(value, tuple) else f"{value:.3g}"
@@ -99,10 +99,10 @@ def motion_table(columns: dict[str, Any]) -> str:
 
 
 def measure_motion(real: str | Path | None, sequences: Sequence[str], frames: int | None = None) -> dict[str, Any]:
-    """Motion statistics (:func:`sim_envs.motion.trajectories.motion_statistics`) of ``real``'s
+    """Motion statistics (:func:`sim_envs.motion.recorded.motion_statistics`) of ``real``'s
     ``groundtruth.txt`` when there is one (column ``real (<folder>)``) and of each registered sequence's trajectory
     (made ``frames`` long, or as registered when None)."""
-    from sim_envs.motion.trajectories import motion_statistics, recorded_motion
+    from sim_envs.motion.recorded import motion_statistics, recorded_motion
     from sim_envs.sources.simsource import SimulatedSequence
 
     out: dict[str, Any] = {}
