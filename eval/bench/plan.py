@@ -8,6 +8,7 @@ runs. :mod:`eval.bench.benchmark` runs the plan; the module docstring there list
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -449,7 +450,9 @@ def _results_dir(suite: Suite, options: BenchOptions, command: str, as_defined: 
     after the selection under ``<out>/reports/``. A selection of other sequences or methods than the suite's never
     writes into the committed ``results/`` (it would overwrite the whole table with part of it): neither the
     repository's own (:data:`COMMITTED_RESULTS`, however ``--results`` reaches it: paths compared resolved) nor
-    ``results/`` under the working folder, where the suite as defined writes."""
+    ``results/`` under the working folder, where the suite as defined writes; except a folder below them that holds
+    this suite's result made by this very command (:func:`made_here`: a committed variant such as
+    ``results/camera_clean/``, remade in place by ``cnnslam results make``)."""
     if options.results is None:
         if as_defined:
             return DEFAULT_RESULTS
@@ -457,11 +460,41 @@ def _results_dir(suite: Suite, options: BenchOptions, command: str, as_defined: 
     target = Path(options.results).resolve()
     note = suite.selection_note()
     guarded = (COMMITTED_RESULTS, DEFAULT_RESULTS.resolve())  # the repository's, and where the suite writes here
+    if note and any(committed in target.parents for committed in guarded) and made_here(target, suite.name, command):
+        return Path(options.results)  # a committed variant remade in its own folder by the command that made it
     if note and any(target == committed or committed in target.parents for committed in guarded):
         raise SuiteError(f"--results {options.results}: the committed results hold suite {suite.name} as defined, "
                          f"and this selection is {note}: leave --results out (it writes under {options.out}/reports/) "
                          "or name a folder outside results/")  # fmt: skip
     return Path(options.results)
+
+
+def made_here(folder: Path, suite: str, command: str) -> bool:
+    """Whether ``folder`` holds ``suite``'s result made by ``command`` (as a report quotes it, without the
+    ``--timeout`` the planner adds): its manifest records that command, or its report ``<suite>.md`` quotes it
+    ("Made by `...`")."""
+    bare = _without_timeout(command)
+    manifest = Path(folder) / f"{suite}.provenance.json"
+    if manifest.is_file():
+        try:
+            recorded = json.loads(manifest.read_text()).get("command")
+        except (OSError, ValueError, AttributeError):
+            recorded = None
+        if isinstance(recorded, str) and _without_timeout(recorded) == bare:
+            return True
+    report = Path(folder) / f"{suite}.md"
+    try:
+        return report.is_file() and f"Made by `{bare}`" in report.read_text()
+    except OSError:
+        return False
+
+
+def _without_timeout(command: str) -> str:
+    words = command.split()
+    if "--timeout" in words:
+        i = words.index("--timeout")
+        words = words[:i] + words[i + 2:]
+    return " ".join(words)
 
 
 def _executor(suite: Suite, methods: Mapping[str, Method], options: BenchOptions) -> Executor | None:

@@ -48,3 +48,25 @@ def test_the_benchmark_keeps_the_names_that_moved_here():
                  "check_writable", "command_line", "COMMITTED_RESULTS", "TIMEOUT_PER_FRAME_S", "DEFAULT_JOBS"):
         assert getattr(benchmark, name) is getattr(plan, name), name
     assert bench.BenchOptions is plan.BenchOptions and bench.prepare is plan.prepare
+
+
+def test_a_committed_variant_is_remade_in_its_folder_by_its_own_command_only(tmp_path, monkeypatch):
+    committed = tmp_path / "results"
+    monkeypatch.setattr(plan, "COMMITTED_RESULTS", committed.resolve())
+    variant = committed / "camera_clean"
+    variant.mkdir(parents=True)
+    options = _options(tmp_path, results=variant, command="cnnslam bench table1 --frames 4 --sequences office0")
+    with pytest.raises(InputError, match="the committed results hold suite table1 as defined"):
+        prepare("table1", ["oracle"], options)  # an empty folder below results/: refused
+    (variant / "table1.md").write_text("Made by `cnnslam bench table1 --frames 4 --sequences office0`: ...\n")
+    assert prepare("table1", ["oracle"], options).results_dir == variant
+    other = _options(tmp_path, results=variant, command="cnnslam bench table1 --frames 8 --sequences office0")
+    with pytest.raises(InputError, match="the committed results hold suite table1 as defined"):
+        prepare("table1", ["oracle"], other)  # another selection would overwrite the variant with part of it
+    with pytest.raises(InputError, match="the committed results hold suite table1 as defined"):
+        prepare("table1", ["oracle"], _options(tmp_path, results=committed, command=options.command))
+    (variant / "table1.md").unlink()
+    (variant / "table1.provenance.json").write_text(
+        '{"command": "cnnslam bench table1 --frames 4 --sequences office0 --timeout 900"}')
+    assert plan.made_here(variant, "table1", options.command)
+    assert prepare("table1", ["oracle"], options).results_dir == variant
