@@ -23,6 +23,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {}
 DEVELOPER_TOOLS: tuple[tuple[str, str], ...] = (
     ("sim_envs.tools.cli_camera_calibration",
      "measure real frames' image statistics against each simulated camera preset (results/camera_calibration.md)"),
+    ("sim_envs.tools.bench_folder", "frames per second a real RGB-D folder delivers (read-ahead, prepared images)"),
     ("cnnslam.tools.warmup", "compile the agent's numba kernels into numba's cache (make venv runs it)"),
     ("cnnslam.depthnet.bench", "the depth network's warm milliseconds per 320x240 frame"),
     ("eval.metrics.bench_metrics", "time the trajectory metrics on 100 000 poses"),

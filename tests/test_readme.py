@@ -126,8 +126,9 @@ def test_the_commands_section_names_every_command_and_developer_tool():
         assert f"`{name}`" in section
     for group in GROUPS:
         assert group in section
+    assert "python -m NAME" in section  # the developer tools run as modules
     for module, _ in DEVELOPER_TOOLS:
-        assert f"python -m {module}" in section
+        assert f"`{module}`" in section
 
 
 def test_the_network_recipe_is_the_shipped_one():
