@@ -139,10 +139,26 @@ class KeyframePrediction:
     focal_ratio: float
 
 
-def _current_focal(predictor: Any, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
+def _checked_intrinsics(intrinsics: np.ndarray) -> np.ndarray:
     k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
     if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
         raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
+    return k
+
+
+def focal_at_train_size(intrinsics: np.ndarray, image_size: tuple[int, int], train_size: tuple[int, int]) -> float:
+    """f_cur of eq. 5 for a network that sees images resized to ``train_size`` (W_tr, H_tr): the focal length (pixels)
+    of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy], brought to the network's resolution,
+    ``(fx * W_tr / W + fy * H_tr / H) / 2``. :class:`CnnSlamError` for intrinsics that are not four finite values
+    with positive focal lengths."""
+    k = _checked_intrinsics(intrinsics)
+    h, w = image_size
+    tw, th = train_size
+    return float((k[0] * tw / w + k[1] * th / h) / 2.0)
+
+
+def _current_focal(predictor: Any, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
+    k = _checked_intrinsics(intrinsics)
     method = getattr(predictor, "current_focal", None)
     if callable(method):
         return float(method(k, image_size))

@@ -35,7 +35,12 @@ from typing import Any, Literal
 import cv2
 import numpy as np
 
-from cnnslam.depth.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
+from cnnslam.depth.depth_prediction import (
+    JITTER_STD_ULPS,
+    focal_at_train_size,
+    focal_length_adjustment,
+    perturb_last_bits,
+)
 from cnnslam.errors import CnnSlamError
 from sim_envs.frames import NUM_CLASSES
 
@@ -417,12 +422,7 @@ class ModelFilePredictor:
     def current_focal(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
         """f_cur of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy] (pixels), brought to
         ``train_size``: ``(fx * W_tr / W + fy * H_tr / H) / 2``."""
-        k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
-        if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
-            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
-        h, w = image_size
-        tw, th = self.train_size
-        return float((k[0] * tw / w + k[1] * th / h) / 2.0)
+        return focal_at_train_size(intrinsics, image_size, self.train_size)
 
     def predict(self, rgb: np.ndarray, intrinsics: np.ndarray) -> ModelFilePrediction:
         """Depth for THIS camera: the raw output scaled by f_cur / f_tr (CNN-SLAM eq. 5, with the model's training

@@ -32,7 +32,12 @@ import numpy as np
 import torch
 from numba import njit
 
-from cnnslam.depth.depth_prediction import JITTER_STD_ULPS, focal_length_adjustment, perturb_last_bits
+from cnnslam.depth.depth_prediction import (
+    JITTER_STD_ULPS,
+    focal_at_train_size,
+    focal_length_adjustment,
+    perturb_last_bits,
+)
 from cnnslam.depthnet.model import DepthSemanticNet, fold_batch_norms, normalize_rgb
 from cnnslam.depthnet.weights_io import DEFAULT_WEIGHTS, load_weights
 from cnnslam.errors import CnnSlamError
@@ -175,12 +180,7 @@ class DepthNetPredictor:
     def current_focal(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
         """f_cur of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy] (pixels), brought to the
         network's resolution ``train_size``: ``(fx * W_tr / W + fy * H_tr / H) / 2``."""
-        k = np.asarray(intrinsics, dtype=np.float64).reshape(-1)
-        if k.shape != (4,) or not np.isfinite(k).all() or k[0] <= 0 or k[1] <= 0:
-            raise CnnSlamError(f"intrinsics must be [fx, fy, cx, cy] with positive focal lengths, got {intrinsics!r}")
-        h, w = image_size
-        tw, th = self.train_size
-        return float((k[0] * tw / w + k[1] * th / h) / 2.0)
+        return focal_at_train_size(intrinsics, image_size, self.train_size)
 
     def predict(self, rgb: np.ndarray, intrinsics: np.ndarray) -> Prediction:
         """Depth for THIS camera: the raw output scaled by f_cur / f_tr (CNN-SLAM eq. 5), labels unchanged.

@@ -132,3 +132,14 @@ def test_perturb_last_bits_is_numpys_definition_bit_for_bit(shape, dtype):
     expected = (np.asarray(values, np.float32) * (1.0 + ref.standard_normal(shape) * (JITTER_STD_ULPS * ulp)))
     assert np.array_equal(perturb_last_bits(values, legacy), expected.astype(np.float32))
     assert perturb_last_bits(np.float32(2.0), np.random.default_rng(1)).shape == ()  # a scalar stays 0-d
+
+
+def test_focal_at_train_size_known_answer():
+    """f_cur brought to the network's resolution: fx, fy scaled by W_tr / W and H_tr / H, then averaged."""
+    from cnnslam.depth.depth_prediction import focal_at_train_size
+    from cnnslam.errors import CnnSlamError
+
+    # a 640x480 image with fx 520, fy 510 seen by a 160x120 network: (520 / 4 + 510 / 4) / 2 = 128.75
+    assert focal_at_train_size([520.0, 510.0, 320.0, 240.0], (480, 640), (160, 120)) == 128.75
+    with pytest.raises(CnnSlamError, match="positive focal lengths"):
+        focal_at_train_size([0.0, 510.0, 320.0, 240.0], (480, 640), (160, 120))
