@@ -60,7 +60,7 @@ from typing import Any
 from eval.bench.environment import machine_description
 from eval.bench.executors import LocalExecutor
 from eval.bench.gate_baseline import CALIBRATION_K, CROSSABLE_SHARE, Baseline
-from eval.bench.methods import with_predictor_options
+from eval.bench.method_settings import with_predictor_options
 from eval.bench.regress import calibrate, gate_metrics, seed_figures
 from eval.bench.runner import SuiteRun, run_suite
 from eval.bench.suites import Suite

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from eval.bench.executors import EXECUTORS, Executor, ExecutorError, check_alarm, make_executor
-from eval.bench.methods import Method, MethodError, apply_settings, entry_point_problem, load_methods, parse_setting
+from eval.bench.method_settings import apply_settings, parse_setting
+from eval.bench.methods import Method, MethodError, entry_point_problem, load_methods
 from eval.bench.regress import GateAction
 from eval.bench.run import DONE_FILE
 from eval.bench.run_store import run_folder

@@ -58,7 +58,7 @@ def manifest_path(results_dir: Path, suite: str) -> Path:
 
 def selection_of(options: Any) -> dict[str, Any]:
     """The options of a :class:`~eval.bench.benchmark.BenchOptions` that shape a suite's runs, JSON-ready."""
-    from eval.bench.methods import parse_setting
+    from eval.bench.method_settings import parse_setting
 
     settings = [list(parse_setting(s)) if isinstance(s, str) else list(s) for s in options.settings]
     size = options.image_size

@@ -209,11 +209,13 @@ def run_suite(
             done = (folder / DONE_FILE).is_file()
             outcomes[spec.key] = RunOutcome(spec.key, "cached" if done else "not_run", folder,
                                             None if done else "not run (--report-only runs nothing)")  # fmt: skip
-        elif not rerun and reuse_finished(out_root, spec):  # its own folder, or another suite's run of it
+            continue
+        spec = replace(spec, known_fingerprint=spec.fingerprint())  # once a run: the check, the worker, the index
+        if not rerun and reuse_finished(out_root, spec):  # its own folder, or another suite's run of it
             outcomes[spec.key] = RunOutcome(spec.key, "cached", folder)
         else:
             cache = str(out_root / FRAME_CACHE_DIR) if frame_cache else None
-            todo.append(replace(spec, frame_cache=cache, known_fingerprint=spec.fingerprint()))
+            todo.append(replace(spec, frame_cache=cache))
     renders = frames_jobs(todo, out_root / FRAME_CACHE_DIR) if frame_cache and todo else []
     todo = run_order(todo)
     serial = isinstance(executor, SerialExecutor)

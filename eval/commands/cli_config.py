@@ -19,7 +19,8 @@ import json
 import sys
 from typing import Any
 
-from eval.bench.methods import Method, load_methods, merge_methods, parse_setting, with_settings
+from eval.bench.method_settings import parse_setting, with_settings
+from eval.bench.methods import Method, load_methods, merge_methods
 from eval.errors import EvalError, InputError
 from slamcommon.errors import ProjectError
 
