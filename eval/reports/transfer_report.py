@@ -248,7 +248,8 @@ def recordings_markdown(needs: pd.DataFrame, target: float = TRANSFER_TARGET) ->
 
 
 def _dropped_line(frame: pd.DataFrame, ranks: pd.DataFrame) -> str:
-    """Which methods a length's rankings leave out (no finite score on some sequence or window of a domain)."""
+    """Which methods a length's rankings leave out (no finite score on some sequence or window of a domain, and no
+    failure there: a failed run ranks last instead)."""
     if frame.empty:
         return ""
     out = []
@@ -257,7 +258,8 @@ def _dropped_line(frame: pd.DataFrame, ranks: pd.DataFrame) -> str:
         dropped = sorted(set(sub["method"]) - ranked)
         if dropped:
             out.append(f"at length {length}: {', '.join(dropped)}")
-    return ("Left out of the rankings (a sequence or window without a finite score, e.g. a failed run): "
+    return ("Left out of the rankings (a sequence or window without a finite score that is no failure, e.g. a figure "
+            "the method does not report; a failed run ranks last instead): "
             + "; ".join(out) + ".\n") if out else ""
 
 
