@@ -207,11 +207,16 @@ def predict_keyframe_depth(
 
 
 @dataclass(frozen=True)
-class DegradedPrediction:
-    """Output of :class:`DegradedGroundTruthPredictor`: depth (H, W) float32 metres > 0, label_probs (H, W, 4)."""
+class DepthPrediction:
+    """One image's prediction by a predictor of this package (:class:`DegradedGroundTruthPredictor`, a model file):
+    depth (H, W) float32 metres > 0; label_probs (H, W, C) float32 per-pixel class distributions, or None when the
+    predictor gives no class scores."""
 
     depth: np.ndarray
-    label_probs: np.ndarray
+    label_probs: np.ndarray | None
+
+
+DegradedPrediction = DepthPrediction  # the development predictor's output under its own name
 
 
 # f_tr of the paper's network: NYU Depth v2's Kinect, (518.8579 + 519.4696) / 2 at 640x480, halved for 320x240
@@ -317,12 +322,12 @@ class DegradedGroundTruthPredictor:
 
     def predict_raw_from_ground_truth(
         self, rgb: np.ndarray, ground_truth: GroundTruthHint, intrinsics: np.ndarray
-    ) -> DegradedPrediction:
+    ) -> DepthPrediction:
         """The imitated raw network output for one frame (steps 1-6 of the class docstring; no eq. 5)."""
         h, w = np.asarray(rgb).shape[:2]
         if ground_truth.depth.shape != (h, w):
             raise CnnSlamError(f"ground-truth depth {ground_truth.depth.shape} does not match the image {(h, w)}")
         f_cur = _current_focal(self, intrinsics, (h, w))
         depth = self.degrade_depth(ground_truth.depth) * np.float32(self.train_focal / f_cur)  # 6.
-        return DegradedPrediction(depth=depth.astype(np.float32),
+        return DepthPrediction(depth=depth.astype(np.float32),
                                   label_probs=self.degrade_labels(ground_truth.labels, (h, w)))

@@ -37,6 +37,7 @@ import numpy as np
 
 from cnnslam.depth.depth_prediction import (
     JITTER_STD_ULPS,
+    DepthPrediction,
     focal_at_train_size,
     focal_length_adjustment,
     perturb_last_bits,
@@ -264,15 +265,6 @@ def _one_line(exc: BaseException) -> str:
 # ------------------------------------------------------------------------------------------------------- predictor
 
 
-@dataclass(frozen=True)
-class ModelFilePrediction:
-    """One image's prediction: depth (H, W) float32 metres > 0; label_probs (H, W, C) float32 per-pixel class
-    distributions, or None when the model gives no class scores."""
-
-    depth: np.ndarray
-    label_probs: np.ndarray | None
-
-
 def _softmax_last(scores: np.ndarray) -> np.ndarray:
     e = np.exp(scores - scores.max(axis=-1, keepdims=True))
     return (e / e.sum(axis=-1, keepdims=True)).astype(np.float32)
@@ -399,7 +391,7 @@ class ModelFilePredictor:
             depth = (depth * np.float32(self.output_scale)).astype(np.float32)
         return depth, probs
 
-    def predict_raw(self, rgb: np.ndarray) -> ModelFilePrediction:
+    def predict_raw(self, rgb: np.ndarray) -> DepthPrediction:
         """The network's output for ``rgb`` ((H, W, 3) uint8, any size), at (H, W), WITHOUT eq. 5: metres for a
         camera with the training focal length. The image is resized to ``train_size`` on the way in (area
         averaging when shrinking, else bilinear) and the outputs bilinearly to (H, W) on the way out."""
@@ -417,16 +409,16 @@ class ModelFilePredictor:
         if probs is not None and probs.shape[:2] != (h, w):
             probs = cv2.resize(probs, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
             probs = (probs / probs.sum(axis=-1, keepdims=True)).astype(np.float32)
-        return ModelFilePrediction(depth, probs)
+        return DepthPrediction(depth, probs)
 
     def current_focal(self, intrinsics: np.ndarray, image_size: tuple[int, int]) -> float:
         """f_cur of an image of ``image_size`` (H, W) with ``intrinsics`` [fx, fy, cx, cy] (pixels), brought to
         ``train_size``: ``(fx * W_tr / W + fy * H_tr / H) / 2``."""
         return focal_at_train_size(intrinsics, image_size, self.train_size)
 
-    def predict(self, rgb: np.ndarray, intrinsics: np.ndarray) -> ModelFilePrediction:
+    def predict(self, rgb: np.ndarray, intrinsics: np.ndarray) -> DepthPrediction:
         """Depth for THIS camera: the raw output scaled by f_cur / f_tr (CNN-SLAM eq. 5, with the model's training
         focal length), class probabilities unchanged. rgb: (H, W, 3) uint8; intrinsics: [fx, fy, cx, cy] pixels."""
         raw = self.predict_raw(rgb)
         f_cur = self.current_focal(intrinsics, np.asarray(rgb).shape[:2])
-        return ModelFilePrediction(focal_length_adjustment(raw.depth, f_cur, self.train_focal), raw.label_probs)
+        return DepthPrediction(focal_length_adjustment(raw.depth, f_cur, self.train_focal), raw.label_probs)
