@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import logging
-import subprocess
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
@@ -34,6 +33,7 @@ from eval.bench.suites import Suite, SuiteKind
 from eval.errors import RunnerError
 from eval.metrics.results import RunRecord, load_run
 from eval.metrics.runs import suite_records_json  # noqa: F401  (the judge's; its name kept here)
+from slamcommon.provenance import tree_state
 
 logger = logging.getLogger(__name__)
 
@@ -77,20 +77,14 @@ class SuiteRun:
 
 
 def git_revision(root: str | Path | None = None) -> str | None:
-    """``git describe --always --dirty`` of the repository holding ``root`` (default: this package), or None."""
+    """The 12-digit revision of the repository holding ``root`` (default: this package), ``-dirty`` appended when a
+    tracked file outside ``results/`` is changed and not committed (:func:`slamcommon.provenance.tree_state`, as the
+    provenance manifests judge it), or None outside a repository."""
     root = Path(root) if root is not None else Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(
-            ["git", "describe", "--always", "--dirty", "--abbrev=12"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        )
-    except (OSError, subprocess.SubprocessError):
+    state = tree_state(root)
+    if state.revision is None:
         return None
-    return out.stdout.strip() or None
+    return state.revision + ("-dirty" if state.dirty else "")
 
 
 def plan_runs(

@@ -400,3 +400,29 @@ def test_a_run_is_fingerprinted_once_in_the_parent_not_again_in_its_worker(tmp_p
         record = json.loads((run_folder(tmp_path, spec) / "metrics.json").read_text())
         assert record["metadata"]["fingerprint"] == spec.fingerprint()
     assert replace(run.specs[0], known_fingerprint="abc").fingerprint() == "abc"
+
+
+def test_git_revision_is_dirty_for_code_changes_not_for_results(tmp_path):
+    """A run's revision says ``-dirty`` as the provenance manifests do: for a changed tracked file outside
+    ``results/`` only (a suite rewrites ``results/`` itself)."""
+    import subprocess
+
+    from eval.bench.runner import git_revision
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "table1.md").write_text("a\n")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "c")
+    head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=tmp_path, check=True, capture_output=True,
+                          text=True).stdout.strip()
+    assert git_revision(tmp_path) == head
+    (tmp_path / "results" / "table1.md").write_text("b\n")
+    assert git_revision(tmp_path) == head
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert git_revision(tmp_path) == head + "-dirty"
+    assert git_revision(tmp_path.parent / "nowhere") is None
