@@ -39,6 +39,22 @@ SYNTHETIC = {
     "distortion:1": "52259a5249647d1fe00b3248592830c8c1ae454a2e14cbff95459fccae7a0618",
     "fr1": "249a7bf83614b67fe9255effc4b0cd18790a68f3cbbd87e208aeaa63da232ae3",  # synthetic tier only
 }
+# the same digests measured on other CPUs (numpy's vectorised sin/cos and OpenCV's kernels likely round differently on
+# another instruction set; not isolated): an AMD EPYC with AVX2 and no AVX-512 (every synthetic digest differs, of the
+# rendered ones only kinect's); a restructuring of the camera's code must still give one of these
+SYNTHETIC_ON = {
+    "AMD EPYC, AVX2": {
+        "clean": "b4f2551b79b24ea50b5b72eb95f9e8e612d55b2a5813b9f8a4164dacd936e884",
+        "kinect": "d29f5a858d25a315d0643e7aa5ad8069f57a1af97863b705d7ac031a5c2b5afe",
+        "hard": "ec73642d1221f5856b6149d6d869a7eb3de10a2e2dea6e530a91c14dbc01badb",
+        "noise:1": "69e83302de6e76bb30916b4dd2e25d81927e79812d006a0afc41ebef1832b282",
+        "blur:1": "09c8d93de888835bc03f537af3f9bfab76d601b6e0d9f1484c24e9b86e9d1227",
+        "exposure:1": "20acf3d9877c5915c0aa9da7efed3bf4aebe03aa915c2c0ddfc1d4a1116c6fe7",
+        "rolling_shutter:1": "6b11556729c0489dd346c164ac36d2e789eefc0668b2dcbc45cda0e402761888",
+        "distortion:1": "21cec2c9a2904ffdad77a86d21b96bb79adc51a2724c1b079be0c5b96543f467",
+        "fr1": "01c63cde41e2ac47561c4d515c63e4cd6798e079b9e76bde9627c99d31a7e38b",
+    },
+}
 # sha256 of 6 rendered frames of office0 at 320x240 (rgb and sensor depth of each, the exposures and gains, the raw
 # image of frame 5), per camera, recorded with MUJOCO_GL=egl; CLEAN_RENDERS: the clean camera's rgb alone (the
 # renderer's own bytes)
@@ -53,6 +69,8 @@ RENDERED = {
     "distortion:1": "43808d755def405f34f7cb24a577d9a07a7df2e78c6815d892183a980b1c41b3",
 }
 CLEAN_RENDERS = "0fe451029abecc5ae3d919c8e60cda7a7daad887eee54a92c1c849b9bc142567"
+RENDERED_ON = {"AMD EPYC, AVX2": RENDERED | {
+    "kinect": "73fb9b24592300af3240b32bce0bfc35620a9d076d411b411e6dc820fd28cd5f"}}
 
 
 def _synthetic_render(T: np.ndarray) -> np.ndarray:
@@ -95,7 +113,7 @@ def _synthetic_digest(name: str) -> str:
 
 @pytest.mark.parametrize("name", (*CAMERAS, "fr1"))
 def test_synthetic_camera_bytes(name):
-    assert _synthetic_digest(name) == SYNTHETIC[name]
+    assert _synthetic_digest(name) in {SYNTHETIC[name], *(d[name] for d in SYNTHETIC_ON.values())}
 
 
 def _rendered_digests(name: str) -> tuple[str, str]:
@@ -126,4 +144,4 @@ def test_rendered_camera_bytes():
         pytest.skip("this machine's renderer (OpenGL backend or MuJoCo version) draws office0 with other bytes than "
                     "the recording's; the camera's own bytes are checked by test_synthetic_camera_bytes")  # fmt: skip
     got = {"clean": everything} | {name: _rendered_digests(name)[0] for name in CAMERAS[1:]}
-    assert got == RENDERED
+    assert got in [RENDERED, *RENDERED_ON.values()]
