@@ -16,8 +16,7 @@ What it does, in this order:
    imported and its class found: :func:`eval.bench.plan._check_entry_points` says which are refused and which
    skipped), ``settings`` (keys that no chosen method's configuration has, values of the wrong type or range:
    :func:`eval.bench.method_settings.apply_settings`), seeds, sequence names, every folder sequence's camera (a camera
-   file
-   that does not parse or has ``fx = -5``), the output folders (``out`` and the results folder writable,
+   file that does not parse or has ``fx = -5``), the output folders (``out`` and the results folder writable,
    :func:`check_writable`; ``report_only``: ``out`` holds finished runs of the selection), the results folder (a
    selection other than the suite's never writes into the committed ``results/``, :data:`COMMITTED_RESULTS`), the
    executor, and a run's time limit (given, or :func:`eval.bench.plan._timeout`'s default, quoted in the reports'
