@@ -37,6 +37,7 @@ OUTPUT_KIND = "output"  # a manifest of files one command wrote (a suite's manif
 REPOSITORY = Path(__file__).resolve().parents[1]
 # the packages whose files a closure follows (and hashes); modules of any other package are left out
 PROJECT_PACKAGES: tuple[str, ...] = ("cnnslam", "sim_envs", "slamcommon", "thirdparty", "eval")
+WALL_S = "wall_s"  # the key of a command's wall-clock seconds: in a manifest, a perf probe, a tool's figures
 DIRTY_LISTED = 5  # uncommitted files named in a manifest (the count is always given)
 
 _Stamp = tuple[int, int]
@@ -259,11 +260,12 @@ def manifest_path(folder: str | Path, name: str) -> Path:
 def output_manifest(name: str, outputs: Sequence[str], command: str, modules: Sequence[str],
                     inputs: Sequence[str | Path] = (), folders: Mapping[str | Path, str] | None = None,
                     state: TreeState | None = None, cwd: str | Path | None = None,
-                    wall_s: float | None = None, packages: Sequence[str] = PROJECT_PACKAGES) -> dict[str, Any]:
+                    seconds: float | None = None, packages: Sequence[str] = PROJECT_PACKAGES) -> dict[str, Any]:
     """The manifest (module docstring) of the files ``outputs`` (names relative to the manifest's folder) made by
     ``command`` run in ``cwd`` (default: the working folder), whose code is the import closure of ``modules``,
-    reading the files ``inputs`` and the data folders ``folders`` (path -> content fingerprint); ``wall_s``: how
-    long the command took, when known (what ``cnnslam results make --dry-run`` estimates from)."""
+    reading the files ``inputs`` and the data folders ``folders`` (path -> content fingerprint); ``seconds``: how
+    long the command took, when known, kept under :data:`WALL_S` (what ``cnnslam results make --dry-run`` estimates
+    from)."""
     state = tree_state() if state is None else state
     return {
         "schema": SCHEMA,
@@ -280,19 +282,19 @@ def output_manifest(name: str, outputs: Sequence[str], command: str, modules: Se
                  "sha256": code_digest(list(modules), packages)},
         "inputs": {shown_path(p): file_sha256(Path(p).resolve()) for p in inputs},
         "folders": {shown_path(p): str(f) for p, f in (folders or {}).items()},
-        "wall_s": None if wall_s is None else round(float(wall_s), 1),
+        WALL_S: None if seconds is None else round(float(seconds), 1),
     }
 
 
 def write_output_manifest(folder: str | Path, name: str, outputs: Sequence[str | Path], command: str,
                           modules: Sequence[str], inputs: Sequence[str | Path] = (),
                           folders: Mapping[str | Path, str] | None = None, state: TreeState | None = None,
-                          wall_s: float | None = None) -> Path:
+                          seconds: float | None = None) -> Path:
     """Write ``<folder>/<name>.provenance.json`` (:func:`output_manifest`; ``outputs`` are files in ``folder``,
     given by path or name); returns its path."""
     folder = Path(folder)
     names = [Path(p).name if Path(p).parent in (Path("."), folder) else os.path.relpath(p, folder) for p in outputs]
-    data = output_manifest(name, names, command, modules, inputs, folders, state, wall_s=wall_s)
+    data = output_manifest(name, names, command, modules, inputs, folders, state, seconds=seconds)
     path = manifest_path(folder, name)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
@@ -301,7 +303,7 @@ def write_output_manifest(folder: str | Path, name: str, outputs: Sequence[str |
 
 def record_outputs(outputs: Sequence[str | Path], prog: str, modules: Sequence[str],
                    inputs: Sequence[str | Path] = (), folders: Mapping[str | Path, str] | None = None,
-                   wall_s: float | None = None) -> list[Path]:
+                   seconds: float | None = None) -> list[Path]:
     """Write the manifest of files a command just wrote (:func:`write_output_manifest`): one per folder of
     ``outputs``, named after the first output there (``results/depthnet.json`` -> ``results/depthnet.provenance.json``),
     recording the running command (:func:`invoked_command`, ``prog`` when it is not run from a command line) and
@@ -313,5 +315,5 @@ def record_outputs(outputs: Sequence[str | Path], prog: str, modules: Sequence[s
             by_folder.setdefault(path.parent, []).append(path)
     command = invoked_command(prog)
     return [write_output_manifest(folder, files[0].name.split(".")[0], files, command, modules, inputs, folders,
-                                  wall_s=wall_s)
+                                  seconds=seconds)
             for folder, files in by_folder.items()]  # fmt: skip

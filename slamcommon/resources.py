@@ -9,7 +9,7 @@ import sys
 MIB = 1024 * 1024
 
 
-def peak_rss_mib() -> float:
+def peak_resident_mib() -> float:
     """This process's peak resident set size so far, MiB (``getrusage``'s ``ru_maxrss``; Linux reports KiB, macOS
     bytes). A process forked from another counts the pages it inherited resident, as the kernel does; the memory of
     processes it started (a system run out of process) is not in it."""

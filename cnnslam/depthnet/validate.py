@@ -327,7 +327,8 @@ class FolderValidation:
     frame's log-depth slope (:func:`~cnnslam.depthnet.metrics.log_depth_slope`, 1 = the right depth range, below 1
     compressed). All on the adjusted depth. f_cur, f_tr: pixels at the network's resolution. spread: the scale
     series of the evenly spaced frames (its frame-to-frame change spans their gap); window: the same over a run of
-    consecutive frames in the middle of the folder (change per frame)."""
+    consecutive frames in the middle of the folder (change per frame). Its JSON (:meth:`to_dict`) adds
+    ``focal_ratio`` = f_cur / f_tr and ``depth_scale_error`` = |scale median - 1|."""
 
     name: str
     frames: int
@@ -347,7 +348,7 @@ class FolderValidation:
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["focal_ratio"] = self.f_cur / self.f_tr
-        d["scale_error"] = abs(self.scale_median - 1.0)
+        d["depth_scale_error"] = abs(self.scale_median - 1.0)  # the network's depth scale off the sensor's
         d["spread"], d["window"] = self.spread.to_dict(), self.window.to_dict()
         return d
 

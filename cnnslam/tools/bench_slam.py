@@ -42,7 +42,8 @@ from cnnslam.predictors import make_predictor
 from cnnslam.system import CnnSlam
 from slamcommon.agent_keys import TRACKED_SHARE
 from slamcommon.machine_unit import UNIT_VERSION, units_around
-from slamcommon.resources import peak_rss_mib  # the one reading of peak memory (also the judge's)
+from slamcommon.provenance import WALL_S
+from slamcommon.resources import peak_resident_mib  # the one reading of peak memory (also the judge's)
 
 
 def _available_cores() -> int:
@@ -239,7 +240,7 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
                    name=f"{sequence}-{n_frames}")
     name, pred = _make_predictor(predictor)
     figures: dict[str, Any] = {"sequence": spec.name, "camera": camera, "frames": int(n_frames), "predictor": name,
-                               "peak_rss_mib_start": peak_rss_mib()}
+                               "peak_rss_mib_start": peak_resident_mib()}
     marks = sorted({int(c) for c in checkpoints if 0 < int(c) < n_frames} | {int(n_frames)})
     start = time.perf_counter()
     with SimulatedSequence(spec) as source:
@@ -248,19 +249,19 @@ def memory_benchmark(sequence: str = "office0", n_frames: int = 10000, checkpoin
             frame = source.frame(i)
             slam.process(frame.rgb, float(frame.timestamp))
             if i + 1 in marks:
-                figures[f"peak_rss_mib_at_{i + 1}"] = peak_rss_mib()
+                figures[f"peak_rss_mib_at_{i + 1}"] = peak_resident_mib()
                 figures[f"keyframes_at_{i + 1}"] = len(slam.keyframes)
                 if slam._model is not None:  # read between frames: the key-frame thread may be fusing
                     figures[f"model_mib_at_{i + 1}"] = slam._model.nbytes / 2**20
                     figures[f"model_surfels_at_{i + 1}"] = len(slam._model)
         result = slam.finish()
-    figures["peak_rss_mib_after_finish"] = peak_rss_mib()
+    figures["peak_rss_mib_after_finish"] = peak_resident_mib()
     if result.model is not None:  # the global model the key-frame thread fused (Sec. 3.5)
         figures["model_surfels"] = len(result.model)
         figures["model_mib"] = result.model.nbytes / 2**20
     figures[TRACKED_SHARE] = result.stats[TRACKED_SHARE]
     figures.update(numba_cache_counts())  # a cold cache compiles in this process: its memory is in the peak
-    figures["wall_s"] = time.perf_counter() - start
+    figures[WALL_S] = time.perf_counter() - start
     first, last = marks[0], marks[-1]
     if last > first:
         figures["mib_per_1000_frames"] = 1000 * (figures[f"peak_rss_mib_at_{last}"]

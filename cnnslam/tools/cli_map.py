@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     from cnnslam.tools.map_replay import corrected_trajectory, fuse_keyframes, map_scores
     from sim_envs.agent import load_agent
     from sim_envs.driver import run_episode
-    from slamcommon.resources import peak_rss_mib
+    from slamcommon.resources import peak_resident_mib
     from slamcommon.strict_json import json_ready
 
     try:  # bad arguments, an agent that cannot be loaded, an environment that cannot be made: before the episode runs
@@ -211,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
             record["metrics"] = map_scores(cloud, model, result, scene, alignment=args.alignment,
                                            gt_spacing=args.gt_spacing, threshold=args.threshold,
                                            label_distance=args.label_distance, online_poses=online, config=config)
-        record["peak_rss_mb"] = peak_rss_mib()
+        record["peak_rss_mb"] = peak_resident_mib()
         out.mkdir(parents=True, exist_ok=True)
         tmp = out / "metrics.json.part"
         tmp.write_text(json.dumps(json_ready(record), indent=2) + "\n")
@@ -227,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
             record_outputs([Path(args.figure), beside], "cnnslam map",
                            ["cnnslam.tools.cli_map", "sim_envs.env", "sim_envs.sources.simsource",
                             args.agent.partition(":")[0]],
-                           [DEFAULT_WEIGHTS] if network else [], wall_s=run_seconds)
+                           [DEFAULT_WEIGHTS] if network else [], seconds=run_seconds)
     except ProjectError as exc:
         print(f"cnnslam map: error: {exc}", file=sys.stderr)
         return 1

@@ -4,10 +4,12 @@ checking, capping, writing and updating it. The comparison of a run with it is :
 Baseline file (JSON, committed under ``results/baselines/``)::
 
     {"schema": "cnnslam-baseline/2",
-     "metrics": {"office0/CNN-SLAM/ate_rmse": 0.0056, ...},
-     "tolerances": [{"pattern": "*ate_rmse", "direction": "lower", "abs": 0.0005, "rel": 0.02}, ...],
-     "calibrated": {"office0/CNN-SLAM/ate_rmse": {"spread": 0.0003, "allowed": 0.0009}, ...},
+     "metrics": {"office0/CNN-SLAM/<key>": 0.0056, ...},
+     "tolerances": [{"pattern": "*<key>", "direction": "lower", "abs": 0.0005, "rel": 0.02}, ...],
+     "calibrated": {"office0/CNN-SLAM/<key>": {"spread": 0.0003, "allowed": 0.0009}, ...},
      "calibration": {"how": "...", "configurations": [...], "k": 3.0, "false_alarms": ..., ...}}
+
+``<key>``: a metric's key (:mod:`eval.metrics.catalogue`; a run's ``metrics.json`` holds them by these keys).
 
 A metric's allowed change (:meth:`Baseline.allowed_change`) is ``calibrated[metric]["allowed"]`` when the baseline
 has it, else its rule's ``max(abs, rel * |baseline|)``. ``policy``: ``one-sided`` (default: only a change for the
@@ -258,7 +260,7 @@ def load_baseline(path: str | Path, crossable: bool = True) -> Baseline:
         except TypeError as exc:
             raise GateError(f"{path}: each tolerance is {{'pattern', 'direction', 'abs', 'rel'}}; {exc}") from exc
         if any(not isinstance(t.pattern, str) for t in tolerances):
-            raise GateError(f"{path}: a tolerance's pattern is a text (fnmatch), e.g. '*ate_rmse'")
+            raise GateError(f"{path}: a tolerance's pattern is a text (fnmatch), e.g. '*{catalogue.ATE_RMSE.key}'")
     calibrated = {} if data.get("calibrated") is None else data["calibrated"]
     if not isinstance(calibrated, dict) or not all(
         isinstance(v, dict) and isinstance(v.get("allowed"), int | float) and not isinstance(v["allowed"], bool)

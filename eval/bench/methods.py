@@ -53,12 +53,13 @@ ALWAYS_KEPT: tuple[str, ...] = (catalogue.FRAMES.key,)
 # wall-clock figures: kept apart from the metrics (not deterministic, never compared by the gate)
 TIMING_METRICS: tuple[str, ...] = catalogue.keys("timing")
 
-EXTERNAL_LAYOUT = """\
+_OWN = catalogue.WALL_S.key  # the external layout's run.toml key: the run's wall seconds
+EXTERNAL_LAYOUT = f"""\
 FOLDER/<sequence>/trajectory.txt     TUM trajectory (timestamp tx ty tz qx qy qz qw), the exported timestamps
 FOLDER/<sequence>.txt                (alternative to the above)
 FOLDER/<sequence>/depth/<t>.png      optional key-frame depth, 16-bit PNG, 5000 = 1 m (TUM), t = the timestamp
 FOLDER/<sequence>/depth/<t>.npy      optional key-frame depth, (H, W) float32 metres, 0 = no estimate
-FOLDER/<sequence>/run.toml           optional: wall_s = the system's own run time on the sequence (seconds)
+FOLDER/<sequence>/run.toml           optional: {_OWN} = the system's own run time on the sequence (seconds)
 FOLDER/method.toml                   optional: sensor = "mono" | "rgbd" | "stereo"; uses_ground_truth = ["depth",
                                      "scale", "poses"] (what it was fed); align = "se3" | "sim3" (its ATE)"""
 
@@ -336,7 +337,7 @@ SENSORS: tuple[str, ...] = ("mono", "rgbd", "stereo")
 GROUND_TRUTH_KINDS: tuple[str, ...] = ("depth", "scale", "poses")
 ALIGNMENTS: tuple[str, ...] = tuple(m.value for m in AlignmentMethod)
 EXTERNAL_SIDE_FILE = "method.toml"  # FOLDER/method.toml: what an external system declares about itself
-RUN_SIDE_FILE = "run.toml"  # FOLDER/<sequence>/run.toml: wall_s = its own run time on that sequence
+RUN_SIDE_FILE = "run.toml"  # FOLDER/<sequence>/run.toml: its own run time in seconds (EXTERNAL_LAYOUT)
 
 
 def parse_methods(data: Mapping[str, Any], source: str = "<methods>") -> dict[str, Method]:

@@ -39,7 +39,7 @@ from tqdm import tqdm
 from eval.bench.executors import available_cores
 from eval.errors import EvalError
 from eval.metrics.results import json_ready
-from slamcommon.provenance import shown_path
+from slamcommon.provenance import WALL_S, shown_path
 
 T = TypeVar("T")
 PROBES_FILE: Path = Path(__file__).resolve().parents[1] / "perf.toml"  # eval/perf.toml
@@ -76,7 +76,8 @@ class Probe:
 
 @dataclass(frozen=True)
 class ProbeResult:
-    """A probe's figures (flat name -> number or text), or its error; ``command`` as run; ``wall_s``."""
+    """A probe's figures (flat name -> number or text), or its error; ``command`` as run; the wall-clock
+    ``seconds`` it took (kept under :data:`slamcommon.provenance.WALL_S` in ``perf.json``)."""
 
     name: str
     title: str
@@ -84,7 +85,13 @@ class ProbeResult:
     ok: bool
     figures: dict[str, Any] = field(default_factory=dict)
     error: str | None = None
-    wall_s: float = 0.0
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """The probe's entry in ``perf.json``."""
+        data = asdict(self)
+        data[WALL_S] = data.pop("seconds")
+        return data
 
 
 @dataclass(frozen=True)
@@ -106,7 +113,7 @@ class PerfReport:
                 "schema": PERF_SCHEMA,
                 "machine": self.machine,
                 "git_revision": self.git_revision,
-                "probes": {p.name: asdict(p) for p in self.probes},
+                "probes": {p.name: p.to_dict() for p in self.probes},
                 "speed_gate": self.speed_gate,
             }
         )
@@ -202,18 +209,18 @@ def run_probe(probe: Probe, frames: int, python: str = sys.executable) -> ProbeR
             done = subprocess.run(command, capture_output=True, text=True, timeout=probe.timeout_s, check=False)
         except subprocess.TimeoutExpired:
             return ProbeResult(probe.name, probe.title, command, False, error=f"timed out after {probe.timeout_s:g} s",
-                               wall_s=time.perf_counter() - start)  # fmt: skip
+                               seconds=time.perf_counter() - start)  # fmt: skip
         wall = time.perf_counter() - start
         if done.returncode != 0:
             tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
             return ProbeResult(probe.name, probe.title, command, False,
-                               error=f"exit status {done.returncode}: {' | '.join(tail)}", wall_s=wall)  # fmt: skip
+                               error=f"exit status {done.returncode}: {' | '.join(tail)}", seconds=wall)  # fmt: skip
         parser = PARSERS[probe.output]
         figures = parser(json_path) if probe.output == "json_file" else parser(done.stdout)
     if not figures:
         return ProbeResult(probe.name, probe.title, command, False,
-                           error=f"no figures found in the output ({probe.output})", wall_s=wall)  # fmt: skip
-    return ProbeResult(probe.name, probe.title, command, True, figures=figures, wall_s=wall)
+                           error=f"no figures found in the output ({probe.output})", seconds=wall)  # fmt: skip
+    return ProbeResult(probe.name, probe.title, command, True, figures=figures, seconds=wall)
 
 
 def machine_info() -> dict[str, Any]:
@@ -251,7 +258,7 @@ def format_perf_markdown(report: PerfReport, command: str = "cnnslam bench perf"
     ]
     for probe in report.probes:
         lines.append(f"## {probe.title}\n")
-        lines.append(f"`{' '.join(['python', *probe.command[1:]])}` ({probe.wall_s:.0f} s)\n")
+        lines.append(f"`{' '.join(['python', *probe.command[1:]])}` ({probe.seconds:.0f} s)\n")
         if not probe.ok:
             lines.append(f"**failed**: {probe.error}\n")
             continue
@@ -327,7 +334,7 @@ def run_perf(
     shown = command + (f" --frames {n}" if frames is not None and "--frames" not in command.split() else "")
     write_output_manifest(out, "perf", ["perf.json", "perf.md"], shown,
                           ["eval.bench.perf", *(p.module for p in chosen)],
-                          inputs=[PROBES_FILE] if probes is None else [], wall_s=sum(r.wall_s for r in results))
+                          inputs=[PROBES_FILE] if probes is None else [], seconds=sum(r.seconds for r in results))
     return report
 
 

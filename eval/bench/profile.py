@@ -24,6 +24,7 @@ from typing import Any
 
 from eval.bench.perf import format_table  # noqa: F401  (defined in perf, whose table probes print it)
 from eval.bench.run import STAGES
+from eval.metrics.catalogue import WALL_S
 
 DEFAULT_SEQUENCES = ("office0@kinect",)
 DEFAULT_FRAMES = 100
@@ -36,13 +37,13 @@ class MethodProfile:
     method: str
     runs: int
     frames: int
-    wall_s: float
+    seconds: float  # wall-clock, summed over the runs
     stages: dict[str, float]
 
     @property
     def fps(self) -> float:
         """Frames per second end to end (frames over the runs' wall time)."""
-        return self.frames / self.wall_s if self.wall_s > 0 else 0.0
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
 
     def ms_per_frame(self, stage: str) -> float:
         """Milliseconds per frame spent in ``stage`` (0 when the runs had none)."""
@@ -54,13 +55,13 @@ def profile_runs(runs: Iterable[tuple[str, int, Mapping[str, Any]]]) -> list[Met
     without stages (made before they were recorded) counts in frames and wall time only."""
     acc: dict[str, dict[str, Any]] = {}
     for method, frames, timing in runs:
-        a = acc.setdefault(method, {"runs": 0, "frames": 0, "wall_s": 0.0, "stages": dict.fromkeys(STAGES, 0.0)})
+        a = acc.setdefault(method, {"runs": 0, "frames": 0, "seconds": 0.0, "stages": dict.fromkeys(STAGES, 0.0)})
         a["runs"] += 1
         a["frames"] += int(frames)
-        a["wall_s"] += float(timing.get("wall_s") or 0.0)
+        a["seconds"] += float(timing.get(WALL_S.key) or 0.0)
         for stage, seconds in (timing.get("stages") or {}).items():
             a["stages"][stage] = a["stages"].get(stage, 0.0) + float(seconds)
-    return [MethodProfile(m, a["runs"], a["frames"], a["wall_s"], a["stages"]) for m, a in acc.items()]
+    return [MethodProfile(m, a["runs"], a["frames"], a["seconds"], a["stages"]) for m, a in acc.items()]
 
 
 def suite_profile(suite_run: Any) -> list[MethodProfile]:
@@ -70,9 +71,10 @@ def suite_profile(suite_run: Any) -> list[MethodProfile]:
 
 
 def profile_table(profiles: Sequence[MethodProfile]) -> dict[str, Any]:
-    """JSON-ready: ``columns`` (method, runs, frames, fps, wall_s, then each stage in ms per frame) and ``rows``."""
-    columns = ["method", "runs", "frames", "fps", "wall_s", *(f"{s}_ms" for s in STAGES)]
-    rows = [[p.method, p.runs, p.frames, round(p.fps, 2), round(p.wall_s, 2),
+    """JSON-ready: ``columns`` (method, runs, frames, fps, the wall seconds under the key of
+    :data:`eval.metrics.catalogue.WALL_S`, then each stage in ms per frame) and ``rows``."""
+    columns = ["method", "runs", "frames", "fps", WALL_S.key, *(f"{s}_ms" for s in STAGES)]
+    rows = [[p.method, p.runs, p.frames, round(p.fps, 2), round(p.seconds, 2),
              *(round(p.ms_per_frame(s), 2) for s in STAGES)] for p in profiles]
     return {"columns": columns, "rows": rows}
 

@@ -58,7 +58,7 @@ from eval.bench.sequence_ref import SequenceRef
 from eval.errors import RunnerError
 from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
 from eval.metrics.association import associate
-from eval.metrics.catalogue import TRACKED_SHARE
+from eval.metrics.catalogue import FPS_END_TO_END, FRAMES, METHOD_WALL_S, PEAK_RSS_MIB, TRACKED_SHARE, WALL_S
 from eval.metrics.map_metrics import map_metrics
 from eval.metrics.results import TIMING_FILE, evaluate_episode, json_ready
 from eval.metrics.runs import (  # a run folder's record files and its trajectory's scoring: the judge's, so that
@@ -70,7 +70,7 @@ from eval.metrics.trajectory import PoseTrajectory, rotation_share
 from eval.metrics.trajectory_metrics import TrajectoryMetrics
 from sim_envs.sensor.camera_effects import DEFAULT_CAMERA_EFFECTS
 from slamcommon.machine_unit import UNIT_VERSION, machine_unit_seconds, unit_summary
-from slamcommon.resources import peak_rss_mib
+from slamcommon.resources import peak_resident_mib
 
 RUN_FILES: tuple[str, ...] = (
     "metrics.json",
@@ -147,7 +147,7 @@ class RunResult:
     files: dict[str, bytes] = field(default_factory=dict)
     error: str | None = None
     traceback: str | None = None
-    wall_s: float = 0.0
+    seconds: float = 0.0  # wall-clock seconds the run took, done or failed
 
 
 # --------------------------------------------------------------------------------------- frames ahead of runs
@@ -217,9 +217,9 @@ def execute_run(spec: RunSpec, progress: bool = False) -> RunResult:
             "failed",
             error=f"{type(exc).__name__}: {exc}",
             traceback=traceback.format_exc(),
-            wall_s=time.perf_counter() - start,
+            seconds=time.perf_counter() - start,
         )
-    return RunResult(spec, "done", files=files, wall_s=time.perf_counter() - start)
+    return RunResult(spec, "done", files=files, seconds=time.perf_counter() - start)
 
 
 def _wait_for_rendering(spec: RunSpec) -> None:
@@ -296,8 +296,8 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
     timing = {k: metrics[k] for k in TIMING_METRICS if k in metrics}
     record = record.replace(sensor=method.sensor, metrics=method.select_metrics(metrics))
     timing["finish_seconds"] = episode.extras.get("finish_seconds")
-    if episode.extras.get("own_wall_s") is not None:
-        timing["method_wall_s"] = episode.extras["own_wall_s"]  # the system's own run time (its run.toml)
+    if episode.extras.get("own_seconds") is not None:
+        timing[METHOD_WALL_S.key] = episode.extras["own_seconds"]  # the system's own run time (its run.toml)
 
     with tempfile.TemporaryDirectory(prefix="cnnslam-run-") as tmp:
         folder = Path(tmp)
@@ -316,11 +316,11 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
         if spec.plots:
             _write_plots(folder, spec, episode, scored, depth_est if has_depth else [], depth_gt)
             stages["plots"] = time.perf_counter() - t_plots
-        timing["wall_s"] = time.perf_counter() - start
-        timing.update(resource_figures(n_frames, timing["wall_s"]))
+        timing[WALL_S.key] = time.perf_counter() - start
+        timing.update(resource_figures(n_frames, timing[WALL_S.key]))
         if cpu_start is not None:  # CPU seconds of the run's process, all its threads: what a loaded machine's wall
             timing["cpu_s"] = time.process_time() - cpu_start  # time hides
-        stages["other"] = max(0.0, timing["wall_s"] - sum(stages.values()))
+        stages["other"] = max(0.0, timing[WALL_S.key] - sum(stages.values()))
         if method.kind == "external":
             _external_speed(timing, n_frames)
         timing["stages"] = {k: stages[k] for k in STAGES if k in stages}
@@ -339,25 +339,27 @@ def _run_and_package(spec: RunSpec, progress: bool, start: float, units: list[fl
 
 
 def _external_speed(timing: dict[str, Any], frames: int) -> None:
-    """An external system's speed is its own: ``wall_s`` and ``fps_end_to_end`` (what the speed tables show) become
-    its ``run.toml``'s ``wall_s`` (``method_wall_s``) and frames / that, or are left out when it declares none (the
-    judge only read and scored its output); the judge's own seconds stay as ``scoring_wall_s``."""
-    timing["scoring_wall_s"] = timing.pop("wall_s")
-    timing.pop("fps_end_to_end", None)
-    own = timing.get("method_wall_s")
+    """An external system's speed is its own: the run's wall time and end-to-end frames a second (:data:`WALL_S`,
+    :data:`FPS_END_TO_END`: what the speed tables show) become the seconds its ``run.toml`` declares
+    (:data:`METHOD_WALL_S`) and frames / those, or are left out when it declares none (the judge only read and scored
+    its output); the judge's own seconds stay as ``scoring_wall_s``."""
+    timing["scoring_wall_s"] = timing.pop(WALL_S.key)
+    timing.pop(FPS_END_TO_END.key, None)
+    own = timing.get(METHOD_WALL_S.key)
     if own is not None:
-        timing["wall_s"] = float(own)
-        timing["fps_end_to_end"] = frames / own if own > 0 else math.nan
+        timing[WALL_S.key] = float(own)
+        timing[FPS_END_TO_END.key] = frames / own if own > 0 else math.nan
 
 
-def resource_figures(frames: int, wall_s: float) -> dict[str, float]:
-    """What this process used for a run of ``frames`` frames that took ``wall_s`` seconds: ``frames``,
-    ``fps_end_to_end`` and the peak resident memory so far (MiB) of this process, ``peak_rss_mib`` (a fresh worker
-    per run by default; with reused workers or the serial executor, that process's peak so far)."""
+def resource_figures(frames: int, seconds: float) -> dict[str, float]:
+    """What this process used for a run of ``frames`` frames that took ``seconds``, under the catalogue's keys:
+    :data:`FRAMES`, :data:`FPS_END_TO_END` and the peak resident memory so far (MiB) of this process,
+    :data:`PEAK_RSS_MIB` (a fresh worker per run by default; with reused workers or the serial executor, that
+    process's peak so far)."""
     return {
-        "frames": float(frames),
-        "fps_end_to_end": frames / wall_s if wall_s > 0 else math.nan,
-        "peak_rss_mib": peak_rss_mib(),
+        FRAMES.key: float(frames),
+        FPS_END_TO_END.key: frames / seconds if seconds > 0 else math.nan,
+        PEAK_RSS_MIB.key: peak_resident_mib(),
     }
 
 
@@ -512,23 +514,24 @@ def _external_episode(spec: RunSpec) -> tuple[ExternalEpisode, int, dict[str, An
         step_seconds=np.zeros(0),
         extras={"trajectory_file": str(path), "depth_files": len(files), "association": assoc.describe(),
                 "duplicate_timestamps": dropped,
-                "own_wall_s": _declared_wall_s(sequence_dir / RUN_SIDE_FILE)},
+                "own_seconds": _declared_seconds(sequence_dir / RUN_SIDE_FILE)},
     )
     return episode, n, source_info
 
 
-def _declared_wall_s(path: Path) -> float | None:
-    """``wall_s`` of an external system's ``<sequence>/run.toml`` (its own run time), None without the file."""
+def _declared_seconds(path: Path) -> float | None:
+    """The run time in seconds an external system's ``<sequence>/run.toml`` declares (its own, under the key of
+    :data:`WALL_S`), None without the file."""
     import tomllib
 
     if not path.is_file():
         return None
     try:
-        value = tomllib.loads(path.read_text(encoding="utf-8")).get("wall_s")
+        value = tomllib.loads(path.read_text(encoding="utf-8")).get(WALL_S.key)
     except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise RunnerError(f"{path}: not valid TOML: {exc}") from exc
     if not isinstance(value, int | float) or isinstance(value, bool) or not 0 <= value < math.inf:
-        raise RunnerError(f"{path}: wall_s must be a finite number of seconds >= 0, got {value!r}")
+        raise RunnerError(f"{path}: {WALL_S.key} must be a finite number of seconds >= 0, got {value!r}")
     return float(value)
 
 

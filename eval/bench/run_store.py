@@ -25,6 +25,7 @@ from pathlib import Path
 from eval.bench.run import DONE_FILE, FAILED_FILE, RunResult, RunSpec, run_title, run_trajectory_metrics, write_json
 from eval.errors import EvalError, RunnerError
 from eval.metrics.aligned import ALIGNED_FILES, aligned_alignments, aligned_files
+from eval.metrics.catalogue import WALL_S
 from eval.metrics.results import ResultsError, RunRecord, load_run
 from eval.metrics.trajectory import PoseTrajectory
 
@@ -175,7 +176,7 @@ def _write_files(tmp: Path, result: RunResult) -> None:
             "status": "failed",
             "error": result.error,
             "traceback": result.traceback,
-            "wall_s": result.wall_s,
+            WALL_S.key: result.seconds,
             "fingerprint": result.spec.fingerprint(),
             "git_revision": result.spec.git_revision,
         }

@@ -48,7 +48,7 @@ class RunOutcome:
     status: RunStatus
     folder: Path
     error: str | None = None
-    wall_s: float | None = None
+    seconds: float | None = None  # wall-clock seconds of a run made now
 
 
 @dataclass(frozen=True)
@@ -229,7 +229,7 @@ def run_suite(
             if isinstance(result, BaseException):
                 result = RunResult(spec, "failed", error=f"{type(result).__name__}: {result}")
             folder = store_result(out_root, result)
-            outcome = RunOutcome(spec.key, result.status, folder, result.error, result.wall_s)
+            outcome = RunOutcome(spec.key, result.status, folder, result.error, result.seconds)
             outcomes[spec.key] = outcome
             if on_result is not None:
                 on_result(outcome)

@@ -222,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
 
     record_outputs([out / n for n in ("reference.tum", "camera.toml", "reference.json", "reference.md",
                                       "reference.png")], "cnnslam reference", ["eval.commands.cli_reference"],
-                   folders={seq.folder: folder_fingerprint(seq.folder)["sha256"]}, wall_s=seconds)
+                   folders={seq.folder: folder_fingerprint(seq.folder)["sha256"]}, seconds=seconds)
     print(_markdown(seq.name, summary))
     written = "reference.tum, camera.toml, reference.json, reference.md" + ("" if args.no_plot else ", reference.png")
     print(f"wrote {written} to {out}")

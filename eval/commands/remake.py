@@ -16,9 +16,10 @@ and run in this process (:func:`eval.bench.benchmark.prepare`, then
 runner reuses every finished run whose fingerprint is current, its own or another suite's of the same fingerprint
 (:func:`eval.bench.run_store.reuse_finished`); any other command runs as a subprocess. A run one result plans that
 an earlier result of the same plan makes too (same fingerprint: the same code, inputs and configuration, whichever
-suite asks) is counted as shared, made once by the first. The estimate adds, per run to make, the ``wall_s`` its
-result recorded for that run (else the median of its method's there, else of all its runs), divided by the runs in
-parallel (``--jobs``); an output command's is its manifest's ``wall_s`` or the seconds its files record.
+suite asks) is counted as shared, made once by the first. The estimate adds, per run to make, the wall seconds its
+result recorded for that run (:data:`eval.metrics.catalogue.WALL_S`; else the median of its method's there, else of
+all its runs), divided by the runs in parallel (``--jobs``); an output command's is the seconds its manifest records
+(:data:`slamcommon.provenance.WALL_S`) or its files do.
 """
 
 from __future__ import annotations
@@ -37,7 +38,9 @@ from typing import Any
 
 from eval.bench.provenance import RESULTS_ROOT, ResultStatus, covering_manifests, output_changes, results_status
 from eval.errors import InputError
+from eval.metrics.catalogue import FRAMES, WALL_S
 from slamcommon.provenance import REPOSITORY, found_path
+from slamcommon.provenance import WALL_S as MANIFEST_WALL_S
 
 # the commands that make the outputs no suite makes, for results that have no manifest yet: file stem -> command
 # lines ({folder}: the result's folder, relative to the repository)
@@ -92,14 +95,14 @@ class Remake:
 
 
 def recorded_walls(files: Sequence[Path]) -> dict[str, tuple[str, float]]:
-    """Run key -> (method, wall_s) as a result's ``*_long.csv`` records them."""
+    """Run key -> (method, wall seconds) as a result's ``*_long.csv`` records them."""
     walls: dict[str, tuple[str, float]] = {}
     for path in files:
         if path.is_file() and path.name.endswith("_long.csv"):
             with path.open(newline="") as fh:
                 for row in csv.DictReader(fh):
                     try:
-                        walls[row["run"]] = (row.get("method") or "", float(row["wall_s"]))
+                        walls[row["run"]] = (row.get("method") or "", float(row[WALL_S.key]))
                     except (KeyError, TypeError, ValueError):
                         continue
     return walls
@@ -109,18 +112,18 @@ _RATES: dict[str, dict[str, float]] = {}
 
 
 def seconds_per_frame(root: Path) -> dict[str, float]:
-    """Method -> the median over every run recorded in the ``*_long.csv`` files under ``root`` of its ``wall_s``
-    per frame run (cached per process)."""
+    """Method -> the median over every run recorded in the ``*_long.csv`` files under ``root`` of its wall
+    seconds per frame run (cached per process)."""
     key = str(Path(root).resolve())
     if key not in _RATES:
         rates: dict[str, list[float]] = {}
         for path in sorted(Path(root).rglob("*_long.csv")):
             with path.open(newline="") as fh:
                 for row in csv.DictReader(fh):
-                    if row.get("metric") != "frames":
+                    if row.get("metric") != FRAMES.key:
                         continue
                     try:
-                        frames, wall = float(row["value"]), float(row["wall_s"])
+                        frames, wall = float(row["value"]), float(row[WALL_S.key])
                     except (KeyError, TypeError, ValueError):
                         continue
                     if frames > 0 and wall > 0:
@@ -155,7 +158,7 @@ def run_length(spec: Any) -> int | None:
 
 def estimate_runs(specs: Sequence[Any], walls: Mapping[str, tuple[str, float]],
                   rates: Mapping[str, float] | None = None) -> float | None:
-    """Seconds of one core for ``specs`` (module docstring): the run's recorded ``wall_s``, else its method's
+    """Seconds of one core for ``specs`` (module docstring): the run's recorded wall seconds, else its method's
     seconds per frame (``rates``, :func:`seconds_per_frame`; else the median method's) times its frames, else its
     method's median in ``walls``, else the median of ``walls``; None when nothing is known of any run."""
     rates = dict(rates or {})
@@ -241,7 +244,7 @@ def plan_bench(name: str, commands: Sequence[str], folder: Path, files: Sequence
 
 
 def recorded_seconds(files: Sequence[Path]) -> float | None:
-    """The seconds an output's files record of the command that made them: ``perf.json``'s probes' ``wall_s``, a
+    """The seconds an output's files record of the command that made them: ``perf.json``'s probes' seconds, a
     JSON's ``run_seconds`` or ``seconds``; None when none does."""
     total = None
     for path in files:
@@ -254,7 +257,7 @@ def recorded_seconds(files: Sequence[Path]) -> float | None:
         if not isinstance(data, dict):
             continue
         if isinstance(data.get("probes"), dict):
-            walls = [p.get("wall_s") for p in data["probes"].values() if isinstance(p, dict)]
+            walls = [p.get(MANIFEST_WALL_S) for p in data["probes"].values() if isinstance(p, dict)]
             total = (total or 0.0) + sum(w for w in walls if isinstance(w, int | float))
         for key in ("run_seconds", "seconds"):
             if isinstance(data.get(key), int | float):
@@ -316,7 +319,7 @@ def plan_result(row: ResultStatus, root: Path, out: Path, jobs: int,
             f"no recorded command for {p.name}" for p in unlisted)
         commands += extra
         cwd = found_path(next(iter(covering.values())).get("cwd") or ".") if covering else REPOSITORY
-        walls = [d.get("wall_s") for d in covering.values()]
+        walls = [d.get(MANIFEST_WALL_S) for d in covering.values()]
         if row.suite is not None and all(c.startswith("cnnslam bench ") for c in commands):
             return plan_bench(row.name, commands, folder, files, out, jobs, notes, root, made_by)
         seconds = sum(w for w in walls if isinstance(w, int | float)) if any(walls) else recorded_seconds(files)

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from eval.metrics import catalogue
-from eval.metrics.catalogue import TRACKED_SHARE
+from eval.metrics.catalogue import TRACKED_SHARE, WALL_S
 from eval.metrics.results import failure_of, failure_text
 from eval.metrics.trajectory_metrics import RELATIVE_PATH_SHARES, RELATIVE_TOLERANCE
 from eval.reports.inputs import SuiteRun
@@ -54,7 +54,7 @@ def resources_frame(run: SuiteRun) -> pd.DataFrame:
             row.update({f"{name}_median": float(np.median(f)) if f.size else math.nan,
                         f"{name}_min": float(f.min()) if f.size else math.nan,
                         f"{name}_max": float(f.max()) if f.size else math.nan, f"{name}_count": int(f.size)})
-        walls = np.array([r.resources.get("wall_s", math.nan) for r in records], dtype=float)
+        walls = np.array([r.resources.get(WALL_S.key, math.nan) for r in records], dtype=float)
         row["wall_min_total"] = float(np.nansum(walls) / 60.0) if np.isfinite(walls).any() else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
@@ -72,8 +72,8 @@ def resources_markdown(run: SuiteRun) -> str:
              "the agent, scoring, plots; runs two at a time share the machine), frames per second end to end "
              "(frames / wall time) and of the agent's step alone, and the peak resident memory of the process that ran "
              "it (a fresh worker per run; a system run in a process of its own, ORB-SLAM3, is not in it). An external "
-             "method's wall time and frames per second are its own (`wall_s` of its `run.toml`), not the judge's "
-             "scoring time. Every run's "
+             f"method's wall time and frames per second are its own (`{WALL_S.key}` of its `run.toml`), not the "
+             "judge's scoring time. Every run's "
              "figures: `resources` of its record, `timing.json` of its folder. Failed runs count here: they used "
              "the time and memory.\n",
              "| method | runs | frames per run | " + " | ".join(heads) + " | all its runs [min] |",

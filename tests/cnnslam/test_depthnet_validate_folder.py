@@ -45,7 +45,7 @@ def test_depth_metrics_and_scale_on_a_folder(folder, factor):
     assert result.adjusted.abs_rel == pytest.approx(factor - 1.0, abs=1e-5)  # eq. 5 gives factor x 2 m
     assert result.scale_median == pytest.approx(1.0 / factor, rel=1e-5)
     assert result.adjusted.percent_correct == (100.0 if factor == 1.0 else 0.0)
-    assert result.to_dict()["scale_error"] == pytest.approx(abs(1.0 / factor - 1.0), rel=1e-5)
+    assert result.to_dict()["depth_scale_error"] == pytest.approx(abs(1.0 / factor - 1.0), rel=1e-5)
     assert result.gradient_scale_median == pytest.approx(1.0 / factor, rel=1e-5)  # a uniform error: the same there
     assert np.isnan(result.slope_median)  # the fixture's depth is flat: no range to compress
     assert "| tiny_7scenes (real) | 3 |" in folder_validation_markdown([result])

@@ -40,9 +40,9 @@ def test_no_arrow_goes_back(package, forbidden):
 
 def test_each_shared_concept_is_defined_once():
     """se3_inverse, relative_pose, look_at, DepthMetrics, SemanticMetrics, confusion_matrix, NO_LABEL and
-    peak_rss_mib have one definition in the tree (re-exports are imports, not definitions)."""
+    peak_resident_mib have one definition in the tree (re-exports are imports, not definitions)."""
     names = {"se3_inverse", "relative_pose", "relative_se3", "look_at", "DepthMetrics", "SemanticMetrics",
-             "confusion_matrix", "NO_LABEL", "NUM_CLASSES", "SemanticClass", "peak_rss_mib"}
+             "confusion_matrix", "NO_LABEL", "NUM_CLASSES", "SemanticClass", "peak_resident_mib"}
     where: dict[str, list[str]] = {n: [] for n in names}
     for package in ("slamcommon", "sim_envs", "cnnslam", "eval", "thirdparty"):
         for path in (ROOT / package).rglob("*.py"):

@@ -19,7 +19,7 @@ from eval.commands.cli_profile import main
 def test_known_answers() -> None:
     timing = {"wall_s": 2.0, "stages": {"agent": 1.0, "frames": 0.5, "other": 0.5}}
     [p] = profile_runs([("m", 10, timing), ("m", 30, {**timing, "wall_s": 2.0}), ("m", 10, {"wall_s": 1.0})])
-    assert (p.runs, p.frames, p.wall_s, p.fps) == (3, 50, 5.0, 10.0)
+    assert (p.runs, p.frames, p.seconds, p.fps) == (3, 50, 5.0, 10.0)
     assert p.ms_per_frame("agent") == pytest.approx(40.0) and p.ms_per_frame("plots") == 0.0
     table = profile_table([p])
     assert table["columns"][:5] == ["method", "runs", "frames", "fps", "wall_s"] and len(table["rows"]) == 1
@@ -34,7 +34,7 @@ def test_a_tiny_suite_has_every_stage_and_they_sum_to_its_wall_time(tmp_path) ->
     for p in profiles:
         assert p.runs == 1 and p.frames == 5 and p.fps > 0
         assert p.stages["agent"] > 0 and p.stages["plots"] > 0 and p.stages["trajectory_metrics"] > 0
-        assert sum(p.ms_per_frame(s) for s in STAGES) == pytest.approx(1e3 * p.wall_s / p.frames, rel=1e-6)
+        assert sum(p.ms_per_frame(s) for s in STAGES) == pytest.approx(1e3 * p.seconds / p.frames, rel=1e-6)
 
 
 @pytest.mark.slow

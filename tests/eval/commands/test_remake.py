@@ -111,7 +111,7 @@ def test_an_output_manifest_judges_its_files_and_make_runs_its_command(tmp_path,
     (results / "thing_extra.png").write_bytes(b"")
     script = f"import pathlib; pathlib.Path({str(results / 'thing.md')!r}).write_text('again')"
     shared.write_output_manifest(results, "thing", ["thing.md"], f"python -c {json.dumps(script)}",
-                                 ["slamcommon.se3"], inputs=[weights], wall_s=90.0)  # fmt: skip
+                                 ["slamcommon.se3"], inputs=[weights], seconds=90.0)  # fmt: skip
     rows = provenance.results_status(results)
     assert [(r.name, r.current) for r in rows] == [("thing", False)]
     assert rows[0].why == "no provenance for thing_extra.png"  # a file no manifest lists
