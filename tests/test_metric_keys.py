@@ -11,12 +11,6 @@ from eval.metrics.catalogue import CATALOGUE
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("slamcommon", "sim_envs", "cnnslam", "eval", "thirdparty")
 MOST_FILES = 2
-# a third file that spells a key for another quantity, each with why it stays for now; the list only shrinks
-OTHER_QUANTITY = {
-    # ORB's own count of its map's good points in its agent_extras.json (not the fused model's points the map metric
-    # counts); renaming it changes ORB's run fingerprints, so it goes with the next remake of ORB's runs
-    "map_points": "cnnslam/baselines/orb.py",
-}
 
 
 def files_spelling(key: str, texts: dict[str, str]) -> list[str]:
@@ -35,8 +29,5 @@ def test_each_metric_key_is_spelled_in_at_most_two_files():
     assert len(texts) > 200
     keys = [spec.key for spec in CATALOGUE if "_" in spec.key]
     assert len(keys) >= 40
-    spelled = {k: files_spelling(k, texts) for k in keys}
-    counted = {k: [f for f in files if f != OTHER_QUANTITY.get(k)] for k, files in spelled.items()}
-    over = {k: files for k, files in counted.items() if len(files) > MOST_FILES}
+    over = {k: files for k in keys if len(files := files_spelling(k, texts)) > MOST_FILES}
     assert over == {}
-    assert all(OTHER_QUANTITY[k] in spelled[k] for k in OTHER_QUANTITY)  # an excused file that no longer spells it goes

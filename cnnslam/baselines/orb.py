@@ -548,7 +548,7 @@ class OrbSlamAgent(BaselineAgent):
         extras: dict[str, Any] = {
             **self.episode_extras(),
             "keyframes": len(keyframes),
-            "map_points": int((~sys_.map.bad).sum()),
+            "landmarks": int((~sys_.map.bad).sum()),  # the good points of its own map
             "init_frame": sys_.init_frame,
             "last_init_failure": sys_.last_init_failure,
             "state": sys_.state,

@@ -44,7 +44,7 @@ def test_tracks_a_handheld_snippet_with_small_sim3_ate(handheld_episode) -> None
     assert tracked[first:].all()  # initialised within a few frames, never lost afterwards
     assert res.extras["init_frame"] == first and res.extras["resets"] == 0
     json.dumps(res.extras)  # JSON-serialisable diagnostics
-    assert res.extras["fps"] > 0 and res.extras["map_points"] > 100
+    assert res.extras["fps"] > 0 and res.extras["landmarks"] > 100
     # frames before initialisation report the identity pose
     np.testing.assert_array_equal(res.T_world_cam_est[:first], np.tile(np.eye(4), (first, 1, 1)))
     gt = PoseTrajectory(res.timestamps[tracked], res.T_world_cam_gt[tracked])
