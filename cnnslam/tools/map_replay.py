@@ -18,7 +18,8 @@ Semantic accuracy is reported four ways, fused model vs the frame-wise CNN label
   ground-truth labels of that key-frame (the paper's Fig. 6 view);
 - ``semantic_measurements``: on the fused measurements themselves (the issue's "same surfaces", exactly): the fusion
   is replayed with each key-frame pixel's ground-truth label and whether its CNN label was right in place of the
-  class probabilities (same depth, poses and association, so the same surfels), and every fused measurement is
+  class probabilities (same depth, poses and association, so the same surfels; for the agent's live model, both
+  fusions are replays of its key-frames, as its thread re-places surfels between them), and every fused measurement is
   scored against its own ground-truth label with its frame-wise label and with its surfel's fused label
   (:func:`slamcommon.reconstruction_metrics.measurement_label_metrics`; weights: Keller's radial confidence alpha). It
   separates what the label averaging does (``pure_*``: surfels whose measurements share one ground-truth label) from
@@ -125,12 +126,18 @@ def evidence_maps(keyframes: list[Any], gt_frames: list[Any], num_classes: int) 
 
 
 def measurement_scores(keyframes: list[Any], images: list[np.ndarray], intrinsics: np.ndarray,
-                       online_poses: np.ndarray | None, config: Any, model: Any,
-                       evidence: list[np.ndarray]) -> dict[str, Any]:
-    """``semantic_measurements`` of ``model`` (see the module docstring): replays its fusion with ``evidence`` maps
-    and scores each fused measurement with its frame-wise and its surfel's fused label."""
+                       online_poses: np.ndarray | None, config: Any, evidence: list[np.ndarray],
+                       model: Any = None) -> dict[str, Any]:
+    """``semantic_measurements`` (see the module docstring) of the key-frames' fusion with ``config`` at
+    ``online_poses`` (:func:`fuse_keyframes`): the fusion is replayed with ``evidence`` maps in place of the labels
+    and each fused measurement scored with its frame-wise and its surfel's fused label. ``model``: that fusion when
+    already made (the same inputs), else it is made here. A live model (the agent's key-frame thread) is not it: the
+    thread re-places surfels whenever the pose graph moves a key-frame, between integrations, so its surfels need
+    not be the replay's."""
     from slamcommon.reconstruction_metrics import measurement_label_metrics
 
+    if model is None:
+        model, _ = fuse_keyframes(keyframes, images, intrinsics, online_poses, config)
     C = config.num_classes
     replay_config = dataclasses.replace(config, num_classes=C + 2, label_weighting="confidence")
     replay, _ = fuse_keyframes(keyframes, images, intrinsics, online_poses, replay_config, label_maps=evidence)
@@ -142,11 +149,12 @@ def measurement_scores(keyframes: list[Any], images: list[np.ndarray], intrinsic
 
 def map_scores(cloud: Any, model: Any, result: Any, scene: Any, *, alignment: str = "se3", gt_spacing: float = 0.02,
                threshold: float = 0.05, label_distance: float = 0.10, online_poses: np.ndarray | None = None,
-               config: Any = None) -> dict[str, Any]:
+               config: Any = None, live: bool = False) -> dict[str, Any]:
     """The shared reconstruction and semantic metrics of a fused model against the scene's surfaces (see the module
     docstring): key-frame poses aligned onto the ground truth (``alignment``), surface samples every ``gt_spacing``
     m, accuracy/completeness within ``threshold`` m, 3D labels within ``label_distance`` m. ``online_poses`` and
-    ``config`` are those the model was fused with (:func:`fuse_keyframes`)."""
+    ``config`` are those the model was fused with (:func:`fuse_keyframes`); ``live``: the model is the agent's own
+    (its key-frame thread's), so the measurement scores replay the fusion from the key-frames instead."""
     from cnnslam.geometry import transform_points, vertex_map
     from cnnslam.model.global_model import GlobalModelConfig
     from sim_envs.frames import NO_LABEL
@@ -209,11 +217,11 @@ def map_scores(cloud: Any, model: Any, result: Any, scene: Any, *, alignment: st
             images = [f.rgb for f in result.keyframe_gt]
             evidence = evidence_maps(result.keyframes, result.keyframe_gt, config.num_classes)
             out["semantic_measurements"] = measurement_scores(result.keyframes, images, intr, online_poses, config,
-                                                              model, evidence)
+                                                              evidence, None if live else model)
             exact = [dataclasses.replace(kf, depth=np.asarray(f.depth, np.float32), T_world_cam=f.T_world_cam,
                                          uncertainty=None) for kf, f in zip(result.keyframes, result.keyframe_gt,
                                                                             strict=True)]
             exact_model, _ = fuse_keyframes(exact, images, intr, None, config)
             out["semantic_measurements_exact_geometry"] = measurement_scores(exact, images, intr, None, config,
-                                                                             exact_model, evidence)
+                                                                             evidence, exact_model)
     return out
