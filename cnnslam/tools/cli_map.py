@@ -209,9 +209,8 @@ def run(args: argparse.Namespace) -> int:
             if scene is None:
                 raise CnnSlamError(f"the source of {args.sequence!r} has no scene geometry; use --no-metrics")
             record["metrics"] = map_scores(cloud, model, result, scene, alignment=args.alignment,
-                                           gt_spacing=args.gt_spacing, threshold=args.threshold,
-                                           label_distance=args.label_distance, online_poses=online, config=config,
-                                           live=model is live)
+                                           gt_spacing=args.gt_spacing, threshold=args.threshold, live=model is live,
+                                           label_distance=args.label_distance, online_poses=online, config=config)
         record["peak_rss_mb"] = peak_resident_mib()
         out.mkdir(parents=True, exist_ok=True)
         tmp = out / "metrics.json.part"
