@@ -226,15 +226,16 @@ def test_a_camera_file_for_other_images_is_refused_before_any_run(tmp_path, caps
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / "runs").exists()
 
 
-def test_the_shipped_list_names_the_shared_7scenes_folder(monkeypatch):
+def test_the_shipped_list_names_the_two_shared_real_folders(monkeypatch):
     monkeypatch.delenv(DATASETS_ENV, raising=False)
     entries = load_dataset_list()
     repository = Path(__file__).resolve().parents[2]
     assert DEFAULT_DATASETS_FILE == repository / "datasets.toml"
-    expected = (repository / ".." / "shared" / "data" / "real" / "7scenes_redkitchen").resolve()
-    assert entries["7scenes_redkitchen"].path == expected
-    suite = get_suite("real")  # a clone without ../shared: the folder is skipped, not an error
-    assert [s.name for s in suite.sequences] + [n for n, _ in suite.skipped] == ["7scenes_redkitchen"]
+    shared = (repository / ".." / "shared" / "data" / "real").resolve()
+    assert entries["7scenes_redkitchen"].path == shared / "7scenes_redkitchen"
+    assert entries["fr1_desk"].path == shared / "rgbd_dataset_freiburg1_desk"
+    suite = get_suite("real")  # a clone without ../shared: the folders are skipped, not an error
+    assert [s.name for s in suite.sequences] + [n for n, _ in suite.skipped] == ["7scenes_redkitchen", "fr1_desk"]
 
 
 def test_runs_on_folders_record_the_source_and_skip_depth_without_depth(folders, tmp_path):
