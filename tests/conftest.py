@@ -2,7 +2,8 @@
 ``tests/**/test_*_fuzz.py`` files; :func:`shared_data` and :func:`tum_dir`, the shared data found from the repository
 (``../shared`` beside it, or ``$CNNSLAM_SHARED``), the test skipped with what is missing where it is absent; and
 :func:`reference_facts`, the reference figures the tests assert, with their sources
-(``tests/reference_facts.toml``).
+(``tests/reference_facts.toml``); :func:`check_pinned`, a computation's byte digest against the ones recorded on each
+CPU (:func:`cpu_label`), which skips on a CPU whose bytes no table holds.
 
 A fuzzed input is a valid file (one of the reader's seeds) changed by up to three mutations drawn by hypothesis
 (:data:`MUTATIONS`): lines dropped, repeated, swapped or inserted (blank, comment, unicode, junk), tokens dropped,
@@ -20,7 +21,7 @@ import os
 import time
 import tomllib
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -289,3 +290,36 @@ def tum_dir(reference_facts: dict[str, Any]) -> Path:
     cases = reference_facts["trajectory"]["cases"]
     names = [name for case in cases for name in (case["groundtruth"], case["estimate"])]
     return find_shared(reference_facts["trajectory"]["folder"], *names)
+
+
+UNRECORDED_CPU = "unrecorded"  # the key of digests measured on a machine whose CPU was not written down
+
+
+def cpu_label() -> str:
+    """This CPU as the pinned-digest tables name it: its model name and its widest SIMD extension of
+    :data:`eval.bench.environment.ISA_FLAGS` (e.g. ``AMD EPYC, avx2``): what decides numpy's and OpenCV's kernels."""
+    from eval.bench.environment import machine_description
+
+    machine = machine_description()
+    return f"{machine['cpu']}, {machine['isa'][0] if machine['isa'] else 'none'}"
+
+
+def check_pinned(got: Any, recorded: Mapping[str, Any], checked_by: str) -> None:
+    """Assert that ``got`` (a digest, or a mapping of them) is what this CPU recorded: ``recorded`` maps a
+    :func:`cpu_label` (or :data:`UNRECORDED_CPU`) to the digests measured there. On a recorded CPU only its own
+    digests pass; on another, any recorded ones pass, and other bytes skip the test with this CPU's label and the
+    test that checks the same computation's figures within tolerance there (``checked_by``): the last bits of
+    vectorised float kernels differ between instruction sets, so bytes are pinned per CPU and never across."""
+    label = cpu_label()
+    if label in recorded:
+        assert got == recorded[label], f"the bytes differ from the ones recorded on this CPU ({label})"
+    elif all(got != want for want in recorded.values()):
+        cpus = ", ".join(recorded)
+        pytest.skip(f"this CPU ({label}) gives other bytes than the CPUs recorded ({cpus}): none pinned here; "
+                    f"{checked_by} checks the figures within tolerance; record this CPU's digests to pin its bytes")
+
+
+@pytest.fixture(scope="session")
+def pinned_bytes() -> Callable[[Any, Mapping[str, Any], str], None]:
+    """:func:`check_pinned`: ``pinned_bytes(digest, {cpu label: digest}, "test_x_figures")``."""
+    return check_pinned

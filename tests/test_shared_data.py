@@ -1,6 +1,7 @@
 """The test machinery's shared data (tests/conftest.py): found from the repository or $CNNSLAM_SHARED, a test skipped
 with what is missing where it is absent; and tests/reference_facts.toml, the reference figures the tests assert: the
-same as the notes they were copied from, and as the constants the code holds (camera presets, the paper's Table 1)."""
+same as the notes they were copied from, and as the constants the code holds (camera presets, the paper's Table 1);
+and the per-CPU byte digests (``pinned_bytes``)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,26 @@ def test_shared_data_is_found_beside_the_repository_or_where_the_variable_says(s
     assert shared_data("data/tum", "a.txt") == tmp_path.resolve() / "data" / "tum"
     with pytest.raises(pytest.skip.Exception, match=re.escape(str(tmp_path.resolve() / "data" / "tum" / "b.txt"))):
         shared_data("data/tum", "a.txt", "b.txt")  # the folder is there, a file it must hold is not
+
+
+def test_pinned_bytes_hold_each_cpu_to_its_own_and_skip_on_an_unrecorded_one(pinned_bytes, monkeypatch):
+    monkeypatch.setitem(pinned_bytes.__globals__, "cpu_label", lambda: "Some CPU, avx2")
+    recorded = {"unrecorded": "aaa", "Some CPU, avx2": "bbb"}
+    pinned_bytes("bbb", recorded, "test_x")
+    with pytest.raises(AssertionError, match=r"recorded on this CPU \(Some CPU, avx2\)"):
+        pinned_bytes("aaa", recorded, "test_x")  # another CPU's bytes are not this one's
+    monkeypatch.setitem(pinned_bytes.__globals__, "cpu_label", lambda: "Other CPU, sse4_2")
+    pinned_bytes("aaa", recorded, "test_x")  # a CPU not recorded: any recorded bytes pass
+    with pytest.raises(pytest.skip.Exception, match=r"this CPU \(Other CPU, sse4_2\) .* test_x checks the figures"):
+        pinned_bytes("ccc", recorded, "test_x")
+
+
+def test_this_machines_cpu_label_names_its_model_and_widest_simd_extension(pinned_bytes):
+    from eval.bench.environment import ISA_FLAGS, machine_description
+
+    machine = machine_description()
+    model, _, isa = pinned_bytes.__globals__["cpu_label"]().rpartition(", ")
+    assert model == machine["cpu"] and isa in (*ISA_FLAGS, "none") and isa == (machine["isa"] or ["none"])[0]
 
 
 def test_the_reference_facts_name_their_source_and_files(reference_facts):
