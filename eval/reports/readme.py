@@ -154,7 +154,7 @@ REAL_COLUMNS = (("Abs. Trajectory Error [m]", "ATE, SE(3) [m]"),
 
 
 def block_real(root: Path) -> str:
-    """The real suite (``results/real/real.md``): each real folder's row, per method."""
+    """The real suite (``results/real/real.md``): one table, methods as columns, a row per (folder, figure)."""
     report = root / "results/real/real.md"
     if not report.is_file():
         raise ReadmeError(f"results file {report} is missing (the README quotes it; make it with its suite)")
@@ -164,14 +164,12 @@ def block_real(root: Path) -> str:
     folders = [r[0] for r in table.rows if r[0] != "Avg."]
     methods = list(dict.fromkeys(h.split(": ", 1)[1] for h in table.header[1:] if ": " in h))
     methods = [m for m in methods if m != "oracle"]
-    lines = []
+    lines = ["| | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
     for folder in folders:
         row = table.row(folder)
-        lines += [f"| **{folder}** | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
         for column, label in REAL_COLUMNS:
-            lines.append(f"| {label} | " + " | ".join(row.get(f"{column}: {m}", "-") for m in methods) + " |")
-        lines.append("")
-    lines.append(_made_at(root / "results/real/real_long.csv", root) + ".")
+            lines.append(f"| {folder}: {label} | " + " | ".join(row.get(f"{column}: {m}", "-") for m in methods) + " |")
+    lines += ["", _made_at(root / "results/real/real_long.csv", root) + "."]  # a blank line ends the table
     return "\n".join(lines)
 
 
