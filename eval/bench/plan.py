@@ -85,7 +85,8 @@ class BenchOptions:
     """How :func:`run_bench` runs a suite. Selection (None: the suite's): ``sequences`` (names of the suite's, any
     sequence name, dataset-list name or RGB-D folder path), ``frames`` (a number or ``"all"``), ``seeds`` or
     ``runs`` (seeds 0..N-1), ``lengths`` (lengths / transfer: numbers of frames, None = whole), ``motions``
-    (transfer: TUM files replayed as simulated domains), ``camera`` (a simulated camera preset, a folder's
+    (transfer: TUM files replayed as simulated domains), ``sim_sequences`` (transfer: registered simulated sequences
+    in place of the Table-1 analogues), ``camera`` (a simulated camera preset, a folder's
     calibration preset or camera file; transfer: comma-separated simulated domains), ``image_size`` (``WxH`` or
     ``native``) and ``undistort`` for folder sequences, ``align`` (the headline ATE's alignment), ``settings``
     (``(dotted key, value)`` into the chosen methods' configurations, or ``KEY=VALUE`` texts). Runs: ``executor``,
@@ -102,6 +103,7 @@ class BenchOptions:
     runs: int | None = None
     lengths: tuple[int | None, ...] | None = None
     motions: tuple[Path, ...] = ()
+    sim_sequences: tuple[str, ...] | None = None
     camera: str | None = None
     image_size: str | tuple[int, int] | None = None
     undistort: str | None = None
@@ -188,7 +190,7 @@ def _plain_report(parts: list[tuple[Part, SuiteRun]], folder: Path, command: str
 
 def _transfer_parts(suite: Suite, options: BenchOptions) -> list[Part]:
     planned = transfer_parts(suite, _presets(options) or (DEFAULT_CAMERA_EFFECTS,), _lengths(options),
-                             motions=options.motions)  # fmt: skip
+                             motions=options.motions, sim_sequences=options.sim_sequences)  # fmt: skip
     return [Part(", ".join(dict.fromkeys(d for _, d in p.domains)), p.suite, p) for p in planned if p.suite.sequences]
 
 
@@ -224,7 +226,8 @@ def _preprocessing_report(parts: list[tuple[Part, SuiteRun]], folder: Path, comm
 KINDS: dict[SuiteKind, KindSpec] = {
     SuiteKind.RUNS: KindSpec(_plain_parts, _plain_report),
     SuiteKind.TRANSFER: KindSpec(_transfer_parts, _transfer_report,
-                                 lambda o: o.lengths is None and _presets(o) is None and not o.motions),
+                                 lambda o: o.lengths is None and _presets(o) is None and not o.motions
+                                 and o.sim_sequences is None),
     SuiteKind.LENGTHS: KindSpec(_length_parts, _length_report,
                                 lambda o: o.lengths is None or set(o.lengths) == set(SWEEP_LENGTHS)),
     SuiteKind.PREPROCESSING: KindSpec(_preprocessing_parts, _preprocessing_report),
@@ -387,11 +390,27 @@ def _timeout(suite: Suite, parts: Sequence[Part], options: BenchOptions, lengths
     return max(TIMEOUT_MIN_S, TIMEOUT_PER_FRAME_S * _longest_run(parts, lengths))
 
 
+def _check_sim_sequences(kind: SuiteKind, names: tuple[str, ...]) -> None:
+    """``--sim-sequences``: the transfer suite's only, each a registered simulated sequence, at least one."""
+    from sim_envs.sequences import registered_names
+
+    if kind is not SuiteKind.TRANSFER:
+        raise SuiteError("--sim-sequences applies to the transfer suite (the simulated sequences it ranks the methods "
+                         "on)")  # fmt: skip
+    known = registered_names()
+    bad = [n for n in names if n not in known]
+    if bad or not names:
+        raise SuiteError(f"--sim-sequences takes registered simulated sequences (cnnslam bench --list, sim_envs/"
+                         f"sequences.py; e.g. office_fr1motion living_fr1motion), got {', '.join(bad) or 'none'}")
+
+
 def _check_options(suite: Suite, options: BenchOptions) -> None:
     """The options that belong to some suites only, and the numbers that must be in range."""
     kind = suite.kind
     if options.motions and kind is not SuiteKind.TRANSFER:
         raise SuiteError("--motion applies to the transfer suite (a recorded motion as a simulated domain)")
+    if options.sim_sequences is not None:
+        _check_sim_sequences(kind, options.sim_sequences)
     if options.lengths is not None and kind not in (SuiteKind.LENGTHS, SuiteKind.TRANSFER):
         raise SuiteError("--lengths applies to the lengths and transfer suites; other suites take --frames")
     if options.lengths is not None and options.frames is not None:
@@ -523,7 +542,10 @@ def command_line(suite: str, options: BenchOptions, methods: Sequence[str] = ())
                         ("--image-size", options.image_size)):  # fmt: skip
         if value is not None:
             words += [flag, str(value)]
-    for flag, values in (("--sequences", options.sequences), ("--methods", methods), ("--seeds", options.seeds)):
+    lengths = None if options.lengths is None else ["all" if n is None else n for n in options.lengths]
+    for flag, values in (("--sequences", options.sequences), ("--methods", methods), ("--seeds", options.seeds),
+                         ("--lengths", lengths), ("--motion", options.motions),
+                         ("--sim-sequences", options.sim_sequences)):  # fmt: skip
         if values:
             words += [flag, *map(str, values)]
     return " ".join(words)

@@ -82,6 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(whole frame, black border) or none; not crop runs as <name>~<choice>")
     add("--motion", action="append", default=[], type=Path, metavar="TUM_FILE", help="transfer: a recorded camera "
         "motion replayed in the simulated rooms as a simulated domain of its own (repeatable)")
+    add("--sim-sequences", nargs="+", metavar="NAME", help="transfer: these registered simulated sequences in place "
+        "of the Table-1 analogues (e.g. office_fr1motion living_fr1motion, moving as TUM fr1/desk's camera does)")
     add("--renderer", choices=("mujoco", "pyrender"), default="mujoco", help="renderer backend")
     add("--no-frame-cache", action="store_true", help="render every run's frames anew (default: once per sequence, "
         "read back from <out>/.frames/: the same bytes)")
@@ -155,7 +157,8 @@ def _command(args: argparse.Namespace) -> str:
                         ("--image-size", args.image_size), ("--method-file", args.method_file)):  # fmt: skip
         words += [flag, str(value)] if value is not None else []
     for flag, values in (("--sequences", args.sequences), ("--methods", args.methods), ("--seeds", args.seeds),
-                         ("--lengths", args.lengths), ("--external", args.external), ("--motion", args.motion)):
+                         ("--lengths", args.lengths), ("--external", args.external), ("--motion", args.motion),
+                         ("--sim-sequences", args.sim_sequences)):
         words += [flag, *map(str, values)] if values else []
     return " ".join(shlex.quote(w) for w in words)
 
@@ -175,6 +178,7 @@ def options_of(args: argparse.Namespace) -> BenchOptions:
     return BenchOptions(
         sequences=tuple(args.sequences) if args.sequences else None, frames=args.frames,
         seeds=tuple(args.seeds) if args.seeds else None, runs=args.runs, lengths=lengths, motions=tuple(args.motion),
+        sim_sequences=tuple(args.sim_sequences) if args.sim_sequences else None,
         camera=args.camera, image_size=args.image_size, undistort=args.undistort, align=args.align,
         settings=tuple(args.set), executor=executor, renderer=args.renderer, frame_cache=not args.no_frame_cache,
         check=not args.no_check, rerun=args.rerun, report_only=args.report_only, plots=not args.no_plots,

@@ -35,6 +35,30 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
     assert bench(tmp_path, "table1", "--motion", str(tmp_path)) == 2  # --motion: the transfer suite's
     assert bench(tmp_path, "table1", "--lengths", "200") == 2  # --lengths: the lengths and transfer suites'
     assert bench(tmp_path, "lengths", "--lengths", "200", "--frames", "100") == 2
+    capsys.readouterr()
+    assert bench(tmp_path, "table1", "--sim-sequences", "office_fr1motion") == 2  # the transfer suite's
+    assert "--sim-sequences applies to the transfer suite" in capsys.readouterr().err
+    assert bench(tmp_path, "transfer", "--sim-sequences", "office_fr1motion", "office9") == 2
+    err = capsys.readouterr().err
+    assert "--sim-sequences takes registered simulated sequences" in err and "got office9" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "runs").exists()
+
+
+def test_transfer_ranks_on_the_simulated_sequences_named(tmp_path):
+    from eval.bench.benchmark import BenchOptions, prepare
+    from eval.commands.cli_bench import bench_args, options_of
+
+    line = ("cnnslam bench transfer --camera fr1 --sim-sequences office_fr1motion living_fr1motion --lengths all "
+            "--seeds 0")  # fmt: skip
+    options = options_of(bench_args(line, tmp_path / "report", tmp_path / "runs"))
+    assert options.sim_sequences == ("office_fr1motion", "living_fr1motion")
+    plan = prepare("transfer", ["CNN-SLAM", "ORB"], options)
+    sims = [ref.name for part in plan.parts if part.label.startswith("sim:") for ref in part.suite.sequences]
+    assert sims == ["office_fr1motion@fr1", "living_fr1motion@fr1"]
+    assert "--sim-sequences office_fr1motion living_fr1motion" in plan.command
+    library = prepare("transfer", ["CNN-SLAM"], BenchOptions(sim_sequences=("office_fr1motion",), lengths=(None,),
+                                                              out=tmp_path / "runs"))  # fmt: skip
+    assert "--lengths all --sim-sequences office_fr1motion" in library.command
 
 
 def test_a_small_table1_with_a_user_method_file(tmp_path, capsys):
