@@ -4,14 +4,16 @@ A suite's report is written with a provenance manifest beside it, ``<results>/<s
 (:func:`write_manifest`): the suite, the command, the selection that shaped its runs (methods, sequences, frames,
 seeds, ...), the git revision and whether the tree had uncommitted changes in tracked files outside ``results/``
 (then the result is marked and counts as stale), the definitions of methods that are not in the built-in table, the
-methods skipped, and per run key its fingerprint and the digests of the fingerprint's parts (agent, world, judge,
-weights, config: :mod:`eval.bench.fingerprint`).
+methods skipped, per run key its fingerprint and the digests of the fingerprint's parts (agent, world, judge,
+weights, config: :mod:`eval.bench.fingerprint`), and the files its reports score the runs against besides their own
+ground truth (``inputs``: a dataset list's second references, path -> sha256; :func:`scoring_inputs`).
 
 :func:`results_status` lists every result under a results folder: each suite's files (grouped by the suite names
 of :data:`eval.bench.suites.SUITES`) and every other group of files, and judges each: a suite's result with a
 manifest is planned again as :func:`eval.bench.benchmark.run_bench` plans it (:func:`eval.bench.benchmark.prepare`
 with the recorded selection, then :func:`eval.bench.runner.plan_runs` per part; nothing runs, renders or builds an
-agent) and every run's fingerprint parts recomputed and compared, timings excluded. A result whose files the output
+agent) and every run's fingerprint parts recomputed and compared, timings excluded, and its scoring inputs
+compared with the files the current plan would score against. A result whose files the output
 manifests of its folder list (:func:`slamcommon.provenance.write_output_manifest`: perf, the depth network's reports,
 maps, camera calibration, contact sheet, SfM references) is judged by them (:func:`judge_outputs`). A result without a
 manifest is stale: its revisions (read from its long table or run file) are shown, never judged current.
@@ -39,6 +41,7 @@ from slamcommon.provenance import (
     file_sha256,
     found_path,
     package_root,
+    shown_path,
     tree_state,
 )
 
@@ -79,6 +82,31 @@ def selection_of(options: Any) -> dict[str, Any]:
     }
 
 
+def scoring_inputs(suite: str, suites: Sequence[Any]) -> dict[str, str]:
+    """The files the report of suite ``suite`` (its parts' selected :class:`~eval.bench.suites.Suite` objects
+    ``suites``) scores runs against besides each run's own ground truth: for a suite with the generic report (the
+    one that scores them, :func:`eval.reports.suite_reports.report_generic`), the dataset list's second reference of
+    each sequence that has one (:meth:`~eval.bench.suites.Suite.second_references`); path as a manifest shows it
+    (:func:`slamcommon.provenance.shown_path`) -> its sha256, or ``"missing"``."""
+    from eval.bench.suites import SUITES, SuiteKind
+    from eval.errors import SuiteError
+
+    defined = SUITES.get(suite)
+    if defined is None or defined.kind is not SuiteKind.RUNS or defined.report != "generic":
+        return {}
+    found: dict[str, str] = {}
+    for suite in suites:
+        try:
+            references = suite.second_references()
+        except SuiteError:
+            continue
+        for ref in suite.sequences:
+            path = references.get(ref.name)
+            if path is not None:
+                found[shown_path(path)] = file_sha256(Path(path).resolve()) if Path(path).is_file() else "missing"
+    return dict(sorted(found.items()))
+
+
 def build_manifest(suite: str, command: str, selection: Mapping[str, Any], methods: Mapping[str, Any],
                    parts: Sequence[Any], state: TreeState) -> dict[str, Any]:
     """The manifest (module docstring) of ``parts`` (the :class:`~eval.bench.runner.SuiteRun` of each part),
@@ -112,6 +140,7 @@ def build_manifest(suite: str, command: str, selection: Mapping[str, Any], metho
         "method_definitions": {n: m.describe() for n, m in methods.items() if n not in builtin},
         "skipped": skipped,
         "runs": runs,
+        "inputs": scoring_inputs(suite, [run.suite for run in parts]),
     }
 
 
@@ -335,9 +364,11 @@ def recorded_revisions(files: Sequence[Path]) -> tuple[tuple[str, ...], int | No
     return tuple(sorted(revisions)), (len(runs) if runs else None)
 
 
-def planned_specs(data: Mapping[str, Any], table: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def planned_specs(data: Mapping[str, Any], table: Mapping[str, Any] | None = None,
+                  inputs: dict[str, str] | None = None) -> dict[str, Any]:
     """The run specs the current code plans for a manifest's suite and selection (key -> RunSpec), as
     :func:`eval.bench.benchmark.run_bench` plans them; methods the manifest records as skipped are left out.
+    ``inputs``, where given, receives the plan's :func:`scoring_inputs`.
     Raises :class:`InputError` when the selection cannot be planned any more (a suite or sequence gone)."""
     from eval.bench.methods import Method, load_methods
     from eval.bench.plan import BenchOptions, ExecutorOptions, prepare
@@ -365,6 +396,8 @@ def planned_specs(data: Mapping[str, Any], table: Mapping[str, Any] | None = Non
         executor=ExecutorOptions("serial"), check=False, plots=False, progress=False,
     )  # fmt: skip
     plan = prepare(str(data.get("suite")), list(data.get("methods") or []) or None, options, methods)
+    if inputs is not None:  # the files the current plan's reports would score against
+        inputs.update(scoring_inputs(str(data.get("suite")), [part.suite for part in plan.parts]))
     skipped = set(data.get("skipped") or {})
     specs: dict[str, Any] = {}
     for part in plan.parts:
@@ -387,8 +420,9 @@ def judge_manifest(name: str, files: tuple[str, ...], data: Mapping[str, Any],
     if data.get("dirty"):
         listed = ", ".join(data.get("dirty_listed") or [])
         reasons.append(f"made from an uncommitted tree ({data.get('dirty_files')} changed file(s): {listed})")
+    inputs: dict[str, str] = {}
     try:
-        specs = planned_specs(data, table)
+        specs = planned_specs(data, table, inputs)
     except InputError as exc:
         reasons.append(f"cannot be planned now: {exc}")
         return ResultStatus(name, suite, files, (revision,), len(recorded), False, "; ".join(reasons))
@@ -404,6 +438,10 @@ def judge_manifest(name: str, files: tuple[str, ...], data: Mapping[str, Any],
             continue
         for part in run_parts(spec).changed(entry["parts"]):
             changed.setdefault(part, []).append(key)
+    recorded_inputs = dict(data.get("inputs") or {})
+    moved = [p for p in sorted({*inputs, *recorded_inputs}) if inputs.get(p) != recorded_inputs.get(p)]
+    if moved:
+        reasons.append(f"scoring inputs changed: {', '.join(moved)}")
     if missing:
         reasons.append(f"{len(missing)} planned run(s) missing (e.g. {missing[0]})")
     if extra:

@@ -303,10 +303,25 @@ def test_bench_real_reports_missing_folders(folders, tmp_path, monkeypatch, caps
     assert "missing here: gone" in capsys.readouterr().out
 
 
+def status(results: Path) -> tuple[int, str]:
+    """``cnnslam results status --json --results RESULTS real``: the exit status and the result's why."""
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(["results", "status", "--json", "--results", str(results), "real"])
+    return code, json.loads(out.getvalue())[0]["why"]
+
+
 def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, monkeypatch):
     """Known answer: the reference is the ground truth with every translation doubled (a similarity), so against
-    it the oracle and the ground truth both have Sim(3) ATE 0 and a scale error of |1/2 - 1| = 50 %."""
+    it the oracle and the ground truth both have Sim(3) ATE 0 and a scale error of |1/2 - 1| = 50 %. The reference
+    is one of the result's inputs: editing it makes the result stale."""
+    from eval.bench import provenance
     from sim_envs.folders.formats import read_tum_trajectory, write_tum_trajectory
+
+    monkeypatch.setattr(provenance, "tree_state", lambda root=None: provenance.TreeState("0123456789ab", ()))
 
     listing = tmp_path / "datasets.toml"
     listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')
@@ -326,6 +341,10 @@ def test_a_second_reference_scores_every_run_in_the_report(folders, tmp_path, mo
     listing.write_text(f'[datasets.seven]\npath = "{folders["7scenes"]}"\nreference = "refs/seven.tum"\n')
     assert load_dataset_list()["seven"].reference == (tmp_path / "refs" / "seven.tum").resolve()
     assert bench(tmp_path, *args) == 0  # the runs are reused: a reference is a scoring input, not a run input
+    assert status(tmp_path / "results") == (0, "all 1 runs' fingerprints equal")
+    write_tum_trajectory(tmp_path / "refs" / "seven.tum", stamps, T * 1.0001)  # the report's figures change with it
+    assert status(tmp_path / "results") == (1, f"scoring inputs changed: {tmp_path / 'refs' / 'seven.tum'}")
+    write_tum_trajectory(tmp_path / "refs" / "seven.tum", stamps, T)
     report = (tmp_path / "results" / "real.md").read_text()
     section = report.split("## Against a second reference")[1].split("![every run")[0]
     rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
