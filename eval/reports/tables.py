@@ -48,6 +48,7 @@ TABLE1_BLOCKS: tuple[tuple[str, str], ...] = catalogue.blocks(catalogue.TABLE1) 
 AVG_LABEL = "Avg."
 MISSING = "-"
 _SHARE, _PAIRS = TRACKED_SHARE.key, ATE_PAIRS.key  # what a run's failure is judged by (failure_of)
+FAILURE_EVIDENCE: tuple[str, ...] = (_SHARE, _PAIRS)  # the rows of a long frame that cell_failures reads
 STATISTICS: tuple[str, ...] = ("median", "q1", "q3", "min", "max")
 _QUANTILES = {"median": 0.5, "q1": 0.25, "q3": 0.75}
 

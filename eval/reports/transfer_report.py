@@ -33,6 +33,7 @@ from eval.reports.inputs import SuiteRun, TransferPart
 from eval.reports.plots import save_transfer_figure
 from eval.reports.report_parts import long_frame, markdown_image, status_markdown
 from eval.reports.style import DEFAULT_FIGURE_FORMAT
+from eval.reports.tables import FAILURE_EVIDENCE
 from eval.reports.transfer import (
     ALL_METRICS,
     BOOTSTRAP_DRAWS,
@@ -157,7 +158,10 @@ def transfer_tables(frame: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, pd
             continue
         domains = list(dict.fromkeys(plain["domain"]))
         ranks = rank_methods(scores, domains=domains)
-        ranked = sub.merge(ranks[["metric", "method"]].drop_duplicates(), on=["metric", "method"])  # the same set
+        pairs = ranks[["metric", "method"]].drop_duplicates()
+        evidence = sub[sub["metric"].isin(FAILURE_EVIDENCE) & sub["method"].isin(pairs["method"])]
+        # the same set of methods, with the rows that tell their failures (a failed cell ranks last there too)
+        ranked = pd.concat([sub.merge(pairs, on=["metric", "method"]), evidence], ignore_index=True)
         plain_ranked = ranked[~ranked["domain"].astype(str).str.startswith(WINDOW_PREFIX)]
         corr = rank_correlations(ranks).merge(bootstrap_correlations(plain_ranked).drop(columns="n"),
                                               on=["sim", "real", "metric"], how="left")  # fmt: skip

@@ -401,3 +401,20 @@ def test_a_failure_on_one_sequence_fails_the_domain_and_higher_is_better_still_r
     frame = _runs(table).replace({"ate_se3_rmse": "depth_percent_correct"})
     ranks = rank_methods(domain_scores(frame, [DEPTH]), [DEPTH]).set_index("method")
     assert ranks["rank"].to_dict() == {"A": 1.0, "B": 2.0, "C": 3.0}  # C's best figure does not save it
+
+
+def test_the_report_intervals_rank_failures_last_as_the_point_estimate_does():
+    """The report's interval is drawn from the same rows as its point estimate, the failure-telling ones included
+    (they once dropped out with the unranked metrics, so a lost method's small ATE ranked it first in every draw):
+    two identical simulated sequences make every draw the observed ranking, so the interval is the observed rho."""
+    from eval.reports.transfer_report import transfer_tables
+
+    table = {("sim:kinect", s, m): (v, 1.0) for s in ("s1", "s2") for m, v in zip("ABCD", [0.1, 0.2, 0.3, 0.4],
+                                                                                 strict=True)}  # fmt: skip
+    table |= {("real:x", "r1", "A"): (0.1, 1.0), ("real:x", "r1", "B"): (0.05, 0.2),
+              ("real:x", "r1", "C"): (0.3, 1.0), ("real:x", "r1", "D"): (0.4, 1.0)}  # fmt: skip
+    _, corr, null, needs = transfer_tables(_runs(table).assign(length="whole"))
+    expected = pd.Series([1, 2, 3, 4]).corr(pd.Series([1, 4, 2, 3]))  # real: A 1, C 2, D 3, B (lost) last
+    row = corr.iloc[0]
+    assert row["spearman"] == pytest.approx(expected) == pytest.approx(0.4)
+    assert [row["rho_low"], row["rho_high"]] == pytest.approx([expected, expected])
