@@ -448,8 +448,13 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
     frame = failures_ranked_last(frame, metrics)
     if not 0 < level < 1 or draws < 1:
         raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
-    cells = (frame[frame["metric"].isin([m.name for m in metrics])]
-             .groupby(["metric", "domain", "method", "sequence"])["value"].median().unstack("sequence"))  # fmt: skip
+    sub = frame[frame["metric"].isin([m.name for m in metrics])]
+    cells = sub.groupby(["metric", "domain", "method", "sequence"])["value"].median().unstack("sequence")
+    if "run" in sub.columns:  # the failed cells (failures_ranked_last's rows): a draw holding one fails the method
+        failed_cells = (sub["run"] == FAILED_RUN).groupby([sub[c] for c in ("metric", "domain", "method", "sequence")]
+                                                         ).any().unstack("sequence")  # fmt: skip
+    else:
+        failed_cells = cells.notna() & False
     rows = []
     tail = 100.0 * (1.0 - level) / 2.0
     for metric in metrics:
@@ -469,8 +474,13 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
                 if len(methods) >= 3:
                     rng = np.random.default_rng([seed, len(rows)])
                     sign = -1.0 if metric.higher_is_better else 1.0
-                    ra = stats.rankdata(sign * _resampled_scores(a.loc[methods].to_numpy(), draws, rng), axis=1)
-                    rb = stats.rankdata(sign * _resampled_scores(b.loc[methods].to_numpy(), draws, rng), axis=1)
+                    keys = []
+                    for domain, table in ((sim, a), (real, b)):
+                        fails = failed_cells.loc[(metric.name, domain)].reindex(index=methods, columns=table.columns)
+                        scores, failed = _resampled_scores(table.loc[methods].to_numpy(), draws, rng,
+                                                           fails.fillna(False).to_numpy(dtype=float))  # fmt: skip
+                        keys.append(np.where(failed, np.inf, sign * scores))  # failed: last, tied, as rank_methods
+                    ra, rb = (stats.rankdata(k, axis=1) for k in keys)
                     rho = _rowwise_pearson(ra, rb)
                     ok = np.isfinite(rho)
                     row["defined"] = float(ok.mean())
@@ -481,14 +491,16 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
                                        "rho_high", "defined"])  # fmt: skip
 
 
-def _resampled_scores(values: np.ndarray, draws: int, rng: np.random.Generator) -> np.ndarray:
+def _resampled_scores(values: np.ndarray, draws: int, rng: np.random.Generator,
+                      failed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(draws, methods) means over a resample (with replacement) of the columns (samples) of ``values``
-    (methods, samples); one sample: the same scores in every draw."""
+    (methods, samples), and whether each draw holds a failed cell of the method (``failed``: methods x samples, 1
+    where the cell failed); one sample: the same in every draw."""
     k = values.shape[1]
     if k == 1:
-        return np.repeat(values.T, draws, axis=0)
+        return np.repeat(values.T, draws, axis=0), np.repeat(failed.T > 0, draws, axis=0)
     counts = rng.multinomial(k, np.full(k, 1.0 / k), size=draws)  # (draws, k): how often each sample is drawn
-    return counts @ values.T / k
+    return counts @ values.T / k, counts @ failed.T > 0
 
 
 def _rowwise_pearson(a: np.ndarray, b: np.ndarray) -> np.ndarray:

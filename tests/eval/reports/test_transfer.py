@@ -418,3 +418,18 @@ def test_the_report_intervals_rank_failures_last_as_the_point_estimate_does():
     row = corr.iloc[0]
     assert row["spearman"] == pytest.approx(expected) == pytest.approx(0.4)
     assert [row["rho_low"], row["rho_high"]] == pytest.approx([expected, expected])
+
+
+def test_a_draw_holding_a_failed_cell_ranks_the_method_last_and_tied_with_the_other_failures():
+    # sim: C fails on s1 only, D on both: in the point estimate both failed, tied last (3.5). A draw of (s1, s2) or
+    # (s1, s1) holds a failed cell of each: tied again (3/4 of the draws); only (s2, s2) ranks C third. So the middle
+    # fifth of the draws is the observed rho (a mean of a failed and a finite cell once put C ahead of D there).
+    table = {("sim:kinect", s, m): (v, 1.0) for s in ("s1", "s2") for m, v in zip("AB", [0.1, 0.2], strict=True)}
+    table |= {("sim:kinect", "s1", "C"): (0.3, 0.2), ("sim:kinect", "s2", "C"): (0.3, 1.0),
+              ("sim:kinect", "s1", "D"): (0.4, 0.0), ("sim:kinect", "s2", "D"): (0.4, 0.0)}  # fmt: skip
+    table |= {("real:x", "r1", m): (v, 1.0) for m, v in zip("ABCD", [0.1, 0.2, 0.3, 0.4], strict=True)}
+    observed = pd.Series([1, 2, 3.5, 3.5]).corr(pd.Series([1, 2, 3, 4]))
+    ranks = rank_methods(domain_scores(_runs(table), [ATE]), [ATE])
+    assert rank_correlations(ranks)["spearman"].iloc[0] == pytest.approx(observed)
+    boot = bootstrap_correlations(_runs(table), [ATE], draws=400, level=0.2)
+    assert boot[["rho_low", "rho_high"]].iloc[0].tolist() == pytest.approx([observed, observed])
