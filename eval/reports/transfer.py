@@ -159,6 +159,15 @@ def failures_ranked_last(frame: pd.DataFrame, metrics: Sequence[TransferMetric] 
     return pd.concat([out, failed], ignore_index=True)
 
 
+def failed_cells(frame: pd.DataFrame) -> pd.Series:
+    """(domain, metric, method, sequence) -> whether that cell failed, for the cells of ``frame`` as
+    :func:`failures_ranked_last` returns it (its stand-in rows, run :data:`FAILED_RUN`; all False without a ``run``
+    column). A mean over sequences that holds a failed cell fails the method there: it ranks last, tied with the
+    other failures, as :func:`rank_methods` ranks a domain's failures."""
+    flag = frame["run"] == FAILED_RUN if "run" in frame.columns else pd.Series(False, index=frame.index)
+    return flag.groupby([frame[c] for c in ("domain", "metric", "method", "sequence")]).any()
+
+
 def rank_methods(scores: pd.DataFrame, metrics: Sequence[TransferMetric] = TRANSFER_METRICS,
                  domains: Sequence[str] | None = None) -> pd.DataFrame:
     """``scores`` (:func:`domain_scores`) with a ``rank`` column: 1 = best in each (domain, metric), ties sharing
@@ -283,8 +292,9 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
         raise EvalError(f"holdout_agreement: held_out must be >= 1 and max_splits >= 1, got {list(held_out)}, "
                         f"{max_splits}")  # fmt: skip
     sims = frame[frame["domain"].astype(str).str.startswith(SIM_PREFIX)]
-    cells = (sims[sims["metric"].isin([m.name for m in metrics])]
-             .groupby(["domain", "metric", "method", "sequence"])["value"].median())  # fmt: skip
+    sims = sims[sims["metric"].isin([m.name for m in metrics])]
+    cells = sims.groupby(["domain", "metric", "method", "sequence"])["value"].median()
+    fails = failed_cells(sims)
     seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
         if observed is not None else {}  # fmt: skip
     rows = []
@@ -306,7 +316,9 @@ def holdout_agreement(frame: pd.DataFrame, held_out: Sequence[int] = (1, 2, 3, 4
             reached = np.ones(len(held), dtype=bool)
             for metric, table in tables.items():
                 values = (-1.0 if metric.higher_is_better else 1.0) * table.to_numpy(dtype=float)  # lower is better
-                all_rho = _holdout_rhos(values, held)
+                failed = fails.loc[(sim, metric.name)].unstack("sequence").reindex(index=table.index,
+                                                                                   columns=sequences)  # fmt: skip
+                all_rho = _holdout_rhos(values, held, failed.fillna(False).to_numpy(dtype=float))
                 reached &= np.nan_to_num(all_rho, nan=-np.inf) >= target - 1e-12
                 rho = all_rho[np.isfinite(all_rho)]
                 row = {"sim": sim, "metric": metric.name, "held_out": k, "n": len(table), "splits": len(rho),
@@ -342,13 +354,15 @@ def _split_masks(n: int, k: int, max_splits: int, rng: np.random.Generator) -> n
     return np.argsort(rng.random((max_splits, n)), axis=1) < k
 
 
-def _holdout_rhos(values: np.ndarray, held: np.ndarray) -> np.ndarray:
+def _holdout_rhos(values: np.ndarray, held: np.ndarray, failed: np.ndarray | None = None) -> np.ndarray:
     """Spearman's rho, per split (a row of ``held``, :func:`_split_masks`), between the methods' mean over the
     held-out columns (sequences) of ``values`` (methods, sequences; lower is better) and their mean over the other
-    columns (NaN where a side ranks all methods equal)."""
+    columns (NaN where a side ranks all methods equal); a side holding a cell of ``failed`` (methods x sequences, 1
+    where it failed) ranks that method last, tied with the other failures."""
+    failed = np.zeros_like(values) if failed is None else failed
     k = held.sum(axis=1, keepdims=True)
-    mean_held = held @ values.T / k  # (splits, methods)
-    mean_rest = ~held @ values.T / (held.shape[1] - k)
+    mean_held = np.where(held @ failed.T > 0, np.inf, held @ values.T / k)  # (splits, methods)
+    mean_rest = np.where(~held @ failed.T > 0, np.inf, ~held @ values.T / (held.shape[1] - k))
     return _rowwise_pearson(stats.rankdata(mean_held, axis=1), stats.rankdata(mean_rest, axis=1))
 
 
@@ -378,6 +392,7 @@ def null_agreement(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRAN
     sub = frame[frame["metric"].isin(names)]
     cells = (sub.groupby(["domain", "metric", "method", "sequence"])["value"].median()
              .rename("median").reset_index())  # fmt: skip
+    cells = cells.merge(failed_cells(sub).rename("failed").reset_index(), how="left")
     cells = cells[np.isfinite(cells["median"])]
     seen = {(str(r.sim), str(r.metric)): float(r.spearman) for r in observed.itertuples()} \
         if observed is not None else {}  # fmt: skip
@@ -392,21 +407,20 @@ def null_agreement(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRAN
             ref_cells = cells[(cells["domain"] == sim) & (cells["metric"] == metric)]
             table = ref_cells.pivot_table(index="method", columns="sequence", values="median").reindex(
                 columns=sequences)  # fmt: skip
-            reference = table[np.isfinite(table.to_numpy()).all(axis=1)].mean(axis=1)
+            sign = -1.0 if direction[metric] else 1.0
+            reference = _failed_last(table, ref_cells, sign)
             held = cells[(cells["domain"] == held_domain) & (cells["metric"] == metric)].assign(
                 recording=lambda c: c["sequence"].map(recording_of))  # fmt: skip
-            sign = -1.0 if direction[metric] else 1.0
             rhos, windows, n = [], 0, 0
             for recording in sequences:
                 own = held[held["recording"] == recording]
                 if own.empty:
                     continue
                 per_window = own.pivot_table(index="method", columns="sequence", values="median")
-                score = per_window[np.isfinite(per_window.to_numpy()).all(axis=1)].mean(axis=1)
+                score = _failed_last(per_window, own, sign)
                 both = pd.concat([reference.rename("ref"), score.rename("held")], axis=1).dropna()
                 windows = max(windows, per_window.shape[1])
-                rho = _correlation(stats.rankdata(sign * both["held"].to_numpy()),
-                                   stats.rankdata(sign * both["ref"].to_numpy()))[0]
+                rho = _correlation(stats.rankdata(both["held"].to_numpy()), stats.rankdata(both["ref"].to_numpy()))[0]
                 if np.isfinite(rho):
                     rhos.append(rho)
                     n = max(n, len(both))
@@ -427,6 +441,15 @@ def null_agreement(frame: pd.DataFrame, metrics: Sequence[TransferMetric] = TRAN
     columns = ["sim", "metric", "recordings", "windows", "n", "rho_median", "rho_q10", "rho_q25", "rho_q75",
                "rho_min", "rho_max", "share_target"]
     return pd.DataFrame(rows, columns=columns + (["observed", "observed_percentile"] if observed is not None else []))
+
+
+def _failed_last(table: pd.DataFrame, cells: pd.DataFrame, sign: float) -> pd.Series:
+    """Per method (row of ``table``: methods x sequences of cell medians), the ranking key of its mean over the
+    sequences, ``sign`` x mean (lower is better), +inf where one of its ``cells`` (rows with method, failed) failed;
+    methods without a finite median on every sequence left out."""
+    key = sign * table[np.isfinite(table.to_numpy()).all(axis=1)].mean(axis=1)
+    failed = set(cells.loc[cells["failed"].fillna(False).astype(bool), "method"])
+    return key.where(~key.index.isin(failed), np.inf)
 
 
 BOOTSTRAP_DRAWS = 2000  # resamples of a bootstrap interval (percentile method; its 2.5 % tails rest on 50 draws)
@@ -450,11 +473,7 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
         raise EvalError(f"bootstrap: level must be in (0, 1) and draws >= 1, got {level}, {draws}")
     sub = frame[frame["metric"].isin([m.name for m in metrics])]
     cells = sub.groupby(["metric", "domain", "method", "sequence"])["value"].median().unstack("sequence")
-    if "run" in sub.columns:  # the failed cells (failures_ranked_last's rows): a draw holding one fails the method
-        failed_cells = (sub["run"] == FAILED_RUN).groupby([sub[c] for c in ("metric", "domain", "method", "sequence")]
-                                                         ).any().unstack("sequence")  # fmt: skip
-    else:
-        failed_cells = cells.notna() & False
+    fails = failed_cells(sub).reorder_levels(["metric", "domain", "method", "sequence"]).unstack("sequence")
     rows = []
     tail = 100.0 * (1.0 - level) / 2.0
     for metric in metrics:
@@ -476,9 +495,9 @@ def bootstrap_correlations(frame: pd.DataFrame, metrics: Sequence[TransferMetric
                     sign = -1.0 if metric.higher_is_better else 1.0
                     keys = []
                     for domain, table in ((sim, a), (real, b)):
-                        fails = failed_cells.loc[(metric.name, domain)].reindex(index=methods, columns=table.columns)
+                        failed = fails.loc[(metric.name, domain)].reindex(index=methods, columns=table.columns)
                         scores, failed = _resampled_scores(table.loc[methods].to_numpy(), draws, rng,
-                                                           fails.fillna(False).to_numpy(dtype=float))  # fmt: skip
+                                                           failed.fillna(False).to_numpy(dtype=float))  # fmt: skip
                         keys.append(np.where(failed, np.inf, sign * scores))  # failed: last, tied, as rank_methods
                     ra, rb = (stats.rankdata(k, axis=1) for k in keys)
                     rho = _rowwise_pearson(ra, rb)

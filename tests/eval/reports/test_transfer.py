@@ -12,6 +12,8 @@ from eval.reports.transfer import (
     best_predictor,
     bootstrap_correlations,
     domain_scores,
+    holdout_agreement,
+    null_agreement,
     rank_correlations,
     rank_methods,
 )
@@ -433,3 +435,17 @@ def test_a_draw_holding_a_failed_cell_ranks_the_method_last_and_tied_with_the_ot
     assert rank_correlations(ranks)["spearman"].iloc[0] == pytest.approx(observed)
     boot = bootstrap_correlations(_runs(table), [ATE], draws=400, level=0.2)
     assert boot[["rho_low", "rho_high"]].iloc[0].tolist() == pytest.approx([observed, observed])
+
+
+def test_the_null_and_the_holdout_tie_a_mean_holding_a_failed_cell_with_the_failures():
+    # C fails on s1 only, D everywhere: wherever a mean holds s1, C and D are tied last, as in the point estimate;
+    # a mean of a failed and finite cells once ranked C ahead of D (rho 1 against a side where they tie)
+    table = {("sim:kinect", s, m): (v, 1.0) for s in ("s1", "s2", "s3")
+             for m, v in zip("ABCD", [0.1, 0.2, 0.3, 0.4], strict=True)}  # fmt: skip
+    table |= {("sim:kinect", "s1", "C"): (0.3, 0.2)} | {("sim:kinect", s, "D"): (0.4, 0.0) for s in ("s1", "s2", "s3")}
+    tied = pd.Series([1, 2, 3.5, 3.5]).corr(pd.Series([1, 2, 3, 4]))
+    needs = holdout_agreement(_runs(table), held_out=(1,), metrics=[ATE]).set_index("metric")
+    assert needs.loc["ate_se3_rmse", "rho_median"] == pytest.approx(tied)  # every split: one side ties C with D
+    null = null_agreement(_runs(table), metrics=[ATE]).set_index("metric")
+    # s1 against all: both sides tie C and D (rho 1); s2 and s3: C third on their own, tied in the reference
+    assert [null.loc["ate_se3_rmse", c] for c in ("rho_median", "rho_max")] == pytest.approx([tied, 1.0])
