@@ -154,8 +154,8 @@ def test_synthetic_camera_bytes(name, pinned_bytes):
 
 @pytest.mark.parametrize("name", (*CAMERAS, "fr1"))
 def test_synthetic_camera_figures(name):
-    # any CPU: within 0.02 grey levels + 0.02 % of the recorded figures; a last-bit change of the scene that moves
-    # 25 of its 9216 values by one level moves them by 0.17 of that, a 1.02x stronger effect by 0.4-16 of it
+    # any CPU: within 0.02 grey levels + 0.02 % of the recorded figures; scaling the scene's texture by 1 + 1e-4,
+    # which moves 25 of its 9216 values by one level, moves them by 0.17 of that, a 1.02x stronger effect by 0.4-16
     want = json.loads(FIGURES.read_text())[name]
     got = _synthetic_figures(name)
     off = [abs(g - w) / (FIGURES_ATOL + FIGURES_RTOL * abs(w)) for g, w in zip(got, want, strict=True)]
