@@ -292,9 +292,6 @@ def tum_dir(reference_facts: dict[str, Any]) -> Path:
     return find_shared(reference_facts["trajectory"]["folder"], *names)
 
 
-UNRECORDED_CPU = "unrecorded"  # the key of digests measured on a machine whose CPU was not written down
-
-
 def cpu_label() -> str:
     """This CPU as the pinned-digest tables name it: its model name and its widest SIMD extension of
     :data:`eval.bench.environment.ISA_FLAGS` (e.g. ``AMD EPYC, avx2``): what decides numpy's and OpenCV's kernels."""
@@ -304,22 +301,23 @@ def cpu_label() -> str:
     return f"{machine['cpu']}, {machine['isa'][0] if machine['isa'] else 'none'}"
 
 
-def check_pinned(got: Any, recorded: Mapping[str, Any], checked_by: str) -> None:
-    """Assert that ``got`` (a digest, or a mapping of them) is what this CPU recorded: ``recorded`` maps a
-    :func:`cpu_label` (or :data:`UNRECORDED_CPU`) to the digests measured there. On a recorded CPU only its own
-    digests pass; on another, any recorded ones pass, and other bytes skip the test with this CPU's label and the
-    test that checks the same computation's figures within tolerance there (``checked_by``): the last bits of
-    vectorised float kernels differ between instruction sets, so bytes are pinned per CPU and never across."""
+def check_pinned(got: Any, recorded: Mapping[str, Any], checked_by: str) -> Any:
+    """The digests ``got`` (a digest, or a mapping of them) must equal on this CPU: ``recorded`` maps a
+    :func:`cpu_label` (or a name such as ``unrecorded`` for a machine whose CPU was not written down) to the digests
+    measured there. On a recorded CPU, its own; on another, ``got`` itself where it is one of the recorded ones; else
+    the test is skipped with this CPU's label and the test that checks the same computation's figures within
+    tolerance there (``checked_by``): the last bits of vectorised float kernels differ between instruction sets, so
+    bytes are pinned per CPU and never across. Use: ``assert got == pinned_bytes(got, recorded, "test_x")``."""
     label = cpu_label()
     if label in recorded:
-        assert got == recorded[label], f"the bytes differ from the ones recorded on this CPU ({label})"
-    elif all(got != want for want in recorded.values()):
-        cpus = ", ".join(recorded)
-        pytest.skip(f"this CPU ({label}) gives other bytes than the CPUs recorded ({cpus}): none pinned here; "
-                    f"{checked_by} checks the figures within tolerance; record this CPU's digests to pin its bytes")
+        return recorded[label]
+    if any(got == want for want in recorded.values()):
+        return got
+    pytest.skip(f"this CPU ({label}) gives other bytes than the CPUs recorded ({', '.join(recorded)}): none pinned "
+                f"here; {checked_by} checks the figures within tolerance; record this CPU's digests to pin its bytes")
 
 
 @pytest.fixture(scope="session")
-def pinned_bytes() -> Callable[[Any, Mapping[str, Any], str], None]:
-    """:func:`check_pinned`: ``pinned_bytes(digest, {cpu label: digest}, "test_x_figures")``."""
+def pinned_bytes() -> Callable[[Any, Mapping[str, Any], str], Any]:
+    """:func:`check_pinned`: ``assert digest == pinned_bytes(digest, {cpu label: digest}, "test_x_figures")``."""
     return check_pinned

@@ -120,7 +120,8 @@ def test_the_shipped_recipes_data_bytes_are_unchanged(tmp_path: Path, pinned_byt
     for shard in shards:  # every CPU: the figures, within a tolerance
         off = np.abs(np.subtract(_shard_figures(shard), SHIPPED_ROOM_FIGURES[shard.name])) / SHIPPED_ROOM_TOLERANCE
         assert off.max() <= 1.0, f"{shard.name}: figure {int(off.argmax())} off by {off.max():.1f} tolerances"
-    pinned_bytes({p.name: _shard_digest(p) for p in shards}, SHIPPED_ROOM_DIGESTS, "this test's figure assertions")
+    digests = {p.name: _shard_digest(p) for p in shards}
+    assert digests == pinned_bytes(digests, SHIPPED_ROOM_DIGESTS, "this test's figure assertions")
 
 
 @pytest.mark.slow

@@ -235,5 +235,5 @@ def test_stereo_observation_finds_the_disparity_and_its_bytes_are_pinned(pinned_
             for a in (obs.depth, obs.variance, obs.status):
                 digest.update(a.tobytes())
     stereo = "5cabf97d150052899cb4a67f67591dded22db732142faa88c63e32b82382f590"
-    pinned_bytes(digest.hexdigest(), {"unrecorded": stereo, "AMD EPYC, avx2": stereo},
-                 "this test's depth and share assertions")  # fmt: skip
+    assert digest.hexdigest() == pinned_bytes(digest.hexdigest(), {"unrecorded": stereo, "AMD EPYC, avx2": stereo},
+                                              "this test's depth and share assertions")  # fmt: skip

@@ -148,8 +148,9 @@ def _within(got: list[float], want: list[float]) -> bool:
 
 @pytest.mark.parametrize("name", (*CAMERAS, "fr1"))
 def test_synthetic_camera_bytes(name, pinned_bytes):
-    pinned_bytes(_synthetic_digest(name), {cpu: d[name] for cpu, d in SYNTHETIC.items()},
-                 "test_synthetic_camera_figures")  # fmt: skip
+    digest = _synthetic_digest(name)
+    assert digest == pinned_bytes(digest, {cpu: d[name] for cpu, d in SYNTHETIC.items()},
+                                  "test_synthetic_camera_figures")  # fmt: skip
 
 
 @pytest.mark.parametrize("name", (*CAMERAS, "fr1"))
@@ -196,7 +197,7 @@ def test_rendered_camera_bytes(pinned_bytes):
         pytest.skip("this machine's renderer (OpenGL backend or MuJoCo version) draws office0 with other bytes than "
                     "the recording's; the camera's own bytes are checked by test_synthetic_camera_bytes")  # fmt: skip
     got = {"clean": everything} | {name: _rendered_digests(name)[0] for name in CAMERAS[1:]}
-    pinned_bytes(got, RENDERED_ON, "test_synthetic_camera_figures")
+    assert got == pinned_bytes(got, RENDERED_ON, "test_synthetic_camera_figures")
 
 
 if __name__ == "__main__":  # record the synthetic tier's figures on this machine
